@@ -1,0 +1,11 @@
+//! The 4D geometry kernel: exact integer lattice points and predicates.
+//!
+//! Everything that decides *where* a surface is or *whether* two things touch works on
+//! [`LatticePoint`]s (integers) with exact arithmetic; floats appear only when a result is
+//! reported in metres and seconds (see [`LatticeFrame`]). Knows nothing of ROS, MCAP or tokio.
+
+mod lattice;
+mod predicates;
+
+pub use lattice::{LatticeFrame, LatticePoint, SpaceTimePoint};
+pub use predicates::{det4_i128, orient4_i128};

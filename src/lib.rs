@@ -1,0 +1,17 @@
+//! chronotope: space-time (4D) interference checking for robot and machine-tool cells.
+//!
+//! Layers, bottom up (lower layers never import upper ones):
+//! - [`kernel`]: exact integer lattice geometry in R^4 (points, predicates). No ROS, MCAP or tokio.
+//! - [`mesh`]: 4D marching hypercubes, rolling slab mesher, caps, slicing, validation.
+//! - [`scene`]: synthetic voxel scenes (machine tool, four spheres).
+//! - [`msg`]: ROS 2 message types mirrored from `msgs/`, CDR encoding.
+//! - [`bag`]: rosbag2 MCAP reading and writing.
+//! - [`cli`]: the `chronotope` command line.
+#![warn(missing_docs)]
+
+pub mod bag;
+pub mod cli;
+pub mod kernel;
+pub mod mesh;
+pub mod msg;
+pub mod scene;

@@ -1,0 +1,197 @@
+//! One occupancy frame, decoded into padded bit rows (and values for graded input).
+//!
+//! The grid is padded by one free voxel on every side (everything outside the grid is free),
+//! so the hypercubes that close the surface at the border exist like any other.
+
+use super::MeshError;
+
+/// How the voxel data of a frame is encoded (mirrors the VoxelGrid `encoding` field).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Encoding {
+    /// 1 bit per voxel, LSB first, x fastest, then y, then z.
+    Bits,
+    /// 1 byte per voxel: 0..=100 percent occupied, 255 unknown.
+    Percent,
+}
+
+/// A borrowed view of one frame of one body, as the mesher needs it (no ROS types).
+#[derive(Debug, Clone, Copy)]
+pub struct FrameRef<'a> {
+    /// Stamp [ns].
+    pub stamp_ns: i64,
+    /// Min corner of voxel (0, 0, 0) [m].
+    pub origin: [f64; 3],
+    /// Voxel edge [m].
+    pub resolution: f64,
+    /// Voxels along x, y, z.
+    pub size: [u32; 3],
+    /// Raw `encoding` field.
+    pub encoding: u8,
+    /// Voxel data.
+    pub data: &'a [u8],
+}
+
+/// Options for decoding frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodeOptions {
+    /// Largest accepted voxel count per frame (refused before allocating).
+    pub max_voxels: u64,
+    /// Percent value at and above which a voxel counts as occupied (the iso level).
+    pub iso_percent: u8,
+    /// Whether unknown (255) counts as occupied (the safe side for collision).
+    pub unknown_occupied: bool,
+}
+
+impl Default for DecodeOptions {
+    fn default() -> Self {
+        Self { max_voxels: 1 << 30, iso_percent: 50, unknown_occupied: true }
+    }
+}
+
+/// A decoded frame: bit rows over padded x for every padded (y, z), plus padded percent
+/// values for graded input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OccupancyGrid {
+    /// Padded sizes (original + 2).
+    pub padded: [usize; 3],
+    /// u64 words per bit row (with at least one spare zero word at the end).
+    pub words: usize,
+    /// Bit rows, row index `y + py·z` (padded), bit x (padded).
+    pub bits: Vec<u64>,
+    /// Percent values in padded layout `x + px·(y + py·z)`, for graded frames; unknown is
+    /// already mapped to 100 or 0.
+    pub values: Option<Vec<u8>>,
+    /// Number of occupied voxels.
+    pub occupied: u64,
+}
+
+impl OccupancyGrid {
+    /// Decodes a frame after checking its fields.
+    ///
+    /// # Errors
+    /// [`MeshError`] naming the field: bad resolution or origin, unknown encoding, sizes
+    /// whose product exceeds `opts.max_voxels` (checked before allocating), data length not
+    /// matching the sizes and encoding.
+    pub fn decode(f: &FrameRef<'_>, opts: &DecodeOptions) -> Result<Self, MeshError> {
+        if !(f.resolution.is_finite() && f.resolution > 0.0) {
+            return Err(MeshError::BadResolution { resolution: f.resolution });
+        }
+        if f.origin.iter().any(|v| !v.is_finite()) {
+            return Err(MeshError::BadOrigin { origin: f.origin });
+        }
+        let encoding = match f.encoding {
+            0 => Encoding::Bits,
+            1 => Encoding::Percent,
+            other => return Err(MeshError::UnknownEncoding { encoding: other }),
+        };
+        let [sx, sy, sz] = f.size.map(u64::from);
+        // u32^3 can exceed u64: saturate, the limit check below refuses it anyway.
+        let n = sx.checked_mul(sy).and_then(|v| v.checked_mul(sz)).unwrap_or(u64::MAX);
+        if sx == 0 || sy == 0 || sz == 0 {
+            return Err(MeshError::EmptySize { size: f.size });
+        }
+        if n > opts.max_voxels {
+            return Err(MeshError::TooLarge { size: f.size, voxels: n, limit: opts.max_voxels });
+        }
+        let expected = match encoding {
+            Encoding::Bits => n.div_ceil(8),
+            Encoding::Percent => n,
+        };
+        if f.data.len() as u64 != expected {
+            return Err(MeshError::DataLength { expected, got: f.data.len() as u64, encoding });
+        }
+        let (sx, sy, sz) = (sx as usize, sy as usize, sz as usize);
+        let padded = [sx + 2, sy + 2, sz + 2];
+        let words = (sx + 2) / 64 + 2;
+        let mut bits = vec![0u64; words * padded[1] * padded[2]];
+        let mut occupied = 0u64;
+        let mut values = None;
+        match encoding {
+            Encoding::Bits => {
+                for z in 0..sz {
+                    for y in 0..sy {
+                        let row = &mut bits[words * ((y + 1) + padded[1] * (z + 1))..][..words];
+                        let start = sx * (y + sy * z);
+                        copy_bits(f.data, start, sx, row);
+                        occupied += row.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
+                    }
+                }
+            }
+            Encoding::Percent => {
+                let mut v = vec![0u8; padded[0] * padded[1] * padded[2]];
+                let unknown = if opts.unknown_occupied { 100 } else { 0 };
+                for z in 0..sz {
+                    for y in 0..sy {
+                        let src = &f.data[sx * (y + sy * z)..][..sx];
+                        let base = padded[0] * ((y + 1) + padded[1] * (z + 1)) + 1;
+                        let row = &mut bits[words * ((y + 1) + padded[1] * (z + 1))..][..words];
+                        for (x, &raw) in src.iter().enumerate() {
+                            let val = match raw {
+                                255 => unknown,
+                                r => r.min(100),
+                            };
+                            v[base + x] = val;
+                            if val >= opts.iso_percent {
+                                row[(x + 1) / 64] |= 1 << ((x + 1) % 64);
+                                occupied += 1;
+                            }
+                        }
+                    }
+                }
+                values = Some(v);
+            }
+        }
+        Ok(Self { padded, words, bits, values, occupied })
+    }
+
+    /// Bit row for padded (y, z).
+    #[inline]
+    pub fn row(&self, y: usize, z: usize) -> &[u64] {
+        &self.bits[self.words * (y + self.padded[1] * z)..][..self.words]
+    }
+
+    /// Occupancy of padded voxel (x, y, z).
+    #[inline]
+    pub fn get(&self, x: usize, y: usize, z: usize) -> bool {
+        (self.row(y, z)[x / 64] >> (x % 64)) & 1 == 1
+    }
+
+    /// Percent value of padded voxel (x, y, z) (100/0 for binary frames).
+    #[inline]
+    pub fn value(&self, x: usize, y: usize, z: usize) -> u8 {
+        match &self.values {
+            Some(v) => v[x + self.padded[0] * (y + self.padded[1] * z)],
+            None => 100 * u8::from(self.get(x, y, z)),
+        }
+    }
+}
+
+/// Copies `len` bits starting at bit `start` of `src` (LSB first) into `dst` at bit 1.
+fn copy_bits(src: &[u8], start: usize, len: usize, dst: &mut [u64]) {
+    let mut x = 0;
+    // Bit-by-bit until the source is byte aligned, then whole bytes.
+    while x < len && (start + x) % 8 != 0 {
+        set_from(src, start + x, x + 1, dst);
+        x += 1;
+    }
+    while x + 8 <= len {
+        let byte = u64::from(src[(start + x) / 8]);
+        let at = x + 1;
+        dst[at / 64] |= byte << (at % 64);
+        if at % 64 > 56 {
+            dst[at / 64 + 1] |= byte >> (64 - at % 64);
+        }
+        x += 8;
+    }
+    while x < len {
+        set_from(src, start + x, x + 1, dst);
+        x += 1;
+    }
+}
+
+#[inline]
+fn set_from(src: &[u8], bit: usize, at: usize, dst: &mut [u64]) {
+    if (src[bit / 8] >> (bit % 8)) & 1 == 1 {
+        dst[at / 64] |= 1 << (at % 64);
+    }
+}

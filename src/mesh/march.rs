@@ -1,0 +1,286 @@
+//! Marching hypercubes over one slab (two consecutive frames), and the caps that close it.
+//!
+//! Hypercubes whose 16 corners agree are skipped 64 at a time: for each row of cubes the
+//! eight corner bit rows are OR-ed and AND-ed, and only positions where they differ are
+//! visited. Vertices are deduplicated through a cache indexed by edge, kept for two
+//! z-layers at a time and cleared by the list of touched entries (no per-slab clear, no
+//! hashing, no allocation per cube).
+
+use super::grid::OccupancyGrid;
+use super::table::Table;
+use super::table_gen::{edge3, edge4};
+use crate::kernel::LatticePoint;
+use std::collections::HashMap;
+
+/// A set of tetrahedra on shared lattice vertices.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TetMesh {
+    /// Vertex positions (exact lattice coordinates).
+    pub vertices: Vec<LatticePoint>,
+    /// Tets as vertex indices, oriented so that orient4(a, b, c, d, inside) < 0.
+    pub tets: Vec<[u32; 4]>,
+}
+
+impl TetMesh {
+    /// Removes all tets and vertices, keeping the buffers.
+    pub fn clear(&mut self) {
+        self.vertices.clear();
+        self.tets.clear();
+    }
+
+    /// Appends `other`, merging vertices with equal coordinates.
+    pub fn append_welded(&mut self, other: &TetMesh) {
+        let mut index: HashMap<LatticePoint, u32> =
+            self.vertices.iter().enumerate().map(|(i, p)| (*p, i as u32)).collect();
+        let remap: Vec<u32> = other
+            .vertices
+            .iter()
+            .map(|p| {
+                *index.entry(*p).or_insert_with(|| {
+                    self.vertices.push(*p);
+                    (self.vertices.len() - 1) as u32
+                })
+            })
+            .collect();
+        self.tets.extend(other.tets.iter().map(|t| t.map(|v| remap[v as usize])));
+    }
+
+    /// Translates every vertex by an integer lattice vector.
+    pub fn translate(&mut self, d: LatticePoint) {
+        for p in &mut self.vertices {
+            for k in 0..4 {
+                p[k] += d[k];
+            }
+        }
+    }
+}
+
+const NONE: u32 = u32::MAX;
+
+/// Where a slab's vertices go on the lattice.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlabPlacement {
+    /// Lattice steps per voxel edge and per frame.
+    pub scale: i32,
+    /// Index of the slab's first frame (its lattice time is `scale · frame`).
+    pub frame: i64,
+    /// Percent iso level (graded frames only).
+    pub iso: u8,
+}
+
+/// Reusable workspace for marching slabs.
+#[derive(Debug, Default)]
+pub struct SlabMarcher {
+    cache: [Vec<u32>; 2],
+    touched: [Vec<usize>; 2],
+}
+
+/// Snapped crossing of an edge from value `a` to value `b` (one inside, one outside):
+/// lattice steps from `a`, in `1..scale`.
+#[inline]
+fn crossing(a: u8, b: u8, iso: u8, scale: i32) -> i32 {
+    if scale == 2 {
+        return 1;
+    }
+    let (a, b, iso) = (i64::from(a), i64::from(b), i64::from(iso));
+    let (num, den) = if a >= iso { (a - iso, a - b) } else { (iso - a, b - a) };
+    let s = i64::from(scale);
+    // round(s · num / den), then keep it off both end points so no vertex sits on a sample.
+    let q = (2 * s * num + den) / (2 * den);
+    q.clamp(1, s - 1) as i32
+}
+
+impl SlabMarcher {
+    /// Meshes the lateral boundary of the slab between frames `f0` and `f1` (same lattice)
+    /// into `out` (cleared first).
+    pub fn march(
+        &mut self,
+        table: &Table,
+        f0: &OccupancyGrid,
+        f1: &OccupancyGrid,
+        at: SlabPlacement,
+        out: &mut TetMesh,
+    ) {
+        out.clear();
+        let [px, py, pz] = f0.padded;
+        let words = f0.words;
+        let layer = px * py * 7;
+        for l in 0..2 {
+            if self.cache[l].len() != layer {
+                self.cache[l] = vec![NONE; layer];
+                self.touched[l].clear();
+            }
+        }
+        let frames = [f0, f1];
+        let s = at.scale;
+        for z in 0..pz - 1 {
+            for y in 0..py - 1 {
+                let rows: [&[u64]; 8] = std::array::from_fn(|r| {
+                    frames[(r >> 2) & 1].row(y + (r & 1), z + ((r >> 1) & 1))
+                });
+                for w in 0..words - 1 {
+                    let mut a = [0u64; 8];
+                    let mut b = [0u64; 8];
+                    let mut any = 0u64;
+                    let mut all = !0u64;
+                    for r in 0..8 {
+                        a[r] = rows[r][w];
+                        b[r] = (rows[r][w] >> 1) | (rows[r][w + 1] << 63);
+                        any |= a[r] | b[r];
+                        all &= a[r] & b[r];
+                    }
+                    let mut mixed = any & !all;
+                    while mixed != 0 {
+                        let bit = mixed.trailing_zeros();
+                        mixed &= mixed - 1;
+                        let mut case = 0u16;
+                        for r in 0..8 {
+                            case |= (((a[r] >> bit) & 1) as u16) << (2 * r);
+                            case |= (((b[r] >> bit) & 1) as u16) << (2 * r + 1);
+                        }
+                        let x = w * 64 + bit as usize;
+                        self.emit_cube(table, frames, [x, y, z], case, at, s, px, out);
+                    }
+                }
+            }
+            self.roll();
+        }
+        self.roll();
+        self.roll();
+    }
+
+    /// Shifts the two-layer edge cache by one z.
+    fn roll(&mut self) {
+        self.cache.swap(0, 1);
+        self.touched.swap(0, 1);
+        // cache[1] now holds the old layer 0: clear what was written there.
+        for &i in &self.touched[1] {
+            self.cache[1][i] = NONE;
+        }
+        self.touched[1].clear();
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn emit_cube(
+        &mut self,
+        table: &Table,
+        frames: [&OccupancyGrid; 2],
+        [x, y, z]: [usize; 3],
+        case: u16,
+        at: SlabPlacement,
+        s: i32,
+        px: usize,
+        out: &mut TetMesh,
+    ) {
+        let mut local = [NONE; 32];
+        for tet in table.lateral(case) {
+            let mut ids = [0u32; 4];
+            for (k, &e) in tet.iter().enumerate() {
+                let e = usize::from(e);
+                if local[e] == NONE {
+                    let (c0, c1, d) = edge4(e);
+                    let (ox, oy, oz, ot) = (c0 & 1, (c0 >> 1) & 1, (c0 >> 2) & 1, (c0 >> 3) & 1);
+                    let slot = if ot == 0 { d } else { 4 + d };
+                    let idx = ((y + oy) * px + (x + ox)) * 7 + slot;
+                    let cached = self.cache[oz][idx];
+                    local[e] = if cached != NONE {
+                        cached
+                    } else {
+                        let (gx, gy, gz) = (x + ox, y + oy, z + oz);
+                        let mut p: LatticePoint = [
+                            s * (gx as i32 - 1),
+                            s * (gy as i32 - 1),
+                            s * (gz as i32 - 1),
+                            s * (at.frame as i32 + ot as i32),
+                        ];
+                        p[d] += if s == 2 {
+                            1
+                        } else {
+                            let va = frames[ot].value(gx, gy, gz);
+                            let (ex, ey, ez, et) =
+                                (c1 & 1, (c1 >> 1) & 1, (c1 >> 2) & 1, (c1 >> 3) & 1);
+                            let vb = frames[et].value(x + ex, y + ey, z + ez);
+                            crossing(va, vb, at.iso, s)
+                        };
+                        let id = out.vertices.len() as u32;
+                        out.vertices.push(p);
+                        self.cache[oz][idx] = id;
+                        self.touched[oz].push(idx);
+                        id
+                    };
+                }
+                ids[k] = local[e];
+            }
+            out.tets.push(ids);
+        }
+    }
+}
+
+/// Which end of a slab a cap closes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CapSide {
+    /// The earlier frame: outward normal along -t.
+    Low,
+    /// The later frame: outward normal along +t.
+    High,
+}
+
+/// The 3D solid of one frame as tets in the hyperplane t = scale·frame, oriented as the
+/// `side` cap of a slab (outward along -t for [`CapSide::Low`], +t for [`CapSide::High`]).
+pub fn march_cap(
+    table: &Table,
+    f: &OccupancyGrid,
+    at: SlabPlacement,
+    side: CapSide,
+    out: &mut TetMesh,
+) {
+    out.clear();
+    let [px, py, pz] = f.padded;
+    let s = at.scale;
+    let t = s * at.frame as i32;
+    let mut index: HashMap<LatticePoint, u32> = HashMap::new();
+    for z in 0..pz - 1 {
+        for y in 0..py - 1 {
+            let rows: [&[u64]; 4] = std::array::from_fn(|r| f.row(y + (r & 1), z + (r >> 1)));
+            for x in 0..px - 1 {
+                let mut case = 0u8;
+                for (r, row) in rows.iter().enumerate() {
+                    case |= (((row[x / 64] >> (x % 64)) & 1) as u8) << (2 * r);
+                    case |= (((row[(x + 1) / 64] >> ((x + 1) % 64)) & 1) as u8) << (2 * r + 1);
+                }
+                if case == 0 {
+                    continue;
+                }
+                for tet in table.cap(case) {
+                    let mut ids = [0u32; 4];
+                    for (k, &pid) in tet.iter().enumerate() {
+                        let pid = usize::from(pid);
+                        let (c0, c1, d, is_edge) =
+                            if pid < 8 { (pid, pid, 0, false) } else { let (a, b, d) = edge3(pid - 8); (a, b, d, true) };
+                        let (gx, gy, gz) = (x + (c0 & 1), y + ((c0 >> 1) & 1), z + (c0 >> 2));
+                        let mut p: LatticePoint =
+                            [s * (gx as i32 - 1), s * (gy as i32 - 1), s * (gz as i32 - 1), t];
+                        if is_edge {
+                            p[d] += if s == 2 {
+                                1
+                            } else {
+                                let va = f.value(gx, gy, gz);
+                                let vb = f.value(x + (c1 & 1), y + ((c1 >> 1) & 1), z + (c1 >> 2));
+                                crossing(va, vb, at.iso, s)
+                            };
+                        }
+                        ids[k] = *index.entry(p).or_insert_with(|| {
+                            out.vertices.push(p);
+                            (out.vertices.len() - 1) as u32
+                        });
+                    }
+                    out.tets.push(match side {
+                        CapSide::Low => [ids[0], ids[1], ids[3], ids[2]],
+                        CapSide::High => ids,
+                    });
+                }
+            }
+        }
+    }
+}

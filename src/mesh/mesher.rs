@@ -1,0 +1,231 @@
+//! The rolling mesher: fed one frame at a time, it emits each slab as soon as its second
+//! frame arrives and keeps only the frames it needs (the previous one, and the first one
+//! for the closing cap), so memory does not grow with the sequence (seed 002 §5).
+
+use super::grid::{DecodeOptions, FrameRef, OccupancyGrid};
+use super::march::{march_cap, CapSide, SlabMarcher, SlabPlacement, TetMesh};
+use super::table::{table, Table};
+use super::MeshError;
+
+/// Options of the mesher.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MesherOptions {
+    /// How frames are decoded and checked.
+    pub decode: DecodeOptions,
+    /// Lattice steps per voxel edge for percent frames (a power of two, 2..=1024): the
+    /// interpolated surface position is snapped to 1/scale of an edge.
+    pub percent_scale: i32,
+}
+
+impl Default for MesherOptions {
+    fn default() -> Self {
+        Self { decode: DecodeOptions::default(), percent_scale: 64 }
+    }
+}
+
+/// The lattice every frame of one body must share.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridGeometry {
+    /// Min corner of voxel (0,0,0) [m].
+    pub origin: [f64; 3],
+    /// Voxel edge [m].
+    pub resolution: f64,
+    /// Voxels along x, y, z.
+    pub size: [u32; 3],
+    /// Raw encoding.
+    pub encoding: u8,
+    /// Lattice steps per voxel edge and per frame.
+    pub scale: i32,
+}
+
+impl GridGeometry {
+    /// Centre of voxel (0,0,0) [m]: lattice point (0,0,0,·).
+    pub fn voxel0_centre(&self) -> [f64; 3] {
+        self.origin.map(|o| o + 0.5 * self.resolution)
+    }
+    /// Metres per lattice step.
+    pub fn step_m(&self) -> f64 {
+        self.resolution / f64::from(self.scale)
+    }
+}
+
+/// The lateral boundary of one slab [frame k, frame k+1].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Slab {
+    /// k: index of the slab's first frame among the accepted frames.
+    pub index: u64,
+    /// Stamp of frame k [ns].
+    pub stamp_lo_ns: i64,
+    /// Stamp of frame k+1 [ns].
+    pub stamp_hi_ns: i64,
+    /// The lattice.
+    pub geometry: GridGeometry,
+    /// Lateral tets; vertex t ranges over [scale·k, scale·(k+1)].
+    pub mesh: TetMesh,
+}
+
+impl Slab {
+    /// Lattice time of the first frame.
+    pub fn t_lo(&self) -> i32 {
+        self.geometry.scale * self.index as i32
+    }
+    /// Lattice time of the second frame.
+    pub fn t_hi(&self) -> i32 {
+        self.geometry.scale * (self.index as i32 + 1)
+    }
+}
+
+/// A frame the mesher has accepted, kept for the next slab.
+#[derive(Debug, Clone)]
+pub struct KeptFrame {
+    /// Index among accepted frames.
+    pub index: u64,
+    /// Stamp [ns].
+    pub stamp_ns: i64,
+    /// Decoded occupancy.
+    pub grid: OccupancyGrid,
+}
+
+/// Rolling 4D mesher of one body.
+#[derive(Debug)]
+pub struct Mesher {
+    opts: MesherOptions,
+    table: &'static Table,
+    marcher: SlabMarcher,
+    geometry: Option<GridGeometry>,
+    first: Option<KeptFrame>,
+    prev: Option<KeptFrame>,
+    accepted: u64,
+    skipped: u64,
+}
+
+impl Mesher {
+    /// A mesher with the given options.
+    ///
+    /// # Errors
+    /// [`MeshError::BadOption`] if `percent_scale` is not a power of two in 2..=1024.
+    pub fn new(opts: MesherOptions) -> Result<Self, MeshError> {
+        let s = opts.percent_scale;
+        if !(2..=1024).contains(&s) || s.count_ones() != 1 {
+            return Err(MeshError::BadOption {
+                name: "percent_scale",
+                reason: format!("{s} is not a power of two in 2..=1024"),
+            });
+        }
+        if opts.decode.iso_percent == 0 || opts.decode.iso_percent > 100 {
+            return Err(MeshError::BadOption {
+                name: "iso_percent",
+                reason: format!("{} is not in 1..=100", opts.decode.iso_percent),
+            });
+        }
+        Ok(Self {
+            opts,
+            table: table(),
+            marcher: SlabMarcher::default(),
+            geometry: None,
+            first: None,
+            prev: None,
+            accepted: 0,
+            skipped: 0,
+        })
+    }
+
+    /// Feeds one frame. Returns the slab it completes, if any.
+    ///
+    /// # Errors
+    /// A [`MeshError`] saying why the frame was refused; the frame is then skipped (counted
+    /// in [`Self::skipped`]) and the mesher's state is unchanged, so the stream goes on.
+    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<Option<Slab>, MeshError> {
+        let r = self.try_push(f);
+        if r.is_err() {
+            self.skipped += 1;
+        }
+        r
+    }
+
+    fn try_push(&mut self, f: &FrameRef<'_>) -> Result<Option<Slab>, MeshError> {
+        let scale = if f.encoding == 1 { self.opts.percent_scale } else { 2 };
+        let geometry = GridGeometry {
+            origin: f.origin,
+            resolution: f.resolution,
+            size: f.size,
+            encoding: f.encoding,
+            scale,
+        };
+        // Field checks first (they refuse oversized frames before allocating), then the
+        // stream checks.
+        let grid = OccupancyGrid::decode(f, &self.opts.decode)?;
+        if let Some(g) = &self.geometry {
+            if *g != geometry {
+                return Err(MeshError::LatticeMismatch { expected: Box::new(*g), got: Box::new(geometry) });
+            }
+        }
+        if let Some(p) = &self.prev {
+            if f.stamp_ns <= p.stamp_ns {
+                return Err(MeshError::StampNotIncreasing { previous_ns: p.stamp_ns, got_ns: f.stamp_ns });
+            }
+        }
+        let limit = (i32::MAX / scale) as u64 - 1;
+        if self.accepted >= limit {
+            return Err(MeshError::TooManyFrames { limit });
+        }
+        self.geometry = Some(geometry);
+        let kept = KeptFrame { index: self.accepted, stamp_ns: f.stamp_ns, grid };
+        self.accepted += 1;
+        let slab = match self.prev.take() {
+            None => {
+                self.first = Some(kept.clone());
+                None
+            }
+            Some(prev) => {
+                let mut mesh = TetMesh::default();
+                let at = SlabPlacement { scale, frame: prev.index as i64, iso: self.opts.decode.iso_percent };
+                self.marcher.march(self.table, &prev.grid, &kept.grid, at, &mut mesh);
+                Some(Slab {
+                    index: prev.index,
+                    stamp_lo_ns: prev.stamp_ns,
+                    stamp_hi_ns: kept.stamp_ns,
+                    geometry,
+                    mesh,
+                })
+            }
+        };
+        self.prev = Some(kept);
+        Ok(slab)
+    }
+
+    /// Frames accepted so far.
+    pub fn frames(&self) -> u64 {
+        self.accepted
+    }
+
+    /// Frames refused so far.
+    pub fn skipped(&self) -> u64 {
+        self.skipped
+    }
+
+    /// The lattice of the accepted frames.
+    pub fn geometry(&self) -> Option<&GridGeometry> {
+        self.geometry.as_ref()
+    }
+
+    /// The first accepted frame.
+    pub fn first_frame(&self) -> Option<&KeptFrame> {
+        self.first.as_ref()
+    }
+
+    /// The latest accepted frame.
+    pub fn last_frame(&self) -> Option<&KeptFrame> {
+        self.prev.as_ref()
+    }
+
+    /// The cap closing the mesh at a kept frame (`Low` for the first frame, `High` for the
+    /// last), or `None` before any frame.
+    pub fn cap(&self, frame: &KeptFrame, side: CapSide) -> Option<TetMesh> {
+        let g = self.geometry?;
+        let mut out = TetMesh::default();
+        let at = SlabPlacement { scale: g.scale, frame: frame.index as i64, iso: self.opts.decode.iso_percent };
+        march_cap(self.table, &frame.grid, at, side, &mut out);
+        Some(out)
+    }
+}
