@@ -211,3 +211,41 @@ fn boundary_triangles(cap: &chronotope::mesh::TetMesh) -> Vec<[[i64; 3]; 3]> {
         })))
         .collect()
 }
+
+#[test]
+fn streaming_validation_catches_damaged_meshes() {
+    use chronotope::mesh::stats::StatsAccumulator;
+    let size = [6, 5, 4];
+    let bits: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 11) as u8).collect();
+    let frames = random_frames(size, 4, 0, &bits);
+    let r = run(&frames, size, 0.1);
+    assert!(r.stats.closed.is_closed());
+    type Damage = fn(&mut chronotope::mesh::TetMesh);
+    let damages: [(&str, Damage); 3] = [
+        ("dropped tet", |m| {
+            m.tets.pop();
+        }),
+        ("flipped tet", |m| {
+            let t = &mut m.tets[0];
+            t.swap(2, 3);
+        }),
+        ("duplicated tet", |m| {
+            let t = m.tets[0];
+            m.tets.push(t);
+        }),
+    ];
+    for (what, damage) in damages {
+        for k in 0..r.slabs.len() {
+            let mut acc = StatsAccumulator::new();
+            for (i, s) in r.slabs.iter().enumerate() {
+                let mut s = s.clone();
+                if i == k {
+                    damage(&mut s.mesh);
+                }
+                acc.add_slab(&s, r.first_cap.as_ref());
+            }
+            let st = acc.finish(4, r.first_cap.as_ref().map(|c| (c, 0)), r.last_cap.as_ref().map(|c| (c, 0)));
+            assert!(!st.closed.is_closed(), "{what} in slab {k} not detected: {:?}", st.closed);
+        }
+    }
+}

@@ -78,8 +78,10 @@ impl Slicer {
         Self { axis, c, on_plane_is_plus: true, index: HashMap::new(), mesh: TriMesh::default() }
     }
 
-    fn with_rule(mut self, plus: bool) -> Self {
-        self.on_plane_is_plus = plus;
+    /// The same slicer with on-plane vertices counted as "−": use it (alongside the
+    /// default) when the plane may only touch the body, see the module docs.
+    pub fn on_plane_below(mut self) -> Self {
+        self.on_plane_is_plus = false;
         self
     }
 
@@ -257,7 +259,7 @@ pub fn slice_mesh(parts: &[&TetMesh], axis: usize, c: PlaneValue) -> TriMesh {
     if !out.triangles.is_empty() {
         return out;
     }
-    let mut s = Slicer::new(axis, c).with_rule(false);
+    let mut s = Slicer::new(axis, c).on_plane_below();
     for m in parts {
         s.add(m);
     }

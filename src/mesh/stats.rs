@@ -9,6 +9,12 @@
 //!   previous slab's upper-plane triangles, or with the first cap's boundary;
 //! - the last slab's upper-plane triangles pair with the last cap's boundary.
 //!
+//! Matching a time plane's triangles from its two sides uses an order-independent 128-bit
+//! multiset hash (each triangle's hash added with its orientation as sign, so a matching
+//! pair cancels): O(n), no sorting. Only when the sums differ are the triangles sorted and
+//! paired exactly, so the report always counts exactly what is wrong. (Two different
+//! multisets hashing equal has probability about 2^-128.)
+//!
 //! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
 //! physical time scale (frame periods may differ). The upper cap's contribution to the
 //! divergence sum follows from its boundary alone (a 3-chain in a hyperplane contributes
@@ -16,8 +22,11 @@
 
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
-use super::validate::{canonical_triangle, pair_faces, tet_faces, ClosedReport};
-use crate::kernel::det4_i128;
+use super::validate::{
+    canonical_triangle, det4_small_tet, id_bits, pack_face, pair_faces, pair_packed, pair_plane_faces,
+    radix_sort_u64, tet_faces, ClosedReport,
+    PACKED_VERTEX_LIMIT,
+};
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
 type PlaneTri = [[i32; 3]; 3];
@@ -70,6 +79,9 @@ pub fn percentile(samples: &[f64], q: f64) -> f64 {
 pub struct StatsAccumulator {
     stats: BodyStats,
     prev_hi: Vec<(PlaneTri, i8)>,
+    prev_hi_hash: u128,
+    keys: Vec<u64>,
+    scratch: Vec<u64>,
     lateral_vertices: u64,
     shared_vertices: u64,
 }
@@ -90,49 +102,67 @@ impl StatsAccumulator {
     pub fn add_slab(&mut self, slab: &Slab, first_cap: Option<&TetMesh>) {
         let (t_lo, t_hi) = (slab.t_lo(), slab.t_hi());
         let m = &slab.mesh;
-        let mut interior: Vec<([u32; 3], i8)> = Vec::with_capacity(m.tets.len() * 4);
+        // Which time plane each vertex lies in: bit 0 lower, bit 1 upper.
+        let plane: Vec<u8> =
+            m.vertices.iter().map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1)).collect();
+        let packed = m.vertices.len() <= PACKED_VERTEX_LIMIT;
+        let bits = id_bits(m.vertices.len());
         let mut lo: Vec<(PlaneTri, i8)> = Vec::new();
         let mut hi: Vec<(PlaneTri, i8)> = Vec::new();
+        let (mut lo_hash, mut hi_hash) = (0u128, 0u128);
+        let mut wide: Vec<([u32; 3], i8)> = Vec::new();
+        self.keys.clear();
         let mut vol24: i128 = 0;
         let mut hi_cone: i128 = 0;
         for t in &m.tets {
             let p = t.map(|v| m.vertices[v as usize]);
             let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
-            vol24 -= det4_i128(&local[0], &local[1], &local[2], &local[3]);
+            vol24 -= det4_small_tet(&local[0], &local[1], &local[2], &local[3]);
+            let flags = t.map(|v| plane[v as usize]);
             for (f, s) in tet_faces([0usize, 1, 2, 3]) {
-                let ts = f.map(|i| p[i][3]);
-                if ts.iter().all(|&v| v == t_lo) || ts.iter().all(|&v| v == t_hi) {
+                let on = flags[f[0]] & flags[f[1]] & flags[f[2]];
+                if on != 0 {
                     let (key, parity) = canonical_triangle(f.map(|i| [p[i][0], p[i][1], p[i][2]]));
                     let s = s * parity;
-                    if ts[0] == t_lo {
+                    if on & 1 != 0 {
+                        lo_hash = signed_add(lo_hash, &key, s);
                         lo.push((key, s));
                     } else {
                         hi_cone += i128::from(s) * det3_i128(&key);
+                        hi_hash = signed_add(hi_hash, &key, s);
                         hi.push((key, s));
                     }
                 } else {
                     let (key, parity) = canonical_triangle(f.map(|i| t[i]));
-                    interior.push((key, s * parity));
+                    if packed {
+                        self.keys.push(pack_face(key, s * parity > 0, bits));
+                    } else {
+                        wide.push((key, s * parity));
+                    }
                 }
             }
         }
         // Upper cap: Σ det over its tets = Σ over its boundary (the upper faces, reversed)
         // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
         vol24 -= i128::from(t_hi - t_lo) * hi_cone;
-        self.merge(pair_faces(interior));
+        // Faces off the two time planes pair up inside the slab.
+        let report = if packed { pair_packed(&mut self.keys, &mut self.scratch, bits) } else { pair_faces(wide) };
+        self.merge(report);
 
         // Lower plane: pairs with the previous slab's upper plane, or the first cap.
-        let mut boundary = std::mem::take(&mut self.prev_hi);
         if self.stats.slabs == 0 {
             if let Some(cap) = first_cap {
-                boundary = cap_faces(cap);
+                let (report, boundary, hash) = cap_boundary(cap, &mut self.keys, &mut self.scratch);
+                self.merge(report);
+                self.match_planes(boundary, hash, lo, lo_hash);
             }
         } else {
-            self.shared_vertices += count_plane_vertices(m, t_lo);
+            self.shared_vertices += plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
+            let prev = std::mem::take(&mut self.prev_hi);
+            self.match_planes(prev, self.prev_hi_hash, lo, lo_hash);
         }
-        boundary.extend(lo);
-        self.merge(pair_faces(boundary));
         self.prev_hi = hi;
+        self.prev_hi_hash = hi_hash;
 
         self.lateral_vertices += m.vertices.len() as u64;
         self.stats.tets += m.tets.len() as u64;
@@ -145,6 +175,17 @@ impl StatsAccumulator {
         self.stats.hypervolume_lattice += v;
         let step = g.step_m();
         self.stats.hypervolume_m3s += v * step * step * step * (dt_ns as f64 * 1e-9) / f64::from(g.scale);
+    }
+
+    /// Checks that two sides of one time plane carry the same triangles with opposite
+    /// orientations: by multiset hash, exactly (sorting) only if the hashes disagree.
+    fn match_planes(&mut self, mut a: Vec<(PlaneTri, i8)>, a_hash: u128, b: Vec<(PlaneTri, i8)>, b_hash: u128) {
+        if a_hash.wrapping_add(b_hash) == 0 && a.len() == b.len() {
+            self.stats.closed.triangles += a.len() as u64;
+        } else {
+            a.extend(b);
+            self.merge(pair_plane_faces(a));
+        }
     }
 
     fn merge(&mut self, r: ClosedReport) {
@@ -167,9 +208,10 @@ impl StatsAccumulator {
         self.stats.frames = frames;
         if self.stats.slabs > 0 {
             if let Some((cap, _)) = last_cap {
-                let mut boundary = std::mem::take(&mut self.prev_hi);
-                boundary.extend(cap_faces(cap));
-                self.merge(pair_faces(boundary));
+                let (report, boundary, hash) = cap_boundary(cap, &mut self.keys, &mut self.scratch);
+                self.merge(report);
+                let prev = std::mem::take(&mut self.prev_hi);
+                self.match_planes(prev, self.prev_hi_hash, boundary, hash);
             }
             for (cap, occupied) in [first_cap, last_cap].into_iter().flatten() {
                 self.stats.tets += cap.tets.len() as u64;
@@ -187,21 +229,94 @@ fn det3_i128(t: &PlaneTri) -> i128 {
     a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
 }
 
-/// Every face of a cap's tets, keyed by coordinates (a cap lies in one t plane).
-fn cap_faces(cap: &TetMesh) -> Vec<(PlaneTri, i8)> {
-    let mut out = Vec::with_capacity(cap.tets.len() * 4);
+/// Checks a cap's interior faces (exactly, by packed vertex ids) and returns the report, its
+/// boundary triangles keyed by coordinates, and their multiset hash.
+fn cap_boundary(cap: &TetMesh, keys: &mut Vec<u64>, scratch: &mut Vec<u64>) -> (ClosedReport, Vec<(PlaneTri, i8)>, u128) {
+    let point = |v: u32| {
+        let p = cap.vertices[v as usize];
+        [p[0], p[1], p[2]]
+    };
+    if cap.vertices.len() > PACKED_VERTEX_LIMIT {
+        // Rare (huge caps): list every face by coordinates and pair them all.
+        let mut all = Vec::with_capacity(cap.tets.len() * 4);
+        for t in &cap.tets {
+            for (f, s) in tet_faces(*t) {
+                let (key, parity) = canonical_triangle(f.map(point));
+                all.push((key, s * parity));
+            }
+        }
+        return (pair_plane_faces(all), Vec::new(), 0);
+    }
+    let bits = id_bits(cap.vertices.len());
+    keys.clear();
     for t in &cap.tets {
         for (f, s) in tet_faces(*t) {
-            let (key, parity) = canonical_triangle(f.map(|v| {
-                let p = cap.vertices[v as usize];
-                [p[0], p[1], p[2]]
-            }));
-            out.push((key, s * parity));
+            let (k, parity) = canonical_triangle(f);
+            keys.push(pack_face(k, s * parity > 0, bits));
         }
     }
-    out
+    radix_sort_u64(keys, scratch, 3 * bits + 1);
+    let mut report = ClosedReport::default();
+    let mut boundary = Vec::new();
+    let mut hash = 0u128;
+    let mask = (1u64 << bits) - 1;
+    let mut i = 0;
+    while i < keys.len() {
+        let face = keys[i] >> 1;
+        let mut j = i + 1;
+        while j < keys.len() && keys[j] >> 1 == face {
+            j += 1;
+        }
+        match j - i {
+            1 => {
+                let ids = [(face >> (2 * bits)) as u32, ((face >> bits) & mask) as u32, (face & mask) as u32];
+                let s = if keys[i] & 1 == 1 { 1 } else { -1 };
+                let (key, parity) = canonical_triangle(ids.map(point));
+                hash = signed_add(hash, &key, s * parity);
+                boundary.push((key, s * parity));
+            }
+            2 => {
+                report.triangles += 1;
+                if keys[i] == keys[i + 1] {
+                    report.misoriented += 1;
+                }
+            }
+            _ => {
+                report.triangles += 1;
+                report.overshared += 1;
+            }
+        }
+        i = j;
+    }
+    (report, boundary, hash)
 }
 
-fn count_plane_vertices(m: &TetMesh, t: i32) -> u64 {
-    m.vertices.iter().filter(|p| p[3] == t).count() as u64
+/// Adds (s > 0) or subtracts the 128-bit hash of a plane triangle.
+#[inline]
+fn signed_add(acc: u128, t: &PlaneTri, s: i8) -> u128 {
+    let h = tri_hash(t);
+    if s > 0 {
+        acc.wrapping_add(h)
+    } else {
+        acc.wrapping_sub(h)
+    }
+}
+
+/// A 128-bit hash of a triangle's nine coordinates (two independent splitmix64 chains).
+#[inline]
+fn tri_hash(t: &PlaneTri) -> u128 {
+    let mix = |mut z: u64| {
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    let (mut a, mut b) = (0x9e37_79b9_7f4a_7c15u64, 0x6a09_e667_f3bc_c909u64);
+    for p in t {
+        for &c in p {
+            let c = u64::from(c as u32);
+            a = mix(a.wrapping_add(c).wrapping_add(0x9e37_79b9_7f4a_7c15));
+            b = mix(b ^ c.wrapping_mul(0xd6e8_feb8_6659_fd93));
+        }
+    }
+    (u128::from(a) << 64) | u128::from(b)
 }

@@ -11,6 +11,26 @@
 use super::march::TetMesh;
 use crate::kernel::{det4_i128, LatticePoint};
 
+/// det[a, b, c, d] exactly, fast when the tet is small: det[a, b−a, c−a, d−a] expanded
+/// along its first row, whose cofactors are 3x3 determinants of small differences.
+#[inline]
+pub fn det4_small_tet(a: &LatticePoint, b: &LatticePoint, c: &LatticePoint, d: &LatticePoint) -> i128 {
+    let diff = |p: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(p[k]) - i64::from(a[k]));
+    let (u, v, w) = (diff(b), diff(c), diff(d));
+    // Differences of points in one hypercube are at most 2^11 in magnitude for any scale we
+    // accept (1024); 3x3 minors stay below 6·2^33, far inside i64.
+    if [u, v, w].iter().any(|r| r.iter().any(|x| x.abs() > 1 << 20)) {
+        return det4_i128(a, b, c, d);
+    }
+    let m = |i: usize, j: usize, k: usize| {
+        u[i] * (v[j] * w[k] - v[k] * w[j]) - u[j] * (v[i] * w[k] - v[k] * w[i]) + u[k] * (v[i] * w[j] - v[j] * w[i])
+    };
+    // Row a is expanded with alternating signs over the minors of columns (1,2,3), (0,2,3), ...
+    i128::from(a[0]) * i128::from(m(1, 2, 3)) - i128::from(a[1]) * i128::from(m(0, 2, 3))
+        + i128::from(a[2]) * i128::from(m(0, 1, 3))
+        - i128::from(a[3]) * i128::from(m(0, 1, 2))
+}
+
 /// The result of a closedness check.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ClosedReport {
@@ -59,19 +79,140 @@ pub fn tet_faces<T: Copy>(t: [T; 4]) -> [([T; 3], i8); 4] {
 /// Checks that every triangle is shared by exactly two tets with opposite induced
 /// orientation. Works on vertex ids: weld first if vertices may be duplicated.
 pub fn check_closed(mesh: &TetMesh) -> ClosedReport {
-    let mut faces: Vec<([u32; 3], i8)> = Vec::with_capacity(mesh.tets.len() * 4);
+    let mut keys = Vec::new();
+    let mut scratch = Vec::new();
+    check_closed_with(mesh, |_| true, &mut keys, &mut scratch)
+}
+
+/// Largest vertex count for which a triangle packs into a u64 key (3 × 21 bits).
+pub const PACKED_VERTEX_LIMIT: usize = 1 << 21;
+
+/// Like [`check_closed`] over the faces `keep` accepts (given their three vertex ids),
+/// reusing buffers. Faces are packed into u64 keys (three 21-bit ids, orientation in the
+/// lowest bit) and radix sorted, so a pair is two adjacent keys differing in bit 0.
+pub fn check_closed_with(
+    mesh: &TetMesh,
+    keep: impl Fn([u32; 3]) -> bool,
+    keys: &mut Vec<u64>,
+    scratch: &mut Vec<u64>,
+) -> ClosedReport {
+    if mesh.vertices.len() > PACKED_VERTEX_LIMIT {
+        let mut faces: Vec<([u32; 3], i8)> = Vec::with_capacity(mesh.tets.len() * 4);
+        for t in &mesh.tets {
+            for (f, s) in tet_faces(*t) {
+                if keep(f) {
+                    let (k, p) = canonical_triangle(f);
+                    faces.push((k, s * p));
+                }
+            }
+        }
+        return pair_faces(faces);
+    }
+    keys.clear();
+    let bits = id_bits(mesh.vertices.len());
     for t in &mesh.tets {
         for (f, s) in tet_faces(*t) {
-            let (k, p) = canonical_triangle(f);
-            faces.push((k, s * p));
+            if keep(f) {
+                let (k, p) = canonical_triangle(f);
+                keys.push(pack_face(k, s * p > 0, bits));
+            }
         }
     }
-    pair_faces(faces)
+    pair_packed(keys, scratch, bits)
+}
+
+/// Bits per vertex id needed for `n` vertices (at most 21, see [`PACKED_VERTEX_LIMIT`]).
+pub fn id_bits(n: usize) -> u32 {
+    (usize::BITS - n.leading_zeros()).max(1)
+}
+
+/// Packs a canonical triangle of vertex ids (each below 2^`bits`) and its orientation into
+/// the low 3·bits + 1 bits of a u64.
+#[inline]
+pub fn pack_face(k: [u32; 3], positive: bool, bits: u32) -> u64 {
+    (u64::from(k[0]) << (2 * bits + 1)) | (u64::from(k[1]) << (bits + 1)) | (u64::from(k[2]) << 1) | u64::from(positive)
+}
+
+/// Sorts packed faces (ids of `bits` bits) and counts how they pair up (see
+/// [`check_closed_with`]).
+pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> ClosedReport {
+    radix_sort_u64(keys, scratch, 3 * bits + 1);
+    let mut r = ClosedReport::default();
+    let mut i = 0;
+    while i < keys.len() {
+        let face = keys[i] >> 1;
+        let mut j = i + 1;
+        while j < keys.len() && keys[j] >> 1 == face {
+            j += 1;
+        }
+        r.triangles += 1;
+        match j - i {
+            1 => r.unpaired += 1,
+            2 => {
+                if keys[i] == keys[i + 1] {
+                    r.misoriented += 1;
+                }
+            }
+            _ => r.overshared += 1,
+        }
+        i = j;
+    }
+    r
+}
+
+/// LSD radix sort of keys whose set bits are all below bit `bits`, 11 bits per pass (the
+/// 2048 buckets stay in L1 while scattering).
+pub fn radix_sort_u64(v: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) {
+    const DIGIT: u32 = 11;
+    const MASK: u64 = (1 << DIGIT) - 1;
+    scratch.clear();
+    scratch.resize(v.len(), 0);
+    let mut counts = vec![0usize; 1 << DIGIT];
+    let mut shift = 0;
+    while shift < bits {
+        counts.iter_mut().for_each(|c| *c = 0);
+        for &x in v.iter() {
+            counts[((x >> shift) & MASK) as usize] += 1;
+        }
+        let mut sum = 0;
+        for c in counts.iter_mut() {
+            let n = *c;
+            *c = sum;
+            sum += n;
+        }
+        for &x in v.iter() {
+            let d = ((x >> shift) & MASK) as usize;
+            scratch[counts[d]] = x;
+            counts[d] += 1;
+        }
+        std::mem::swap(v, scratch);
+        shift += DIGIT;
+    }
 }
 
 /// Groups oriented triangles and counts how they pair up.
 pub fn pair_faces<K: Ord + Copy>(mut faces: Vec<(K, i8)>) -> ClosedReport {
     faces.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    pair_sorted(&faces)
+}
+
+/// Like [`pair_faces`] for triangles of points in one t plane: each point is packed into a
+/// u64 (21 bits per coordinate) when the coordinates allow, which sorts much faster.
+pub fn pair_plane_faces(faces: Vec<([[i32; 3]; 3], i8)>) -> ClosedReport {
+    const LIM: i32 = 1 << 20;
+    if faces.iter().any(|(t, _)| t.iter().any(|p| p.iter().any(|&c| !(-LIM..LIM).contains(&c)))) {
+        return pair_faces(faces);
+    }
+    let pack = |p: &[i32; 3]| {
+        ((p[0] + LIM) as u64) << 42 | ((p[1] + LIM) as u64) << 21 | (p[2] + LIM) as u64
+    };
+    // Packing preserves the order of points, so canonical triangles stay canonical.
+    let mut packed: Vec<([u64; 3], i8)> = faces.iter().map(|(t, s)| (t.map(|p| pack(&p)), *s)).collect();
+    packed.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    pair_sorted(&packed)
+}
+
+fn pair_sorted<K: Eq>(faces: &[(K, i8)]) -> ClosedReport {
     let mut r = ClosedReport::default();
     let mut i = 0;
     while i < faces.len() {

@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Regenerates the small scene bags committed here (32^3 voxels), both encodings.
+#   bash bags/regenerate.sh
+# The default-size scenes (machine-tool 128^3 x 64) are benchmarks: generate them with
+#   cargo run --release -- scene machine-tool --out /tmp/machine-tool-128.mcap
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo build --release --quiet
+bin=target/release/chronotope
+for enc in bits percent; do
+  $bin scene machine-tool --grid 32 --frames 16 --encoding $enc --out bags/machine-tool-32-$enc.mcap
+  $bin scene four-spheres --grid 32 --frames 17 --encoding $enc --out bags/four-spheres-32-$enc.mcap
+done

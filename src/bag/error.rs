@@ -1,0 +1,288 @@
+//! Errors of bag reading and writing ([`BagError`]) and of VoxelGrid frame iteration
+//! ([`FrameError`]).
+
+use std::fmt;
+use std::path::PathBuf;
+
+use crate::msg::{CdrError, SchemaError};
+
+/// Where in an MCAP file a record is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum RecordLocation {
+    /// A record at the top level of the file, at this byte offset.
+    File {
+        /// Byte offset of the record's opcode.
+        offset: u64,
+    },
+    /// A record inside a chunk.
+    Chunk {
+        /// Byte offset of the chunk record in the file.
+        chunk_offset: u64,
+        /// Position of the record among the chunk's records, from 0.
+        index: usize,
+    },
+}
+
+impl RecordLocation {
+    /// The file offset of the record, or of the chunk holding it.
+    pub fn file_offset(&self) -> u64 {
+        match *self {
+            RecordLocation::File { offset } => offset,
+            RecordLocation::Chunk { chunk_offset, .. } => chunk_offset,
+        }
+    }
+}
+
+impl fmt::Display for RecordLocation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            RecordLocation::File { offset } => write!(f, "byte {offset}"),
+            RecordLocation::Chunk {
+                chunk_offset,
+                index,
+            } => write!(f, "record {index} of the chunk at byte {chunk_offset}"),
+        }
+    }
+}
+
+/// What went wrong reading or writing a rosbag2 MCAP file. Every variant names the file.
+///
+/// Reading yields some of these as items of [`BagReader`](super::BagReader) and goes on
+/// (a corrupt chunk, a malformed record, a message on an undefined channel); the others end
+/// the iteration ([`BagError::is_fatal`]).
+#[derive(Debug, thiserror::Error)]
+pub enum BagError {
+    /// The file could not be opened, read, created or written.
+    #[error("{}: {action}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What was being done ("cannot open", "cannot read", ...).
+        action: &'static str,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file is not MCAP at all.
+    #[error("{}: not an MCAP file: {reason}", path.display())]
+    NotMcap {
+        /// The file.
+        path: PathBuf,
+        /// What was found instead.
+        reason: String,
+    },
+    /// The file ends in the middle of a record (or before the footer).
+    #[error(
+        "{}: the file ends at byte {offset} in the middle of a record: the bag is truncated \
+         (was the recorder stopped before it could finish the file?); the messages before that \
+         point were read",
+        path.display()
+    )]
+    Truncated {
+        /// The file.
+        path: PathBuf,
+        /// The file size, where reading stopped.
+        offset: u64,
+    },
+    /// The record structure of the file is broken, so nothing after this point can be read.
+    #[error("{}: corrupt MCAP structure at byte {offset}: {reason}", path.display())]
+    Corrupt {
+        /// The file.
+        path: PathBuf,
+        /// Offset of the record that could not be framed.
+        offset: u64,
+        /// What was wrong.
+        reason: String,
+    },
+    /// A record is larger than the reader is configured to accept.
+    #[error(
+        "{}: record at byte {offset} (opcode {opcode:#04x}) is {len} bytes, more than the \
+         reader's limit of {limit} bytes; if the file is trusted, raise the limit with \
+         BagReadOptions::max_record_bytes",
+        path.display()
+    )]
+    RecordTooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Offset of the record (or of the chunk holding it).
+        offset: u64,
+        /// MCAP opcode of the record.
+        opcode: u8,
+        /// Its declared length.
+        len: u64,
+        /// The limit in force.
+        limit: usize,
+    },
+    /// A chunk could not be decompressed or failed its CRC; its messages are skipped and
+    /// reading goes on with the next record.
+    #[error(
+        "{}: chunk at byte {offset} is unreadable, its messages are skipped: {reason}",
+        path.display()
+    )]
+    CorruptChunk {
+        /// The file.
+        path: PathBuf,
+        /// Offset of the chunk record.
+        offset: u64,
+        /// What was wrong.
+        reason: String,
+    },
+    /// A record could be framed but its content is malformed; it is skipped.
+    #[error("{}: malformed {kind} record at {location}: {reason}", path.display())]
+    BadRecord {
+        /// The file.
+        path: PathBuf,
+        /// Where the record is.
+        location: RecordLocation,
+        /// Record type ("Schema", "Channel", "Message", ...).
+        kind: &'static str,
+        /// What was wrong.
+        reason: String,
+    },
+    /// A message refers to a channel that no earlier Channel record defined; it is skipped.
+    #[error(
+        "{}: message at {location} is on channel {channel_id}, which no Channel record before \
+         it defines",
+        path.display()
+    )]
+    UnknownChannel {
+        /// The file.
+        path: PathBuf,
+        /// Where the message is.
+        location: RecordLocation,
+        /// The channel id it names.
+        channel_id: u16,
+    },
+    /// A channel refers to a schema that no earlier Schema record defined; its messages are
+    /// skipped.
+    #[error(
+        "{}: message at {location} is on channel {topic:?}, whose schema {schema_id} no Schema \
+         record before it defines",
+        path.display()
+    )]
+    UnknownSchema {
+        /// The file.
+        path: PathBuf,
+        /// Where the message is.
+        location: RecordLocation,
+        /// The channel's topic.
+        topic: String,
+        /// The schema id it names.
+        schema_id: u16,
+    },
+    /// The bag holds no messages at all.
+    #[error("{}: the bag holds no messages", path.display())]
+    EmptyBag {
+        /// The file.
+        path: PathBuf,
+    },
+    /// The bag holds messages, but none on a `chronotope_msgs/msg/VoxelGrid` channel.
+    #[error(
+        "{}: no messages of type chronotope_msgs/msg/VoxelGrid; topics in the bag: {}",
+        path.display(),
+        list_or_none(topics_seen)
+    )]
+    NoVoxelTopics {
+        /// The file.
+        path: PathBuf,
+        /// Every topic in the bag, with its schema name: `"/topic (pkg/msg/Type)"`.
+        topics_seen: Vec<String>,
+    },
+    /// Writing: the topic was not added with [`BagWriter::add_topic`](super::BagWriter::add_topic).
+    #[error("{}: topic {topic:?} was not added; call add_topic first", path.display())]
+    UnknownTopic {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+    },
+    /// Writing: the topic exists with another message type.
+    #[error(
+        "{}: topic {topic:?} carries {existing}, not {requested}",
+        path.display()
+    )]
+    TopicTypeConflict {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// Its message type.
+        existing: String,
+        /// The type asked for.
+        requested: String,
+    },
+    /// Writing: the message type's definitions are incomplete.
+    #[error("{}: cannot write the schema of {type_name}: {source}", path.display())]
+    Schema {
+        /// The file.
+        path: PathBuf,
+        /// The message type.
+        type_name: &'static str,
+        /// What is missing.
+        #[source]
+        source: SchemaError,
+    },
+    /// Writing: the message could not be serialised, or raw bytes are not CDR.
+    #[error("{}: message for topic {topic:?} is not valid CDR: {source}", path.display())]
+    Cdr {
+        /// The file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+        /// What was wrong.
+        #[source]
+        source: CdrError,
+    },
+    /// Writing: the MCAP writer failed (usually an I/O error underneath).
+    #[error("{}: MCAP writer failed: {source}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The writer's error.
+        #[source]
+        source: mcap::McapError,
+    },
+}
+
+impl BagError {
+    /// True if reading cannot go on after this error (the iterator ends after yielding it).
+    pub fn is_fatal(&self) -> bool {
+        !matches!(
+            self,
+            BagError::CorruptChunk { .. }
+                | BagError::BadRecord { .. }
+                | BagError::UnknownChannel { .. }
+                | BagError::UnknownSchema { .. }
+        )
+    }
+}
+
+fn list_or_none(topics: &[String]) -> String {
+    if topics.is_empty() {
+        "none".to_owned()
+    } else {
+        topics.join(", ")
+    }
+}
+
+/// What went wrong iterating the VoxelGrid frames of a bag.
+#[derive(Debug, thiserror::Error)]
+pub enum FrameError {
+    /// One message on a VoxelGrid channel does not decode as a VoxelGrid; it is skipped and
+    /// iteration goes on. (A channel whose message encoding is not `cdr` ends up here too,
+    /// as its bytes do not start with a CDR encapsulation header.)
+    #[error("VoxelGrid message on {topic:?} logged at {log_time_ns} ns does not decode: {reason}")]
+    Decode {
+        /// The message's topic.
+        topic: String,
+        /// The message's log time.
+        log_time_ns: u64,
+        /// What was wrong with its CDR.
+        #[source]
+        reason: CdrError,
+    },
+    /// An error of the bag itself (it names the file); if [fatal](BagError::is_fatal),
+    /// iteration ends after it, otherwise it goes on with the next readable record.
+    #[error(transparent)]
+    Bag(#[from] BagError),
+}

@@ -1,0 +1,423 @@
+//! `chronotope mesh BAG [--stats FILE.json] [--slice AXIS=VALUE ... --ply-dir DIR]`.
+//!
+//! The bag is read once, in file order; each body's frames go to its own worker thread
+//! through a small bounded queue, so bodies mesh in parallel and memory stays bounded by a
+//! few frames and one slab per body, whatever the bag's length. A frame that cannot be
+//! decoded or meshed is logged with its topic, stamp and reason, counted, and skipped.
+
+use super::CliError;
+use crate::bag::{voxel_frames, FrameError};
+use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
+use crate::mesh::stats::{BodyStats, StatsAccumulator};
+use super::frame_ref;
+use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, Slab, TetMesh};
+use crate::msg::VoxelGrid;
+use clap::Args;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, Receiver};
+use std::time::Instant;
+
+/// Options of `chronotope mesh`.
+#[derive(Debug, Clone, Args)]
+pub struct MeshArgs {
+    /// Input rosbag2 MCAP bag.
+    pub bag: PathBuf,
+    /// Write statistics as JSON (CONTRACT.md format).
+    #[arg(long)]
+    pub stats: Option<PathBuf>,
+    /// Cut every body's 4D mesh by an axis hyperplane, e.g. `t=1.5` (seconds since the
+    /// first frame) or `x=0.64` (metres); repeatable. Written as PLY into `--ply-dir`.
+    #[arg(long = "slice", value_parser = parse_slice)]
+    pub slices: Vec<SliceSpec>,
+    /// Directory for the slice PLY files.
+    #[arg(long, default_value = ".")]
+    pub ply_dir: PathBuf,
+    /// Lattice steps per voxel edge for PERCENT frames (power of two).
+    #[arg(long, default_value_t = 64)]
+    pub percent_scale: i32,
+    /// Percent at and above which a voxel counts as occupied.
+    #[arg(long, default_value_t = 50)]
+    pub iso_percent: u8,
+    /// Count unknown (255) voxels as free instead of occupied.
+    #[arg(long)]
+    pub unknown_free: bool,
+}
+
+/// An axis hyperplane in metres / seconds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SliceSpec {
+    /// 0..4 = x, y, z, t.
+    pub axis: usize,
+    /// Metres for x, y, z; seconds since the bag's first frame for t.
+    pub value: f64,
+}
+
+fn parse_slice(s: &str) -> Result<SliceSpec, String> {
+    let (a, v) = s.split_once('=').ok_or_else(|| format!("slice {s:?}: expected AXIS=VALUE, e.g. t=1.5"))?;
+    let axis = match a.trim() {
+        "x" => 0,
+        "y" => 1,
+        "z" => 2,
+        "t" => 3,
+        other => return Err(format!("slice axis {other:?}: expected x, y, z or t")),
+    };
+    let value: f64 = v.trim().parse().map_err(|e| format!("slice value {v:?}: {e}"))?;
+    if !value.is_finite() {
+        return Err(format!("slice value {v:?} is not finite"));
+    }
+    Ok(SliceSpec { axis, value })
+}
+
+/// Per-body result of a mesh run.
+#[derive(Debug, Clone)]
+pub struct BodyResult {
+    /// Topic name.
+    pub id: String,
+    /// Statistics.
+    pub stats: BodyStats,
+    /// Frames skipped (decode or mesher errors).
+    pub skipped: u64,
+    /// The lattice, once known.
+    pub geometry: Option<GridGeometry>,
+    /// Slices, with their spec.
+    pub slices: Vec<(SliceSpec, TriMesh)>,
+    /// Stamps of the first and last accepted frames [ns].
+    pub stamp_range_ns: (i64, i64),
+}
+
+/// The result of meshing a bag.
+#[derive(Debug, Clone)]
+pub struct MeshRun {
+    /// Bodies by topic, sorted.
+    pub bodies: Vec<BodyResult>,
+    /// Wall-clock seconds.
+    pub seconds_total: f64,
+    /// Peak RSS [MB].
+    pub peak_rss_mb: f64,
+    /// Earliest stamp of any frame [ns].
+    pub time_origin_ns: i64,
+    /// Problems with the bag itself (corrupt chunks, truncation), in reading order.
+    pub bag_errors: Vec<String>,
+}
+
+/// Mesher options from the command line.
+pub fn mesher_options(a: &MeshArgs) -> MesherOptions {
+    let mut o = MesherOptions { percent_scale: a.percent_scale, ..MesherOptions::default() };
+    o.decode.iso_percent = a.iso_percent;
+    o.decode.unknown_occupied = !a.unknown_free;
+    o
+}
+
+enum Job {
+    Frame(Box<VoxelGrid>),
+    Undecodable,
+}
+
+/// Meshes every VoxelGrid topic of a bag.
+///
+/// # Errors
+/// The bag cannot be opened, is empty, has no VoxelGrid topic, or the options are bad.
+/// Per-frame problems are logged and counted instead.
+pub fn mesh_bag(path: &Path, opts: MesherOptions, slices: &[SliceSpec]) -> Result<MeshRun, CliError> {
+    let start = Instant::now();
+    Mesher::new(opts)?; // refuse bad options before reading anything
+    let frames = voxel_frames(path)?;
+    let mut time_origin_ns: Option<i64> = None;
+    let mut bag_errors = Vec::new();
+    let bodies = std::thread::scope(|scope| {
+        let mut senders = BTreeMap::new();
+        let mut handles = Vec::new();
+        for item in frames {
+            let (topic, job) = match item {
+                Ok((topic, grid)) => {
+                    let s = grid.header.stamp.as_nanos();
+                    time_origin_ns = Some(time_origin_ns.map_or(s, |o| o.min(s)));
+                    (topic, Job::Frame(Box::new(grid)))
+                }
+                Err(FrameError::Decode { topic, log_time_ns, reason }) => {
+                    tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
+                    (topic, Job::Undecodable)
+                }
+                Err(FrameError::Bag(e)) => {
+                    let fatal = e.is_fatal();
+                    tracing::error!("{e}{}", if fatal { "; meshing what was read before it" } else { "; reading on" });
+                    bag_errors.push(e.to_string());
+                    if fatal {
+                        break;
+                    }
+                    continue;
+                }
+            };
+            let tx = senders.entry(topic.clone()).or_insert_with(|| {
+                let (tx, rx) = sync_channel::<Job>(2);
+                handles.push(scope.spawn(move || body_worker(topic, rx, opts, slices)));
+                tx
+            });
+            // Fails only if the worker panicked, which the join below reports.
+            let _ = tx.send(job);
+        }
+        drop(senders);
+        let mut bodies: Vec<BodyResult> =
+            handles.into_iter().map(|h| h.join().expect("body worker panicked")).collect();
+        bodies.sort_by(|a, b| a.id.cmp(&b.id));
+        bodies
+    });
+    Ok(MeshRun {
+        bodies,
+        seconds_total: start.elapsed().as_secs_f64(),
+        peak_rss_mb: super::peak_rss_mb(),
+        time_origin_ns: time_origin_ns.unwrap_or(0),
+        bag_errors,
+    })
+}
+
+/// One requested slice of one body: the two rule variants, created once the plane is known.
+struct SliceState {
+    spec: SliceSpec,
+    pair: Option<(Slicer, Slicer)>,
+}
+
+impl SliceState {
+    fn add(&mut self, c: PlaneValue, mesh: &TetMesh) {
+        let (plus, minus) = self
+            .pair
+            .get_or_insert_with(|| (Slicer::new(self.spec.axis, c), Slicer::new(self.spec.axis, c).on_plane_below()));
+        plus.add(mesh);
+        minus.add(mesh);
+    }
+
+    fn finish(self) -> (SliceSpec, TriMesh) {
+        let mesh = match self.pair {
+            None => TriMesh::default(),
+            Some((plus, minus)) => {
+                let p = plus.finish();
+                if p.triangles.is_empty() {
+                    minus.finish()
+                } else {
+                    p
+                }
+            }
+        };
+        (self.spec, mesh)
+    }
+}
+
+fn body_worker(topic: String, rx: Receiver<Job>, opts: MesherOptions, slices: &[SliceSpec]) -> BodyResult {
+    let mut mesher = Mesher::new(opts).expect("options checked before spawning");
+    let mut acc = StatsAccumulator::new();
+    let mut first_cap: Option<TetMesh> = None;
+    let mut undecodable = 0u64;
+    let mut states: Vec<SliceState> = slices.iter().map(|&spec| SliceState { spec, pair: None }).collect();
+    for job in rx {
+        let grid = match job {
+            Job::Frame(g) => g,
+            Job::Undecodable => {
+                undecodable += 1;
+                continue;
+            }
+        };
+        let f = frame_ref(&grid);
+        let t0 = Instant::now();
+        let slab = match mesher.push(&f) {
+            Ok(Some(slab)) => slab,
+            Ok(None) => continue,
+            Err(e) => {
+                tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "skipping frame: {e}");
+                continue;
+            }
+        };
+        acc.record_time(t0.elapsed().as_secs_f64() * 1e3);
+        let first_stamp = mesher.first_frame().map_or(slab.stamp_lo_ns, |k| k.stamp_ns);
+        if first_cap.is_none() {
+            first_cap = mesher.first_frame().and_then(|k| mesher.cap(k, CapSide::Low));
+        }
+        acc.add_slab(&slab, first_cap.as_ref());
+        for st in &mut states {
+            let g = &slab.geometry;
+            if st.spec.axis < 3 {
+                let c = spatial_plane(&st.spec, g);
+                if st.pair.is_none() {
+                    if let Some(cap) = &first_cap {
+                        st.add(c, cap);
+                    }
+                }
+                st.add(c, &slab.mesh);
+            } else if let Some(c) = time_plane(st.spec.value, g, &slab, first_stamp) {
+                st.add(c, &slab.mesh);
+            }
+        }
+    }
+    let has_slabs = mesher.frames() >= 2;
+    let last_cap = if has_slabs { mesher.last_frame().and_then(|k| mesher.cap(k, CapSide::High)) } else { None };
+    if let (Some(cap), Some(g)) = (&last_cap, mesher.geometry()) {
+        for st in states.iter_mut().filter(|s| s.spec.axis < 3) {
+            st.add(spatial_plane(&st.spec, g), cap);
+        }
+    }
+    let occ_first = mesher.first_frame().map_or(0, |f| f.grid.occupied);
+    let occ_last = mesher.last_frame().map_or(0, |f| f.grid.occupied);
+    let stats = acc.finish(
+        mesher.frames(),
+        first_cap.as_ref().map(|c| (c, occ_first)),
+        last_cap.as_ref().map(|c| (c, occ_last)),
+    );
+    BodyResult {
+        id: topic,
+        stats,
+        skipped: mesher.skipped() + undecodable,
+        geometry: mesher.geometry().copied(),
+        slices: states.into_iter().map(SliceState::finish).collect(),
+        stamp_range_ns: (
+            mesher.first_frame().map_or(0, |f| f.stamp_ns),
+            mesher.last_frame().map_or(0, |f| f.stamp_ns),
+        ),
+    }
+}
+
+/// Lattice coordinate of a spatial plane given in metres.
+fn spatial_plane(spec: &SliceSpec, g: &GridGeometry) -> PlaneValue {
+    let c = g.voxel0_centre()[spec.axis];
+    PlaneValue::approx((spec.value - c) / g.step_m())
+}
+
+/// Lattice time of `t` seconds after the first frame, if it falls in the slab.
+fn time_plane(t: f64, g: &GridGeometry, slab: &Slab, first_stamp: i64) -> Option<PlaneValue> {
+    let ns = first_stamp as f64 + t * 1e9;
+    let (lo, hi) = (slab.stamp_lo_ns as f64, slab.stamp_hi_ns as f64);
+    if !(lo..=hi).contains(&ns) {
+        return None;
+    }
+    let s = i64::from(g.scale);
+    let base = s * slab.index as i64;
+    let frac = (ns - lo) / (hi - lo);
+    Some(if frac <= 0.0 {
+        PlaneValue::lattice(base)
+    } else if frac >= 1.0 {
+        PlaneValue::lattice(base + s)
+    } else {
+        PlaneValue::approx(base as f64 + frac * s as f64)
+    })
+}
+
+/// One body in the `--stats` JSON (CONTRACT.md), with extra fields after the contract's.
+#[derive(Debug, Serialize)]
+struct BodyJson<'a> {
+    id: &'a str,
+    frames: u64,
+    tets: u64,
+    vertices: u64,
+    closed: bool,
+    hypervolume_m3s: f64,
+    slab_ms_median: f64,
+    slab_ms_p99: f64,
+    slabs: u64,
+    skipped_frames: u64,
+    unpaired_triangles: u64,
+    misoriented_triangles: u64,
+}
+
+/// The `--stats` JSON (CONTRACT.md).
+#[derive(Debug, Serialize)]
+struct StatsJson<'a> {
+    bodies: Vec<BodyJson<'a>>,
+    seconds_total: f64,
+    peak_rss_mb: f64,
+    bag_errors: &'a [String],
+}
+
+/// The `--stats` JSON text of a run.
+pub fn stats_json(r: &MeshRun) -> String {
+    let bodies = r
+        .bodies
+        .iter()
+        .map(|b| BodyJson {
+            id: &b.id,
+            frames: b.stats.frames,
+            tets: b.stats.tets,
+            vertices: b.stats.vertices,
+            closed: b.stats.closed.is_closed(),
+            hypervolume_m3s: b.stats.hypervolume_m3s,
+            slab_ms_median: b.stats.slab_ms_median(),
+            slab_ms_p99: b.stats.slab_ms_p99(),
+            slabs: b.stats.slabs,
+            skipped_frames: b.skipped,
+            unpaired_triangles: b.stats.closed.unpaired + b.stats.closed.overshared,
+            misoriented_triangles: b.stats.closed.misoriented,
+        })
+        .collect();
+    let j = StatsJson { bodies, seconds_total: r.seconds_total, peak_rss_mb: r.peak_rss_mb, bag_errors: &r.bag_errors };
+    serde_json::to_string_pretty(&j).expect("plain data serialises")
+}
+
+fn file_safe(topic: &str) -> String {
+    let s: String = topic.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    s.trim_matches('_').to_owned()
+}
+
+/// Runs `chronotope mesh`.
+///
+/// # Errors
+/// See [`mesh_bag`]; also a stats or PLY file that cannot be written.
+pub fn run(a: &MeshArgs) -> Result<(), CliError> {
+    let r = mesh_bag(&a.bag, mesher_options(a), &a.slices)?;
+    println!("{:<28} {:>6} {:>11} {:>11} {:>7} {:>14} {:>9} {:>9} {:>7}", "body", "frames", "tets", "vertices", "closed", "hypervol m3s", "slab p50", "slab p99", "skipped");
+    for b in &r.bodies {
+        let s = &b.stats;
+        println!(
+            "{:<28} {:>6} {:>11} {:>11} {:>7} {:>14.6e} {:>7.2}ms {:>7.2}ms {:>7}",
+            b.id,
+            s.frames,
+            s.tets,
+            s.vertices,
+            s.closed.is_closed(),
+            s.hypervolume_m3s,
+            s.slab_ms_median(),
+            s.slab_ms_p99(),
+            b.skipped
+        );
+        if s.frames == 1 {
+            tracing::warn!(topic = %b.id, "only one frame: a 4D mesh needs at least two frames");
+        }
+    }
+    println!("total {:.3} s, peak RSS {:.1} MB", r.seconds_total, r.peak_rss_mb);
+    if let Some(p) = &a.stats {
+        std::fs::write(p, stats_json(&r)).map_err(|source| CliError::Io { path: p.clone(), source })?;
+    }
+    if !a.slices.is_empty() {
+        std::fs::create_dir_all(&a.ply_dir).map_err(|source| CliError::Io { path: a.ply_dir.clone(), source })?;
+    }
+    for b in &r.bodies {
+        let Some(g) = b.geometry else { continue };
+        for (spec, mesh) in &b.slices {
+            let axis = ["x", "y", "z", "t"][spec.axis];
+            let path = a.ply_dir.join(format!("{}_{axis}{}.ply", file_safe(&b.id), spec.value));
+            let file = std::fs::File::create(&path).map_err(|source| CliError::Io { path: path.clone(), source })?;
+            let to_world = slice_to_world(spec.axis, &g, r.time_origin_ns, b);
+            crate::mesh::slice::write_ply(mesh, std::io::BufWriter::new(file), to_world)
+                .map_err(|source| CliError::Io { path: path.clone(), source })?;
+            tracing::info!("{}: {} triangles", path.display(), mesh.triangles.len());
+        }
+    }
+    Ok(())
+}
+
+/// Maps slice coordinates (lattice units of the three remaining axes) to metres and, for
+/// time, seconds since the bag's first frame (using the body's mean frame period).
+fn slice_to_world(axis: usize, g: &GridGeometry, origin_ns: i64, b: &BodyResult) -> impl Fn(&[f64; 3]) -> [f64; 3] {
+    let c = g.voxel0_centre();
+    let step = g.step_m();
+    let s = f64::from(g.scale);
+    let (first, last) = b.stamp_range_ns;
+    let period = if b.stats.frames > 1 { (last - first) as f64 * 1e-9 / (b.stats.frames - 1) as f64 } else { 0.0 };
+    let t0 = (first - origin_ns) as f64 * 1e-9;
+    let keep: Vec<usize> = (0..4).filter(|&k| k != axis).collect();
+    move |p: &[f64; 3]| {
+        let mut out = [0.0; 3];
+        for (m, &k) in keep.iter().enumerate() {
+            out[m] = if k < 3 { c[k] + p[m] * step } else { t0 + p[m] / s * period };
+        }
+        out
+    }
+}

@@ -1,0 +1,25 @@
+//! ROS 2 message types the suite speaks, mirrored field by field from their `.msg` text.
+//!
+//! The `.msg` files under `msgs/` are the source of truth: every Rust type here carries its
+//! definition text (for MCAP `ros2msg` schemas) and a test checks that the fields match.
+//! Serialisation is CDR (little endian) through serde, as ros2-client does on the wire.
+
+mod cdr;
+mod schema;
+mod voxel_grid;
+
+pub use cdr::{decode_cdr, encapsulation, encode_cdr, CdrEndianness, CdrError};
+pub use schema::{
+    parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
+};
+pub use voxel_grid::{Header, Point, Time, VoxelEncoding, VoxelGrid};
+
+/// A ROS message type with its fully qualified name and `.msg` definition text.
+pub trait RosMessage: serde::Serialize + serde::de::DeserializeOwned {
+    /// `pkg/msg/Type`, as used in MCAP schema names.
+    const TYPE_NAME: &'static str;
+    /// The type's own `.msg` text.
+    const DEFINITION: &'static str;
+    /// Types this one refers to, as `(pkg/msg/Type, .msg text)` pairs, in any order.
+    fn dependencies() -> Vec<(&'static str, &'static str)>;
+}

@@ -1,0 +1,173 @@
+//! The `chronotope` binary end to end: scene bags, `mesh --stats`, slices, bad bags and
+//! bad frames in the middle of a stream.
+
+use chronotope::bag::BagWriter;
+use chronotope::msg::{Header, Point, Time, VoxelGrid};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_chronotope"))
+}
+
+fn run_ok(args: &[&str]) -> Output {
+    let out = bin().args(args).output().expect("run chronotope");
+    assert!(
+        out.status.success(),
+        "chronotope {args:?} failed:\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn tmp() -> tempfile::TempDir {
+    tempfile::tempdir().expect("tempdir")
+}
+
+fn p(dir: &Path, name: &str) -> String {
+    dir.join(name).to_string_lossy().into_owned()
+}
+
+fn read_json(path: &str) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).expect("stats file")).expect("valid JSON")
+}
+
+#[test]
+fn scene_then_mesh_writes_contract_stats_and_closed_meshes() {
+    let d = tmp();
+    let bag = p(d.path(), "spheres.mcap");
+    run_ok(&["scene", "four-spheres", "--grid", "16", "--frames", "9", "--out", &bag]);
+    let stats = p(d.path(), "stats.json");
+    run_ok(&["mesh", &bag, "--stats", &stats, "--slice", "t=0.5", "--slice", "x=0.5", "--ply-dir", &p(d.path(), "ply")]);
+    let j = read_json(&stats);
+    let bodies = j["bodies"].as_array().unwrap();
+    assert_eq!(bodies.len(), 4);
+    let exact = 4.0 / 3.0 * std::f64::consts::PI * 0.125f64.powi(3) * 1.0;
+    for b in bodies {
+        for key in ["id", "frames", "tets", "vertices", "closed", "hypervolume_m3s", "slab_ms_median", "slab_ms_p99"] {
+            assert!(b.get(key).is_some(), "missing {key} in {b}");
+        }
+        assert_eq!(b["frames"], 9);
+        assert_eq!(b["closed"], true, "{b}");
+        assert_eq!(b["skipped_frames"], 0);
+        assert!(b["tets"].as_u64().unwrap() > 1000);
+        let v = b["hypervolume_m3s"].as_f64().unwrap();
+        assert!((v - exact).abs() / exact < 0.2, "{}: {v} vs {exact}", b["id"]);
+    }
+    assert!(j["seconds_total"].as_f64().unwrap() > 0.0);
+    assert!(j["peak_rss_mb"].as_f64().unwrap() > 0.0);
+    // Slices as PLY files a person can open.
+    let plys: Vec<PathBuf> = std::fs::read_dir(d.path().join("ply")).unwrap().map(|e| e.unwrap().path()).collect();
+    assert_eq!(plys.len(), 8, "{plys:?}");
+    for f in plys {
+        let bytes = std::fs::read(&f).unwrap();
+        assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"), "{}", f.display());
+    }
+}
+
+#[test]
+fn mesh_is_deterministic() {
+    let d = tmp();
+    let bag = p(d.path(), "mt.mcap");
+    run_ok(&["scene", "machine-tool", "--grid", "16", "--frames", "6", "--encoding", "percent", "--out", &bag]);
+    let strip = |v: &mut Value| {
+        v.as_object_mut().unwrap().remove("seconds_total");
+        v.as_object_mut().unwrap().remove("peak_rss_mb");
+        for b in v["bodies"].as_array_mut().unwrap() {
+            b.as_object_mut().unwrap().remove("slab_ms_median");
+            b.as_object_mut().unwrap().remove("slab_ms_p99");
+        }
+    };
+    let mut runs = Vec::new();
+    for i in 0..2 {
+        let s = p(d.path(), &format!("s{i}.json"));
+        run_ok(&["mesh", &bag, "--stats", &s]);
+        let mut j = read_json(&s);
+        strip(&mut j);
+        runs.push(j);
+    }
+    assert_eq!(runs[0], runs[1]);
+    assert_eq!(runs[0]["bodies"].as_array().unwrap().len(), 3);
+}
+
+fn grid(stamp_ns: i64, size: [u32; 3], data: Vec<u8>) -> VoxelGrid {
+    VoxelGrid {
+        header: Header { stamp: Time::from_nanos(stamp_ns), frame_id: "world".into() },
+        origin: Point { x: 0.0, y: 0.0, z: 0.0 },
+        resolution: 0.1,
+        size_x: size[0],
+        size_y: size[1],
+        size_z: size[2],
+        encoding: VoxelGrid::ENCODING_BITS,
+        data,
+    }
+}
+
+#[test]
+fn bad_frames_mid_stream_are_skipped_and_counted() {
+    let d = tmp();
+    let bag = d.path().join("bad.mcap");
+    let size = [4u32, 4, 4];
+    let block = vec![0b0110_0000u8, 0b0000_0110, 0, 0, 0b0110_0000, 0b0000_0110, 0, 0];
+    let mut w = BagWriter::create(&bag).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    let mut frames = vec![grid(1_000, size, block.clone()), grid(2_000, size, block.clone())];
+    frames.push(grid(3_000, size, block[..5].to_vec())); // data too short
+    let mut nan = grid(3_500, size, block.clone());
+    nan.resolution = f64::NAN;
+    frames.push(nan);
+    frames.push(grid(1_500, size, block.clone())); // stamp goes back
+    frames.push(grid(4_000, size, block.clone()));
+    for f in &frames {
+        w.write("/a/occupancy", f.header.stamp.as_nanos() as u64, f).unwrap();
+    }
+    w.finish().unwrap();
+    let stats = p(d.path(), "s.json");
+    let out = run_ok(&["mesh", bag.to_str().unwrap(), "--stats", &stats]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("/a/occupancy") && err.contains("data is 5 bytes"), "{err}");
+    assert!(err.contains("does not increase"), "{err}");
+    let j = read_json(&stats);
+    let b = &j["bodies"][0];
+    assert_eq!(b["frames"], 3);
+    assert_eq!(b["skipped_frames"], 3);
+    assert_eq!(b["closed"], true);
+    assert!(b["hypervolume_m3s"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn bags_that_cannot_be_meshed_give_a_clear_error() {
+    let d = tmp();
+    // Not an MCAP file at all.
+    let junk = d.path().join("junk.mcap");
+    std::fs::write(&junk, b"this is not a bag").unwrap();
+    // An empty bag (a topic, no messages).
+    let empty = d.path().join("empty.mcap");
+    let mut w = BagWriter::create(&empty).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    w.finish().unwrap();
+    for (path, words) in [(&junk, "junk.mcap"), (&empty, "empty.mcap")] {
+        let out = bin().args(["mesh", path.to_str().unwrap()]).output().unwrap();
+        assert!(!out.status.success(), "{path:?} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(words), "{err}");
+    }
+    let missing = bin().args(["mesh", "/nonexistent/x.mcap"]).output().unwrap();
+    assert!(!missing.status.success());
+}
+
+#[test]
+fn bad_command_lines_are_refused() {
+    for args in [
+        vec!["mesh", "x.mcap", "--slice", "w=1"],
+        vec!["mesh", "x.mcap", "--slice", "t=nan"],
+        vec!["scene", "no-such-scene", "--out", "/tmp/x.mcap"],
+        vec!["scene", "four-spheres", "--grid", "1", "--out", "/tmp/x.mcap"],
+        vec!["mesh", "x.mcap", "--percent-scale", "3"],
+    ] {
+        let out = bin().args(&args).output().unwrap();
+        assert!(!out.status.success(), "{args:?} accepted");
+    }
+}
