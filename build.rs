@@ -8,9 +8,9 @@ fn main() {
     println!("cargo:rerun-if-changed=src/mesh/table_gen.rs");
     println!("cargo:rerun-if-changed=build.rs");
     let out = std::path::PathBuf::from(std::env::var_os("OUT_DIR").expect("OUT_DIR set by cargo"));
-    let threads = std::thread::available_parallelism().map(|n| n.get()).unwrap_or(1);
-    let start = std::time::Instant::now();
+    let threads = std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1);
     let table = table_gen::build_table(threads);
     std::fs::write(out.join("mc4_table.bin"), &table).expect("write table");
-    println!("cargo:warning=chronotope: marching-hypercubes table generated in {:.2?} ({} bytes)", start.elapsed(), table.len());
 }

@@ -38,15 +38,44 @@ fn read_json(path: &str) -> Value {
 fn scene_then_mesh_writes_contract_stats_and_closed_meshes() {
     let d = tmp();
     let bag = p(d.path(), "spheres.mcap");
-    run_ok(&["scene", "four-spheres", "--grid", "16", "--frames", "9", "--out", &bag]);
+    run_ok(&[
+        "scene",
+        "four-spheres",
+        "--grid",
+        "16",
+        "--frames",
+        "9",
+        "--out",
+        &bag,
+    ]);
     let stats = p(d.path(), "stats.json");
-    run_ok(&["mesh", &bag, "--stats", &stats, "--slice", "t=0.5", "--slice", "x=0.5", "--ply-dir", &p(d.path(), "ply")]);
+    run_ok(&[
+        "mesh",
+        &bag,
+        "--stats",
+        &stats,
+        "--slice",
+        "t=0.5",
+        "--slice",
+        "x=0.5",
+        "--ply-dir",
+        &p(d.path(), "ply"),
+    ]);
     let j = read_json(&stats);
     let bodies = j["bodies"].as_array().unwrap();
     assert_eq!(bodies.len(), 4);
     let exact = 4.0 / 3.0 * std::f64::consts::PI * 0.125f64.powi(3) * 1.0;
     for b in bodies {
-        for key in ["id", "frames", "tets", "vertices", "closed", "hypervolume_m3s", "slab_ms_median", "slab_ms_p99"] {
+        for key in [
+            "id",
+            "frames",
+            "tets",
+            "vertices",
+            "closed",
+            "hypervolume_m3s",
+            "slab_ms_median",
+            "slab_ms_p99",
+        ] {
             assert!(b.get(key).is_some(), "missing {key} in {b}");
         }
         assert_eq!(b["frames"], 9);
@@ -54,16 +83,27 @@ fn scene_then_mesh_writes_contract_stats_and_closed_meshes() {
         assert_eq!(b["skipped_frames"], 0);
         assert!(b["tets"].as_u64().unwrap() > 1000);
         let v = b["hypervolume_m3s"].as_f64().unwrap();
-        assert!((v - exact).abs() / exact < 0.2, "{}: {v} vs {exact}", b["id"]);
+        assert!(
+            (v - exact).abs() / exact < 0.2,
+            "{}: {v} vs {exact}",
+            b["id"]
+        );
     }
     assert!(j["seconds_total"].as_f64().unwrap() > 0.0);
     assert!(j["peak_rss_mb"].as_f64().unwrap() > 0.0);
     // Slices as PLY files a person can open.
-    let plys: Vec<PathBuf> = std::fs::read_dir(d.path().join("ply")).unwrap().map(|e| e.unwrap().path()).collect();
+    let plys: Vec<PathBuf> = std::fs::read_dir(d.path().join("ply"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
     assert_eq!(plys.len(), 8, "{plys:?}");
     for f in plys {
         let bytes = std::fs::read(&f).unwrap();
-        assert!(bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"), "{}", f.display());
+        assert!(
+            bytes.starts_with(b"ply\nformat binary_little_endian 1.0\n"),
+            "{}",
+            f.display()
+        );
     }
 }
 
@@ -71,7 +111,18 @@ fn scene_then_mesh_writes_contract_stats_and_closed_meshes() {
 fn mesh_is_deterministic() {
     let d = tmp();
     let bag = p(d.path(), "mt.mcap");
-    run_ok(&["scene", "machine-tool", "--grid", "16", "--frames", "6", "--encoding", "percent", "--out", &bag]);
+    run_ok(&[
+        "scene",
+        "machine-tool",
+        "--grid",
+        "16",
+        "--frames",
+        "6",
+        "--encoding",
+        "percent",
+        "--out",
+        &bag,
+    ]);
     let strip = |v: &mut Value| {
         v.as_object_mut().unwrap().remove("seconds_total");
         v.as_object_mut().unwrap().remove("peak_rss_mb");
@@ -94,8 +145,15 @@ fn mesh_is_deterministic() {
 
 fn grid(stamp_ns: i64, size: [u32; 3], data: Vec<u8>) -> VoxelGrid {
     VoxelGrid {
-        header: Header { stamp: Time::from_nanos(stamp_ns), frame_id: "world".into() },
-        origin: Point { x: 0.0, y: 0.0, z: 0.0 },
+        header: Header {
+            stamp: Time::from_nanos(stamp_ns),
+            frame_id: "world".into(),
+        },
+        origin: Point {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+        },
         resolution: 0.1,
         size_x: size[0],
         size_y: size[1],
@@ -110,10 +168,22 @@ fn bad_frames_mid_stream_are_skipped_and_counted() {
     let d = tmp();
     let bag = d.path().join("bad.mcap");
     let size = [4u32, 4, 4];
-    let block = vec![0b0110_0000u8, 0b0000_0110, 0, 0, 0b0110_0000, 0b0000_0110, 0, 0];
+    let block = vec![
+        0b0110_0000u8,
+        0b0000_0110,
+        0,
+        0,
+        0b0110_0000,
+        0b0000_0110,
+        0,
+        0,
+    ];
     let mut w = BagWriter::create(&bag).unwrap();
     w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
-    let mut frames = vec![grid(1_000, size, block.clone()), grid(2_000, size, block.clone())];
+    let mut frames = vec![
+        grid(1_000, size, block.clone()),
+        grid(2_000, size, block.clone()),
+    ];
     frames.push(grid(3_000, size, block[..5].to_vec())); // data too short
     let mut nan = grid(3_500, size, block.clone());
     nan.resolution = f64::NAN;
@@ -121,13 +191,17 @@ fn bad_frames_mid_stream_are_skipped_and_counted() {
     frames.push(grid(1_500, size, block.clone())); // stamp goes back
     frames.push(grid(4_000, size, block.clone()));
     for f in &frames {
-        w.write("/a/occupancy", f.header.stamp.as_nanos() as u64, f).unwrap();
+        w.write("/a/occupancy", f.header.stamp.as_nanos() as u64, f)
+            .unwrap();
     }
     w.finish().unwrap();
     let stats = p(d.path(), "s.json");
     let out = run_ok(&["mesh", bag.to_str().unwrap(), "--stats", &stats]);
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("/a/occupancy") && err.contains("data is 5 bytes"), "{err}");
+    assert!(
+        err.contains("/a/occupancy") && err.contains("data is 5 bytes"),
+        "{err}"
+    );
     assert!(err.contains("does not increase"), "{err}");
     let j = read_json(&stats);
     let b = &j["bodies"][0];
@@ -149,12 +223,18 @@ fn bags_that_cannot_be_meshed_give_a_clear_error() {
     w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
     w.finish().unwrap();
     for (path, words) in [(&junk, "junk.mcap"), (&empty, "empty.mcap")] {
-        let out = bin().args(["mesh", path.to_str().unwrap()]).output().unwrap();
+        let out = bin()
+            .args(["mesh", path.to_str().unwrap()])
+            .output()
+            .unwrap();
         assert!(!out.status.success(), "{path:?} accepted");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(words), "{err}");
     }
-    let missing = bin().args(["mesh", "/nonexistent/x.mcap"]).output().unwrap();
+    let missing = bin()
+        .args(["mesh", "/nonexistent/x.mcap"])
+        .output()
+        .unwrap();
     assert!(!missing.status.success());
 }
 
@@ -164,7 +244,14 @@ fn bad_command_lines_are_refused() {
         vec!["mesh", "x.mcap", "--slice", "w=1"],
         vec!["mesh", "x.mcap", "--slice", "t=nan"],
         vec!["scene", "no-such-scene", "--out", "/tmp/x.mcap"],
-        vec!["scene", "four-spheres", "--grid", "1", "--out", "/tmp/x.mcap"],
+        vec![
+            "scene",
+            "four-spheres",
+            "--grid",
+            "1",
+            "--out",
+            "/tmp/x.mcap",
+        ],
         vec!["mesh", "x.mcap", "--percent-scale", "3"],
     ] {
         let out = bin().args(&args).output().unwrap();

@@ -9,12 +9,7 @@ use chronotope::mesh::{DecodeOptions, FrameRef, OccupancyGrid};
 use common::*;
 use proptest::prelude::*;
 
-fn random_frames(
-    size: [u32; 3],
-    frames: usize,
-    encoding: u8,
-    seed_bits: &[u8],
-) -> Vec<TestFrame> {
+fn random_frames(size: [u32; 3], frames: usize, encoding: u8, seed_bits: &[u8]) -> Vec<TestFrame> {
     let n = (size[0] * size[1] * size[2]) as usize;
     (0..frames)
         .map(|k| {
@@ -34,7 +29,11 @@ fn random_frames(
                     _ => v(x, y, z) % 101,
                 })
             };
-            TestFrame { stamp_ns: 1_000 + 37 * k as i64 * (k as i64 + 3), encoding, data }
+            TestFrame {
+                stamp_ns: 1_000 + 37 * k as i64 * (k as i64 + 3),
+                encoding,
+                data,
+            }
         })
         .collect()
 }
@@ -55,7 +54,11 @@ fn check_run(frames: &[TestFrame], size: [u32; 3]) {
     let report = check_closed(&g);
     assert!(report.is_closed(), "glued mesh not closed: {report:?}");
     // Streaming validation saw the same mesh.
-    assert!(r.stats.closed.is_closed(), "stream validation: {:?}", r.stats.closed);
+    assert!(
+        r.stats.closed.is_closed(),
+        "stream validation: {:?}",
+        r.stats.closed
+    );
     assert_eq!(r.stats.tets, g.tets.len() as u64);
     assert_eq!(r.stats.vertices, g.vertices.len() as u64);
     // Every slab is closed on its own with its two caps, and hypervolumes add up.
@@ -71,7 +74,9 @@ fn check_run(frames: &[TestFrame], size: [u32; 3]) {
     }
     // Lattice hypervolume of the glued mesh equals the per-slab sum and the streamed sum.
     assert_eq!(hypervolume24(&g), sum24);
-    assert!((r.stats.hypervolume_lattice - sum24 as f64 / 24.0).abs() <= 1e-6 * (1.0 + sum24 as f64));
+    assert!(
+        (r.stats.hypervolume_lattice - sum24 as f64 / 24.0).abs() <= 1e-6 * (1.0 + sum24 as f64)
+    );
 }
 
 proptest! {
@@ -145,21 +150,27 @@ pub fn check_closed_tri(tris: &[[u32; 3]]) -> chronotope::mesh::validate::Closed
 #[test]
 fn slice_at_a_frame_time_reproduces_that_frame() {
     let size = [6, 5, 4];
-    let bits: Vec<u8> = (0..997u32).map(|i| (i.wrapping_mul(2654435761) >> 13) as u8).collect();
+    let bits: Vec<u8> = (0..997u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
+        .collect();
     for encoding in [0u8, 1] {
         let frames = random_frames(size, 4, encoding, &bits);
         let r = run(&frames, size, 0.1);
         let g = glued(&r);
         let gr = grids(&frames, size);
         let scale = r.slabs[0].geometry.scale;
-        for k in 0..frames.len() {
+        for (k, grid) in gr.iter().enumerate() {
             let s = slice_mesh(&[&g], 3, PlaneValue::lattice(i64::from(scale) * k as i64));
             // The frame's surface: boundary faces of its cap.
             let mut cap = chronotope::mesh::TetMesh::default();
-            let at = chronotope::mesh::SlabPlacement { scale, frame: k as i64, iso: 50 };
+            let at = chronotope::mesh::SlabPlacement {
+                scale,
+                frame: k as i64,
+                iso: 50,
+            };
             chronotope::mesh::march::march_cap(
                 chronotope::mesh::table::table(),
-                &gr[k],
+                grid,
                 at,
                 chronotope::mesh::CapSide::High,
                 &mut cap,
@@ -205,10 +216,12 @@ fn boundary_triangles(cap: &chronotope::mesh::TetMesh) -> Vec<[[i64; 3]; 3]> {
     count
         .values()
         .filter(|(n, _)| *n == 1)
-        .map(|(_, f)| canonical_rot(f.map(|v| {
-            let p = cap.vertices[v as usize];
-            [i64::from(p[0]), i64::from(p[1]), i64::from(p[2])]
-        })))
+        .map(|(_, f)| {
+            canonical_rot(f.map(|v| {
+                let p = cap.vertices[v as usize];
+                [i64::from(p[0]), i64::from(p[1]), i64::from(p[2])]
+            }))
+        })
         .collect()
 }
 
@@ -216,7 +229,9 @@ fn boundary_triangles(cap: &chronotope::mesh::TetMesh) -> Vec<[[i64; 3]; 3]> {
 fn streaming_validation_catches_damaged_meshes() {
     use chronotope::mesh::stats::StatsAccumulator;
     let size = [6, 5, 4];
-    let bits: Vec<u8> = (0..4096u32).map(|i| (i.wrapping_mul(2654435761) >> 11) as u8).collect();
+    let bits: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 11) as u8)
+        .collect();
     let frames = random_frames(size, 4, 0, &bits);
     let r = run(&frames, size, 0.1);
     assert!(r.stats.closed.is_closed());
@@ -244,8 +259,16 @@ fn streaming_validation_catches_damaged_meshes() {
                 }
                 acc.add_slab(&s, r.first_cap.as_ref());
             }
-            let st = acc.finish(4, r.first_cap.as_ref().map(|c| (c, 0)), r.last_cap.as_ref().map(|c| (c, 0)));
-            assert!(!st.closed.is_closed(), "{what} in slab {k} not detected: {:?}", st.closed);
+            let st = acc.finish(
+                4,
+                r.first_cap.as_ref().map(|c| (c, 0)),
+                r.last_cap.as_ref().map(|c| (c, 0)),
+            );
+            assert!(
+                !st.closed.is_closed(),
+                "{what} in slab {k} not detected: {:?}",
+                st.closed
+            );
         }
     }
 }

@@ -13,7 +13,13 @@ fn block_volume(a: f64, b: f64, c: f64) -> f64 {
     a * b * c + (a * b + b * c + a * c) + (a + b + c) / 2.0 + 1.0 / 6.0
 }
 
-fn static_frames(frames: usize, period_ns: i64, encoding: u8, size: [u32; 3], occ: impl Fn(usize, usize, usize) -> bool + Copy) -> Vec<TestFrame> {
+fn static_frames(
+    frames: usize,
+    period_ns: i64,
+    encoding: u8,
+    size: [u32; 3],
+    occ: impl Fn(usize, usize, usize) -> bool + Copy,
+) -> Vec<TestFrame> {
     (0..frames)
         .map(|k| TestFrame {
             stamp_ns: 5_000_000_000 + k as i64 * period_ns,
@@ -36,7 +42,9 @@ fn box_hypervolume_is_exact() {
             ([3, 3, 3], [1, 1, 1], [1, 1, 1]), // a single voxel
         ] {
             let inside = |x: usize, y: usize, z: usize| {
-                (lo[0]..=hi[0]).contains(&x) && (lo[1]..=hi[1]).contains(&y) && (lo[2]..=hi[2]).contains(&z)
+                (lo[0]..=hi[0]).contains(&x)
+                    && (lo[1]..=hi[1]).contains(&y)
+                    && (lo[2]..=hi[2]).contains(&z)
             };
             let frames = static_frames(4, 250_000_000, encoding, size, inside);
             let h = 0.05;
@@ -44,24 +52,44 @@ fn box_hypervolume_is_exact() {
             let dims = [0, 1, 2].map(|k| (hi[k] - lo[k] + 1) as f64);
             let exact = block_volume(dims[0], dims[1], dims[2]) * h * h * h * 0.75;
             let got = r.stats.hypervolume_m3s;
-            assert!((got - exact).abs() <= 1e-12 * exact, "encoding {encoding}, block {dims:?}: {got} vs {exact}");
+            assert!(
+                (got - exact).abs() <= 1e-12 * exact,
+                "encoding {encoding}, block {dims:?}: {got} vs {exact}"
+            );
             assert!(check_closed(&glued(&r)).is_closed());
-            assert_eq!(hypervolume24(&glued(&r)) as f64 / 24.0, r.stats.hypervolume_lattice);
+            assert_eq!(
+                hypervolume24(&glued(&r)) as f64 / 24.0,
+                r.stats.hypervolume_lattice
+            );
         }
     }
 }
 
 /// Frames of a sphere of radius `rad` [m] moving from `c0` with velocity `v` [m/s] in the
 /// unit cube at grid n; `frames` frames over [0, 1] s. PERCENT values by 6^3 supersampling.
-fn sphere_frames(n: u32, frames: usize, rad: f64, c0: [f64; 3], v: [f64; 3], encoding: u8) -> Vec<TestFrame> {
+fn sphere_frames(
+    n: u32,
+    frames: usize,
+    rad: f64,
+    c0: [f64; 3],
+    v: [f64; 3],
+    encoding: u8,
+) -> Vec<TestFrame> {
     let h = 1.0 / f64::from(n);
     let size = [n; 3];
     (0..frames)
         .map(|k| {
             let t = k as f64 / (frames - 1) as f64;
             let c = [0, 1, 2].map(|i| c0[i] + v[i] * t);
-            let inside = |p: [f64; 3]| (0..3).map(|i| (p[i] - c[i]).powi(2)).sum::<f64>() <= rad * rad;
-            let centre = |x: usize, y: usize, z: usize| [(x as f64 + 0.5) * h, (y as f64 + 0.5) * h, (z as f64 + 0.5) * h];
+            let inside =
+                |p: [f64; 3]| (0..3).map(|i| (p[i] - c[i]).powi(2)).sum::<f64>() <= rad * rad;
+            let centre = |x: usize, y: usize, z: usize| {
+                [
+                    (x as f64 + 0.5) * h,
+                    (y as f64 + 0.5) * h,
+                    (z as f64 + 0.5) * h,
+                ]
+            };
             let data = if encoding == 0 {
                 bits_data(size, |x, y, z| inside(centre(x, y, z)))
             } else {
@@ -91,7 +119,11 @@ fn sphere_frames(n: u32, frames: usize, rad: f64, c0: [f64; 3], v: [f64; 3], enc
                     }
                 })
             };
-            TestFrame { stamp_ns: (t * 1e9).round() as i64, encoding, data }
+            TestFrame {
+                stamp_ns: (t * 1e9).round() as i64,
+                encoding,
+                data,
+            }
         })
         .collect()
 }
@@ -110,9 +142,16 @@ fn moving_sphere_hypervolume_converges() {
             assert!(r.stats.closed.is_closed());
             errors.push((r.stats.hypervolume_m3s - exact).abs() / exact);
         }
-        assert!(errors[2] < errors[0], "encoding {encoding}: errors {errors:?} do not shrink");
+        assert!(
+            errors[2] < errors[0],
+            "encoding {encoding}: errors {errors:?} do not shrink"
+        );
         let bound = if encoding == 0 { 0.05 } else { 0.01 };
-        assert!(errors[2] < bound, "encoding {encoding}: error at 48 is {}", errors[2]);
+        assert!(
+            errors[2] < bound,
+            "encoding {encoding}: error at 48 is {}",
+            errors[2]
+        );
     }
 }
 
@@ -130,7 +169,11 @@ fn empty_frames_give_an_empty_closed_mesh() {
 #[test]
 fn one_frame_gives_no_slab_and_no_volume() {
     let size = [3, 3, 3];
-    let r = run(&static_frames(1, 1000, 0, size, |x, _, _| x == 1), size, 0.1);
+    let r = run(
+        &static_frames(1, 1000, 0, size, |x, _, _| x == 1),
+        size,
+        0.1,
+    );
     assert!(r.slabs.is_empty());
     assert_eq!(r.stats.frames, 1);
     assert_eq!(r.stats.tets, 0);
@@ -144,7 +187,13 @@ fn occupancy_exactly_at_the_iso_level_counts_as_occupied() {
         .map(|k| TestFrame {
             stamp_ns: k * 100,
             encoding: 1,
-            data: percent_data(size, |x, y, z| if (1..4).contains(&x) && (1..4).contains(&y) && (1..4).contains(&z) { 50 } else { 0 }),
+            data: percent_data(size, |x, y, z| {
+                if (1..4).contains(&x) && (1..4).contains(&y) && (1..4).contains(&z) {
+                    50
+                } else {
+                    0
+                }
+            }),
         })
         .collect();
     let r = run(&frames, size, 1.0);
@@ -153,14 +202,31 @@ fn occupancy_exactly_at_the_iso_level_counts_as_occupied() {
     // Surface vertices are pushed one sub-lattice step off the samples (never on them).
     let scale = r.slabs[0].geometry.scale;
     for p in &r.slabs[0].mesh.vertices {
-        let off: Vec<i32> = p[..3].iter().map(|c| c.rem_euclid(scale)).filter(|&m| m != 0).collect();
+        let off: Vec<i32> = p[..3]
+            .iter()
+            .map(|c| c.rem_euclid(scale))
+            .filter(|&m| m != 0)
+            .collect();
         assert_eq!(off.len(), 1, "vertex {p:?}");
         assert!(off[0] == 1 || off[0] == scale - 1, "vertex {p:?}");
     }
 }
 
-fn frame<'a>(stamp_ns: i64, size: [u32; 3], resolution: f64, encoding: u8, data: &'a [u8]) -> FrameRef<'a> {
-    FrameRef { stamp_ns, origin: [0.0; 3], resolution, size, encoding, data }
+fn frame<'a>(
+    stamp_ns: i64,
+    size: [u32; 3],
+    resolution: f64,
+    encoding: u8,
+    data: &'a [u8],
+) -> FrameRef<'a> {
+    FrameRef {
+        stamp_ns,
+        origin: [0.0; 3],
+        resolution,
+        size,
+        encoding,
+        data,
+    }
 }
 
 #[test]
@@ -171,51 +237,121 @@ fn bad_frames_are_refused_with_a_reason_and_nothing_else_is_lost() {
     assert!(m.push(&frame(0, size, 0.1, 0, &good)).unwrap().is_none());
 
     let short = &good[..good.len() - 1];
-    assert!(matches!(m.push(&frame(1, size, 0.1, 0, short)), Err(MeshError::DataLength { expected: 8, got: 7, .. })));
+    assert!(matches!(
+        m.push(&frame(1, size, 0.1, 0, short)),
+        Err(MeshError::DataLength {
+            expected: 8,
+            got: 7,
+            ..
+        })
+    ));
     for res in [0.0, -0.1, f64::NAN, f64::INFINITY] {
-        assert!(matches!(m.push(&frame(1, size, res, 0, &good)), Err(MeshError::BadResolution { .. })), "{res}");
+        assert!(
+            matches!(
+                m.push(&frame(1, size, res, 0, &good)),
+                Err(MeshError::BadResolution { .. })
+            ),
+            "{res}"
+        );
     }
-    assert!(matches!(m.push(&frame(1, size, 0.1, 7, &good)), Err(MeshError::UnknownEncoding { encoding: 7 })));
+    assert!(matches!(
+        m.push(&frame(1, size, 0.1, 7, &good)),
+        Err(MeshError::UnknownEncoding { encoding: 7 })
+    ));
     // Sizes whose product would not fit: refused before any allocation.
     let huge = [u32::MAX, u32::MAX, u32::MAX];
-    assert!(matches!(m.push(&frame(1, huge, 0.1, 0, &good)), Err(MeshError::TooLarge { voxels: u64::MAX, .. })));
-    assert!(matches!(m.push(&frame(1, [100_000, 100_000, 1000], 0.1, 1, &good)), Err(MeshError::TooLarge { .. })));
-    assert!(matches!(m.push(&frame(1, [0, 4, 4], 0.1, 0, &[])), Err(MeshError::EmptySize { .. })));
+    assert!(matches!(
+        m.push(&frame(1, huge, 0.1, 0, &good)),
+        Err(MeshError::TooLarge {
+            voxels: u64::MAX,
+            ..
+        })
+    ));
+    assert!(matches!(
+        m.push(&frame(1, [100_000, 100_000, 1000], 0.1, 1, &good)),
+        Err(MeshError::TooLarge { .. })
+    ));
+    assert!(matches!(
+        m.push(&frame(1, [0, 4, 4], 0.1, 0, &[])),
+        Err(MeshError::EmptySize { .. })
+    ));
     // Another lattice than the first frame's.
     let other = bits_data([4, 4, 5], |_, _, _| false);
-    assert!(matches!(m.push(&frame(1, [4, 4, 5], 0.1, 0, &other)), Err(MeshError::LatticeMismatch { .. })));
-    assert!(matches!(m.push(&frame(1, size, 0.2, 0, &good)), Err(MeshError::LatticeMismatch { .. })));
-    assert!(matches!(m.push(&frame(1, size, 0.1, 1, &[0u8; 64])), Err(MeshError::LatticeMismatch { .. })));
+    assert!(matches!(
+        m.push(&frame(1, [4, 4, 5], 0.1, 0, &other)),
+        Err(MeshError::LatticeMismatch { .. })
+    ));
+    assert!(matches!(
+        m.push(&frame(1, size, 0.2, 0, &good)),
+        Err(MeshError::LatticeMismatch { .. })
+    ));
+    assert!(matches!(
+        m.push(&frame(1, size, 0.1, 1, &[0u8; 64])),
+        Err(MeshError::LatticeMismatch { .. })
+    ));
     // A stamp that does not increase.
-    assert!(matches!(m.push(&frame(0, size, 0.1, 0, &good)), Err(MeshError::StampNotIncreasing { previous_ns: 0, got_ns: 0 })));
-    assert!(matches!(m.push(&frame(-5, size, 0.1, 0, &good)), Err(MeshError::StampNotIncreasing { .. })));
+    assert!(matches!(
+        m.push(&frame(0, size, 0.1, 0, &good)),
+        Err(MeshError::StampNotIncreasing {
+            previous_ns: 0,
+            got_ns: 0
+        })
+    ));
+    assert!(matches!(
+        m.push(&frame(-5, size, 0.1, 0, &good)),
+        Err(MeshError::StampNotIncreasing { .. })
+    ));
     let mut nan_origin = frame(1, size, 0.1, 0, &good);
     nan_origin.origin[1] = f64::NAN;
-    assert!(matches!(m.push(&nan_origin), Err(MeshError::BadOrigin { .. })));
+    assert!(matches!(
+        m.push(&nan_origin),
+        Err(MeshError::BadOrigin { .. })
+    ));
     assert_eq!(m.skipped(), 15);
     assert_eq!(m.frames(), 1);
 
     // The stream goes on as if the bad frames had never come.
-    let slab = m.push(&frame(10, size, 0.1, 0, &good)).unwrap().expect("slab");
+    let slab = m
+        .push(&frame(10, size, 0.1, 0, &good))
+        .unwrap()
+        .expect("slab");
     let mut clean = Mesher::new(MesherOptions::default()).unwrap();
     clean.push(&frame(0, size, 0.1, 0, &good)).unwrap();
-    let want = clean.push(&frame(10, size, 0.1, 0, &good)).unwrap().unwrap();
+    let want = clean
+        .push(&frame(10, size, 0.1, 0, &good))
+        .unwrap()
+        .unwrap();
     assert_eq!(slab, want);
 }
 
 #[test]
 fn errors_name_what_was_wrong() {
-    let e = MeshError::DataLength { expected: 8, got: 7, encoding: chronotope::mesh::Encoding::Bits };
-    assert_eq!(e.to_string(), "data is 7 bytes but sizes and encoding Bits need 8");
-    let e = MeshError::StampNotIncreasing { previous_ns: 5, got_ns: 3 };
+    let e = MeshError::DataLength {
+        expected: 8,
+        got: 7,
+        encoding: chronotope::mesh::Encoding::Bits,
+    };
+    assert_eq!(
+        e.to_string(),
+        "data is 7 bytes but sizes and encoding Bits need 8"
+    );
+    let e = MeshError::StampNotIncreasing {
+        previous_ns: 5,
+        got_ns: 3,
+    };
     assert!(e.to_string().contains("does not increase"));
 }
 
 #[test]
 fn bad_options_are_refused() {
-    let mut o = MesherOptions::default();
-    o.percent_scale = 3;
-    assert!(matches!(Mesher::new(o), Err(MeshError::BadOption { name: "percent_scale", .. })));
+    let o = MesherOptions { percent_scale: 3, ..MesherOptions::default() };
+    assert!(matches!(
+        Mesher::new(o),
+        Err(MeshError::BadOption {
+            name: "percent_scale",
+            ..
+        })
+    ));
     let mut o = MesherOptions::default();
     o.decode.iso_percent = 0;
     assert!(Mesher::new(o).is_err());

@@ -9,7 +9,17 @@ fn committed_and_generated_bags_read_with_independent_readers() {
     let d = tempfile::tempdir().unwrap();
     let fresh = d.path().join("fresh.mcap");
     let status = Command::new(env!("CARGO_BIN_EXE_chronotope"))
-        .args(["scene", "machine-tool", "--grid", "12", "--frames", "3", "--encoding", "percent", "--out"])
+        .args([
+            "scene",
+            "machine-tool",
+            "--grid",
+            "12",
+            "--frames",
+            "3",
+            "--encoding",
+            "percent",
+            "--out",
+        ])
         .arg(&fresh)
         .status()
         .unwrap();

@@ -24,12 +24,18 @@ fn every_case_tets_face_outward() {
                 let positive = (case >> c) & 1 == 1;
                 // Occupied corners never lie beyond a lateral facet; some free corner does.
                 if positive {
-                    assert!(s <= 0, "case {case:#06x}: occupied corner {c} outside tet {tet:?}");
+                    assert!(
+                        s <= 0,
+                        "case {case:#06x}: occupied corner {c} outside tet {tet:?}"
+                    );
                 } else if s > 0 {
                     outside += 1;
                 }
             }
-            assert!(outside > 0, "case {case:#06x}: tet {tet:?} has no free corner outside");
+            assert!(
+                outside > 0,
+                "case {case:#06x}: tet {tet:?} has no free corner outside"
+            );
         }
     }
 }
@@ -40,7 +46,10 @@ fn uniform_cases_are_empty_and_mixed_cases_are_not() {
     assert!(t.lateral(0).is_empty());
     assert!(t.lateral(u16::MAX).is_empty());
     for case in 1..u16::MAX {
-        assert!(!t.lateral(case).is_empty(), "case {case:#06x} has no surface");
+        assert!(
+            !t.lateral(case).is_empty(),
+            "case {case:#06x} has no surface"
+        );
     }
 }
 
@@ -49,13 +58,20 @@ fn table_size_is_what_bhaniramka_gives() {
     let t = table();
     let avg = t.lateral_total() as f64 / 65536.0;
     // DESIGN.md §3: at most 24 tets per case, 12.94 on average for a pulling triangulation.
-    assert!(t.lateral_max() <= 24, "max {} tets per case", t.lateral_max());
+    assert!(
+        t.lateral_max() <= 24,
+        "max {} tets per case",
+        t.lateral_max()
+    );
     assert!((12.0..14.0).contains(&avg), "average {avg}");
 }
 
+/// A triangle in a hypercube facet (three points, three coordinates) with its orientation.
+type FacetTriangle = ([[i64; 3]; 3], i8);
+
 /// Triangles of a case's lateral tets that lie in the cube facet `x_axis = side`, as
 /// coordinate triples within that facet with their induced orientation.
-fn facet_triangles(case: u16, axis: usize, side: i64) -> Vec<([[i64; 3]; 3], i8)> {
+fn facet_triangles(case: u16, axis: usize, side: i64) -> Vec<FacetTriangle> {
     let mut out = Vec::new();
     for tet in table().lateral(case) {
         let p = tet.map(edge_point);
@@ -100,7 +116,7 @@ fn shared_three_faces_are_triangulated_identically_from_both_sides() {
     // For every facet configuration, the triangulation seen from the cube below (facet at
     // side 2) must equal the one seen from the cube above (side 0) with opposite induced
     // orientation, whatever the other 8 corners are.
-    let mut seen: HashMap<(usize, u8), Vec<([[i64; 3]; 3], i8)>> = HashMap::new();
+    let mut seen: HashMap<(usize, u8), Vec<FacetTriangle>> = HashMap::new();
     for case in 0..=u16::MAX {
         for axis in 0..4 {
             for side in [0i64, 2] {

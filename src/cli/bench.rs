@@ -4,8 +4,8 @@
 //! march, and the streaming validation timed separately); `chronotope mesh BAG --stats`
 //! measures the end-to-end run from a bag.
 
-use super::{frame_ref, EncodingArg};
 use super::CliError;
+use super::{frame_ref, EncodingArg};
 use crate::mesh::stats::{percentile, StatsAccumulator};
 use crate::mesh::{CapSide, Mesher, MesherOptions};
 use crate::msg::VoxelGrid;
@@ -50,7 +50,13 @@ pub enum BenchWhich {
 /// Bad scene options.
 pub fn run(a: &BenchArgs) -> Result<(), CliError> {
     match &a.which {
-        BenchWhich::Mesh { scene, grid, frames, encoding, validate } => {
+        BenchWhich::Mesh {
+            scene,
+            grid,
+            frames,
+            encoding,
+            validate,
+        } => {
             let mut o = SceneOptions::for_scene(*scene).encoding((*encoding).into());
             if let Some(g) = grid {
                 o = o.grid(*g);
@@ -65,10 +71,17 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
 
 fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), CliError> {
     let scene = build_scene(name, o)?;
-    println!("scene {name}: {}^3 voxels x {} frames, {:?}, {} bodies", o.grid, o.frames, o.encoding, scene.topics().len());
+    println!(
+        "scene {name}: {}^3 voxels x {} frames, {:?}, {} bodies",
+        o.grid,
+        o.frames,
+        o.encoding,
+        scene.topics().len()
+    );
     let mut raster = Rasterizer::new();
     let mut all_slab_ms = Vec::new();
-    let (mut tets, mut lateral_vertices, mut total_s, mut validate_s) = (0u64, 0u64, 0.0f64, 0.0f64);
+    let (mut tets, mut lateral_vertices, mut total_s, mut validate_s) =
+        (0u64, 0u64, 0.0f64, 0.0f64);
     for (b, topic) in scene.topics().iter().enumerate() {
         let frames: Vec<VoxelGrid> = (0..scene.frame_count())
             .map(|k| {
@@ -119,6 +132,9 @@ fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), C
         percentile(&all_slab_ms, 0.99),
         if validate { format!("; streaming validation {validate_s:.3} s") } else { String::new() }
     );
-    println!("peak RSS {:.1} MB (frames held in memory for the benchmark)", super::peak_rss_mb());
+    println!(
+        "peak RSS {:.1} MB (frames held in memory for the benchmark)",
+        super::peak_rss_mb()
+    );
     Ok(())
 }

@@ -5,11 +5,11 @@
 //! few frames and one slab per body, whatever the bag's length. A frame that cannot be
 //! decoded or meshed is logged with its topic, stamp and reason, counted, and skipped.
 
+use super::frame_ref;
 use super::CliError;
 use crate::bag::{voxel_frames, FrameError};
 use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
 use crate::mesh::stats::{BodyStats, StatsAccumulator};
-use super::frame_ref;
 use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, Slab, TetMesh};
 use crate::msg::VoxelGrid;
 use clap::Args;
@@ -55,7 +55,9 @@ pub struct SliceSpec {
 }
 
 fn parse_slice(s: &str) -> Result<SliceSpec, String> {
-    let (a, v) = s.split_once('=').ok_or_else(|| format!("slice {s:?}: expected AXIS=VALUE, e.g. t=1.5"))?;
+    let (a, v) = s
+        .split_once('=')
+        .ok_or_else(|| format!("slice {s:?}: expected AXIS=VALUE, e.g. t=1.5"))?;
     let axis = match a.trim() {
         "x" => 0,
         "y" => 1,
@@ -63,7 +65,10 @@ fn parse_slice(s: &str) -> Result<SliceSpec, String> {
         "t" => 3,
         other => return Err(format!("slice axis {other:?}: expected x, y, z or t")),
     };
-    let value: f64 = v.trim().parse().map_err(|e| format!("slice value {v:?}: {e}"))?;
+    let value: f64 = v
+        .trim()
+        .parse()
+        .map_err(|e| format!("slice value {v:?}: {e}"))?;
     if !value.is_finite() {
         return Err(format!("slice value {v:?} is not finite"));
     }
@@ -83,7 +88,7 @@ pub struct BodyResult {
     pub geometry: Option<GridGeometry>,
     /// Slices, with their spec.
     pub slices: Vec<(SliceSpec, TriMesh)>,
-    /// Stamps of the first and last accepted frames [ns].
+    /// Stamps of the first and last accepted frames (ns).
     pub stamp_range_ns: (i64, i64),
 }
 
@@ -94,9 +99,9 @@ pub struct MeshRun {
     pub bodies: Vec<BodyResult>,
     /// Wall-clock seconds.
     pub seconds_total: f64,
-    /// Peak RSS [MB].
+    /// Peak RSS (MB).
     pub peak_rss_mb: f64,
-    /// Earliest stamp of any frame [ns].
+    /// Earliest stamp of any frame (ns).
     pub time_origin_ns: i64,
     /// Problems with the bag itself (corrupt chunks, truncation), in reading order.
     pub bag_errors: Vec<String>,
@@ -104,7 +109,10 @@ pub struct MeshRun {
 
 /// Mesher options from the command line.
 pub fn mesher_options(a: &MeshArgs) -> MesherOptions {
-    let mut o = MesherOptions { percent_scale: a.percent_scale, ..MesherOptions::default() };
+    let mut o = MesherOptions {
+        percent_scale: a.percent_scale,
+        ..MesherOptions::default()
+    };
     o.decode.iso_percent = a.iso_percent;
     o.decode.unknown_occupied = !a.unknown_free;
     o
@@ -120,7 +128,11 @@ enum Job {
 /// # Errors
 /// The bag cannot be opened, is empty, has no VoxelGrid topic, or the options are bad.
 /// Per-frame problems are logged and counted instead.
-pub fn mesh_bag(path: &Path, opts: MesherOptions, slices: &[SliceSpec]) -> Result<MeshRun, CliError> {
+pub fn mesh_bag(
+    path: &Path,
+    opts: MesherOptions,
+    slices: &[SliceSpec],
+) -> Result<MeshRun, CliError> {
     let start = Instant::now();
     Mesher::new(opts)?; // refuse bad options before reading anything
     let frames = voxel_frames(path)?;
@@ -136,13 +148,24 @@ pub fn mesh_bag(path: &Path, opts: MesherOptions, slices: &[SliceSpec]) -> Resul
                     time_origin_ns = Some(time_origin_ns.map_or(s, |o| o.min(s)));
                     (topic, Job::Frame(Box::new(grid)))
                 }
-                Err(FrameError::Decode { topic, log_time_ns, reason }) => {
+                Err(FrameError::Decode {
+                    topic,
+                    log_time_ns,
+                    reason,
+                }) => {
                     tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
                     (topic, Job::Undecodable)
                 }
                 Err(FrameError::Bag(e)) => {
                     let fatal = e.is_fatal();
-                    tracing::error!("{e}{}", if fatal { "; meshing what was read before it" } else { "; reading on" });
+                    tracing::error!(
+                        "{e}{}",
+                        if fatal {
+                            "; meshing what was read before it"
+                        } else {
+                            "; reading on"
+                        }
+                    );
                     bag_errors.push(e.to_string());
                     if fatal {
                         break;
@@ -159,8 +182,10 @@ pub fn mesh_bag(path: &Path, opts: MesherOptions, slices: &[SliceSpec]) -> Resul
             let _ = tx.send(job);
         }
         drop(senders);
-        let mut bodies: Vec<BodyResult> =
-            handles.into_iter().map(|h| h.join().expect("body worker panicked")).collect();
+        let mut bodies: Vec<BodyResult> = handles
+            .into_iter()
+            .map(|h| h.join().expect("body worker panicked"))
+            .collect();
         bodies.sort_by(|a, b| a.id.cmp(&b.id));
         bodies
     });
@@ -181,9 +206,12 @@ struct SliceState {
 
 impl SliceState {
     fn add(&mut self, c: PlaneValue, mesh: &TetMesh) {
-        let (plus, minus) = self
-            .pair
-            .get_or_insert_with(|| (Slicer::new(self.spec.axis, c), Slicer::new(self.spec.axis, c).on_plane_below()));
+        let (plus, minus) = self.pair.get_or_insert_with(|| {
+            (
+                Slicer::new(self.spec.axis, c),
+                Slicer::new(self.spec.axis, c).on_plane_below(),
+            )
+        });
         plus.add(mesh);
         minus.add(mesh);
     }
@@ -204,12 +232,20 @@ impl SliceState {
     }
 }
 
-fn body_worker(topic: String, rx: Receiver<Job>, opts: MesherOptions, slices: &[SliceSpec]) -> BodyResult {
+fn body_worker(
+    topic: String,
+    rx: Receiver<Job>,
+    opts: MesherOptions,
+    slices: &[SliceSpec],
+) -> BodyResult {
     let mut mesher = Mesher::new(opts).expect("options checked before spawning");
     let mut acc = StatsAccumulator::new();
     let mut first_cap: Option<TetMesh> = None;
     let mut undecodable = 0u64;
-    let mut states: Vec<SliceState> = slices.iter().map(|&spec| SliceState { spec, pair: None }).collect();
+    let mut states: Vec<SliceState> = slices
+        .iter()
+        .map(|&spec| SliceState { spec, pair: None })
+        .collect();
     for job in rx {
         let grid = match job {
             Job::Frame(g) => g,
@@ -229,9 +265,13 @@ fn body_worker(topic: String, rx: Receiver<Job>, opts: MesherOptions, slices: &[
             }
         };
         acc.record_time(t0.elapsed().as_secs_f64() * 1e3);
-        let first_stamp = mesher.first_frame().map_or(slab.stamp_lo_ns, |k| k.stamp_ns);
+        let first_stamp = mesher
+            .first_frame()
+            .map_or(slab.stamp_lo_ns, |k| k.stamp_ns);
         if first_cap.is_none() {
-            first_cap = mesher.first_frame().and_then(|k| mesher.cap(k, CapSide::Low));
+            first_cap = mesher
+                .first_frame()
+                .and_then(|k| mesher.cap(k, CapSide::Low));
         }
         acc.add_slab(&slab, first_cap.as_ref());
         for st in &mut states {
@@ -250,7 +290,13 @@ fn body_worker(topic: String, rx: Receiver<Job>, opts: MesherOptions, slices: &[
         }
     }
     let has_slabs = mesher.frames() >= 2;
-    let last_cap = if has_slabs { mesher.last_frame().and_then(|k| mesher.cap(k, CapSide::High)) } else { None };
+    let last_cap = if has_slabs {
+        mesher
+            .last_frame()
+            .and_then(|k| mesher.cap(k, CapSide::High))
+    } else {
+        None
+    };
     if let (Some(cap), Some(g)) = (&last_cap, mesher.geometry()) {
         for st in states.iter_mut().filter(|s| s.spec.axis < 3) {
             st.add(spatial_plane(&st.spec, g), cap);
@@ -347,12 +393,20 @@ pub fn stats_json(r: &MeshRun) -> String {
             misoriented_triangles: b.stats.closed.misoriented,
         })
         .collect();
-    let j = StatsJson { bodies, seconds_total: r.seconds_total, peak_rss_mb: r.peak_rss_mb, bag_errors: &r.bag_errors };
+    let j = StatsJson {
+        bodies,
+        seconds_total: r.seconds_total,
+        peak_rss_mb: r.peak_rss_mb,
+        bag_errors: &r.bag_errors,
+    };
     serde_json::to_string_pretty(&j).expect("plain data serialises")
 }
 
 fn file_safe(topic: &str) -> String {
-    let s: String = topic.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let s: String = topic
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
     s.trim_matches('_').to_owned()
 }
 
@@ -362,7 +416,18 @@ fn file_safe(topic: &str) -> String {
 /// See [`mesh_bag`]; also a stats or PLY file that cannot be written.
 pub fn run(a: &MeshArgs) -> Result<(), CliError> {
     let r = mesh_bag(&a.bag, mesher_options(a), &a.slices)?;
-    println!("{:<28} {:>6} {:>11} {:>11} {:>7} {:>14} {:>9} {:>9} {:>7}", "body", "frames", "tets", "vertices", "closed", "hypervol m3s", "slab p50", "slab p99", "skipped");
+    println!(
+        "{:<28} {:>6} {:>11} {:>11} {:>7} {:>14} {:>9} {:>9} {:>7}",
+        "body",
+        "frames",
+        "tets",
+        "vertices",
+        "closed",
+        "hypervol m3s",
+        "slab p50",
+        "slab p99",
+        "skipped"
+    );
     for b in &r.bodies {
         let s = &b.stats;
         println!(
@@ -381,22 +446,43 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
             tracing::warn!(topic = %b.id, "only one frame: a 4D mesh needs at least two frames");
         }
     }
-    println!("total {:.3} s, peak RSS {:.1} MB", r.seconds_total, r.peak_rss_mb);
+    println!(
+        "total {:.3} s, peak RSS {:.1} MB",
+        r.seconds_total, r.peak_rss_mb
+    );
     if let Some(p) = &a.stats {
-        std::fs::write(p, stats_json(&r)).map_err(|source| CliError::Io { path: p.clone(), source })?;
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|source| CliError::Io { path: dir.to_path_buf(), source })?;
+        }
+        std::fs::write(p, stats_json(&r)).map_err(|source| CliError::Io {
+            path: p.clone(),
+            source,
+        })?;
     }
     if !a.slices.is_empty() {
-        std::fs::create_dir_all(&a.ply_dir).map_err(|source| CliError::Io { path: a.ply_dir.clone(), source })?;
+        std::fs::create_dir_all(&a.ply_dir).map_err(|source| CliError::Io {
+            path: a.ply_dir.clone(),
+            source,
+        })?;
     }
     for b in &r.bodies {
         let Some(g) = b.geometry else { continue };
         for (spec, mesh) in &b.slices {
             let axis = ["x", "y", "z", "t"][spec.axis];
-            let path = a.ply_dir.join(format!("{}_{axis}{}.ply", file_safe(&b.id), spec.value));
-            let file = std::fs::File::create(&path).map_err(|source| CliError::Io { path: path.clone(), source })?;
+            let path = a
+                .ply_dir
+                .join(format!("{}_{axis}{}.ply", file_safe(&b.id), spec.value));
+            let file = std::fs::File::create(&path).map_err(|source| CliError::Io {
+                path: path.clone(),
+                source,
+            })?;
             let to_world = slice_to_world(spec.axis, &g, r.time_origin_ns, b);
-            crate::mesh::slice::write_ply(mesh, std::io::BufWriter::new(file), to_world)
-                .map_err(|source| CliError::Io { path: path.clone(), source })?;
+            crate::mesh::slice::write_ply(mesh, std::io::BufWriter::new(file), to_world).map_err(
+                |source| CliError::Io {
+                    path: path.clone(),
+                    source,
+                },
+            )?;
             tracing::info!("{}: {} triangles", path.display(), mesh.triangles.len());
         }
     }
@@ -405,18 +491,31 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
 
 /// Maps slice coordinates (lattice units of the three remaining axes) to metres and, for
 /// time, seconds since the bag's first frame (using the body's mean frame period).
-fn slice_to_world(axis: usize, g: &GridGeometry, origin_ns: i64, b: &BodyResult) -> impl Fn(&[f64; 3]) -> [f64; 3] {
+fn slice_to_world(
+    axis: usize,
+    g: &GridGeometry,
+    origin_ns: i64,
+    b: &BodyResult,
+) -> impl Fn(&[f64; 3]) -> [f64; 3] {
     let c = g.voxel0_centre();
     let step = g.step_m();
     let s = f64::from(g.scale);
     let (first, last) = b.stamp_range_ns;
-    let period = if b.stats.frames > 1 { (last - first) as f64 * 1e-9 / (b.stats.frames - 1) as f64 } else { 0.0 };
+    let period = if b.stats.frames > 1 {
+        (last - first) as f64 * 1e-9 / (b.stats.frames - 1) as f64
+    } else {
+        0.0
+    };
     let t0 = (first - origin_ns) as f64 * 1e-9;
     let keep: Vec<usize> = (0..4).filter(|&k| k != axis).collect();
     move |p: &[f64; 3]| {
         let mut out = [0.0; 3];
         for (m, &k) in keep.iter().enumerate() {
-            out[m] = if k < 3 { c[k] + p[m] * step } else { t0 + p[m] / s * period };
+            out[m] = if k < 3 {
+                c[k] + p[m] * step
+            } else {
+                t0 + p[m] / s * period
+            };
         }
         out
     }

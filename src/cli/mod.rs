@@ -57,14 +57,16 @@ pub enum CliError {
     Usage(String),
 }
 
-/// Peak resident set size of this process so far [MB] (Linux: VmHWM), 0 if unknown.
+/// Peak resident set size of this process so far (MB) (Linux: VmHWM), 0 if unknown.
 pub fn peak_rss_mb() -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1).and_then(|v| v.parse::<f64>().ok()))
+            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| {
+                l.split_whitespace()
+                    .nth(1)
+                    .and_then(|v| v.parse::<f64>().ok())
+            })
         })
         .map(|kb| kb / 1024.0)
         .unwrap_or(0.0)
@@ -76,8 +78,8 @@ pub fn peak_rss_mb() -> f64 {
 /// The [`CliError`] that ended the command.
 pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
-            Command::Scene(a) => scene::run(&a),
-            Command::Mesh(a) => mesh::run(&a),
+        Command::Scene(a) => scene::run(&a),
+        Command::Mesh(a) => mesh::run(&a),
         Command::Bench(a) => bench::run(&a),
     }
 }
@@ -111,4 +113,3 @@ pub fn frame_ref(g: &VoxelGrid) -> FrameRef<'_> {
         data: &g.data,
     }
 }
-

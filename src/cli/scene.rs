@@ -1,10 +1,10 @@
 //! `chronotope scene NAME --out FILE.mcap [--grid N] [--frames F] [--encoding bits|percent]`.
 
 use super::CliError;
+use super::EncodingArg;
 use crate::bag::BagWriter;
 use crate::msg::VoxelGrid;
 use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions};
-use super::EncodingArg;
 use clap::Args;
 use std::path::PathBuf;
 

@@ -11,13 +11,13 @@ pub type SpaceTimePoint = [f64; 4];
 /// How lattice coordinates map to metres and seconds for one body.
 #[derive(Debug, Clone, PartialEq)]
 pub struct LatticeFrame {
-    /// Centre of voxel (0, 0, 0) [m].
+    /// Centre of voxel (0, 0, 0) (m).
     pub voxel0_centre: [f64; 3],
-    /// Voxel edge [m].
+    /// Voxel edge (m).
     pub resolution: f64,
     /// Lattice steps per voxel edge and per frame (2 for binary input, 2^k for percent).
     pub scale: i32,
-    /// Frame stamps [ns], frame n at lattice time S·n.
+    /// Frame stamps (ns), frame n at lattice time S·n.
     pub stamps_ns: Vec<i64>,
 }
 
@@ -27,7 +27,7 @@ impl LatticeFrame {
         self.resolution / f64::from(self.scale)
     }
 
-    /// Time [s since `origin_ns`] of lattice time `t` (piecewise linear between frames).
+    /// Time (s since `origin_ns`) of lattice time `t` (piecewise linear between frames).
     /// Outside the recorded frames it extrapolates with the nearest frame period.
     pub fn time_s(&self, t: i64, origin_ns: i64) -> f64 {
         let s = i64::from(self.scale);

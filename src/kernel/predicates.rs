@@ -27,7 +27,8 @@ pub fn orient4_i128(p: [&LatticePoint; 5]) -> i128 {
     let (a, b, c, e) = (d(p[1]), d(p[2]), d(p[3]), d(p[4]));
     let s = |i: usize, j: usize| c[i] * e[j] - c[j] * e[i];
     let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
-    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3) - t(1, 3) * s(0, 2)
+    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3)
+        - t(1, 3) * s(0, 2)
         + t(2, 3) * s(0, 1)
 }
 

@@ -17,11 +17,11 @@ pub enum Encoding {
 /// A borrowed view of one frame of one body, as the mesher needs it (no ROS types).
 #[derive(Debug, Clone, Copy)]
 pub struct FrameRef<'a> {
-    /// Stamp [ns].
+    /// Stamp (ns).
     pub stamp_ns: i64,
-    /// Min corner of voxel (0, 0, 0) [m].
+    /// Min corner of voxel (0, 0, 0) (m).
     pub origin: [f64; 3],
-    /// Voxel edge [m].
+    /// Voxel edge (m).
     pub resolution: f64,
     /// Voxels along x, y, z.
     pub size: [u32; 3],
@@ -44,7 +44,11 @@ pub struct DecodeOptions {
 
 impl Default for DecodeOptions {
     fn default() -> Self {
-        Self { max_voxels: 1 << 30, iso_percent: 50, unknown_occupied: true }
+        Self {
+            max_voxels: 1 << 30,
+            iso_percent: 50,
+            unknown_occupied: true,
+        }
     }
 }
 
@@ -74,7 +78,9 @@ impl OccupancyGrid {
     /// matching the sizes and encoding.
     pub fn decode(f: &FrameRef<'_>, opts: &DecodeOptions) -> Result<Self, MeshError> {
         if !(f.resolution.is_finite() && f.resolution > 0.0) {
-            return Err(MeshError::BadResolution { resolution: f.resolution });
+            return Err(MeshError::BadResolution {
+                resolution: f.resolution,
+            });
         }
         if f.origin.iter().any(|v| !v.is_finite()) {
             return Err(MeshError::BadOrigin { origin: f.origin });
@@ -86,19 +92,30 @@ impl OccupancyGrid {
         };
         let [sx, sy, sz] = f.size.map(u64::from);
         // u32^3 can exceed u64: saturate, the limit check below refuses it anyway.
-        let n = sx.checked_mul(sy).and_then(|v| v.checked_mul(sz)).unwrap_or(u64::MAX);
+        let n = sx
+            .checked_mul(sy)
+            .and_then(|v| v.checked_mul(sz))
+            .unwrap_or(u64::MAX);
         if sx == 0 || sy == 0 || sz == 0 {
             return Err(MeshError::EmptySize { size: f.size });
         }
         if n > opts.max_voxels {
-            return Err(MeshError::TooLarge { size: f.size, voxels: n, limit: opts.max_voxels });
+            return Err(MeshError::TooLarge {
+                size: f.size,
+                voxels: n,
+                limit: opts.max_voxels,
+            });
         }
         let expected = match encoding {
             Encoding::Bits => n.div_ceil(8),
             Encoding::Percent => n,
         };
         if f.data.len() as u64 != expected {
-            return Err(MeshError::DataLength { expected, got: f.data.len() as u64, encoding });
+            return Err(MeshError::DataLength {
+                expected,
+                got: f.data.len() as u64,
+                encoding,
+            });
         }
         let (sx, sy, sz) = (sx as usize, sy as usize, sz as usize);
         let padded = [sx + 2, sy + 2, sz + 2];
@@ -141,7 +158,13 @@ impl OccupancyGrid {
                 values = Some(v);
             }
         }
-        Ok(Self { padded, words, bits, values, occupied })
+        Ok(Self {
+            padded,
+            words,
+            bits,
+            values,
+            occupied,
+        })
     }
 
     /// Bit row for padded (y, z).

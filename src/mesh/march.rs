@@ -30,8 +30,12 @@ impl TetMesh {
 
     /// Appends `other`, merging vertices with equal coordinates.
     pub fn append_welded(&mut self, other: &TetMesh) {
-        let mut index: HashMap<LatticePoint, u32> =
-            self.vertices.iter().enumerate().map(|(i, p)| (*p, i as u32)).collect();
+        let mut index: HashMap<LatticePoint, u32> = self
+            .vertices
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (*p, i as u32))
+            .collect();
         let remap: Vec<u32> = other
             .vertices
             .iter()
@@ -42,7 +46,8 @@ impl TetMesh {
                 })
             })
             .collect();
-        self.tets.extend(other.tets.iter().map(|t| t.map(|v| remap[v as usize])));
+        self.tets
+            .extend(other.tets.iter().map(|t| t.map(|v| remap[v as usize])));
     }
 
     /// Translates every vertex by an integer lattice vector.
@@ -83,7 +88,11 @@ fn crossing(a: u8, b: u8, iso: u8, scale: i32) -> i32 {
         return 1;
     }
     let (a, b, iso) = (i64::from(a), i64::from(b), i64::from(iso));
-    let (num, den) = if a >= iso { (a - iso, a - b) } else { (iso - a, b - a) };
+    let (num, den) = if a >= iso {
+        (a - iso, a - b)
+    } else {
+        (iso - a, b - a)
+    };
     let s = i64::from(scale);
     // round(s · num / den), then keep it off both end points so no vertex sits on a sample.
     let q = (2 * s * num + den) / (2 * den);
@@ -256,11 +265,19 @@ pub fn march_cap(
                     let mut ids = [0u32; 4];
                     for (k, &pid) in tet.iter().enumerate() {
                         let pid = usize::from(pid);
-                        let (c0, c1, d, is_edge) =
-                            if pid < 8 { (pid, pid, 0, false) } else { let (a, b, d) = edge3(pid - 8); (a, b, d, true) };
+                        let (c0, c1, d, is_edge) = if pid < 8 {
+                            (pid, pid, 0, false)
+                        } else {
+                            let (a, b, d) = edge3(pid - 8);
+                            (a, b, d, true)
+                        };
                         let (gx, gy, gz) = (x + (c0 & 1), y + ((c0 >> 1) & 1), z + (c0 >> 2));
-                        let mut p: LatticePoint =
-                            [s * (gx as i32 - 1), s * (gy as i32 - 1), s * (gz as i32 - 1), t];
+                        let mut p: LatticePoint = [
+                            s * (gx as i32 - 1),
+                            s * (gy as i32 - 1),
+                            s * (gz as i32 - 1),
+                            t,
+                        ];
                         if is_edge {
                             p[d] += if s == 2 {
                                 1

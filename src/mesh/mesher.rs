@@ -19,16 +19,19 @@ pub struct MesherOptions {
 
 impl Default for MesherOptions {
     fn default() -> Self {
-        Self { decode: DecodeOptions::default(), percent_scale: 64 }
+        Self {
+            decode: DecodeOptions::default(),
+            percent_scale: 64,
+        }
     }
 }
 
 /// The lattice every frame of one body must share.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GridGeometry {
-    /// Min corner of voxel (0,0,0) [m].
+    /// Min corner of voxel (0,0,0) (m).
     pub origin: [f64; 3],
-    /// Voxel edge [m].
+    /// Voxel edge (m).
     pub resolution: f64,
     /// Voxels along x, y, z.
     pub size: [u32; 3],
@@ -39,7 +42,7 @@ pub struct GridGeometry {
 }
 
 impl GridGeometry {
-    /// Centre of voxel (0,0,0) [m]: lattice point (0,0,0,·).
+    /// Centre of voxel (0,0,0) (m): lattice point (0,0,0,·).
     pub fn voxel0_centre(&self) -> [f64; 3] {
         self.origin.map(|o| o + 0.5 * self.resolution)
     }
@@ -54,9 +57,9 @@ impl GridGeometry {
 pub struct Slab {
     /// k: index of the slab's first frame among the accepted frames.
     pub index: u64,
-    /// Stamp of frame k [ns].
+    /// Stamp of frame k (ns).
     pub stamp_lo_ns: i64,
-    /// Stamp of frame k+1 [ns].
+    /// Stamp of frame k+1 (ns).
     pub stamp_hi_ns: i64,
     /// The lattice.
     pub geometry: GridGeometry,
@@ -80,7 +83,7 @@ impl Slab {
 pub struct KeptFrame {
     /// Index among accepted frames.
     pub index: u64,
-    /// Stamp [ns].
+    /// Stamp (ns).
     pub stamp_ns: i64,
     /// Decoded occupancy.
     pub grid: OccupancyGrid,
@@ -144,7 +147,11 @@ impl Mesher {
     }
 
     fn try_push(&mut self, f: &FrameRef<'_>) -> Result<Option<Slab>, MeshError> {
-        let scale = if f.encoding == 1 { self.opts.percent_scale } else { 2 };
+        let scale = if f.encoding == 1 {
+            self.opts.percent_scale
+        } else {
+            2
+        };
         let geometry = GridGeometry {
             origin: f.origin,
             resolution: f.resolution,
@@ -157,12 +164,18 @@ impl Mesher {
         let grid = OccupancyGrid::decode(f, &self.opts.decode)?;
         if let Some(g) = &self.geometry {
             if *g != geometry {
-                return Err(MeshError::LatticeMismatch { expected: Box::new(*g), got: Box::new(geometry) });
+                return Err(MeshError::LatticeMismatch {
+                    expected: Box::new(*g),
+                    got: Box::new(geometry),
+                });
             }
         }
         if let Some(p) = &self.prev {
             if f.stamp_ns <= p.stamp_ns {
-                return Err(MeshError::StampNotIncreasing { previous_ns: p.stamp_ns, got_ns: f.stamp_ns });
+                return Err(MeshError::StampNotIncreasing {
+                    previous_ns: p.stamp_ns,
+                    got_ns: f.stamp_ns,
+                });
             }
         }
         let limit = (i32::MAX / scale) as u64 - 1;
@@ -170,7 +183,11 @@ impl Mesher {
             return Err(MeshError::TooManyFrames { limit });
         }
         self.geometry = Some(geometry);
-        let kept = KeptFrame { index: self.accepted, stamp_ns: f.stamp_ns, grid };
+        let kept = KeptFrame {
+            index: self.accepted,
+            stamp_ns: f.stamp_ns,
+            grid,
+        };
         self.accepted += 1;
         let slab = match self.prev.take() {
             None => {
@@ -179,8 +196,13 @@ impl Mesher {
             }
             Some(prev) => {
                 let mut mesh = TetMesh::default();
-                let at = SlabPlacement { scale, frame: prev.index as i64, iso: self.opts.decode.iso_percent };
-                self.marcher.march(self.table, &prev.grid, &kept.grid, at, &mut mesh);
+                let at = SlabPlacement {
+                    scale,
+                    frame: prev.index as i64,
+                    iso: self.opts.decode.iso_percent,
+                };
+                self.marcher
+                    .march(self.table, &prev.grid, &kept.grid, at, &mut mesh);
                 Some(Slab {
                     index: prev.index,
                     stamp_lo_ns: prev.stamp_ns,
@@ -224,7 +246,11 @@ impl Mesher {
     pub fn cap(&self, frame: &KeptFrame, side: CapSide) -> Option<TetMesh> {
         let g = self.geometry?;
         let mut out = TetMesh::default();
-        let at = SlabPlacement { scale: g.scale, frame: frame.index as i64, iso: self.opts.decode.iso_percent };
+        let at = SlabPlacement {
+            scale: g.scale,
+            frame: frame.index as i64,
+            iso: self.opts.decode.iso_percent,
+        };
         march_cap(self.table, &frame.grid, at, side, &mut out);
         Some(out)
     }

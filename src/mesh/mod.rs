@@ -4,7 +4,7 @@
 //!   triangulation); [`table`] serves it.
 //! - [`grid`] decodes frames; [`march`] meshes one slab and its caps; [`mesher`] rolls
 //!   over a stream of frames.
-//! - [`validate`] checks closedness and orientation and measures hypervolume; [`slice`]
+//! - [`validate`] checks closedness and orientation and measures hypervolume; [`slice`](mod@slice)
 //!   cuts the 4D mesh by an axis hyperplane into a closed 3D triangle mesh.
 //! - [`stats`] accumulates per-body statistics over a stream with bounded memory.
 

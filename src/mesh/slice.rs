@@ -38,7 +38,10 @@ impl PlaneValue {
     }
     /// The nearest multiple of 1/1024 lattice step to a real lattice coordinate.
     pub fn approx(v: f64) -> Self {
-        Self { num: (v * 1024.0).round() as i64, den: 1024 }
+        Self {
+            num: (v * 1024.0).round() as i64,
+            den: 1024,
+        }
     }
 }
 
@@ -74,8 +77,18 @@ impl Slicer {
     /// If `axis > 3` or `c.den` is not in 1..=4096 (caller bugs, not input).
     pub fn new(axis: usize, c: PlaneValue) -> Self {
         assert!(axis < 4, "axis {axis} out of range");
-        assert!((1..=4096).contains(&c.den), "denominator {} out of range", c.den);
-        Self { axis, c, on_plane_is_plus: true, index: HashMap::new(), mesh: TriMesh::default() }
+        assert!(
+            (1..=4096).contains(&c.den),
+            "denominator {} out of range",
+            c.den
+        );
+        Self {
+            axis,
+            c,
+            on_plane_is_plus: true,
+            index: HashMap::new(),
+            mesh: TriMesh::default(),
+        }
     }
 
     /// The same slicer with on-plane vertices counted as "−": use it (alongside the
@@ -106,18 +119,30 @@ impl Slicer {
             }
             // Slice points in cyclic order around the polygon.
             let pts: Vec<(usize, usize)> = if plus == 1 || plus == 3 {
-                let lone = (0..4).find(|&i| side[i] == (plus == 1)).expect("one lone vertex");
+                let lone = (0..4)
+                    .find(|&i| side[i] == (plus == 1))
+                    .expect("one lone vertex");
                 (0..4).filter(|&i| i != lone).map(|i| (lone, i)).collect()
             } else {
                 let pos: Vec<usize> = (0..4).filter(|&i| side[i]).collect();
                 let neg: Vec<usize> = (0..4).filter(|&i| !side[i]).collect();
                 // (n0,p0) (n0,p1) (n1,p1) (n1,p0) is a cycle of the quad.
-                vec![(neg[0], pos[0]), (neg[0], pos[1]), (neg[1], pos[1]), (neg[1], pos[0])]
+                vec![
+                    (neg[0], pos[0]),
+                    (neg[0], pos[1]),
+                    (neg[1], pos[1]),
+                    (neg[1], pos[0]),
+                ]
             };
             let normal = outward_normal(&p);
-            let geo: Vec<([i128; 3], i128)> = pts.iter().map(|&(i, j)| self.point(&p, i, j)).collect();
+            let geo: Vec<([i128; 3], i128)> =
+                pts.iter().map(|&(i, j)| self.point(&p, i, j)).collect();
             let keys: Vec<Key> = pts.iter().map(|&(i, j)| self.key(&p, i, j)).collect();
-            let tris: &[[usize; 3]] = if pts.len() == 3 { &[[0, 1, 2]] } else { &[[0, 1, 2], [0, 2, 3]] };
+            let tris: &[[usize; 3]] = if pts.len() == 3 {
+                &[[0, 1, 2]]
+            } else {
+                &[[0, 1, 2], [0, 2, 3]]
+            };
             for tri in tris {
                 let [a, b, c] = *tri;
                 if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
@@ -225,12 +250,19 @@ fn outward_normal(p: &[LatticePoint; 4]) -> [i128; 4] {
 fn det4(a: &[i128; 4], b: &[i128; 4], c: &[i128; 4], d: &[i128; 4]) -> i128 {
     let s = |i: usize, j: usize| c[i] * d[j] - c[j] * d[i];
     let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
-    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3) - t(1, 3) * s(0, 2)
+    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3)
+        - t(1, 3) * s(0, 2)
         + t(2, 3) * s(0, 1)
 }
 
 /// Sign of det3[Q−P, R−P, n3] for homogeneous P, Q, R (positive weights).
-fn orientation(p: &([i128; 3], i128), q: &([i128; 3], i128), r: &([i128; 3], i128), n: &[i128; 4], k: usize) -> i128 {
+fn orientation(
+    p: &([i128; 3], i128),
+    q: &([i128; 3], i128),
+    r: &([i128; 3], i128),
+    n: &[i128; 4],
+    k: usize,
+) -> i128 {
     let n3 = {
         let mut m = [0i128; 3];
         let mut j = 0;
@@ -244,7 +276,11 @@ fn orientation(p: &([i128; 3], i128), q: &([i128; 3], i128), r: &([i128; 3], i12
     };
     let u = [0, 1, 2].map(|i| p.1 * q.0[i] - q.1 * p.0[i]);
     let v = [0, 1, 2].map(|i| p.1 * r.0[i] - r.1 * p.0[i]);
-    let c = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+    let c = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
     (c[0] * n3[0] + c[1] * n3[1] + c[2] * n3[2]).signum()
 }
 

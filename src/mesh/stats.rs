@@ -23,9 +23,8 @@
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pack_face, pair_faces, pair_packed, pair_plane_faces,
-    radix_sort_u64, tet_faces, ClosedReport,
-    PACKED_VERTEX_LIMIT,
+    canonical_triangle, det4_small_tet, id_bits, pack_face, pair_faces, pair_packed,
+    pair_plane_faces, radix_sort_u64, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
 };
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
@@ -44,7 +43,7 @@ pub struct BodyStats {
     pub vertices: u64,
     /// Closedness over the whole glued mesh.
     pub closed: ClosedReport,
-    /// Hypervolume [m³·s].
+    /// Hypervolume (m³·s).
     pub hypervolume_m3s: f64,
     /// Hypervolume in lattice units (exact, ×24 per slab, summed as f64 for reporting).
     pub hypervolume_lattice: f64,
@@ -53,11 +52,11 @@ pub struct BodyStats {
 }
 
 impl BodyStats {
-    /// Median of the per-slab times [ms] (0 with no slabs).
+    /// Median of the per-slab times (ms) (0 with no slabs).
     pub fn slab_ms_median(&self) -> f64 {
         percentile(&self.slab_ms, 0.5)
     }
-    /// 99th percentile of the per-slab times [ms].
+    /// 99th percentile of the per-slab times (ms).
     pub fn slab_ms_p99(&self) -> f64 {
         percentile(&self.slab_ms, 0.99)
     }
@@ -103,8 +102,11 @@ impl StatsAccumulator {
         let (t_lo, t_hi) = (slab.t_lo(), slab.t_hi());
         let m = &slab.mesh;
         // Which time plane each vertex lies in: bit 0 lower, bit 1 upper.
-        let plane: Vec<u8> =
-            m.vertices.iter().map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1)).collect();
+        let plane: Vec<u8> = m
+            .vertices
+            .iter()
+            .map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1))
+            .collect();
         let packed = m.vertices.len() <= PACKED_VERTEX_LIMIT;
         let bits = id_bits(m.vertices.len());
         let mut lo: Vec<(PlaneTri, i8)> = Vec::new();
@@ -146,7 +148,11 @@ impl StatsAccumulator {
         // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
         vol24 -= i128::from(t_hi - t_lo) * hi_cone;
         // Faces off the two time planes pair up inside the slab.
-        let report = if packed { pair_packed(&mut self.keys, &mut self.scratch, bits) } else { pair_faces(wide) };
+        let report = if packed {
+            pair_packed(&mut self.keys, &mut self.scratch, bits)
+        } else {
+            pair_faces(wide)
+        };
         self.merge(report);
 
         // Lower plane: pairs with the previous slab's upper plane, or the first cap.
@@ -174,12 +180,19 @@ impl StatsAccumulator {
         let v = vol24 as f64 / 24.0;
         self.stats.hypervolume_lattice += v;
         let step = g.step_m();
-        self.stats.hypervolume_m3s += v * step * step * step * (dt_ns as f64 * 1e-9) / f64::from(g.scale);
+        self.stats.hypervolume_m3s +=
+            v * step * step * step * (dt_ns as f64 * 1e-9) / f64::from(g.scale);
     }
 
     /// Checks that two sides of one time plane carry the same triangles with opposite
     /// orientations: by multiset hash, exactly (sorting) only if the hashes disagree.
-    fn match_planes(&mut self, mut a: Vec<(PlaneTri, i8)>, a_hash: u128, b: Vec<(PlaneTri, i8)>, b_hash: u128) {
+    fn match_planes(
+        &mut self,
+        mut a: Vec<(PlaneTri, i8)>,
+        a_hash: u128,
+        b: Vec<(PlaneTri, i8)>,
+        b_hash: u128,
+    ) {
         if a_hash.wrapping_add(b_hash) == 0 && a.len() == b.len() {
             self.stats.closed.triangles += a.len() as u64;
         } else {
@@ -226,12 +239,17 @@ impl StatsAccumulator {
 fn det3_i128(t: &PlaneTri) -> i128 {
     let m = |p: &[i32; 3]| p.map(i128::from);
     let (a, b, c) = (m(&t[0]), m(&t[1]), m(&t[2]));
-    a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0])
+    a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+        + a[2] * (b[0] * c[1] - b[1] * c[0])
 }
 
 /// Checks a cap's interior faces (exactly, by packed vertex ids) and returns the report, its
 /// boundary triangles keyed by coordinates, and their multiset hash.
-fn cap_boundary(cap: &TetMesh, keys: &mut Vec<u64>, scratch: &mut Vec<u64>) -> (ClosedReport, Vec<(PlaneTri, i8)>, u128) {
+fn cap_boundary(
+    cap: &TetMesh,
+    keys: &mut Vec<u64>,
+    scratch: &mut Vec<u64>,
+) -> (ClosedReport, Vec<(PlaneTri, i8)>, u128) {
     let point = |v: u32| {
         let p = cap.vertices[v as usize];
         [p[0], p[1], p[2]]
@@ -269,7 +287,11 @@ fn cap_boundary(cap: &TetMesh, keys: &mut Vec<u64>, scratch: &mut Vec<u64>) -> (
         }
         match j - i {
             1 => {
-                let ids = [(face >> (2 * bits)) as u32, ((face >> bits) & mask) as u32, (face & mask) as u32];
+                let ids = [
+                    (face >> (2 * bits)) as u32,
+                    ((face >> bits) & mask) as u32,
+                    (face & mask) as u32,
+                ];
                 let s = if keys[i] & 1 == 1 { 1 } else { -1 };
                 let (key, parity) = canonical_triangle(ids.map(point));
                 hash = signed_add(hash, &key, s * parity);

@@ -38,7 +38,11 @@ impl Table {
 
     /// Largest number of lateral tets in one case.
     pub fn lateral_max(&self) -> usize {
-        self.lateral_offsets.windows(2).map(|w| (w[1] - w[0]) as usize).max().unwrap_or(0)
+        self.lateral_offsets
+            .windows(2)
+            .map(|w| (w[1] - w[0]) as usize)
+            .max()
+            .unwrap_or(0)
     }
 }
 
@@ -57,12 +61,23 @@ fn parse(bytes: &[u8]) -> Table {
     };
     let lateral_offsets = u32s(65537, &mut pos);
     let n = *lateral_offsets.last().expect("offsets") as usize;
-    let lateral = bytes[pos..pos + 4 * n].chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
+    let lateral = bytes[pos..pos + 4 * n]
+        .chunks_exact(4)
+        .map(|c| [c[0], c[1], c[2], c[3]])
+        .collect();
     pos += 4 * n;
     let cap_offsets = u32s(257, &mut pos);
     let m = *cap_offsets.last().expect("offsets") as usize;
-    let cap = bytes[pos..pos + 4 * m].chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
-    Table { lateral_offsets, lateral, cap_offsets, cap }
+    let cap = bytes[pos..pos + 4 * m]
+        .chunks_exact(4)
+        .map(|c| [c[0], c[1], c[2], c[3]])
+        .collect();
+    Table {
+        lateral_offsets,
+        lateral,
+        cap_offsets,
+        cap,
+    }
 }
 
 /// The table (parsed once, on first use).

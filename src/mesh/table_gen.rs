@@ -63,7 +63,11 @@ pub fn edge4_index(c: usize, d: usize) -> usize {
 
 /// Cube (3D) corner position on the doubled lattice.
 pub fn corner3(c: usize) -> P3 {
-    [2 * (c & 1) as i64, 2 * ((c >> 1) & 1) as i64, 2 * ((c >> 2) & 1) as i64]
+    [
+        2 * (c & 1) as i64,
+        2 * ((c >> 1) & 1) as i64,
+        2 * ((c >> 2) & 1) as i64,
+    ]
 }
 
 /// The two corners and direction of cube edge `e` (axis `e / 4`).
@@ -134,7 +138,12 @@ fn det4(r: [P4; 4]) -> i64 {
 
 /// det[p1-p0, p2-p0, p3-p0, p4-p0].
 pub fn orient4(p: [&P4; 5]) -> i64 {
-    det4([sub4(p[1], p[0]), sub4(p[2], p[0]), sub4(p[3], p[0]), sub4(p[4], p[0])])
+    det4([
+        sub4(p[1], p[0]),
+        sub4(p[2], p[0]),
+        sub4(p[3], p[0]),
+        sub4(p[4], p[0]),
+    ])
 }
 
 /// det[p1-p0, p2-p0, p3-p0].
@@ -143,7 +152,11 @@ pub fn orient3(p0: &P3, p1: &P3, p2: &P3, p3: &P3) -> i64 {
 }
 
 fn cross3(u: &P3, v: &P3) -> P3 {
-    [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]]
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
 }
 
 /// Normal N of the hyperplane spanned by u, v, w (N·x = det[u, v, w, x]).
@@ -174,7 +187,11 @@ fn cyclic_order(pts: &[P3], ids: &mut [usize]) {
     if ids.len() < 3 {
         return;
     }
-    let (first, _) = ids.iter().enumerate().min_by_key(|(_, &i)| pts[i]).expect("non-empty");
+    let (first, _) = ids
+        .iter()
+        .enumerate()
+        .min_by_key(|(_, &i)| pts[i])
+        .expect("non-empty");
     ids.swap(0, first);
     let o = pts[ids[0]];
     // The plane normal tells which way is counter-clockwise.
@@ -277,9 +294,15 @@ fn project(pts: &[P4], ids: &[usize], n: &P4) -> Vec<P3> {
 /// from a known facet with a known 2-face of it. Gift wrapping around 2-faces.
 fn hull4_facets(pts: &[P4], start_normal: P4, start_face: Vec<usize>) -> Vec<Facet4> {
     let on_plane = |n: &P4, off: i64| -> Vec<usize> {
-        (0..pts.len()).filter(|&i| dot4(n, &pts[i]) == off).collect()
+        (0..pts.len())
+            .filter(|&i| dot4(n, &pts[i]) == off)
+            .collect()
     };
-    let start_offset = pts.iter().map(|p| dot4(&start_normal, p)).max().expect("points");
+    let start_offset = pts
+        .iter()
+        .map(|p| dot4(&start_normal, p))
+        .max()
+        .expect("points");
     let mut facets: Vec<Facet4> = Vec::new();
     let mut seen: Vec<u64> = Vec::new();
     let mut queue: Vec<(P4, i64, Vec<usize>)> = vec![(start_normal, start_offset, start_face)];
@@ -305,9 +328,13 @@ fn hull4_facets(pts: &[P4], start_normal: P4, start_face: Vec<usize>) -> Vec<Fac
         for face in &faces {
             let (r0, r1) = (face[0], face[1]);
             let r2 = face[2];
-            let a = *points.iter().find(|&&q| !face.contains(&q)).expect("facet spans 3D");
-            let off: Vec<usize> =
-                (0..pts.len()).filter(|&q| dot4(&normal, &pts[q]) != offset).collect();
+            let a = *points
+                .iter()
+                .find(|&&q| !face.contains(&q))
+                .expect("facet spans 3D");
+            let off: Vec<usize> = (0..pts.len())
+                .filter(|&q| dot4(&normal, &pts[q]) != offset)
+                .collect();
             let Some(&first) = off.first() else { continue };
             let mut p = first;
             let o = |x: usize, y: usize| {
@@ -338,7 +365,12 @@ fn hull4_facets(pts: &[P4], start_normal: P4, start_face: Vec<usize>) -> Vec<Fac
                 queue.push((n, off_n, face.clone()));
             }
         }
-        facets.push(Facet4 { points, faces, normal, offset });
+        facets.push(Facet4 {
+            points,
+            faces,
+            normal,
+            offset,
+        });
     }
     facets
 }
@@ -385,8 +417,9 @@ pub fn case_hull4(case: u16) -> (Vec<(usize, P4)>, Vec<Facet4>) {
     let u = coords[0];
     let sx = if u[0] == 0 { -1 } else { 1 };
     let normal = [sx, 0, 0, 0];
-    let ridge: Vec<usize> =
-        (0..coords.len()).filter(|&i| coords[i][0] == u[0] && coords[i][1] == u[1]).collect();
+    let ridge: Vec<usize> = (0..coords.len())
+        .filter(|&i| coords[i][0] == u[0] && coords[i][1] == u[1])
+        .collect();
     let facets = hull4_facets(&coords, normal, ridge);
     (pts, facets)
 }
@@ -403,13 +436,18 @@ fn on_cube_boundary(coords: &[P4], ids: &[usize]) -> Option<(usize, i64)> {
 /// vertex `v` over the fans of the 2-faces not containing `v`. Returns unoriented tets as
 /// point indices (v first).
 fn pull<P: Ord + Copy>(coords: &[P], faces: &[Vec<usize>], all: &[usize]) -> Vec<[usize; 4]> {
-    let v = *all.iter().min_by_key(|&&i| coords[i]).expect("non-empty facet");
+    let v = *all
+        .iter()
+        .min_by_key(|&&i| coords[i])
+        .expect("non-empty facet");
     let mut tets = Vec::new();
     for f in faces {
         if f.contains(&v) {
             continue;
         }
-        let k = (0..f.len()).min_by_key(|&k| coords[f[k]]).expect("non-empty face");
+        let k = (0..f.len())
+            .min_by_key(|&k| coords[f[k]])
+            .expect("non-empty face");
         let n = f.len();
         let w0 = f[k];
         for i in 1..n - 1 {
@@ -482,7 +520,9 @@ pub fn case_tets3(case: u8) -> Vec<[u8; 4]> {
     // Start from the face of the cube through a positive corner (2-dimensional: the corner
     // plus a point along each of the two other axes).
     let u = coords[0];
-    let mut start: Vec<usize> = (0..coords.len()).filter(|&i| coords[i][0] == u[0]).collect();
+    let mut start: Vec<usize> = (0..coords.len())
+        .filter(|&i| coords[i][0] == u[0])
+        .collect();
     cyclic_order(&coords, &mut start);
     let faces = hull3_faces(&coords, start);
     let all: Vec<usize> = (0..coords.len()).collect();
@@ -516,7 +556,10 @@ pub fn build_table(threads: usize) -> Vec<u8> {
                 })
             })
             .collect();
-        handles.into_iter().map(|h| h.join().expect("table thread")).collect()
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("table thread"))
+            .collect()
     });
     let mut out = Vec::new();
     out.extend_from_slice(TABLE_MAGIC);

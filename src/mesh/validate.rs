@@ -1,7 +1,7 @@
 //! Validation of tet meshes: closedness with consistent orientation, and hypervolume.
 //!
 //! A tet [a, b, c, d] induces on its faces the orientation of its boundary
-//! ∂[a,b,c,d] = [b,c,d] − [a,c,d] + [a,b,d] − [a,b,c]. A mesh is closed and consistently
+//! `∂[a,b,c,d] = [b,c,d] − [a,c,d] + [a,b,d] − [a,b,c]`. A mesh is closed and consistently
 //! oriented when every triangle is shared by exactly two tets that induce opposite
 //! orientations on it.
 //!
@@ -14,16 +14,25 @@ use crate::kernel::{det4_i128, LatticePoint};
 /// det[a, b, c, d] exactly, fast when the tet is small: det[a, b−a, c−a, d−a] expanded
 /// along its first row, whose cofactors are 3x3 determinants of small differences.
 #[inline]
-pub fn det4_small_tet(a: &LatticePoint, b: &LatticePoint, c: &LatticePoint, d: &LatticePoint) -> i128 {
+pub fn det4_small_tet(
+    a: &LatticePoint,
+    b: &LatticePoint,
+    c: &LatticePoint,
+    d: &LatticePoint,
+) -> i128 {
     let diff = |p: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(p[k]) - i64::from(a[k]));
     let (u, v, w) = (diff(b), diff(c), diff(d));
     // Differences of points in one hypercube are at most 2^11 in magnitude for any scale we
     // accept (1024); 3x3 minors stay below 6·2^33, far inside i64.
-    if [u, v, w].iter().any(|r| r.iter().any(|x| x.abs() > 1 << 20)) {
+    if [u, v, w]
+        .iter()
+        .any(|r| r.iter().any(|x| x.abs() > 1 << 20))
+    {
         return det4_i128(a, b, c, d);
     }
     let m = |i: usize, j: usize, k: usize| {
-        u[i] * (v[j] * w[k] - v[k] * w[j]) - u[j] * (v[i] * w[k] - v[k] * w[i]) + u[k] * (v[i] * w[j] - v[j] * w[i])
+        u[i] * (v[j] * w[k] - v[k] * w[j]) - u[j] * (v[i] * w[k] - v[k] * w[i])
+            + u[k] * (v[i] * w[j] - v[j] * w[i])
     };
     // Row a is expanded with alternating signs over the minors of columns (1,2,3), (0,2,3), ...
     i128::from(a[0]) * i128::from(m(1, 2, 3)) - i128::from(a[1]) * i128::from(m(0, 2, 3))
@@ -73,7 +82,12 @@ pub fn canonical_triangle<T: Ord + Copy>(mut t: [T; 3]) -> ([T; 3], i8) {
 /// The four boundary triangles of a tet with their induced orientation signs.
 #[inline]
 pub fn tet_faces<T: Copy>(t: [T; 4]) -> [([T; 3], i8); 4] {
-    [([t[1], t[2], t[3]], 1), ([t[0], t[2], t[3]], -1), ([t[0], t[1], t[3]], 1), ([t[0], t[1], t[2]], -1)]
+    [
+        ([t[1], t[2], t[3]], 1),
+        ([t[0], t[2], t[3]], -1),
+        ([t[0], t[1], t[3]], 1),
+        ([t[0], t[1], t[2]], -1),
+    ]
 }
 
 /// Checks that every triangle is shared by exactly two tets with opposite induced
@@ -130,7 +144,10 @@ pub fn id_bits(n: usize) -> u32 {
 /// the low 3·bits + 1 bits of a u64.
 #[inline]
 pub fn pack_face(k: [u32; 3], positive: bool, bits: u32) -> u64 {
-    (u64::from(k[0]) << (2 * bits + 1)) | (u64::from(k[1]) << (bits + 1)) | (u64::from(k[2]) << 1) | u64::from(positive)
+    (u64::from(k[0]) << (2 * bits + 1))
+        | (u64::from(k[1]) << (bits + 1))
+        | (u64::from(k[2]) << 1)
+        | u64::from(positive)
 }
 
 /// Sorts packed faces (ids of `bits` bits) and counts how they pair up (see
@@ -192,7 +209,7 @@ pub fn radix_sort_u64(v: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) {
 
 /// Groups oriented triangles and counts how they pair up.
 pub fn pair_faces<K: Ord + Copy>(mut faces: Vec<(K, i8)>) -> ClosedReport {
-    faces.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    faces.sort_unstable_by_key(|f| f.0);
     pair_sorted(&faces)
 }
 
@@ -200,15 +217,21 @@ pub fn pair_faces<K: Ord + Copy>(mut faces: Vec<(K, i8)>) -> ClosedReport {
 /// u64 (21 bits per coordinate) when the coordinates allow, which sorts much faster.
 pub fn pair_plane_faces(faces: Vec<([[i32; 3]; 3], i8)>) -> ClosedReport {
     const LIM: i32 = 1 << 20;
-    if faces.iter().any(|(t, _)| t.iter().any(|p| p.iter().any(|&c| !(-LIM..LIM).contains(&c)))) {
+    if faces.iter().any(|(t, _)| {
+        t.iter()
+            .any(|p| p.iter().any(|&c| !(-LIM..LIM).contains(&c)))
+    }) {
         return pair_faces(faces);
     }
     let pack = |p: &[i32; 3]| {
         ((p[0] + LIM) as u64) << 42 | ((p[1] + LIM) as u64) << 21 | (p[2] + LIM) as u64
     };
     // Packing preserves the order of points, so canonical triangles stay canonical.
-    let mut packed: Vec<([u64; 3], i8)> = faces.iter().map(|(t, s)| (t.map(|p| pack(&p)), *s)).collect();
-    packed.sort_unstable_by(|a, b| a.0.cmp(&b.0));
+    let mut packed: Vec<([u64; 3], i8)> = faces
+        .iter()
+        .map(|(t, s)| (t.map(|p| pack(&p)), *s))
+        .collect();
+    packed.sort_unstable_by_key(|f| f.0);
     pair_sorted(&packed)
 }
 
@@ -243,7 +266,14 @@ pub fn hypervolume24(mesh: &TetMesh) -> i128 {
 
 /// Like [`hypervolume24`] with coordinates taken relative to `origin` (keeps numbers small).
 pub fn hypervolume24_about(mesh: &TetMesh, origin: LatticePoint) -> i128 {
-    let rel = |p: &LatticePoint| [p[0] - origin[0], p[1] - origin[1], p[2] - origin[2], p[3] - origin[3]];
+    let rel = |p: &LatticePoint| {
+        [
+            p[0] - origin[0],
+            p[1] - origin[1],
+            p[2] - origin[2],
+            p[3] - origin[3],
+        ]
+    };
     -mesh
         .tets
         .iter()

@@ -3,7 +3,9 @@
 use serde::{Deserialize, Serialize};
 
 /// `builtin_interfaces/msg/Time`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[derive(
+    Debug, Clone, Copy, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize,
+)]
 pub struct Time {
     /// Seconds since the epoch.
     pub sec: i32,
@@ -19,7 +21,10 @@ impl Time {
     /// The stamp of `ns` nanoseconds since the epoch (floor division, so `nanosec` stays in range).
     pub fn from_nanos(ns: i64) -> Self {
         let sec = ns.div_euclid(1_000_000_000);
-        Self { sec: sec as i32, nanosec: ns.rem_euclid(1_000_000_000) as u32 }
+        Self {
+            sec: sec as i32,
+            nanosec: ns.rem_euclid(1_000_000_000) as u32,
+        }
     }
 }
 
@@ -35,11 +40,11 @@ pub struct Header {
 /// `geometry_msgs/msg/Point`.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct Point {
-    /// [m]
+    /// (m)
     pub x: f64,
-    /// [m]
+    /// (m)
     pub y: f64,
-    /// [m]
+    /// (m)
     pub z: f64,
 }
 
@@ -78,9 +83,9 @@ impl VoxelEncoding {
 pub struct VoxelGrid {
     /// stamp: time of the frame; frame_id: frame of the lattice.
     pub header: Header,
-    /// Min corner of voxel (0,0,0) [m].
+    /// Min corner of voxel (0,0,0) (m).
     pub origin: Point,
-    /// Voxel edge [m], > 0.
+    /// Voxel edge (m), > 0.
     pub resolution: f64,
     /// Voxels along x.
     pub size_x: u32,
@@ -122,9 +127,18 @@ impl super::RosMessage for VoxelGrid {
     const DEFINITION: &'static str = include_str!("../../msgs/msg/VoxelGrid.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         vec![
-            ("std_msgs/msg/Header", include_str!("../../msgs/deps/std_msgs/msg/Header.msg")),
-            ("builtin_interfaces/msg/Time", include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg")),
-            ("geometry_msgs/msg/Point", include_str!("../../msgs/deps/geometry_msgs/msg/Point.msg")),
+            (
+                "std_msgs/msg/Header",
+                include_str!("../../msgs/deps/std_msgs/msg/Header.msg"),
+            ),
+            (
+                "builtin_interfaces/msg/Time",
+                include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg"),
+            ),
+            (
+                "geometry_msgs/msg/Point",
+                include_str!("../../msgs/deps/geometry_msgs/msg/Point.msg"),
+            ),
         ]
     }
 }

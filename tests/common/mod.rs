@@ -44,7 +44,14 @@ pub struct TestFrame {
 }
 
 pub fn frame_ref<'a>(f: &'a TestFrame, size: [u32; 3], resolution: f64) -> FrameRef<'a> {
-    FrameRef { stamp_ns: f.stamp_ns, origin: [0.0; 3], resolution, size, encoding: f.encoding, data: &f.data }
+    FrameRef {
+        stamp_ns: f.stamp_ns,
+        origin: [0.0; 3],
+        resolution,
+        size,
+        encoding: f.encoding,
+        data: &f.data,
+    }
 }
 
 /// Everything a run produced.
@@ -66,7 +73,10 @@ pub fn run_with(frames: &[TestFrame], size: [u32; 3], resolution: f64, opts: Mes
     let mut slabs = Vec::new();
     let mut first_cap = None;
     for f in frames {
-        if let Some(slab) = m.push(&frame_ref(f, size, resolution)).expect("frame accepted") {
+        if let Some(slab) = m
+            .push(&frame_ref(f, size, resolution))
+            .expect("frame accepted")
+        {
             if first_cap.is_none() {
                 first_cap = m.cap(m.first_frame().unwrap(), CapSide::Low);
             }
@@ -74,7 +84,11 @@ pub fn run_with(frames: &[TestFrame], size: [u32; 3], resolution: f64, opts: Mes
             slabs.push(slab);
         }
     }
-    let last_cap = if slabs.is_empty() { None } else { m.cap(m.last_frame().unwrap(), CapSide::High) };
+    let last_cap = if slabs.is_empty() {
+        None
+    } else {
+        m.cap(m.last_frame().unwrap(), CapSide::High)
+    };
     let occ_first = m.first_frame().map(|f| f.grid.occupied).unwrap_or(0);
     let occ_last = m.last_frame().map(|f| f.grid.occupied).unwrap_or(0);
     let stats = acc.finish(
@@ -82,7 +96,13 @@ pub fn run_with(frames: &[TestFrame], size: [u32; 3], resolution: f64, opts: Mes
         first_cap.as_ref().map(|c| (c, occ_first)),
         last_cap.as_ref().map(|c| (c, occ_last)),
     );
-    Run { slabs, first_cap, last_cap, stats, mesher: m }
+    Run {
+        slabs,
+        first_cap,
+        last_cap,
+        stats,
+        mesher: m,
+    }
 }
 
 /// The glued mesh: first cap, every slab's lateral tets, last cap, welded.
@@ -105,11 +125,27 @@ pub fn closed_slab(r: &Run, k: usize, frame_grids: &[chronotope::mesh::Occupancy
     use chronotope::mesh::march::march_cap;
     use chronotope::mesh::table::table;
     let s = &r.slabs[k];
-    let at = |f: i64| chronotope::mesh::SlabPlacement { scale: s.geometry.scale, frame: f, iso: 50 };
+    let at = |f: i64| chronotope::mesh::SlabPlacement {
+        scale: s.geometry.scale,
+        frame: f,
+        iso: 50,
+    };
     let mut lo = TetMesh::default();
     let mut hi = TetMesh::default();
-    march_cap(table(), &frame_grids[k], at(k as i64), CapSide::Low, &mut lo);
-    march_cap(table(), &frame_grids[k + 1], at(k as i64 + 1), CapSide::High, &mut hi);
+    march_cap(
+        table(),
+        &frame_grids[k],
+        at(k as i64),
+        CapSide::Low,
+        &mut lo,
+    );
+    march_cap(
+        table(),
+        &frame_grids[k + 1],
+        at(k as i64 + 1),
+        CapSide::High,
+        &mut hi,
+    );
     let mut m = s.mesh.clone();
     m.append_welded(&lo);
     m.append_welded(&hi);
