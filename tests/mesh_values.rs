@@ -275,6 +275,18 @@ fn bad_frames_are_refused_with_a_reason_and_nothing_else_is_lost() {
         m.push(&frame(1, [0, 4, 4], 0.1, 0, &[])),
         Err(MeshError::EmptySize { .. })
     ));
+    // A thin grid whose decoded rows would cost far more than its data (2^30 rows of one
+    // voxel): refused before allocating.
+    let thin = vec![0u8; 1 << 27];
+    assert!(matches!(
+        m.push(&frame(1, [1, 1 << 15, 1 << 15], 0.1, 0, &thin)),
+        Err(MeshError::TooMuchMemory { .. })
+    ));
+    // An axis so long that lattice coordinates would overflow i32 (at PERCENT's scale 64).
+    assert!(matches!(
+        m.push(&frame(1, [40_000_000, 1, 1], 0.1, 1, &good)),
+        Err(MeshError::LatticeOverflow { scale: 64, .. })
+    ));
     // Another lattice than the first frame's.
     let other = bits_data([4, 4, 5], |_, _, _| false);
     assert!(matches!(
@@ -307,7 +319,7 @@ fn bad_frames_are_refused_with_a_reason_and_nothing_else_is_lost() {
         m.push(&nan_origin),
         Err(MeshError::BadOrigin { .. })
     ));
-    assert_eq!(m.skipped(), 15);
+    assert_eq!(m.skipped(), 17);
     assert_eq!(m.frames(), 1);
 
     // The stream goes on as if the bad frames had never come.
@@ -344,7 +356,10 @@ fn errors_name_what_was_wrong() {
 
 #[test]
 fn bad_options_are_refused() {
-    let o = MesherOptions { percent_scale: 3, ..MesherOptions::default() };
+    let o = MesherOptions {
+        percent_scale: 3,
+        ..MesherOptions::default()
+    };
     assert!(matches!(
         Mesher::new(o),
         Err(MeshError::BadOption {

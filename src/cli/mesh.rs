@@ -452,7 +452,10 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
     );
     if let Some(p) = &a.stats {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| CliError::Io { path: dir.to_path_buf(), source })?;
+            std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
         }
         std::fs::write(p, stats_json(&r)).map_err(|source| CliError::Io {
             path: p.clone(),

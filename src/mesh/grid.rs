@@ -40,6 +40,9 @@ pub struct DecodeOptions {
     pub iso_percent: u8,
     /// Whether unknown (255) counts as occupied (the safe side for collision).
     pub unknown_occupied: bool,
+    /// Largest accepted decoded size of one frame in bytes (padded bit rows, percent
+    /// values, and the marcher's edge cache): thin grids cost more per voxel than their data.
+    pub max_decoded_bytes: u64,
 }
 
 impl Default for DecodeOptions {
@@ -48,6 +51,7 @@ impl Default for DecodeOptions {
             max_voxels: 1 << 30,
             iso_percent: 50,
             unknown_occupied: true,
+            max_decoded_bytes: 4 << 30,
         }
     }
 }
@@ -104,6 +108,14 @@ impl OccupancyGrid {
                 size: f.size,
                 voxels: n,
                 limit: opts.max_voxels,
+            });
+        }
+        let bytes = decoded_bytes(f.size, encoding);
+        if bytes > opts.max_decoded_bytes {
+            return Err(MeshError::TooMuchMemory {
+                size: f.size,
+                bytes,
+                limit: opts.max_decoded_bytes,
             });
         }
         let expected = match encoding {
@@ -187,6 +199,21 @@ impl OccupancyGrid {
             None => 100 * u8::from(self.get(x, y, z)),
         }
     }
+}
+
+/// Bytes a decoded frame and its share of the marcher's workspace take (saturating).
+pub fn decoded_bytes(size: [u32; 3], encoding: Encoding) -> u64 {
+    let [px, py, pz] = size.map(|v| u64::from(v) + 2);
+    let words = px / 64 + 2;
+    let rows = py.saturating_mul(pz);
+    let bits = rows.saturating_mul(words).saturating_mul(8);
+    let values = match encoding {
+        Encoding::Bits => 0,
+        Encoding::Percent => px.saturating_mul(rows),
+    };
+    // Two z-layers of 7 edge slots of u32 in the marcher, plus the touched lists.
+    let cache = px.saturating_mul(py).saturating_mul(2 * 7 * 4 * 2);
+    bits.saturating_add(values).saturating_add(cache)
 }
 
 /// Copies `len` bits starting at bit `start` of `src` (LSB first) into `dst` at bit 1.

@@ -159,6 +159,21 @@ impl Mesher {
             encoding: f.encoding,
             scale,
         };
+        // Lattice coordinates scale·(index + 1) must fit in i32.
+        // (Frames over the voxel limit are refused by the decoder with that reason.)
+        let max_axis = (i32::MAX / scale - 2) as u32;
+        let voxels = f
+            .size
+            .iter()
+            .try_fold(1u64, |n, &v| n.checked_mul(u64::from(v)));
+        let within_limit = voxels.is_some_and(|n| n <= self.opts.decode.max_voxels);
+        if within_limit && f.size.iter().any(|&v| v > max_axis) {
+            return Err(MeshError::LatticeOverflow {
+                size: f.size,
+                scale,
+                max: max_axis,
+            });
+        }
         // Field checks first (they refuse oversized frames before allocating), then the
         // stream checks.
         let grid = OccupancyGrid::decode(f, &self.opts.decode)?;

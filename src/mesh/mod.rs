@@ -58,6 +58,27 @@ pub enum MeshError {
         /// The limit.
         limit: u64,
     },
+    /// Decoding the frame would take more memory than allowed (thin grids cost more per
+    /// voxel than their data), or its lattice coordinates would overflow.
+    #[error("size {size:?} would need {bytes} bytes once decoded, over the limit of {limit}")]
+    TooMuchMemory {
+        /// The sizes received.
+        size: [u32; 3],
+        /// Bytes needed (saturated).
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// A size is so large that lattice coordinates (scale × index) would overflow.
+    #[error("size {size:?} at lattice scale {scale} overflows the lattice coordinates (at most {max} voxels per axis)")]
+    LatticeOverflow {
+        /// The sizes received.
+        size: [u32; 3],
+        /// Lattice steps per voxel.
+        scale: i32,
+        /// Largest size per axis at this scale.
+        max: u32,
+    },
     /// The data length does not match sizes and encoding.
     #[error("data is {got} bytes but sizes and encoding {encoding:?} need {expected}")]
     DataLength {
