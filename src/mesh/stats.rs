@@ -23,7 +23,7 @@
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pack_face, pair_faces, pair_packed,
+    canonical_triangle, det4_small_tet, id_bits, pack_face, packed_groups, pair_faces, pair_packed,
     pair_plane_faces, radix_sort_u64, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
 };
 
@@ -278,37 +278,22 @@ fn cap_boundary(
     let mut boundary = Vec::new();
     let mut hash = 0u128;
     let mask = (1u64 << bits) - 1;
-    let mut i = 0;
-    while i < keys.len() {
-        let face = keys[i] >> 1;
-        let mut j = i + 1;
-        while j < keys.len() && keys[j] >> 1 == face {
-            j += 1;
+    for group in packed_groups(keys) {
+        if let [key] = group {
+            // A boundary face of the cap: decode its vertex ids.
+            let face = key >> 1;
+            let ids = [
+                (face >> (2 * bits)) as u32,
+                ((face >> bits) & mask) as u32,
+                (face & mask) as u32,
+            ];
+            let s = if key & 1 == 1 { 1 } else { -1 };
+            let (tri, parity) = canonical_triangle(ids.map(point));
+            hash = signed_add(hash, &tri, s * parity);
+            boundary.push((tri, s * parity));
+        } else {
+            report.count(group);
         }
-        match j - i {
-            1 => {
-                let ids = [
-                    (face >> (2 * bits)) as u32,
-                    ((face >> bits) & mask) as u32,
-                    (face & mask) as u32,
-                ];
-                let s = if keys[i] & 1 == 1 { 1 } else { -1 };
-                let (key, parity) = canonical_triangle(ids.map(point));
-                hash = signed_add(hash, &key, s * parity);
-                boundary.push((key, s * parity));
-            }
-            2 => {
-                report.triangles += 1;
-                if keys[i] == keys[i + 1] {
-                    report.misoriented += 1;
-                }
-            }
-            _ => {
-                report.triangles += 1;
-                report.overshared += 1;
-            }
-        }
-        i = j;
     }
     (report, boundary, hash)
 }

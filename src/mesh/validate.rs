@@ -155,26 +155,32 @@ pub fn pack_face(k: [u32; 3], positive: bool, bits: u32) -> u64 {
 pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> ClosedReport {
     radix_sort_u64(keys, scratch, 3 * bits + 1);
     let mut r = ClosedReport::default();
-    let mut i = 0;
-    while i < keys.len() {
-        let face = keys[i] >> 1;
-        let mut j = i + 1;
-        while j < keys.len() && keys[j] >> 1 == face {
-            j += 1;
-        }
-        r.triangles += 1;
-        match j - i {
-            1 => r.unpaired += 1,
-            2 => {
-                if keys[i] == keys[i + 1] {
-                    r.misoriented += 1;
-                }
-            }
-            _ => r.overshared += 1,
-        }
-        i = j;
+    for group in packed_groups(keys) {
+        r.count(group);
     }
     r
+}
+
+/// Runs of sorted packed faces that share a triangle (they differ at most in bit 0, the
+/// orientation).
+pub fn packed_groups(keys: &[u64]) -> impl Iterator<Item = &[u64]> {
+    keys.chunk_by(|a, b| a >> 1 == b >> 1)
+}
+
+impl ClosedReport {
+    /// Counts one triangle given the packed keys of the tets using it.
+    pub fn count(&mut self, group: &[u64]) {
+        self.triangles += 1;
+        match group {
+            [_] => self.unpaired += 1,
+            [a, b] => {
+                if a == b {
+                    self.misoriented += 1;
+                }
+            }
+            _ => self.overshared += 1,
+        }
+    }
 }
 
 /// LSD radix sort of keys whose set bits are all below bit `bits`, 11 bits per pass (the

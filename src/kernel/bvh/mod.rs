@@ -1,0 +1,205 @@
+//! A 4D bounding-volume hierarchy over lattice boxes (one per tet), and its queries.
+//!
+//! - [`Aabb4`]: closed integer boxes; touching boxes overlap (the exact tet test decides).
+//! - [`Bvh`]: a binary tree of boxes in one flat node array with `u32` indices, leaves of
+//!   at most [`Bvh::LEAF_SIZE`] items. Built by sorting item centres along a 4D Morton
+//!   curve and splitting each range at its highest differing bit, i.e. at the spatial
+//!   median of the longest axis of its cell (one scale for all axes, so long axes are
+//!   split first). Ranges whose codes tie are re-quantised on their own bounds, so
+//!   clustered items far from the rest still get a good tree. All buffers are kept in the
+//!   tree and reused by the next [`Bvh::build`].
+//! - Queries: [`overlapping_pairs`] (tree against tree, every overlapping item pair
+//!   once), [`Bvh::segment_candidates`] and [`Bvh::ray_candidates`] (exact rational slab
+//!   test, for the crossing-count inside test of DESIGN §4). Walks use an explicit stack
+//!   in a reusable [`TraverseWorkspace`]: no recursion, no allocation after warm-up.
+//! - [`top_pairs`] and [`overlapping_pairs_under`] split a tree-against-tree walk into
+//!   independent sub-walks (for a later parallel version).
+//!
+//! Relies only on [`LatticePoint`](crate::kernel::LatticePoint); knows nothing of meshes
+//! beyond a vertex table and index quadruples.
+
+mod aabb;
+mod build;
+mod pairs;
+mod segment;
+
+pub use aabb::Aabb4;
+pub use pairs::{
+    overlapping_pairs, overlapping_pairs_under, top_pairs, try_overlapping_pairs, NodePair,
+};
+
+/// Why a tree could not be built.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum BvhError {
+    /// More items than `u32` node indices can address (a tree of n items has up to
+    /// 2n - 1 nodes).
+    #[error(
+        "{items} items is over the limit of {max} per tree (split the mesh into several trees)"
+    )]
+    TooManyItems {
+        /// Items received.
+        items: usize,
+        /// [`Bvh::MAX_ITEMS`].
+        max: usize,
+    },
+    /// A tet refers to a vertex that does not exist.
+    #[error("tet {tet} refers to vertex {vertex} but there are only {vertices} vertices")]
+    VertexOutOfRange {
+        /// Index of the tet.
+        tet: usize,
+        /// The bad vertex index.
+        vertex: u32,
+        /// Length of the vertex table.
+        vertices: usize,
+    },
+}
+
+/// One tree node: a box and either two children (`count == 0`, children at `first` and
+/// `first + 1`) or a leaf's items (`order[first..first + count]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Node {
+    pub(crate) aabb: Aabb4,
+    pub(crate) first: u32,
+    pub(crate) count: u32,
+}
+
+impl Node {
+    #[inline]
+    pub(crate) fn is_leaf(&self) -> bool {
+        self.count > 0
+    }
+}
+
+/// Buffers used only while building, kept for the next build.
+#[derive(Clone, Default)]
+struct BuildScratch {
+    codes: Vec<u64>,
+    codes_tmp: Vec<u64>,
+    order_tmp: Vec<u32>,
+    /// Pending ranges: (node, lo, hi).
+    ranges: Vec<(u32, u32, u32)>,
+    /// Boxes of tets for [`Bvh::build_tets`].
+    tet_boxes: Vec<Aabb4>,
+}
+
+/// A 4D AABB tree over a list of item boxes (item `i` is the `i`-th box given to
+/// [`build`](Bvh::build)).
+///
+/// ```
+/// use chronotope::kernel::{overlapping_pairs, Aabb4, Bvh, TraverseWorkspace};
+/// let a = Bvh::from_boxes(&[Aabb4::new([0; 4], [1; 4]), Aabb4::new([5; 4], [6; 4])])?;
+/// let b = Bvh::from_boxes(&[Aabb4::new([1, 1, 1, 1], [2, 2, 2, 2])])?;
+/// let mut ws = TraverseWorkspace::new();
+/// let mut pairs = Vec::new();
+/// overlapping_pairs(&a, &b, &mut ws, |i, j| pairs.push((i, j)));
+/// assert_eq!(pairs, [(0, 0)]); // touching at the corner (1, 1, 1, 1) counts
+/// # Ok::<(), chronotope::kernel::BvhError>(())
+/// ```
+#[derive(Clone, Default)]
+pub struct Bvh {
+    /// Root first; children always after their parent.
+    pub(crate) nodes: Vec<Node>,
+    /// Item boxes in leaf order (empty boxes replaced by [`Aabb4::EMPTY`]).
+    pub(crate) leaf_boxes: Vec<Aabb4>,
+    /// Item index of each leaf slot.
+    pub(crate) order: Vec<u32>,
+    scratch: BuildScratch,
+}
+
+impl std::fmt::Debug for Bvh {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bvh")
+            .field("items", &self.len())
+            .field("nodes", &self.nodes.len())
+            .field("aabb", &self.aabb())
+            .finish()
+    }
+}
+
+impl Bvh {
+    /// Most items per leaf.
+    pub const LEAF_SIZE: usize = 4;
+
+    /// Most items per tree: 2^31, so that the up to 2n - 1 node indices fit in `u32`.
+    pub const MAX_ITEMS: usize = 1 << 31;
+
+    /// An empty tree (no allocation until the first build).
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// A tree over `boxes`.
+    ///
+    /// # Errors
+    /// [`BvhError::TooManyItems`] over [`Bvh::MAX_ITEMS`] boxes.
+    pub fn from_boxes(boxes: &[Aabb4]) -> Result<Self, BvhError> {
+        let mut t = Self::new();
+        t.build(boxes)?;
+        Ok(t)
+    }
+
+    /// A tree over the boxes of `tets` (indices into `vertices`), item `i` being tet `i`.
+    /// For a [`TetMesh`](crate::mesh::TetMesh) `m`: `Bvh::from_tets(&m.vertices, &m.tets)`.
+    ///
+    /// # Errors
+    /// [`BvhError::VertexOutOfRange`] for a bad vertex index, [`BvhError::TooManyItems`]
+    /// over [`Bvh::MAX_ITEMS`] tets.
+    pub fn from_tets(
+        vertices: &[crate::kernel::LatticePoint],
+        tets: &[[u32; 4]],
+    ) -> Result<Self, BvhError> {
+        let mut t = Self::new();
+        t.build_tets(vertices, tets)?;
+        Ok(t)
+    }
+
+    /// Number of items.
+    pub fn len(&self) -> usize {
+        self.order.len()
+    }
+
+    /// Whether the tree has no items.
+    pub fn is_empty(&self) -> bool {
+        self.order.is_empty()
+    }
+
+    /// Number of nodes (at most 2·len - 1).
+    pub fn node_count(&self) -> usize {
+        self.nodes.len()
+    }
+
+    /// Box of the root: the union of all item boxes ([`Aabb4::EMPTY`] for an empty tree
+    /// or one of empty boxes only).
+    pub fn aabb(&self) -> Aabb4 {
+        self.nodes.first().map_or(Aabb4::EMPTY, |n| n.aabb)
+    }
+
+    /// Depth of the tree (0 for empty, 1 for a single leaf).
+    pub fn depth(&self) -> usize {
+        let mut depth = vec![0u32; self.nodes.len()];
+        let mut max = 0;
+        for (n, node) in self.nodes.iter().enumerate() {
+            let d = if n == 0 { 1 } else { depth[n] };
+            max = max.max(d);
+            if !node.is_leaf() {
+                depth[node.first as usize] = d + 1;
+                depth[node.first as usize + 1] = d + 1;
+            }
+        }
+        max as usize
+    }
+}
+
+/// Stacks reused by tree walks; keep one per thread and pass it to every query.
+#[derive(Debug, Clone, Default)]
+pub struct TraverseWorkspace {
+    pub(crate) nodes: Vec<u32>,
+    pub(crate) pairs: Vec<(u32, u32)>,
+}
+
+impl TraverseWorkspace {
+    /// An empty workspace (grows to the trees' depth on first use, then stays).
+    pub fn new() -> Self {
+        Self::default()
+    }
+}
