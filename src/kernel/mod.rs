@@ -10,6 +10,9 @@ mod predicates;
 pub use lattice::{LatticeFrame, LatticePoint, SpaceTimePoint};
 pub use predicates::{det4_i128, orient4_i128};
 
+pub mod intersect;
+pub use intersect::{classify, tets_cross, tets_intersect, TetPairRelation};
+
 pub mod bvh;
 pub use bvh::{
     overlapping_pairs, overlapping_pairs_under, top_pairs, try_overlapping_pairs, Aabb4, Bvh,

@@ -139,6 +139,7 @@ impl Bvh {
         if n == 0 {
             return Ok(());
         }
+        let t0 = std::time::Instant::now();
         let s = &mut self.scratch;
         let (cmin, cmax) = centre_bounds(boxes.iter());
         s.codes.clear();
@@ -146,6 +147,7 @@ impl Bvh {
             Some(qz) => s.codes.extend(boxes.iter().map(|b| qz.code(b))),
             None => s.codes.resize(n, 0),
         }
+        let t1 = std::time::Instant::now();
         self.order.extend(0..n as u32);
         s.codes_tmp.resize(n, 0);
         s.order_tmp.resize(n, 0);
@@ -156,6 +158,7 @@ impl Bvh {
             &mut s.order_tmp,
         );
 
+        let t2 = std::time::Instant::now();
         // Top-down: split ranges, creating both children next to each other.
         self.nodes.reserve(2 * n);
         self.nodes.push(Node {
@@ -196,6 +199,7 @@ impl Bvh {
             s.ranges.push((child + 1, mid as u32, hi));
         }
 
+        let t3 = std::time::Instant::now();
         // Leaf boxes in leaf order; then bounds, children before parents.
         self.leaf_boxes.extend(self.order.iter().map(|&i| {
             let b = boxes[i as usize];
@@ -205,6 +209,7 @@ impl Bvh {
                 b
             }
         }));
+        let t4 = std::time::Instant::now();
         for n in (0..self.nodes.len()).rev() {
             let node = self.nodes[n];
             let (first, count) = (node.first as usize, node.count as usize);
@@ -219,6 +224,20 @@ impl Bvh {
             };
             self.nodes[n].aabb = aabb;
         }
+        let t5 = std::time::Instant::now();
+        eprintln!(
+            "rekey {} {} ",
+            REKEY.swap(0, std::sync::atomic::Ordering::Relaxed),
+            REKEY_N.swap(0, std::sync::atomic::Ordering::Relaxed)
+        );
+        eprintln!(
+            "codes {:?} sort {:?} split {:?} gather {:?} bounds {:?}",
+            t1 - t0,
+            t2 - t1,
+            t3 - t2,
+            t4 - t3,
+            t5 - t4
+        );
         Ok(())
     }
 
@@ -233,6 +252,7 @@ impl Bvh {
         vertices: &[LatticePoint],
         tets: &[[u32; 4]],
     ) -> Result<(), BvhError> {
+        let tb = std::time::Instant::now();
         let mut boxes = std::mem::take(&mut self.scratch.tet_boxes);
         boxes.clear();
         let mut bad = None;
@@ -259,7 +279,10 @@ impl Bvh {
                 self.order.clear();
                 Err(e)
             }
-            None => self.build(&boxes),
+            None => {
+                eprintln!("tet boxes {:?}", tb.elapsed());
+                self.build(&boxes)
+            }
         };
         self.scratch.tet_boxes = boxes;
         result
@@ -281,6 +304,8 @@ fn check_count(items: usize) -> Result<(), BvhError> {
 /// at the first item with the highest differing bit set. When all codes tie, the range
 /// is re-quantised on its own centre bounds and re-sorted (this always separates items
 /// whose centres differ); if all centres coincide, it is halved.
+static REKEY: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+static REKEY_N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 fn split_range(
     boxes: &[Aabb4],
     codes: &mut [u64],
@@ -291,6 +316,8 @@ fn split_range(
     let len = codes.len();
     let (first, last) = (codes[0], codes[len - 1]);
     if first == last {
+        REKEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        REKEY_N.fetch_add(len, std::sync::atomic::Ordering::Relaxed);
         let (cmin, cmax) = centre_bounds(order.iter().map(|&i| &boxes[i as usize]));
         let Some(qz) = Quantiser::new(cmin, cmax) else {
             return len / 2;

@@ -195,9 +195,8 @@ impl Mul for I256 {
         for i in 0..4 {
             let mut carry: u128 = 0;
             for j in 0..4 - i {
-                let t = u128::from(self.0[i]) * u128::from(rhs.0[j])
-                    + u128::from(out[i + j])
-                    + carry;
+                let t =
+                    u128::from(self.0[i]) * u128::from(rhs.0[j]) + u128::from(out[i + j]) + carry;
                 out[i + j] = t as u64;
                 carry = t >> 64;
             }
@@ -273,7 +272,12 @@ fn cross3<T: Exact>(u: &V4<T>, v: &V4<T>, w: &V4<T>) -> V4<T> {
 
 /// The four vertices of a tet relative to `origin`, in the chosen width.
 fn rel_tet<T: Exact>(t: &LatticeTet, origin: &LatticePoint) -> [V4<T>; 4] {
-    [rel(&t[0], origin), rel(&t[1], origin), rel(&t[2], origin), rel(&t[3], origin)]
+    [
+        rel(&t[0], origin),
+        rel(&t[1], origin),
+        rel(&t[2], origin),
+        rel(&t[3], origin),
+    ]
 }
 
 /// Three-valued result of a vertex test of DESIGN §4 on exact signs.
@@ -390,7 +394,10 @@ mod tests {
             let want = crate::kernel::orient4_i128([&a, &b, &c, &d, &e]);
             let l64 = [a, b, c, d, e].map(|p| rel::<i64>(&p, &o));
             let l256 = [a, b, c, d, e].map(|p| rel::<I256>(&p, &o));
-            assert_eq!(i128::from(orient4(&l64[0], &l64[1], &l64[2], &l64[3], &l64[4])), want);
+            assert_eq!(
+                i128::from(orient4(&l64[0], &l64[1], &l64[2], &l64[3], &l64[4])),
+                want
+            );
             let got = orient4(&l256[0], &l256[1], &l256[2], &l256[3], &l256[4]);
             assert_eq!(to_i128(got), Some(want));
         }

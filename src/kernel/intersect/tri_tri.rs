@@ -16,9 +16,7 @@
 //! The DESIGN text asks for "one sign" per group only; that is the same condition,
 //! because Σ c_x = 0 forbids the two groups from having opposite signs. We test all six.
 
-use super::{
-    common_strict_sign, orient4, rel, sign, Exact, LatticeTriangle, Outcome,
-};
+use super::{common_strict_sign, orient4, rel, sign, Exact, LatticeTriangle, Outcome};
 
 /// Whether the triangles `abc` and `def` cross at a single point interior to both,
 /// transversally (their six vertices affinely span R^4).
@@ -63,7 +61,9 @@ fn triangles_outcome<T: Exact>(abc: &LatticeTriangle, def: &LatticeTriangle) -> 
 /// The rule on signs: `first` = signs of O(def,b,c), O(def,c,a), O(def,a,b); `second` =
 /// signs of O(abc,e,f), O(abc,f,d), O(abc,d,e). All six must share one strict sign.
 pub(super) fn triangles_rule(first: [i8; 3], second: [i8; 3]) -> Outcome {
-    common_strict_sign(&[first[0], first[1], first[2], second[0], second[1], second[2]])
+    common_strict_sign(&[
+        first[0], first[1], first[2], second[0], second[1], second[2],
+    ])
 }
 
 #[cfg(test)]
@@ -85,10 +85,10 @@ mod tests {
         ];
         let o = [0; 4];
         let [a, b, c, d, e, f] = pts.map(|x| rel::<i64>(&x, &o));
-        let first = orient4(&d, &e, &f, &b, &c) + orient4(&d, &e, &f, &c, &a)
-            + orient4(&d, &e, &f, &a, &b);
-        let second = orient4(&a, &b, &c, &e, &f) + orient4(&a, &b, &c, &f, &d)
-            + orient4(&a, &b, &c, &d, &e);
+        let first =
+            orient4(&d, &e, &f, &b, &c) + orient4(&d, &e, &f, &c, &a) + orient4(&d, &e, &f, &a, &b);
+        let second =
+            orient4(&a, &b, &c, &e, &f) + orient4(&a, &b, &c, &f, &d) + orient4(&a, &b, &c, &d, &e);
         assert_eq!(first, second);
     }
 
@@ -97,7 +97,10 @@ mod tests {
         let abc = [[0, 0, 0, 0], [4, 0, 0, 0], [0, 4, 0, 0]];
         let def = [[1, 1, -1, -1], [1, 1, 3, -1], [1, 1, -1, 3]];
         assert!(triangles_cross(&def, &abc));
-        assert!(triangles_cross(&[abc[1], abc[0], abc[2]], &[def[2], def[0], def[1]]));
+        assert!(triangles_cross(
+            &[abc[1], abc[0], abc[2]],
+            &[def[2], def[0], def[1]]
+        ));
         // Same 3-flat (x4 = 0 for both after flattening def): never a crossing.
         let flat = [[1, 1, -1, 0], [1, 1, 3, 0], [1, 2, -1, 0]];
         assert!(!triangles_cross(&abc, &flat));

@@ -1,0 +1,113 @@
+//! Whole-body 4D meshes: every slab of a stream welded into one closed mesh with its two
+//! end caps, for consumers that need the body at once (the interference checker).
+
+use super::march::{CapSide, TetMesh};
+use super::mesher::{GridGeometry, Mesher, MesherOptions};
+use super::{FrameRef, MeshError, OccupancyGrid};
+use crate::kernel::LatticePoint;
+use std::collections::HashMap;
+
+/// One body's closed 4D mesh over all its frames.
+#[derive(Debug, Clone, Default)]
+pub struct BodyMesh {
+    /// Closed, welded mesh: lateral tets of every slab plus the first and last caps.
+    pub mesh: TetMesh,
+    /// Stamps of the accepted frames (ns); frame n is at lattice time `scale · n`.
+    pub stamps_ns: Vec<i64>,
+    /// The lattice, once a frame was accepted.
+    pub geometry: Option<GridGeometry>,
+    /// Decoded frames, if kept (see [`BodyAssembler::keep_frames`]).
+    pub frames: Vec<OccupancyGrid>,
+    /// Frames refused by the mesher.
+    pub skipped: u64,
+}
+
+/// Builds a [`BodyMesh`] from a stream of frames.
+#[derive(Debug)]
+pub struct BodyAssembler {
+    mesher: Mesher,
+    body: BodyMesh,
+    index: HashMap<LatticePoint, u32>,
+    keep_frames: bool,
+}
+
+impl BodyAssembler {
+    /// A new assembler.
+    ///
+    /// # Errors
+    /// Bad mesher options.
+    pub fn new(opts: MesherOptions) -> Result<Self, MeshError> {
+        Ok(Self {
+            mesher: Mesher::new(opts)?,
+            body: BodyMesh::default(),
+            index: HashMap::new(),
+            keep_frames: false,
+        })
+    }
+
+    /// Also keep every decoded frame (for measures computed from occupancy).
+    pub fn keep_frames(mut self, keep: bool) -> Self {
+        self.keep_frames = keep;
+        self
+    }
+
+    /// Feeds one frame.
+    ///
+    /// # Errors
+    /// The mesher's reason for refusing the frame; it is skipped and counted.
+    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<(), MeshError> {
+        let slab = self.mesher.push(f)?;
+        self.body.stamps_ns.push(f.stamp_ns);
+        if self.keep_frames {
+            if let Some(k) = self.mesher.last_frame() {
+                self.body.frames.push(k.grid.clone());
+            }
+        }
+        if let Some(slab) = slab {
+            if slab.index == 0 {
+                if let Some(cap) = self
+                    .mesher
+                    .first_frame()
+                    .and_then(|k| self.mesher.cap(k, CapSide::Low))
+                {
+                    self.weld(&cap);
+                }
+            }
+            self.weld(&slab.mesh);
+        }
+        Ok(())
+    }
+
+    fn weld(&mut self, part: &TetMesh) {
+        let m = &mut self.body.mesh;
+        let remap: Vec<u32> = part
+            .vertices
+            .iter()
+            .map(|p| {
+                *self.index.entry(*p).or_insert_with(|| {
+                    m.vertices.push(*p);
+                    (m.vertices.len() - 1) as u32
+                })
+            })
+            .collect();
+        m.tets
+            .extend(part.tets.iter().map(|t| t.map(|v| remap[v as usize])));
+    }
+
+    /// Closes the mesh with the last frame's cap and returns the body. With fewer than two
+    /// frames the mesh is empty (a body needs a time extent).
+    pub fn finish(mut self) -> BodyMesh {
+        if self.mesher.frames() >= 2 {
+            if let Some(cap) = self
+                .mesher
+                .last_frame()
+                .and_then(|k| self.mesher.cap(k, CapSide::High))
+            {
+                self.weld(&cap);
+            }
+        }
+        self.body.geometry = self.mesher.geometry().copied();
+        self.body.skipped = self.mesher.skipped();
+        self.body
+    }
+}

@@ -1,0 +1,221 @@
+//! The checker on scenes with known answers, and the stiff cases of issue 3.
+
+mod common;
+
+use chronotope::checker::labels::LabelCounts;
+use chronotope::checker::{check_pair, CommonLattice, PairResult};
+use chronotope::cli::frame_ref;
+use chronotope::mesh::glue::{BodyAssembler, BodyMesh};
+use chronotope::mesh::MesherOptions;
+use chronotope::msg::VoxelEncoding;
+use chronotope::scene::{build_scene, SceneName, SceneOptions, FOUR_SPHERES};
+use common::{bits_data, frame_ref as test_frame_ref, TestFrame};
+
+fn assemble(frames: &[TestFrame], size: [u32; 3]) -> BodyMesh {
+    let mut a = BodyAssembler::new(MesherOptions::default()).unwrap();
+    for f in frames {
+        a.push(&test_frame_ref(f, size, 0.1)).unwrap();
+    }
+    a.finish()
+}
+
+fn check(a: &BodyMesh, b: &BodyMesh) -> (PairResult, CommonLattice) {
+    let lat = CommonLattice::of(&[("a", a), ("b", b)]).unwrap();
+    let (pa, pb) = (lat.prepare("a", a).unwrap(), lat.prepare("b", b).unwrap());
+    (check_pair(&pa, &pb), lat)
+}
+
+fn static_body(
+    size: [u32; 3],
+    frames: usize,
+    occ: impl Fn(usize, usize, usize) -> bool + Copy,
+) -> BodyMesh {
+    let f: Vec<TestFrame> = (0..frames)
+        .map(|k| TestFrame {
+            stamp_ns: 1_000_000 * k as i64,
+            encoding: 0,
+            data: bits_data(size, occ),
+        })
+        .collect();
+    assemble(&f, size)
+}
+
+fn in_box(lo: [usize; 3], hi: [usize; 3]) -> impl Fn(usize, usize, usize) -> bool + Copy {
+    move |x, y, z| {
+        (lo[0]..=hi[0]).contains(&x) && (lo[1]..=hi[1]).contains(&y) && (lo[2]..=hi[2]).contains(&z)
+    }
+}
+
+fn no_interference(c: &LabelCounts) -> bool {
+    c.interference == 0 && c.inside == 0
+}
+
+#[test]
+fn disjoint_bodies_are_all_outside() {
+    let size = [8, 6, 6];
+    let a = static_body(size, 3, in_box([1, 1, 1], [2, 4, 4]));
+    let b = static_body(size, 3, in_box([5, 1, 1], [6, 4, 4]));
+    let (r, _) = check(&a, &b);
+    assert!(!r.interfering());
+    let (ca, cb) = r.counts();
+    assert!(no_interference(&ca) && no_interference(&cb));
+    assert_eq!(ca.outside as usize, a.mesh.tets.len());
+    assert!(r.intervals.is_empty());
+}
+
+fn body_over(
+    size: [u32; 3],
+    frames: std::ops::Range<usize>,
+    occ: impl Fn(usize, usize, usize) -> bool + Copy,
+) -> BodyMesh {
+    let f: Vec<TestFrame> = frames
+        .map(|k| TestFrame {
+            stamp_ns: 1_000_000 * k as i64,
+            encoding: 0,
+            data: bits_data(size, occ),
+        })
+        .collect();
+    assemble(&f, size)
+}
+
+#[test]
+fn a_body_inside_the_other_without_crossing_is_all_inside() {
+    // The small body exists for frames 1..=3, the big one for 0..=4: in 4D the small one
+    // is strictly inside, no boundary crosses, there is no INTERFERENCE tet at all.
+    let size = [9, 9, 9];
+    let big = body_over(size, 0..5, in_box([1, 1, 1], [7, 7, 7]));
+    let small = body_over(size, 1..4, in_box([3, 3, 3], [5, 5, 5]));
+    let (r, lat) = check(&small, &big);
+    let (cs, cb) = r.counts();
+    assert_eq!(cs.interference, 0, "{cs:?}");
+    assert_eq!(cs.inside as usize, small.mesh.tets.len(), "{cs:?}");
+    assert_eq!(cb.inside, 0);
+    assert_eq!(cb.outside as usize, big.mesh.tets.len());
+    assert!(r.interfering());
+    // Overlap over the small body's whole span, frames 1 to 3.
+    assert_eq!(r.intervals.len(), 1);
+    let origin = lat.stamps_ns[0];
+    assert!((lat.time_s(r.intervals[0].0, origin) - 0.001).abs() < 1e-12);
+    assert!((lat.time_s(r.intervals[0].1, origin) - 0.003).abs() < 1e-12);
+}
+
+#[test]
+fn shared_start_and_end_times_make_the_caps_interfere() {
+    // Same time span: the small body's caps lie in the big body's cap hyperplanes and face
+    // the same way, so the interiors overlap right there: INTERFERENCE on the caps (the
+    // coplanar clause of the touching rule), INSIDE elsewhere.
+    let size = [9, 9, 9];
+    let big = body_over(size, 0..3, in_box([1, 1, 1], [7, 7, 7]));
+    let small = body_over(size, 0..3, in_box([3, 3, 3], [5, 5, 5]));
+    let (r, _) = check(&small, &big);
+    let (cs, _) = r.counts();
+    assert!(
+        cs.interference > 0 && cs.inside > 0 && cs.outside == 0,
+        "{cs:?}"
+    );
+}
+
+#[test]
+fn bodies_face_to_face_in_adjacent_voxels_only_touch() {
+    let size = [8, 6, 6];
+    let a = static_body(size, 3, in_box([1, 1, 1], [3, 4, 4]));
+    let b = static_body(size, 3, in_box([4, 1, 1], [6, 4, 4]));
+    let (r, _) = check(&a, &b);
+    assert!(!r.interfering(), "{:?}", r.counts());
+}
+
+#[test]
+fn identical_bodies_interfere_everywhere() {
+    let size = [6, 6, 6];
+    let a = static_body(size, 3, in_box([1, 1, 1], [3, 4, 2]));
+    let (r, _) = check(&a, &a.clone());
+    assert!(r.interfering());
+    let (ca, cb) = r.counts();
+    assert_eq!(ca.interference as usize, a.mesh.tets.len(), "{ca:?}");
+    assert_eq!(cb.interference as usize, a.mesh.tets.len());
+}
+
+fn spheres(grid: u32, frames: u32) -> (Vec<String>, Vec<BodyMesh>) {
+    let opts = SceneOptions::for_scene(SceneName::FourSpheres)
+        .grid(grid)
+        .frames(frames)
+        .encoding(VoxelEncoding::Bits);
+    let scene = build_scene(SceneName::FourSpheres, &opts).unwrap();
+    let bodies = (0..scene.topics().len())
+        .map(|b| {
+            let mut asm = BodyAssembler::new(MesherOptions::default()).unwrap();
+            for k in 0..scene.frame_count() {
+                asm.push(&frame_ref(&scene.frame(b, k))).unwrap();
+            }
+            asm.finish()
+        })
+        .collect();
+    (scene.topics(), bodies)
+}
+
+#[test]
+fn four_spheres_interfere_as_the_exact_answer_says() {
+    let (topics, bodies) = spheres(20, 21);
+    let named: Vec<(&str, &BodyMesh)> = topics
+        .iter()
+        .map(|t| t.as_str())
+        .zip(bodies.iter())
+        .collect();
+    let lat = CommonLattice::of(&named).unwrap();
+    let prepared: Vec<_> = named
+        .iter()
+        .map(|(id, b)| lat.prepare(id, b).unwrap())
+        .collect();
+    let origin = lat.stamps_ns[0];
+    let period = 1.0 / 20.0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            let r = check_pair(&prepared[i], &prepared[j]);
+            let exact = FOUR_SPHERES.overlap_interval(i, j);
+            assert_eq!(
+                r.interfering(),
+                exact.is_some(),
+                "pair {i}-{j}: {:?}",
+                r.counts()
+            );
+            if let Some((t0, t1)) = exact {
+                assert_eq!(r.intervals.len(), 1, "pair {i}-{j}: {:?}", r.intervals);
+                let (s, e) = (
+                    lat.time_s(r.intervals[0].0, origin),
+                    lat.time_s(r.intervals[0].1, origin),
+                );
+                // Voxelisation moves surfaces by up to half a voxel (0.025 m at grid 20);
+                // at closing speeds of 0.5-0.72 m/s that is about a frame period.
+                assert!(
+                    (s - t0).abs() < 2.0 * period,
+                    "pair {i}-{j}: start {s} vs exact {t0}"
+                );
+                assert!(
+                    (e - t1).abs() < 2.0 * period,
+                    "pair {i}-{j}: end {e} vs exact {t1}"
+                );
+                // Symmetric.
+                let rev = check_pair(&prepared[j], &prepared[i]);
+                assert_eq!(rev.counts(), (r.counts().1, r.counts().0));
+                assert_eq!(rev.intervals, r.intervals);
+            }
+        }
+    }
+}
+
+#[test]
+fn translating_both_bodies_by_a_lattice_vector_changes_no_label() {
+    let size = [10, 8, 8];
+    let a = static_body(size, 3, in_box([1, 1, 1], [4, 5, 5]));
+    let b = static_body(size, 3, in_box([3, 3, 2], [6, 6, 6]));
+    let (r, _) = check(&a, &b);
+    assert!(r.interfering());
+    let shift = |m: &BodyMesh| {
+        let mut m = m.clone();
+        m.mesh.translate([6, -4, 2, 8]);
+        m
+    };
+    let (r2, _) = check(&shift(&a), &shift(&b));
+    assert_eq!(r.labels_a.labels, r2.labels_a.labels);
+    assert_eq!(r.labels_b.labels, r2.labels_b.labels);
+}
