@@ -359,19 +359,20 @@ impl Rng {
     }
 }
 
-/// Facets of the Kuhn simplices of the unit 4-cube, scaled by 2 and moved by `offset`:
-/// tets of lattice meshes (shared faces, coplanar neighbours, ridges) by construction.
+/// Facets of the Kuhn simplices of the unit 4-cube, scaled by 2 or 4 and moved by a small
+/// offset: tets of lattice meshes (shared faces, coplanar neighbours, ridges).
 fn kuhn_facet(rng: &mut Rng) -> LatticeTet {
     let mut perm = [0usize, 1, 2, 3];
     for i in (1..4).rev() {
         perm.swap(i, rng.range(0, i as i32) as usize);
     }
+    let scale = 2 * rng.range(1, 2);
     let mut verts = [[0i32; 4]; 5];
     for s in 1..5 {
         verts[s] = verts[s - 1];
-        verts[s][perm[s - 1]] += 2;
+        verts[s][perm[s - 1]] += scale;
     }
-    let offset = [0; 4].map(|_| 2 * rng.range(-1, 0));
+    let offset = [0; 4].map(|_| rng.range(-2, 1));
     let skip = rng.range(0, 4) as usize;
     let mut out = [[0; 4]; 4];
     let mut m = 0;
@@ -584,19 +585,19 @@ fn identical_tets_overlap_coplanar_with_the_same_orientation() {
 
 #[test]
 fn shared_face_edge_or_vertex_only_is_touching() {
-    let a = [O, E1, E2, E3]; // hyperplane t = 0
-                             // Shared face, other hyperplane (z = 0).
+    // In the hyperplane t = 0.
+    let a = [O, E1, E2, E3];
+    // Shared face, other hyperplane (z = 0).
     assert_eq!(both_ways(&a, &[O, E1, E2, E4]), TetPairRelation::Touching);
     // Shared face, same hyperplane, other side: coplanar contact without volume.
-    let [ex, ey, ez] = [E1, E2, E3];
     let far = [1, 1, 1, 0];
-    assert_eq!(
-        both_ways(&a, &[ex, ey, ez, far]),
+    assert!(matches!(
+        both_ways(&a, &[E1, E2, E3, far]),
         TetPairRelation::Coplanar {
             overlap_volume_positive: false,
-            same_orientation: false
+            ..
         }
-    );
+    ));
     // Shared edge only, different hyperplanes (b ∩ {t = 0} is the edge O–E1).
     assert_eq!(
         both_ways(&a, &[O, E1, E4, [0, -1, 0, 1]]),
@@ -608,12 +609,14 @@ fn shared_face_edge_or_vertex_only_is_touching() {
         TetPairRelation::Touching
     );
     assert_eq!(
-        both_ways(&a, &[O, neg(E1), neg(E2), neg(E3)]),
+        both_ways(&a, &[O, neg(E1), neg(E2), [0, 0, -1, 1]]),
         TetPairRelation::Touching
     );
-    // Nothing shared.
-    let moved = [O, E1, E2, E3].map(|p| [p[0] + 2, p[1], p[2], p[3] + 1]);
-    assert_eq!(both_ways(&a, &moved), TetPairRelation::Disjoint);
+    // Nothing shared: a parallel hyperplane, and a shifted copy in the same one.
+    let up = a.map(|p| [p[0] + 2, p[1], p[2], p[3] + 1]);
+    assert_eq!(both_ways(&a, &up), TetPairRelation::Disjoint);
+    let aside = a.map(|p| [p[0] + 2, p[1], p[2], p[3]]);
+    assert_eq!(both_ways(&a, &aside), TetPairRelation::Disjoint);
 }
 
 #[test]
@@ -660,10 +663,7 @@ fn a_crossing_along_a_ridge_is_touching() {
 fn boundary(v: [LatticePoint; 5]) -> Vec<LatticeTet> {
     (0..5)
         .map(|skip| {
-            let mut t: Vec<LatticePoint> = (0..5)
-                .filter(|&i| i != skip)
-                .map(|i| v[i])
-                .collect::<Vec<_>>();
+            let mut t: Vec<LatticePoint> = (0..5).filter(|&i| i != skip).map(|i| v[i]).collect();
             let tet: LatticeTet = [t[0], t[1], t[2], t[3]];
             if side(&tet, &v[skip].map(i128::from)) > 0 {
                 t.swap(0, 1);
@@ -678,40 +678,36 @@ fn face_to_face_bodies_in_adjacent_cells_never_cross() {
     // Two unit lattice 4-simplices on either side of the common hyperplane t = 0.
     let below = boundary([O, E1, E2, E3, neg(E4)]);
     let above = boundary([O, E1, E2, E3, E4]);
-    let mut coplanar = 0;
+    let mut overlaps = 0;
     for a in &below {
         for b in &above {
             let r = both_ways(a, b);
             assert_ne!(r, TetPairRelation::Crossing, "{a:?} {b:?}");
             if let TetPairRelation::Coplanar {
-                overlap_volume_positive,
+                overlap_volume_positive: true,
                 same_orientation,
             } = r
             {
-                coplanar += 1;
-                assert!(overlap_volume_positive && !same_orientation, "face to face");
+                overlaps += 1;
+                assert!(!same_orientation, "face to face: opposite outward normals");
             }
         }
     }
-    assert_eq!(coplanar, 1);
-    // The same two bodies overlapping (one shifted half into the other): they cross.
-    let shifted = boundary([O, E1, E2, E3, E4].map(|p| p.map(|c| 2 * c)));
-    let moved: Vec<LatticeTet> = boundary([O, E1, E2, E3, E4].map(|p| {
-        let q = p.map(|c| 2 * c);
-        [q[0] + 1, q[1], q[2], q[3]]
-    }));
-    assert!(shifted
-        .iter()
-        .any(|a| moved.iter().any(|b| tets_cross(a, b))));
-    // A copy of a body touches itself on every facet with the same orientation.
+    // Only the common facet t = 0 (the facets x_i = 0 of both share just a triangle).
+    assert_eq!(overlaps, 1);
+    // The same bodies overlapping (one moved by half its size): the boundaries cross.
+    let big = boundary([O, E1, E2, E3, E4].map(|p| p.map(|c| 2 * c)));
+    let moved = boundary([O, E1, E2, E3, E4].map(|p| [2 * p[0] + 1, 2 * p[1], 2 * p[2], 2 * p[3]]));
+    assert!(big.iter().any(|a| moved.iter().any(|b| tets_cross(a, b))));
+    // A body against a copy of itself: every facet overlaps with the same orientation.
     for a in &above {
-        assert!(matches!(
+        assert_eq!(
             classify(a, a),
             TetPairRelation::Coplanar {
                 overlap_volume_positive: true,
                 same_orientation: true
             }
-        ));
+        );
     }
 }
 
@@ -727,27 +723,30 @@ fn huge_coordinates_take_the_wide_paths() {
             "scale {k}"
         );
     }
+    // Spreads close to 2^32: only the 256-bit path is exact.
+    let (lo, hi) = (i32::MIN, i32::MAX);
     let extreme = [
-        [i32::MIN; 4],
-        [i32::MAX, i32::MIN, i32::MIN, i32::MIN],
-        [i32::MIN, i32::MAX, i32::MIN, i32::MIN],
-        [i32::MIN, i32::MIN, i32::MAX, i32::MIN],
+        [lo, lo, lo, 0],
+        [hi, lo, lo, 0],
+        [lo, hi, lo, 0],
+        [lo, lo, hi, 0],
     ];
-    assert_eq!(
-        classify(&extreme, &extreme).clone(),
-        TetPairRelation::Coplanar {
-            overlap_volume_positive: true,
-            same_orientation: true
-        }
-    );
+    let same = TetPairRelation::Coplanar {
+        overlap_volume_positive: true,
+        same_orientation: true,
+    };
+    assert_eq!(classify(&extreme, &extreme), same);
+    let c = lo / 2;
     let across = [
-        [0, 0, 0, i32::MIN],
-        [1, 0, 0, i32::MAX],
-        [0, 1, 0, i32::MAX],
-        [0, 0, 1, i32::MAX],
+        [c - 5, c - 5, c, lo],
+        [c + 5, c - 5, c, lo],
+        [c - 5, c + 5, c, lo],
+        [c, c, c, hi],
     ];
     assert_eq!(classify(&extreme, &across), TetPairRelation::Crossing);
-    assert!(tets_intersect(&extreme, &across));
+    assert!(tets_intersect(&extreme, &across) && relative_interiors_meet(&across, &extreme));
+    let beside = across.map(|p| [p[0], p[1], hi, p[3]]);
+    assert_eq!(classify(&extreme, &beside), TetPairRelation::Disjoint);
 }
 
 // ---------------------------------------------------------------------------------------

@@ -34,6 +34,14 @@ pub struct MeshArgs {
     /// Directory for the slice PLY files.
     #[arg(long, default_value = ".")]
     pub ply_dir: PathBuf,
+    /// Mesher options.
+    #[command(flatten)]
+    pub mesher: MesherArgs,
+}
+
+/// Mesher options on the command line.
+#[derive(Debug, Clone, Args)]
+pub struct MesherArgs {
     /// Lattice steps per voxel edge for PERCENT frames (power of two).
     #[arg(long, default_value_t = 64)]
     pub percent_scale: i32,
@@ -108,7 +116,7 @@ pub struct MeshRun {
 }
 
 /// Mesher options from the command line.
-pub fn mesher_options(a: &MeshArgs) -> MesherOptions {
+pub fn mesher_options_from(a: &MesherArgs) -> MesherOptions {
     let mut o = MesherOptions {
         percent_scale: a.percent_scale,
         ..MesherOptions::default()
@@ -415,7 +423,7 @@ fn file_safe(topic: &str) -> String {
 /// # Errors
 /// See [`mesh_bag`]; also a stats or PLY file that cannot be written.
 pub fn run(a: &MeshArgs) -> Result<(), CliError> {
-    let r = mesh_bag(&a.bag, mesher_options(a), &a.slices)?;
+    let r = mesh_bag(&a.bag, mesher_options_from(&a.mesher), &a.slices)?;
     println!(
         "{:<28} {:>6} {:>11} {:>11} {:>7} {:>14} {:>9} {:>9} {:>7}",
         "body",

@@ -4,6 +4,7 @@
 //! the same code the binary runs.
 
 pub mod bench;
+pub mod check;
 pub mod mesh;
 pub mod scene;
 
@@ -28,6 +29,8 @@ pub enum Command {
     Scene(scene::SceneArgs),
     /// Mesh every VoxelGrid topic of a bag into a closed 4D tet mesh, slab by slab.
     Mesh(mesh::MeshArgs),
+    /// Check every pair of bodies of a bag for interference over time; write the report.
+    Check(check::CheckArgs),
     /// Benchmarks that print the figures the README quotes.
     Bench(bench::BenchArgs),
 }
@@ -41,6 +44,9 @@ pub enum CliError {
     /// The scene options are invalid.
     #[error(transparent)]
     Scene(#[from] crate::scene::SceneError),
+    /// Bodies cannot be checked against each other.
+    #[error(transparent)]
+    Check(#[from] crate::checker::CheckError),
     /// Mesher options are invalid.
     #[error(transparent)]
     Mesh(#[from] crate::mesh::MeshError),
@@ -80,6 +86,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
     match cli.command {
         Command::Scene(a) => scene::run(&a),
         Command::Mesh(a) => mesh::run(&a),
+        Command::Check(a) => check::run(&a),
         Command::Bench(a) => bench::run(&a),
     }
 }

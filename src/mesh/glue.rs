@@ -2,7 +2,8 @@
 //! end caps, for consumers that need the body at once (the interference checker).
 
 use super::march::{CapSide, TetMesh};
-use super::mesher::{GridGeometry, Mesher, MesherOptions};
+use super::mesher::{GridGeometry, Mesher, MesherOptions, Slab};
+use super::stats::{BodyStats, StatsAccumulator};
 use super::{FrameRef, MeshError, OccupancyGrid};
 use crate::kernel::LatticePoint;
 use std::collections::HashMap;
@@ -20,6 +21,8 @@ pub struct BodyMesh {
     pub frames: Vec<OccupancyGrid>,
     /// Frames refused by the mesher.
     pub skipped: u64,
+    /// Streaming statistics (closedness, hypervolume in m³·s, counts).
+    pub stats: BodyStats,
 }
 
 /// Builds a [`BodyMesh`] from a stream of frames.
@@ -29,6 +32,8 @@ pub struct BodyAssembler {
     body: BodyMesh,
     index: HashMap<LatticePoint, u32>,
     keep_frames: bool,
+    acc: StatsAccumulator,
+    first_cap: Option<TetMesh>,
 }
 
 impl BodyAssembler {
@@ -42,6 +47,8 @@ impl BodyAssembler {
             body: BodyMesh::default(),
             index: HashMap::new(),
             keep_frames: false,
+            acc: StatsAccumulator::new(),
+            first_cap: None,
         })
     }
 
@@ -57,7 +64,27 @@ impl BodyAssembler {
     /// The mesher's reason for refusing the frame; it is skipped and counted.
     pub fn push(&mut self, f: &FrameRef<'_>) -> Result<(), MeshError> {
         let slab = self.mesher.push(f)?;
-        self.body.stamps_ns.push(f.stamp_ns);
+        self.after_accept(f.stamp_ns, slab);
+        Ok(())
+    }
+
+    /// Feeds an already decoded frame (see [`Mesher::push_decoded`]).
+    ///
+    /// # Errors
+    /// The mesher's reason for refusing the frame.
+    pub fn push_decoded(
+        &mut self,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: OccupancyGrid,
+    ) -> Result<(), MeshError> {
+        let slab = self.mesher.push_decoded(stamp_ns, geometry, grid)?;
+        self.after_accept(stamp_ns, slab);
+        Ok(())
+    }
+
+    fn after_accept(&mut self, stamp_ns: i64, slab: Option<Slab>) {
+        self.body.stamps_ns.push(stamp_ns);
         if self.keep_frames {
             if let Some(k) = self.mesher.last_frame() {
                 self.body.frames.push(k.grid.clone());
@@ -65,17 +92,18 @@ impl BodyAssembler {
         }
         if let Some(slab) = slab {
             if slab.index == 0 {
-                if let Some(cap) = self
+                self.first_cap = self
                     .mesher
                     .first_frame()
-                    .and_then(|k| self.mesher.cap(k, CapSide::Low))
-                {
+                    .and_then(|k| self.mesher.cap(k, CapSide::Low));
+                if let Some(cap) = self.first_cap.take() {
                     self.weld(&cap);
+                    self.first_cap = Some(cap);
                 }
             }
+            self.acc.add_slab(&slab, self.first_cap.as_ref());
             self.weld(&slab.mesh);
         }
-        Ok(())
     }
 
     fn weld(&mut self, part: &TetMesh) {
@@ -97,15 +125,26 @@ impl BodyAssembler {
     /// Closes the mesh with the last frame's cap and returns the body. With fewer than two
     /// frames the mesh is empty (a body needs a time extent).
     pub fn finish(mut self) -> BodyMesh {
+        let mut last_cap = None;
         if self.mesher.frames() >= 2 {
-            if let Some(cap) = self
+            last_cap = self
                 .mesher
                 .last_frame()
-                .and_then(|k| self.mesher.cap(k, CapSide::High))
-            {
-                self.weld(&cap);
+                .and_then(|k| self.mesher.cap(k, CapSide::High));
+            if let Some(cap) = &last_cap {
+                self.weld(cap);
             }
         }
+        let occ = |k: Option<&super::KeptFrame>| k.map_or(0, |k| k.grid.occupied);
+        let (occ_first, occ_last) = (
+            occ(self.mesher.first_frame()),
+            occ(self.mesher.last_frame()),
+        );
+        self.body.stats = self.acc.finish(
+            self.mesher.frames(),
+            self.first_cap.as_ref().map(|c| (c, occ_first)),
+            last_cap.as_ref().map(|c| (c, occ_last)),
+        );
         self.body.geometry = self.mesher.geometry().copied();
         self.body.skipped = self.mesher.skipped();
         self.body

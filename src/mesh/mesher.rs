@@ -177,6 +177,34 @@ impl Mesher {
         // Field checks first (they refuse oversized frames before allocating), then the
         // stream checks.
         let grid = OccupancyGrid::decode(f, &self.opts.decode)?;
+        self.accept(f.stamp_ns, geometry, grid)
+    }
+
+    /// Feeds an already decoded frame (e.g. the intersection of two bodies' frames).
+    ///
+    /// # Errors
+    /// As [`Self::push`] for the stream checks (lattice, stamp order, frame count); the
+    /// frame is then skipped and counted.
+    pub fn push_decoded(
+        &mut self,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: OccupancyGrid,
+    ) -> Result<Option<Slab>, MeshError> {
+        let r = self.accept(stamp_ns, geometry, grid);
+        if r.is_err() {
+            self.skipped += 1;
+        }
+        r
+    }
+
+    fn accept(
+        &mut self,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: OccupancyGrid,
+    ) -> Result<Option<Slab>, MeshError> {
+        let scale = geometry.scale;
         if let Some(g) = &self.geometry {
             if *g != geometry {
                 return Err(MeshError::LatticeMismatch {
@@ -186,10 +214,10 @@ impl Mesher {
             }
         }
         if let Some(p) = &self.prev {
-            if f.stamp_ns <= p.stamp_ns {
+            if stamp_ns <= p.stamp_ns {
                 return Err(MeshError::StampNotIncreasing {
                     previous_ns: p.stamp_ns,
-                    got_ns: f.stamp_ns,
+                    got_ns: stamp_ns,
                 });
             }
         }
@@ -200,7 +228,7 @@ impl Mesher {
         self.geometry = Some(geometry);
         let kept = KeptFrame {
             index: self.accepted,
-            stamp_ns: f.stamp_ns,
+            stamp_ns,
             grid,
         };
         self.accepted += 1;

@@ -1,0 +1,354 @@
+//! `chronotope check BAG [--report FILE.json]`: mesh every body, check every pair, and
+//! write the CONTRACT.md report (`chronotope.report/1`). Resolution suggestions are not
+//! computed yet (`resolutions` is empty).
+
+use super::mesh::{mesher_options_from, MesherArgs};
+use super::{frame_ref, CliError};
+use crate::bag::{voxel_frames, FrameError};
+use crate::checker::labels::LabelCounts;
+use crate::checker::{check_pair, CommonLattice, PairResult};
+use crate::mesh::glue::{BodyAssembler, BodyMesh};
+use crate::mesh::MesherOptions;
+use clap::Args;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options of `chronotope check`.
+#[derive(Debug, Clone, Args)]
+pub struct CheckArgs {
+    /// Input rosbag2 MCAP bag.
+    pub bag: PathBuf,
+    /// Write the report (CONTRACT.md, schema chronotope.report/1).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Time scale c (m/s) of the 4D metric |(dx, dy, dz, c·dt)| (default: one voxel per
+    /// frame period).
+    #[arg(long)]
+    pub time_scale: Option<f64>,
+    /// Mesher options.
+    #[command(flatten)]
+    pub mesher: MesherArgs,
+}
+
+/// One body in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct BodyReport {
+    /// Topic.
+    pub id: String,
+    /// Frames accepted.
+    pub frames: u64,
+    /// Tets of the closed mesh.
+    pub tets: u64,
+    /// Vertices of the closed mesh.
+    pub vertices: u64,
+    /// Closed and consistently oriented.
+    pub closed: bool,
+    /// Hypervolume (m³·s).
+    pub hypervolume_m3s: f64,
+    /// Frames refused (extra field).
+    pub skipped_frames: u64,
+}
+
+/// Label counts of both bodies of a pair.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairLabels {
+    /// First body.
+    pub a: LabelCounts,
+    /// Second body.
+    pub b: LabelCounts,
+}
+
+/// One pair in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairReport {
+    /// First body.
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// The interiors overlap somewhere in space-time.
+    pub interfering: bool,
+    /// Time intervals of overlap (s since `time_origin_ns`).
+    pub intervals_s: Vec<[f64; 2]>,
+    /// Earliest time of overlap, or null.
+    pub first_contact_s: Option<f64>,
+    /// 4D measure of the overlap (m³·s), or null when the bodies' frames are not on one grid.
+    pub overlap_hypervolume_m3s: Option<f64>,
+    /// Label counts.
+    pub labels: PairLabels,
+    /// Half a frame period at the first contact (s): how far the contact time can be off
+    /// because the motion between frames is interpolated (extra field).
+    pub first_contact_bound_s: Option<f64>,
+    /// Candidate tet pairs from the trees (extra field).
+    pub candidate_pairs: u64,
+    /// Tet pairs whose boundaries cross (extra field).
+    pub crossing_pairs: u64,
+}
+
+/// Timings (ms).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Timings {
+    /// Reading and meshing.
+    pub mesh: f64,
+    /// Detection and labels (trees, exact tests, inclusion).
+    pub check: f64,
+    /// Resolution suggestions.
+    pub resolve: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// The report (CONTRACT.md).
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// `chronotope.report/1`.
+    pub schema: &'static str,
+    /// Earliest frame stamp in the bag (ns); report times are seconds since it.
+    pub time_origin_ns: i64,
+    /// c (m/s) of the 4D metric.
+    pub time_scale_m_per_s: f64,
+    /// Bodies, sorted by id.
+    pub bodies: Vec<BodyReport>,
+    /// Every pair (a < b).
+    pub pairs: Vec<PairReport>,
+    /// Resolve suggestions (not computed yet).
+    pub resolutions: Vec<serde_json::Value>,
+    /// Timings.
+    pub timings_ms: Timings,
+}
+
+/// Meshes every VoxelGrid topic of a bag into whole-body meshes (frames kept).
+///
+/// # Errors
+/// The bag cannot be read or has no VoxelGrid topic.
+pub fn load_bodies(
+    path: &Path,
+    opts: MesherOptions,
+) -> Result<BTreeMap<String, BodyMesh>, CliError> {
+    let mut asm: BTreeMap<String, BodyAssembler> = BTreeMap::new();
+    for item in voxel_frames(path)? {
+        match item {
+            Ok((topic, grid)) => {
+                let a = match asm.entry(topic.clone()) {
+                    std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+                    std::collections::btree_map::Entry::Vacant(e) => {
+                        e.insert(BodyAssembler::new(opts)?.keep_frames(true))
+                    }
+                };
+                if let Err(e) = a.push(&frame_ref(&grid)) {
+                    tracing::warn!(topic = %topic, stamp_ns = grid.header.stamp.as_nanos(), "skipping frame: {e}");
+                }
+            }
+            Err(FrameError::Decode {
+                topic,
+                log_time_ns,
+                reason,
+            }) => {
+                tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
+            }
+            Err(FrameError::Bag(e)) => {
+                tracing::error!("{e}");
+                if e.is_fatal() {
+                    break;
+                }
+            }
+        }
+    }
+    Ok(asm.into_iter().map(|(k, a)| (k, a.finish())).collect())
+}
+
+/// Overlap hypervolume from the intersection of the two bodies' frames, meshed like a body.
+fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<f64> {
+    let (ga, gb) = (a.geometry?, b.geometry?);
+    if ga != gb {
+        return None;
+    }
+    let mut asm = BodyAssembler::new(opts).ok()?;
+    let mut j = 0;
+    for (i, &s) in a.stamps_ns.iter().enumerate() {
+        while j < b.stamps_ns.len() && b.stamps_ns[j] < s {
+            j += 1;
+        }
+        if j < b.stamps_ns.len() && b.stamps_ns[j] == s {
+            let both = a.frames.get(i)?.intersect(b.frames.get(j)?)?;
+            asm.push_decoded(s, ga, both).ok()?;
+        }
+    }
+    Some(asm.finish().stats.hypervolume_m3s)
+}
+
+/// Checks every pair of bodies of a bag.
+///
+/// # Errors
+/// The bag cannot be read, or its bodies are not on one lattice.
+pub fn check_bag(
+    path: &Path,
+    opts: MesherOptions,
+    time_scale: Option<f64>,
+) -> Result<Report, CliError> {
+    let start = Instant::now();
+    let bodies = load_bodies(path, opts)?;
+    let t_mesh = start.elapsed();
+    let named: Vec<(&str, &BodyMesh)> = bodies
+        .iter()
+        .filter(|(_, b)| b.stamps_ns.len() >= 2)
+        .map(|(k, b)| (k.as_str(), b))
+        .collect();
+    for (id, b) in &bodies {
+        if b.stamps_ns.len() < 2 {
+            tracing::warn!(topic = %id, "fewer than two frames: no 4D mesh, not checked");
+        }
+    }
+    let time_origin_ns = bodies
+        .values()
+        .filter_map(|b| b.stamps_ns.first().copied())
+        .min()
+        .unwrap_or(0);
+    let mut pairs = Vec::new();
+    let mut c = time_scale.unwrap_or(0.0);
+    if !named.is_empty() {
+        let lat = CommonLattice::of(&named)?;
+        let span = (lat.stamps_ns[lat.stamps_ns.len() - 1] - lat.stamps_ns[0]) as f64 * 1e-9;
+        let period = span / (lat.stamps_ns.len() - 1) as f64;
+        if time_scale.is_none() {
+            c = lat.resolution / period;
+        }
+        let prepared: Vec<_> = named
+            .iter()
+            .map(|(id, b)| lat.prepare(id, b))
+            .collect::<Result<_, _>>()?;
+        for i in 0..prepared.len() {
+            for j in i + 1..prepared.len() {
+                let r = check_pair(&prepared[i], &prepared[j]);
+                let hv = if r.interfering() {
+                    overlap_hypervolume(named[i].1, named[j].1, opts)
+                } else {
+                    Some(0.0)
+                };
+                pairs.push(pair_report(
+                    named[i].0,
+                    named[j].0,
+                    &r,
+                    hv,
+                    &lat,
+                    time_origin_ns,
+                ));
+            }
+        }
+    }
+    let t_check = start.elapsed() - t_mesh;
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    Ok(Report {
+        schema: "chronotope.report/1",
+        time_origin_ns,
+        time_scale_m_per_s: c,
+        bodies: bodies
+            .iter()
+            .map(|(id, b)| BodyReport {
+                id: id.clone(),
+                frames: b.stats.frames,
+                tets: b.mesh.tets.len() as u64,
+                vertices: b.mesh.vertices.len() as u64,
+                closed: b.stats.closed.is_closed(),
+                hypervolume_m3s: b.stats.hypervolume_m3s,
+                skipped_frames: b.skipped,
+            })
+            .collect(),
+        pairs,
+        resolutions: Vec::new(),
+        timings_ms: Timings {
+            mesh: ms(t_mesh),
+            check: ms(t_check),
+            resolve: 0.0,
+            total: ms(start.elapsed()),
+        },
+    })
+}
+
+fn pair_report(
+    a: &str,
+    b: &str,
+    r: &PairResult,
+    hv: Option<f64>,
+    lat: &CommonLattice,
+    origin: i64,
+) -> PairReport {
+    let (ca, cb) = r.counts();
+    let first = r.first_contact();
+    PairReport {
+        a: a.to_owned(),
+        b: b.to_owned(),
+        interfering: r.interfering(),
+        intervals_s: r
+            .intervals
+            .iter()
+            .map(|&(s, e)| [lat.time_s(s, origin), lat.time_s(e, origin)])
+            .collect(),
+        first_contact_s: first.map(|t| lat.time_s(t, origin)),
+        overlap_hypervolume_m3s: hv,
+        labels: PairLabels { a: ca, b: cb },
+        first_contact_bound_s: first.map(|t| 0.5 * lat.period_s(t)),
+        candidate_pairs: r.candidate_pairs,
+        crossing_pairs: r.interfering_pairs,
+    }
+}
+
+/// Runs `chronotope check`.
+///
+/// # Errors
+/// See [`check_bag`]; also a report file that cannot be written.
+pub fn run(a: &CheckArgs) -> Result<(), CliError> {
+    if let Some(c) = a.time_scale {
+        if !(c.is_finite() && c > 0.0) {
+            return Err(CliError::Usage(format!(
+                "--time-scale {c}: must be a positive number of m/s"
+            )));
+        }
+    }
+    let r = check_bag(&a.bag, mesher_options_from(&a.mesher), a.time_scale)?;
+    for b in &r.bodies {
+        println!(
+            "{:<24} {:>4} frames {:>10} tets  closed {}",
+            b.id, b.frames, b.tets, b.closed
+        );
+    }
+    for p in &r.pairs {
+        if p.interfering {
+            let spans: Vec<String> = p
+                .intervals_s
+                .iter()
+                .map(|[s, e]| format!("{s:.3}-{e:.3} s"))
+                .collect();
+            println!(
+                "COLLIDE {} x {}: first contact {:.3} s (±{:.3}), during {}; overlap {:.4e} m3s",
+                p.a,
+                p.b,
+                p.first_contact_s.unwrap_or(f64::NAN),
+                p.first_contact_bound_s.unwrap_or(f64::NAN),
+                spans.join(", "),
+                p.overlap_hypervolume_m3s.unwrap_or(f64::NAN)
+            );
+        } else {
+            println!("clear   {} x {}", p.a, p.b);
+        }
+    }
+    println!(
+        "mesh {:.0} ms, check {:.0} ms, total {:.0} ms",
+        r.timings_ms.mesh, r.timings_ms.check, r.timings_ms.total
+    );
+    if let Some(p) = &a.report {
+        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+            std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
+        }
+        let text = serde_json::to_string_pretty(&r).expect("plain data serialises");
+        std::fs::write(p, text).map_err(|source| CliError::Io {
+            path: p.clone(),
+            source,
+        })?;
+    }
+    Ok(())
+}
