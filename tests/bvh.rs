@@ -601,3 +601,20 @@ fn timing_build_and_traverse() {
     let m = scene_meshes(96, 65);
     time_pair("four-spheres 96^3 x 65, bodies a and b", &m[0], &m[1]);
 }
+
+#[test]
+#[ignore]
+fn tmp_build_only() {
+    let k: usize = std::env::var("TMP_K").unwrap().parse().unwrap();
+    let which = std::env::var("TMP_W").unwrap();
+    let a = if which == "syn" {
+        synthetic_mesh(1_500_000, 0x1234_5678_9ABC_DEF1, [128.0; 4])
+    } else {
+        scene_meshes(96, 65).swap_remove(0)
+    };
+    let mut t = Bvh::new();
+    for _ in 0..k {
+        t.build_tets(&a.0, &a.1).unwrap();
+    }
+    println!("TMP {}", t.len());
+}

@@ -203,6 +203,10 @@ fn bad_frames_mid_stream_are_skipped_and_counted() {
         "{err}"
     );
     assert!(err.contains("does not increase"), "{err}");
+    assert!(
+        err.contains("stamp_ns=3000") && err.contains("stamp_ns=1500"),
+        "{err}"
+    );
     let j = read_json(&stats);
     let b = &j["bodies"][0];
     assert_eq!(b["frames"], 3);
@@ -252,9 +256,24 @@ fn bad_command_lines_are_refused() {
             "--out",
             "/tmp/x.mcap",
         ],
-        vec!["mesh", "x.mcap", "--percent-scale", "3"],
     ] {
         let out = bin().args(&args).output().unwrap();
         assert!(!out.status.success(), "{args:?} accepted");
+    }
+    // A bad option on a real bag names the option.
+    let root = env!("CARGO_MANIFEST_DIR");
+    let bag = format!("{root}/bags/four-spheres-32-bits.mcap");
+    for (flag, value) in [
+        ("--percent-scale", "3"),
+        ("--percent-scale", "1024"),
+        ("--iso-percent", "0"),
+    ] {
+        let out = bin().args(["mesh", &bag, flag, value]).output().unwrap();
+        assert!(!out.status.success(), "{flag} {value} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&flag[2..].replace('-', "_")),
+            "{flag} {value}: {err}"
+        );
     }
 }

@@ -173,6 +173,7 @@ fn slice_at_a_frame_time_reproduces_that_frame() {
                 grid,
                 at,
                 chronotope::mesh::CapSide::High,
+                usize::MAX,
                 &mut cap,
             );
             let mut want = boundary_triangles(&cap);
@@ -270,5 +271,92 @@ fn streaming_validation_catches_damaged_meshes() {
                 st.closed
             );
         }
+    }
+}
+
+#[test]
+fn damage_only_the_time_planes_can_see_is_caught() {
+    use chronotope::mesh::stats::StatsAccumulator;
+    let size = [6, 5, 4];
+    let bits: Vec<u8> = (0..4096u32)
+        .map(|i| (i.wrapping_mul(2654435761) >> 9) as u8)
+        .collect();
+    let frames = random_frames(size, 4, 1, &bits);
+    let r = run(&frames, size, 0.1);
+    assert!(r.stats.closed.is_closed());
+    // Without the last cap the upper plane of the last slab stays open.
+    let mut acc = StatsAccumulator::new();
+    for s in &r.slabs {
+        acc.add_slab(s, r.first_cap.as_ref());
+    }
+    assert!(!acc
+        .finish(4, r.first_cap.as_ref().map(|c| (c, 0)), None)
+        .closed
+        .is_closed());
+    // A vertex of the upper plane moved within the plane: pairing inside the slab still
+    // holds, only the plane matching can tell.
+    let k = r.slabs.len() - 2;
+    let mut moved = r.slabs.clone();
+    let t_hi = moved[k].t_hi();
+    let v = moved[k]
+        .mesh
+        .vertices
+        .iter()
+        .position(|p| p[3] == t_hi)
+        .expect("a vertex on the upper plane");
+    moved[k].mesh.vertices[v][0] += 1;
+    let mut acc = StatsAccumulator::new();
+    for s in &moved {
+        acc.add_slab(s, r.first_cap.as_ref());
+    }
+    let st = acc.finish(
+        4,
+        r.first_cap.as_ref().map(|c| (c, 0)),
+        r.last_cap.as_ref().map(|c| (c, 0)),
+    );
+    assert!(!st.closed.is_closed(), "{:?}", st.closed);
+}
+
+#[test]
+fn closedness_at_the_packed_id_limit() {
+    use chronotope::mesh::validate::{check_closed, PACKED_VERTEX_LIMIT};
+    use chronotope::mesh::TetMesh;
+    // The boundary of a 4-simplex on the highest vertex ids: closed, at n = 2^21 (packed
+    // keys, 21-bit ids) and at n = 2^21 + 1 (the wide path).
+    for n in [
+        PACKED_VERTEX_LIMIT - 1,
+        PACKED_VERTEX_LIMIT,
+        PACKED_VERTEX_LIMIT + 1,
+    ] {
+        let mut m = TetMesh {
+            vertices: vec![[0, 0, 0, 0]; n],
+            tets: Vec::new(),
+        };
+        let ids: Vec<u32> = (n - 5..n).map(|i| i as u32).collect();
+        let pts = [
+            [0, 0, 0, 0],
+            [1, 0, 0, 0],
+            [0, 1, 0, 0],
+            [0, 0, 1, 0],
+            [0, 0, 0, 1],
+        ];
+        for (i, p) in ids.iter().zip(pts) {
+            m.vertices[*i as usize] = p;
+        }
+        // ∂[0..5] = Σ (−1)^i [.. without i ..]
+        for skip in 0..5 {
+            let mut t: Vec<u32> = (0..5).filter(|&j| j != skip).map(|j| ids[j]).collect();
+            if skip % 2 == 1 {
+                t.swap(0, 1);
+            }
+            m.tets.push([t[0], t[1], t[2], t[3]]);
+        }
+        assert!(
+            check_closed(&m).is_closed(),
+            "n = {n}: {:?}",
+            check_closed(&m)
+        );
+        m.tets.pop();
+        assert!(!check_closed(&m).is_closed(), "n = {n}");
     }
 }

@@ -371,3 +371,78 @@ fn bad_options_are_refused() {
     o.decode.iso_percent = 0;
     assert!(Mesher::new(o).is_err());
 }
+
+#[test]
+fn blocks_ending_in_the_last_column_are_exact_at_word_boundaries() {
+    // x sizes around 64 and 128 exercise the bit copy straddling words and the carry from
+    // the next word in the marcher.
+    for encoding in [0u8, 1] {
+        for sx in [1u32, 2, 61, 62, 63, 64, 65, 66, 126, 127, 128, 129, 130] {
+            let size = [sx, 3, 3];
+            let lo = sx.saturating_sub(3) as usize;
+            let inside = |x: usize, y: usize, z: usize| x >= lo && y == 1 && z >= 1;
+            let frames = static_frames(3, 100_000_000, encoding, size, inside);
+            let r = run(&frames, size, 0.01);
+            let dims = [(sx as usize - lo) as f64, 1.0, 2.0];
+            let exact = block_volume(dims[0], dims[1], dims[2]) * 1e-6 * 0.2;
+            assert!(
+                r.stats.closed.is_closed(),
+                "x size {sx}, encoding {encoding}"
+            );
+            assert!(
+                (r.stats.hypervolume_m3s - exact).abs() <= 1e-12 * exact,
+                "x size {sx}, encoding {encoding}: {} vs {exact}",
+                r.stats.hypervolume_m3s
+            );
+        }
+    }
+}
+
+#[test]
+fn uneven_frame_periods_give_the_exact_hypervolume() {
+    let size = [5u32, 5, 5];
+    let inside =
+        |x: usize, y: usize, z: usize| (1..4).contains(&x) && (1..3).contains(&y) && z == 2;
+    let stamps = [0i64, 100_000_000, 700_000_000, 750_000_000];
+    let frames: Vec<TestFrame> = stamps
+        .iter()
+        .map(|&s| TestFrame {
+            stamp_ns: s,
+            encoding: 0,
+            data: bits_data(size, inside),
+        })
+        .collect();
+    let r = run(&frames, size, 0.02);
+    let exact = block_volume(3.0, 2.0, 1.0) * 0.02f64.powi(3) * 0.75;
+    assert!(
+        (r.stats.hypervolume_m3s - exact).abs() <= 1e-12 * exact,
+        "{} vs {exact}",
+        r.stats.hypervolume_m3s
+    );
+}
+
+#[test]
+fn noise_frames_beyond_the_slab_budget_are_refused_not_meshed() {
+    let size = [16u32, 16, 16];
+    let noise = |k: u64| {
+        bits_data(size, move |x, y, z| {
+            ((x * 7 + y * 13 + z * 29) as u64 ^ k).count_ones() % 2 == 1
+        })
+    };
+    let opts = MesherOptions {
+        max_slab_tets: 5_000,
+        ..MesherOptions::default()
+    };
+    let mut m = Mesher::new(opts).unwrap();
+    let (a, b) = (noise(1), noise(2));
+    m.push(&frame(0, size, 0.1, 0, &a)).unwrap();
+    assert!(matches!(
+        m.push(&frame(1, size, 0.1, 0, &b)),
+        Err(MeshError::SlabTooComplex { limit: 5_000 })
+    ));
+    assert_eq!((m.frames(), m.skipped()), (1, 1));
+    // The state is unchanged: a simple frame after it meshes from the first frame.
+    let empty = bits_data(size, |_, _, _| false);
+    let slab = m.push(&frame(2, size, 0.1, 0, &empty));
+    assert!(matches!(slab, Err(MeshError::SlabTooComplex { .. })) || slab.unwrap().is_some());
+}

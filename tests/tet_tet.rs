@@ -289,16 +289,15 @@ fn oracle(a: &LatticeTet, b: &LatticeTet) -> TetPairRelation {
     }
     if b.iter().all(|p| side(a, &p.map(i128::from)) == 0) {
         // Same hyperplane: compare the sides of a point off it.
-        let mut x = a[0].map(i128::from);
-        let mut k = 0;
-        loop {
-            x = a[0].map(i128::from);
+        let off = |k: usize| {
+            let mut x = a[0].map(i128::from);
             x[k] += 1;
-            if side(a, &x) != 0 {
-                break;
-            }
-            k += 1;
-        }
+            x
+        };
+        let x = (0..4)
+            .map(off)
+            .find(|x| side(a, x) != 0)
+            .expect("a is not flat");
         return TetPairRelation::Coplanar {
             overlap_volume_positive: interiors,
             same_orientation: side(a, &x).signum() == side(b, &x).signum(),

@@ -1,8 +1,13 @@
 //! Per-tet labels (seed 000 §3.2): INTERFERENCE where the two boundaries cross, and every
-//! other tet INSIDE or OUTSIDE the other body. Tets not separated by INTERFERENCE tets form
-//! regions; one inclusion test per region decides it, and the label spreads across face
-//! adjacency. This is right with no INTERFERENCE tet at all: a body entirely inside the
-//! other is one INSIDE region, disjoint bodies one OUTSIDE region each.
+//! other tet INSIDE or OUTSIDE the other body.
+//!
+//! A tet that meets the other boundary without crossing it (shared vertices or edges, face
+//! to face) is a *contact* tet and is tested on its own: the boundary may pass exactly
+//! through its vertices, so such tets do not separate inside from outside. Every remaining
+//! tet is disjoint from the other boundary, and two such tets sharing a face lie on the same
+//! side; they form regions, one inclusion test per region decides it, and the label spreads
+//! across face adjacency. This is right with no INTERFERENCE tet at all: a body entirely
+//! inside the other is one INSIDE region, disjoint bodies one OUTSIDE region each.
 
 use super::adjacency::NO_NEIGHBOUR;
 use serde::Serialize;
@@ -17,6 +22,20 @@ pub enum Label {
     Inside = 1,
     /// Crosses the other body's boundary (or overlaps it with the same orientation).
     Interference = 2,
+}
+
+/// How a tet meets the other body's boundary (ordered: the strongest relation wins).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Touch {
+    /// Disjoint from every tet of the other boundary.
+    Clear,
+    /// Touches it (vertex, edge, contact inside a face) without crossing.
+    Contact,
+    /// Lies in one of its tets' hyperplane, overlapping with opposite orientation: the two
+    /// bodies face each other there (contact, not interference).
+    FaceToFace,
+    /// Crosses it, or overlaps it with the same orientation.
+    Interference,
 }
 
 /// Label counts.
@@ -60,12 +79,12 @@ impl Labeling {
 /// How many tets of a region are tried as inclusion-test points before giving up.
 const TRIES_PER_REGION: usize = 16;
 
-/// Labels every tet. `interference[t]` marks INTERFERENCE tets; `inside(t)` is the
-/// inclusion test of an interior point of tet `t` (None if undecided).
+/// Labels every tet. `touch[t]` says how tet `t` meets the other boundary;
+/// `inside(t, n)` tests up to `n` interior points of tet `t` (None if all undecided).
 pub fn label_regions(
     adjacency: &[[u32; 4]],
-    interference: &[bool],
-    mut inside: impl FnMut(u32) -> Option<bool>,
+    touch: &[Touch],
+    mut inside: impl FnMut(u32, usize) -> Option<bool>,
 ) -> Labeling {
     let n = adjacency.len();
     let mut labels = vec![Label::Outside; n];
@@ -74,33 +93,51 @@ pub fn label_regions(
     let mut stack = Vec::new();
     let mut members = Vec::new();
     for start in 0..n {
-        if seen[start] || interference[start] {
-            if interference[start] {
+        match touch[start] {
+            Touch::Interference => {
                 labels[start] = Label::Interference;
+                continue;
             }
-            continue;
+            Touch::Contact | Touch::FaceToFace => {
+                // On its own: every interior point tried.
+                labels[start] = match inside(start as u32, usize::MAX) {
+                    Some(true) => Label::Inside,
+                    Some(false) => Label::Outside,
+                    // Every point undecided: the tet lies in the other boundary. Face to
+                    // face that is contact (outside); otherwise report it.
+                    None => {
+                        if touch[start] != Touch::FaceToFace {
+                            out.undecided_regions += 1;
+                        }
+                        Label::Outside
+                    }
+                };
+                continue;
+            }
+            Touch::Clear if seen[start] => continue,
+            Touch::Clear => {}
         }
-        // Collect the region.
+        // Collect the region of clear tets.
         members.clear();
         stack.push(start as u32);
         seen[start] = true;
         while let Some(t) = stack.pop() {
             members.push(t);
             for &nb in &adjacency[t as usize] {
-                if nb != NO_NEIGHBOUR && !seen[nb as usize] && !interference[nb as usize] {
+                if nb != NO_NEIGHBOUR && !seen[nb as usize] && touch[nb as usize] == Touch::Clear {
                     seen[nb as usize] = true;
                     stack.push(nb);
                 }
             }
         }
         out.regions += 1;
-        // Spread the tries over the region (its first tets may all touch the other body).
+        // Spread the tries over the region; one interior point per tet suffices here.
         let step = (members.len() / TRIES_PER_REGION).max(1);
         let verdict = members
             .iter()
             .step_by(step)
             .take(TRIES_PER_REGION)
-            .find_map(|&t| inside(t));
+            .find_map(|&t| inside(t, 1));
         let label = match verdict {
             Some(true) => Label::Inside,
             Some(false) => Label::Outside,

@@ -2,11 +2,13 @@
 //! time intervals of interference, the first contact time and the overlap.
 //!
 //! Pipeline for a pair: both meshes are put on one integer lattice ([`Prepared`]: common
-//! scale, integer origin offset, a common time lattice, coordinates ×4 so that tet
-//! centroids are lattice points); an AABB tree over each body's tets gives candidate pairs;
-//! the exact predicate [`classify`] keeps the pairs whose boundaries cross (or overlap in
-//! one hyperplane with the same orientation); then every other tet is labelled INSIDE or
-//! OUTSIDE with one exact inclusion test per region (see [`labels`]).
+//! scale, integer origin offset, a common time lattice, coordinates ×8 so that several
+//! interior points of every tet are lattice points); an AABB tree over each body's tets
+//! gives candidate pairs; the exact predicate [`classify`] keeps the pairs whose boundaries
+//! cross (or overlap in one hyperplane with the same orientation). Tets that touch the
+//! other boundary without crossing it are *contact* tets, tested one by one; every other tet
+//! is disjoint from the other boundary, and face-adjacent such tets lie on the same side, so
+//! one exact inclusion test per region labels them all INSIDE or OUTSIDE (see [`labels`]).
 //!
 //! **Touching rule.** Bodies in adjacent voxels share facets and vertices: that is contact,
 //! not interference. Exactly: two boundary tets interfere when their relative interiors
@@ -17,6 +19,7 @@
 //! region touching the other body only that way is OUTSIDE.
 
 pub mod adjacency;
+pub mod contact;
 pub mod inclusion;
 pub mod labels;
 
@@ -27,7 +30,7 @@ use crate::mesh::glue::BodyMesh;
 use crate::mesh::{GridGeometry, TetMesh};
 use adjacency::face_adjacency;
 use inclusion::Inclusion;
-use labels::{label_regions, LabelCounts, Labeling};
+use labels::{label_regions, LabelCounts, Labeling, Touch};
 
 /// Why two bodies cannot be checked against each other.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -69,7 +72,20 @@ pub enum CheckError {
     },
 }
 
-/// One body ready for checking: lattice-aligned, ×4 coordinates, tree and adjacency.
+/// Checker lattice units per body lattice unit at the common scale: ×8 so that the points
+/// (w·tet)/8 for the weights in [`INTERIOR_WEIGHTS`] are lattice points.
+pub const CHECKER_FACTOR: i32 = 8;
+
+/// Barycentric weights (sum 8, all positive) of the interior points tried per tet.
+pub const INTERIOR_WEIGHTS: [[i64; 4]; 5] = [
+    [2, 2, 2, 2],
+    [3, 2, 2, 1],
+    [1, 3, 2, 2],
+    [2, 1, 3, 2],
+    [2, 2, 1, 3],
+];
+
+/// One body ready for checking: lattice-aligned, ×8 coordinates, tree and adjacency.
 #[derive(Debug)]
 pub struct Prepared {
     /// Body id (topic).
@@ -85,7 +101,7 @@ pub struct Prepared {
     /// The body's lattice.
     pub geometry: GridGeometry,
     /// Frame stamps (ns) of the common time lattice: checker time `t` is at
-    /// `stamps[t / (4·scale)]` plus the fraction within that frame period.
+    /// `stamps[t / (8·scale)]` plus the fraction within that frame period.
     pub stamps_ns: Vec<i64>,
 }
 
@@ -165,7 +181,7 @@ impl CommonLattice {
         })
     }
 
-    /// Puts a body on this lattice (coordinates ×4 so that tet centroids are lattice points).
+    /// Puts a body on this lattice (coordinates ×[`CHECKER_FACTOR`]).
     ///
     /// # Errors
     /// The tree cannot be built (too many tets).
@@ -173,7 +189,7 @@ impl CommonLattice {
         let g = b
             .geometry
             .ok_or_else(|| CheckError::EmptyBody { id: id.to_string() })?;
-        let factor = 4 * (self.scale / g.scale);
+        let factor = CHECKER_FACTOR * (self.scale / g.scale);
         let voxels = origin_offset(
             &self.voxel0_centre.map(|c| c - 0.5 * self.resolution),
             &g.origin,
@@ -186,10 +202,10 @@ impl CommonLattice {
         })?;
         let frame0 = self.stamps_ns.binary_search(&b.stamps_ns[0]).unwrap_or(0) as i64;
         let shift: LatticePoint = [
-            (voxels[0] * i64::from(self.scale) * 4) as i32,
-            (voxels[1] * i64::from(self.scale) * 4) as i32,
-            (voxels[2] * i64::from(self.scale) * 4) as i32,
-            (frame0 * i64::from(self.scale) * 4) as i32,
+            (voxels[0] * self.per_step()) as i32,
+            (voxels[1] * self.per_step()) as i32,
+            (voxels[2] * self.per_step()) as i32,
+            (frame0 * self.per_step()) as i32,
         ];
         let mut mesh = b.mesh.clone();
         for p in &mut mesh.vertices {
@@ -213,12 +229,17 @@ impl CommonLattice {
         })
     }
 
+    /// Checker lattice units per voxel and per frame period.
+    pub fn per_step(&self) -> i64 {
+        i64::from(self.scale) * i64::from(CHECKER_FACTOR)
+    }
+
     /// Seconds since `origin_ns` of checker time `t` (piecewise linear between frames).
-    pub fn time_s(&self, t: i64, origin_ns: i64) -> f64 {
-        let per = i64::from(self.scale) * 4;
+    pub fn time_s(&self, t: f64, origin_ns: i64) -> f64 {
+        let per = self.per_step() as f64;
         let n = self.stamps_ns.len() as i64;
-        let k = t.div_euclid(per).clamp(0, n - 2);
-        let frac = (t - k * per) as f64 / per as f64;
+        let k = ((t / per).floor() as i64).clamp(0, n - 2);
+        let frac = (t - k as f64 * per) / per;
         let (a, b) = (
             self.stamps_ns[k as usize] - origin_ns,
             self.stamps_ns[k as usize + 1] - origin_ns,
@@ -227,10 +248,10 @@ impl CommonLattice {
     }
 
     /// Length of one frame period containing checker time `t` (s).
-    pub fn period_s(&self, t: i64) -> f64 {
-        let per = i64::from(self.scale) * 4;
+    pub fn period_s(&self, t: f64) -> f64 {
+        let per = self.per_step() as f64;
         let n = self.stamps_ns.len() as i64;
-        let k = t.div_euclid(per).clamp(0, n - 2) as usize;
+        let k = ((t / per).floor() as i64).clamp(0, n - 2) as usize;
         (self.stamps_ns[k + 1] - self.stamps_ns[k]) as f64 * 1e-9
     }
 }
@@ -263,7 +284,7 @@ pub struct PairResult {
     /// Pairs whose boundaries cross (or overlap coplanar with the same orientation).
     pub interfering_pairs: u64,
     /// Checker-time ranges where the bodies overlap, merged and sorted.
-    pub intervals: Vec<(i64, i64)>,
+    pub intervals: Vec<(f64, f64)>,
 }
 
 impl PairResult {
@@ -277,7 +298,7 @@ impl PairResult {
         (self.labels_a.counts(), self.labels_b.counts())
     }
     /// The earliest checker time of overlap.
-    pub fn first_contact(&self) -> Option<i64> {
+    pub fn first_contact(&self) -> Option<f64> {
         self.intervals.first().map(|r| r.0)
     }
 }
@@ -286,37 +307,50 @@ fn tet_of(m: &TetMesh, i: u32) -> [LatticePoint; 4] {
     m.tets[i as usize].map(|v| m.vertices[v as usize])
 }
 
-fn t_range(t: &[LatticePoint; 4]) -> (i64, i64) {
-    let ts = t.map(|p| i64::from(p[3]));
-    (*ts.iter().min().expect("4"), *ts.iter().max().expect("4"))
+fn t_range(t: &[LatticePoint; 4]) -> (f64, f64) {
+    let ts = t.map(|p| p[3]);
+    (
+        f64::from(*ts.iter().min().expect("4")),
+        f64::from(*ts.iter().max().expect("4")),
+    )
 }
 
 /// Checks two prepared bodies.
 pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
     let mut ws = TraverseWorkspace::new();
-    let mut hit_a = vec![false; a.mesh.tets.len()];
-    let mut hit_b = vec![false; b.mesh.tets.len()];
-    let mut ranges: Vec<(i64, i64)> = Vec::new();
+    let mut hit_a = vec![Touch::Clear; a.mesh.tets.len()];
+    let mut hit_b = vec![Touch::Clear; b.mesh.tets.len()];
+    let mut ranges: Vec<(f64, f64)> = Vec::new();
     let mut r = PairResult::default();
     overlapping_pairs(&a.bvh, &b.bvh, &mut ws, |i, j| {
         r.candidate_pairs += 1;
         let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
-        let interferes = match classify(&ta, &tb) {
-            TetPairRelation::Crossing => true,
+        let (ra, rb) = (t_range(&ta), t_range(&tb));
+        let overlap = (ra.0.max(rb.0), ra.1.min(rb.1));
+        // Where the two tets meet in time: their section polygon for a crossing; for a
+        // coplanar overlap, within both time ranges.
+        let (range, touch) = match classify(&ta, &tb) {
+            TetPairRelation::Crossing => (
+                Some(contact::crossing_t_range(&ta, &tb).unwrap_or(overlap)),
+                Touch::Interference,
+            ),
             TetPairRelation::Coplanar {
-                overlap_volume_positive,
-                same_orientation,
-            } => overlap_volume_positive && same_orientation,
-            TetPairRelation::Disjoint | TetPairRelation::Touching => false,
+                overlap_volume_positive: true,
+                same_orientation: true,
+            } => (Some(overlap), Touch::Interference),
+            TetPairRelation::Coplanar {
+                overlap_volume_positive: true,
+                same_orientation: false,
+            } => (None, Touch::FaceToFace),
+            TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => (None, Touch::Contact),
+            TetPairRelation::Disjoint => (None, Touch::Clear),
         };
-        if interferes {
+        if let Some(range) = range {
             r.interfering_pairs += 1;
-            hit_a[i as usize] = true;
-            hit_b[j as usize] = true;
-            // The overlap of the two tets lies within both time ranges.
-            let (ra, rb) = (t_range(&ta), t_range(&tb));
-            ranges.push((ra.0.max(rb.0), ra.1.min(rb.1)));
+            ranges.push(range);
         }
+        hit_a[i as usize] = hit_a[i as usize].max(touch);
+        hit_b[j as usize] = hit_b[j as usize].max(touch);
     });
     r.labels_a = label_against(a, b, &hit_a);
     r.labels_b = label_against(b, a, &hit_b);
@@ -331,20 +365,23 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
     r
 }
 
-fn label_against(p: &Prepared, other: &Prepared, hit: &[bool]) -> Labeling {
+fn label_against(p: &Prepared, other: &Prepared, hit: &[Touch]) -> Labeling {
     let mut inc = Inclusion::new(&other.mesh, &other.bvh);
-    label_regions(&p.adjacency, hit, |t| {
+    label_regions(&p.adjacency, hit, |t, tries| {
         let tet = tet_of(&p.mesh, t);
-        // Centroid: coordinates are ×4, so (a+b+c+d)/4 is a lattice point.
-        let c = [0, 1, 2, 3].map(|k| (tet.iter().map(|v| i64::from(v[k])).sum::<i64>() / 4) as i32);
-        inc.contains(&c)
+        // Interior points: coordinates are ×8, so (w·tet)/8 is a lattice point.
+        INTERIOR_WEIGHTS.iter().take(tries).find_map(|w| {
+            let c = [0, 1, 2, 3]
+                .map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32);
+            inc.contains(&c)
+        })
     })
 }
 
 /// Sorts closed ranges and merges those that overlap or touch.
-pub fn merge_ranges(mut v: Vec<(i64, i64)>) -> Vec<(i64, i64)> {
-    v.sort_unstable();
-    let mut out: Vec<(i64, i64)> = Vec::new();
+pub fn merge_ranges(mut v: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    v.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out: Vec<(f64, f64)> = Vec::new();
     for (s, e) in v {
         match out.last_mut() {
             Some(last) if s <= last.1 => last.1 = last.1.max(e),

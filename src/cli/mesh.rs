@@ -126,6 +126,10 @@ pub fn mesher_options_from(a: &MesherArgs) -> MesherOptions {
     o
 }
 
+/// Most bodies (VoxelGrid topics) meshed from one bag; frames of further topics are
+/// refused, logged and listed in `bag_errors`.
+pub const MAX_BODIES: usize = 256;
+
 enum Job {
     Frame(Box<VoxelGrid>),
     Undecodable,
@@ -149,6 +153,7 @@ pub fn mesh_bag(
     let bodies = std::thread::scope(|scope| {
         let mut senders = BTreeMap::new();
         let mut handles = Vec::new();
+        let mut refused = std::collections::BTreeSet::new();
         for item in frames {
             let (topic, job) = match item {
                 Ok((topic, grid)) => {
@@ -181,11 +186,39 @@ pub fn mesh_bag(
                     continue;
                 }
             };
-            let tx = senders.entry(topic.clone()).or_insert_with(|| {
-                let (tx, rx) = sync_channel::<Job>(2);
-                handles.push(scope.spawn(move || body_worker(topic, rx, opts, slices)));
-                tx
-            });
+            if !senders.contains_key(&topic) {
+                if refused.contains(&topic) {
+                    continue;
+                }
+                let spawned = if senders.len() >= MAX_BODIES {
+                    Err(format!(
+                        "more than {MAX_BODIES} VoxelGrid topics in one bag"
+                    ))
+                } else {
+                    let (tx, rx) = sync_channel::<Job>(2);
+                    let name = topic.clone();
+                    std::thread::Builder::new()
+                        .name(format!("mesh {topic}"))
+                        .spawn_scoped(scope, move || body_worker(name, rx, opts, slices))
+                        .map(|h| {
+                            handles.push(h);
+                            tx
+                        })
+                        .map_err(|e| format!("cannot start a worker: {e}"))
+                };
+                match spawned {
+                    Ok(tx) => {
+                        senders.insert(topic.clone(), tx);
+                    }
+                    Err(why) => {
+                        tracing::error!(topic = %topic, "not meshed: {why}");
+                        bag_errors.push(format!("{topic}: not meshed: {why}"));
+                        refused.insert(topic);
+                        continue;
+                    }
+                }
+            }
+            let tx = &senders[&topic];
             // Fails only if the worker panicked, which the join below reports.
             let _ = tx.send(job);
         }

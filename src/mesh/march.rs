@@ -101,15 +101,18 @@ fn crossing(a: u8, b: u8, iso: u8, scale: i32) -> i32 {
 
 impl SlabMarcher {
     /// Meshes the lateral boundary of the slab between frames `f0` and `f1` (same lattice)
-    /// into `out` (cleared first).
+    /// into `out` (cleared first). Stops and returns `false` (with `out` empty) as soon as
+    /// the slab would exceed `max_tets`: a noise-like frame pair can produce tets in almost
+    /// every hypercube, and memory must stay bounded.
     pub fn march(
         &mut self,
         table: &Table,
         f0: &OccupancyGrid,
         f1: &OccupancyGrid,
         at: SlabPlacement,
+        max_tets: usize,
         out: &mut TetMesh,
-    ) {
+    ) -> bool {
         out.clear();
         let [px, py, pz] = f0.padded;
         let words = f0.words;
@@ -151,11 +154,20 @@ impl SlabMarcher {
                         self.emit_cube(table, frames, [x, y, z], case, at, s, px, out);
                     }
                 }
+                if out.tets.len() > max_tets {
+                    for l in 0..2 {
+                        self.cache[l].iter_mut().for_each(|c| *c = NONE);
+                        self.touched[l].clear();
+                    }
+                    out.clear();
+                    return false;
+                }
             }
             self.roll();
         }
         self.roll();
         self.roll();
+        true
     }
 
     /// Shifts the two-layer edge cache by one z.
@@ -237,13 +249,15 @@ pub enum CapSide {
 
 /// The 3D solid of one frame as tets in the hyperplane t = scale·frame, oriented as the
 /// `side` cap of a slab (outward along -t for [`CapSide::Low`], +t for [`CapSide::High`]).
+/// Returns `false` (with `out` empty) if the cap would exceed `max_tets`.
 pub fn march_cap(
     table: &Table,
     f: &OccupancyGrid,
     at: SlabPlacement,
     side: CapSide,
+    max_tets: usize,
     out: &mut TetMesh,
-) {
+) -> bool {
     out.clear();
     let [px, py, pz] = f.padded;
     let s = at.scale;
@@ -298,6 +312,11 @@ pub fn march_cap(
                     });
                 }
             }
+            if out.tets.len() > max_tets {
+                out.clear();
+                return false;
+            }
         }
     }
+    true
 }

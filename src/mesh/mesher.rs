@@ -12,9 +12,13 @@ use super::MeshError;
 pub struct MesherOptions {
     /// How frames are decoded and checked.
     pub decode: DecodeOptions,
-    /// Lattice steps per voxel edge for percent frames (a power of two, 2..=1024): the
-    /// interpolated surface position is snapped to 1/scale of an edge.
+    /// Lattice steps per voxel edge for percent frames (a power of two, 2..=256): the
+    /// interpolated surface position is snapped to 1/scale of an edge. (Larger scales would
+    /// let the exact slice orientation test overflow i128.)
     pub percent_scale: i32,
+    /// Most tets one slab (or one cap) may have; a frame whose slab would exceed it is
+    /// refused ([`MeshError::SlabTooComplex`]) so that memory stays bounded.
+    pub max_slab_tets: usize,
 }
 
 impl Default for MesherOptions {
@@ -22,6 +26,7 @@ impl Default for MesherOptions {
         Self {
             decode: DecodeOptions::default(),
             percent_scale: 64,
+            max_slab_tets: 1 << 24,
         }
     }
 }
@@ -106,13 +111,13 @@ impl Mesher {
     /// A mesher with the given options.
     ///
     /// # Errors
-    /// [`MeshError::BadOption`] if `percent_scale` is not a power of two in 2..=1024.
+    /// [`MeshError::BadOption`] if `percent_scale` is not a power of two in 2..=256.
     pub fn new(opts: MesherOptions) -> Result<Self, MeshError> {
         let s = opts.percent_scale;
-        if !(2..=1024).contains(&s) || s.count_ones() != 1 {
+        if !(2..=256).contains(&s) || s.count_ones() != 1 {
             return Err(MeshError::BadOption {
                 name: "percent_scale",
-                reason: format!("{s} is not a power of two in 2..=1024"),
+                reason: format!("{s} is not a power of two in 2..=256"),
             });
         }
         if opts.decode.iso_percent == 0 || opts.decode.iso_percent > 100 {
@@ -225,18 +230,15 @@ impl Mesher {
         if self.accepted >= limit {
             return Err(MeshError::TooManyFrames { limit });
         }
-        self.geometry = Some(geometry);
-        let kept = KeptFrame {
-            index: self.accepted,
-            stamp_ns,
-            grid,
-        };
-        self.accepted += 1;
-        let slab = match self.prev.take() {
-            None => {
-                self.first = Some(kept.clone());
-                None
-            }
+        if grid.padded != geometry.size.map(|v| v as usize + 2) {
+            return Err(MeshError::LatticeMismatch {
+                expected: Box::new(geometry),
+                got: Box::new(geometry),
+            });
+        }
+        // March before touching any state, so a refused frame changes nothing.
+        let slab = match &self.prev {
+            None => None,
             Some(prev) => {
                 let mut mesh = TetMesh::default();
                 let at = SlabPlacement {
@@ -244,17 +246,32 @@ impl Mesher {
                     frame: prev.index as i64,
                     iso: self.opts.decode.iso_percent,
                 };
-                self.marcher
-                    .march(self.table, &prev.grid, &kept.grid, at, &mut mesh);
+                let limit = self.opts.max_slab_tets;
+                if !self
+                    .marcher
+                    .march(self.table, &prev.grid, &grid, at, limit, &mut mesh)
+                {
+                    return Err(MeshError::SlabTooComplex { limit });
+                }
                 Some(Slab {
                     index: prev.index,
                     stamp_lo_ns: prev.stamp_ns,
-                    stamp_hi_ns: kept.stamp_ns,
+                    stamp_hi_ns: stamp_ns,
                     geometry,
                     mesh,
                 })
             }
         };
+        self.geometry = Some(geometry);
+        let kept = KeptFrame {
+            index: self.accepted,
+            stamp_ns,
+            grid,
+        };
+        self.accepted += 1;
+        if self.first.is_none() {
+            self.first = Some(kept.clone());
+        }
         self.prev = Some(kept);
         Ok(slab)
     }
@@ -294,7 +311,21 @@ impl Mesher {
             frame: frame.index as i64,
             iso: self.opts.decode.iso_percent,
         };
-        march_cap(self.table, &frame.grid, at, side, &mut out);
+        if !march_cap(
+            self.table,
+            &frame.grid,
+            at,
+            side,
+            self.opts.max_slab_tets,
+            &mut out,
+        ) {
+            tracing::warn!(
+                "cap of frame {} exceeds {} tets: not built, the mesh stays open there",
+                frame.index,
+                self.opts.max_slab_tets
+            );
+            return None;
+        }
         Some(out)
     }
 }

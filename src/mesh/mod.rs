@@ -106,6 +106,13 @@ pub enum MeshError {
         /// This frame's stamp.
         got_ns: i64,
     },
+    /// The slab this frame completes would have more tets than allowed (noise-like
+    /// occupancy makes a surface in almost every hypercube).
+    #[error("the slab this frame completes exceeds {limit} tets (raise max_slab_tets if this is a real scene)")]
+    SlabTooComplex {
+        /// The limit.
+        limit: usize,
+    },
     /// The lattice time coordinate would overflow.
     #[error("more than {limit} frames in one stream: lattice time would overflow")]
     TooManyFrames {

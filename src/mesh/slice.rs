@@ -27,7 +27,8 @@ use std::io::{self, Write};
 pub struct PlaneValue {
     /// Numerator.
     pub num: i64,
-    /// Denominator, positive and at most 2^12 (keeps the exact orientation test in i128).
+    /// Denominator, positive and at most 2^12 (with lattice scales up to 256 this keeps the
+    /// exact orientation test within i128).
     pub den: i64,
 }
 
@@ -215,8 +216,26 @@ impl Slicer {
         })
     }
 
-    /// The slice.
-    pub fn finish(self) -> TriMesh {
+    /// The slice. Triangles that occur once in each orientation (a plane containing
+    /// lateral triangles of the mesh cuts a zero-volume sheet there) cancel.
+    pub fn finish(mut self) -> TriMesh {
+        let tris = std::mem::take(&mut self.mesh.triangles);
+        let mut keyed: Vec<([u32; 3], i8, [u32; 3])> = tris
+            .into_iter()
+            .map(|t| {
+                let (k, s) = crate::mesh::validate::canonical_triangle(t);
+                (k, s, t)
+            })
+            .collect();
+        keyed.sort_unstable_by_key(|x| (x.0, x.1));
+        let mut out = Vec::with_capacity(keyed.len());
+        for group in keyed.chunk_by(|a, b| a.0 == b.0) {
+            let plus: Vec<_> = group.iter().filter(|x| x.1 > 0).collect();
+            let minus: Vec<_> = group.iter().filter(|x| x.1 < 0).collect();
+            let n = plus.len().min(minus.len());
+            out.extend(plus[n..].iter().chain(minus[n..].iter()).map(|x| x.2));
+        }
+        self.mesh.triangles = out;
         self.mesh
     }
 }

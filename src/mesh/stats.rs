@@ -9,11 +9,14 @@
 //!   previous slab's upper-plane triangles, or with the first cap's boundary;
 //! - the last slab's upper-plane triangles pair with the last cap's boundary.
 //!
-//! Matching a time plane's triangles from its two sides uses an order-independent 128-bit
-//! multiset hash (each triangle's hash added with its orientation as sign, so a matching
-//! pair cancels): O(n), no sorting. Only when the sums differ are the triangles sorted and
-//! paired exactly, so the report always counts exactly what is wrong. (Two different
-//! multisets hashing equal has probability about 2^-128.)
+//! Matching a time plane's triangles from its two sides uses two order-independent 128-bit
+//! multiset hashes: one adds each triangle's hash with its orientation as sign (a matching
+//! pair cancels), the other without sign (both sides must carry the same triangles, as
+//! many times each). O(n), no sorting. Only when either check fails are the triangles
+//! sorted and paired exactly, and then the report counts exactly what is wrong. What the
+//! hashes cannot see is a triangle present k > 1 times on *both* sides with balanced
+//! orientations (over-shared but consistent); the exact fallback is not run then. (Two
+//! different multisets hashing equal has probability about 2^-128.)
 //!
 //! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
 //! physical time scale (frame periods may differ). The upper cap's contribution to the
@@ -78,7 +81,7 @@ pub fn percentile(samples: &[f64], q: f64) -> f64 {
 pub struct StatsAccumulator {
     stats: BodyStats,
     prev_hi: Vec<(PlaneTri, i8)>,
-    prev_hi_hash: u128,
+    prev_hi_hash: PlaneHash,
     keys: Vec<u64>,
     scratch: Vec<u64>,
     lateral_vertices: u64,
@@ -111,7 +114,7 @@ impl StatsAccumulator {
         let bits = id_bits(m.vertices.len());
         let mut lo: Vec<(PlaneTri, i8)> = Vec::new();
         let mut hi: Vec<(PlaneTri, i8)> = Vec::new();
-        let (mut lo_hash, mut hi_hash) = (0u128, 0u128);
+        let (mut lo_hash, mut hi_hash) = (PlaneHash::default(), PlaneHash::default());
         let mut wide: Vec<([u32; 3], i8)> = Vec::new();
         self.keys.clear();
         let mut vol24: i128 = 0;
@@ -127,11 +130,11 @@ impl StatsAccumulator {
                     let (key, parity) = canonical_triangle(f.map(|i| [p[i][0], p[i][1], p[i][2]]));
                     let s = s * parity;
                     if on & 1 != 0 {
-                        lo_hash = signed_add(lo_hash, &key, s);
+                        lo_hash.add(&key, s);
                         lo.push((key, s));
                     } else {
                         hi_cone += i128::from(s) * det3_i128(&key);
-                        hi_hash = signed_add(hi_hash, &key, s);
+                        hi_hash.add(&key, s);
                         hi.push((key, s));
                     }
                 } else {
@@ -157,10 +160,15 @@ impl StatsAccumulator {
 
         // Lower plane: pairs with the previous slab's upper plane, or the first cap.
         if self.stats.slabs == 0 {
-            if let Some(cap) = first_cap {
-                let (report, boundary, hash) = cap_boundary(cap, &mut self.keys, &mut self.scratch);
-                self.merge(report);
-                self.match_planes(boundary, hash, lo, lo_hash);
+            match first_cap {
+                Some(cap) => {
+                    let (report, boundary, hash) =
+                        cap_boundary(cap, &mut self.keys, &mut self.scratch);
+                    self.merge(report);
+                    self.match_planes(boundary, hash, lo, lo_hash);
+                }
+                // No opening cap (not built): the first lower plane stays open.
+                None => self.merge(pair_plane_faces(lo)),
             }
         } else {
             self.shared_vertices += plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
@@ -189,11 +197,11 @@ impl StatsAccumulator {
     fn match_planes(
         &mut self,
         mut a: Vec<(PlaneTri, i8)>,
-        a_hash: u128,
+        a_hash: PlaneHash,
         b: Vec<(PlaneTri, i8)>,
-        b_hash: u128,
+        b_hash: PlaneHash,
     ) {
-        if a_hash.wrapping_add(b_hash) == 0 && a.len() == b.len() {
+        if a_hash.matches(&b_hash) && a.len() == b.len() {
             self.stats.closed.triangles += a.len() as u64;
         } else {
             a.extend(b);
@@ -220,11 +228,16 @@ impl StatsAccumulator {
     ) -> BodyStats {
         self.stats.frames = frames;
         if self.stats.slabs > 0 {
-            if let Some((cap, _)) = last_cap {
-                let (report, boundary, hash) = cap_boundary(cap, &mut self.keys, &mut self.scratch);
-                self.merge(report);
-                let prev = std::mem::take(&mut self.prev_hi);
-                self.match_planes(prev, self.prev_hi_hash, boundary, hash);
+            let prev = std::mem::take(&mut self.prev_hi);
+            match last_cap {
+                Some((cap, _)) => {
+                    let (report, boundary, hash) =
+                        cap_boundary(cap, &mut self.keys, &mut self.scratch);
+                    self.merge(report);
+                    self.match_planes(prev, self.prev_hi_hash, boundary, hash);
+                }
+                // No closing cap (not built): the last upper plane stays open.
+                None => self.merge(pair_plane_faces(prev)),
             }
             for (cap, occupied) in [first_cap, last_cap].into_iter().flatten() {
                 self.stats.tets += cap.tets.len() as u64;
@@ -249,13 +262,13 @@ fn cap_boundary(
     cap: &TetMesh,
     keys: &mut Vec<u64>,
     scratch: &mut Vec<u64>,
-) -> (ClosedReport, Vec<(PlaneTri, i8)>, u128) {
+) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash) {
     let point = |v: u32| {
         let p = cap.vertices[v as usize];
         [p[0], p[1], p[2]]
     };
     if cap.vertices.len() > PACKED_VERTEX_LIMIT {
-        // Rare (huge caps): list every face by coordinates and pair them all.
+        // Huge caps: group faces by coordinates instead of packed ids.
         let mut all = Vec::with_capacity(cap.tets.len() * 4);
         for t in &cap.tets {
             for (f, s) in tet_faces(*t) {
@@ -263,7 +276,29 @@ fn cap_boundary(
                 all.push((key, s * parity));
             }
         }
-        return (pair_plane_faces(all), Vec::new(), 0);
+        all.sort_unstable_by_key(|f| f.0);
+        let mut report = ClosedReport::default();
+        let mut boundary = Vec::new();
+        let mut hash = PlaneHash::default();
+        for group in all.chunk_by(|a, b| a.0 == b.0) {
+            match group {
+                [(key, s)] => {
+                    hash.add(key, *s);
+                    boundary.push((*key, *s));
+                }
+                [(_, s1), (_, s2)] => {
+                    report.triangles += 1;
+                    if s1 == s2 {
+                        report.misoriented += 1;
+                    }
+                }
+                _ => {
+                    report.triangles += 1;
+                    report.overshared += 1;
+                }
+            }
+        }
+        return (report, boundary, hash);
     }
     let bits = id_bits(cap.vertices.len());
     keys.clear();
@@ -276,7 +311,7 @@ fn cap_boundary(
     radix_sort_u64(keys, scratch, 3 * bits + 1);
     let mut report = ClosedReport::default();
     let mut boundary = Vec::new();
-    let mut hash = 0u128;
+    let mut hash = PlaneHash::default();
     let mask = (1u64 << bits) - 1;
     for group in packed_groups(keys) {
         if let [key] = group {
@@ -289,7 +324,7 @@ fn cap_boundary(
             ];
             let s = if key & 1 == 1 { 1 } else { -1 };
             let (tri, parity) = canonical_triangle(ids.map(point));
-            hash = signed_add(hash, &tri, s * parity);
+            hash.add(&tri, s * parity);
             boundary.push((tri, s * parity));
         } else {
             report.count(group);
@@ -298,32 +333,60 @@ fn cap_boundary(
     (report, boundary, hash)
 }
 
-/// Adds (s > 0) or subtracts the 128-bit hash of a plane triangle.
-#[inline]
-fn signed_add(acc: u128, t: &PlaneTri, s: i8) -> u128 {
-    let h = tri_hash(t);
-    if s > 0 {
-        acc.wrapping_add(h)
-    } else {
-        acc.wrapping_sub(h)
+/// Order-independent hashes of a set of oriented plane triangles.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct PlaneHash {
+    /// Σ ± h(t): orientation as sign.
+    signed: u128,
+    /// Σ h'(t): multiplicity only.
+    unsigned: u128,
+}
+
+impl PlaneHash {
+    #[inline]
+    fn add(&mut self, t: &PlaneTri, s: i8) {
+        let (h, g) = tri_hash(t);
+        self.signed = if s > 0 {
+            self.signed.wrapping_add(h)
+        } else {
+            self.signed.wrapping_sub(h)
+        };
+        self.unsigned = self.unsigned.wrapping_add(g);
+    }
+
+    /// Both sides of one plane: same triangles, opposite orientations.
+    fn matches(&self, other: &PlaneHash) -> bool {
+        self.signed.wrapping_add(other.signed) == 0 && self.unsigned == other.unsigned
     }
 }
 
-/// A 128-bit hash of a triangle's nine coordinates (two independent splitmix64 chains).
+/// Two independent 128-bit hashes of a triangle's nine coordinates (four splitmix64
+/// chains).
 #[inline]
-fn tri_hash(t: &PlaneTri) -> u128 {
+fn tri_hash(t: &PlaneTri) -> (u128, u128) {
     let mix = |mut z: u64| {
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
         z ^ (z >> 31)
     };
-    let (mut a, mut b) = (0x9e37_79b9_7f4a_7c15u64, 0x6a09_e667_f3bc_c909u64);
+    let mut h = [
+        0x9e37_79b9_7f4a_7c15u64,
+        0x6a09_e667_f3bc_c909,
+        0xbb67_ae85_84ca_a73b,
+        0x3c6e_f372_fe94_f82b,
+    ];
     for p in t {
         for &c in p {
             let c = u64::from(c as u32);
-            a = mix(a.wrapping_add(c).wrapping_add(0x9e37_79b9_7f4a_7c15));
-            b = mix(b ^ c.wrapping_mul(0xd6e8_feb8_6659_fd93));
+            for (k, hk) in h.iter_mut().enumerate() {
+                *hk = mix(hk
+                    .wrapping_add(c.wrapping_mul(2 * k as u64 + 1))
+                    .wrapping_add(0x9e37_79b9_7f4a_7c15));
+            }
         }
     }
-    (u128::from(a) << 64) | u128::from(b)
+    (
+        (u128::from(h[0]) << 64) | u128::from(h[1]),
+        (u128::from(h[2]) << 64) | u128::from(h[3]),
+    )
 }

@@ -135,9 +135,9 @@ pub fn check_closed_with(
     pair_packed(keys, scratch, bits)
 }
 
-/// Bits per vertex id needed for `n` vertices (at most 21, see [`PACKED_VERTEX_LIMIT`]).
+/// Bits per vertex id needed for ids `0..n` (at most 21 when `n <=` [`PACKED_VERTEX_LIMIT`]).
 pub fn id_bits(n: usize) -> u32 {
-    (usize::BITS - n.leading_zeros()).max(1)
+    (usize::BITS - n.saturating_sub(1).leading_zeros()).max(1)
 }
 
 /// Packs a canonical triangle of vertex ids (each below 2^`bits`) and its orientation into

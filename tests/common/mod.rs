@@ -137,6 +137,7 @@ pub fn closed_slab(r: &Run, k: usize, frame_grids: &[chronotope::mesh::Occupancy
         &frame_grids[k],
         at(k as i64),
         CapSide::Low,
+        usize::MAX,
         &mut lo,
     );
     march_cap(
@@ -144,6 +145,7 @@ pub fn closed_slab(r: &Run, k: usize, frame_grids: &[chronotope::mesh::Occupancy
         &frame_grids[k + 1],
         at(k as i64 + 1),
         CapSide::High,
+        usize::MAX,
         &mut hi,
     );
     let mut m = s.mesh.clone();

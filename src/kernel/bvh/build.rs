@@ -49,31 +49,52 @@ impl Quantiser {
         })
     }
 
+    /// Morton code of the box centre. Branch-free: an empty box gets some clamped code,
+    /// which only affects where it sits in the tree (its centre is within 2^32 of the
+    /// origin, so nothing overflows).
     #[inline]
     fn code(&self, b: &Aabb4) -> u64 {
-        if b.is_empty() {
-            return 0;
-        }
         let c = b.doubled_centre();
-        let q = |k: usize| (((c[k] - self.origin[k]) >> self.shift) as u64).min(0xFFFF);
+        let q = |k: usize| ((c[k] - self.origin[k]) >> self.shift).clamp(0, 0xFFFF) as u64;
         (spread4(q(0)) << 3) | (spread4(q(1)) << 2) | (spread4(q(2)) << 1) | spread4(q(3))
     }
 }
 
-/// Bounds of the doubled centres of the non-empty boxes.
-fn centre_bounds<'a>(boxes: impl Iterator<Item = &'a Aabb4>) -> ([i64; 4], [i64; 4]) {
-    let (mut lo, mut hi) = ([i64::MAX; 4], [i64::MIN; 4]);
-    for b in boxes {
+/// Bounds of doubled centres (inverted while empty).
+#[derive(Clone, Copy)]
+struct CentreBounds {
+    lo: [i64; 4],
+    hi: [i64; 4],
+}
+
+impl CentreBounds {
+    const EMPTY: Self = Self {
+        lo: [i64::MAX; 4],
+        hi: [i64::MIN; 4],
+    };
+
+    /// Adds the centre of `b` unless `b` is empty.
+    #[inline]
+    fn add(&mut self, b: &Aabb4) {
         if b.is_empty() {
-            continue;
+            return;
         }
         let c = b.doubled_centre();
         for k in 0..4 {
-            lo[k] = lo[k].min(c[k]);
-            hi[k] = hi[k].max(c[k]);
+            self.lo[k] = self.lo[k].min(c[k]);
+            self.hi[k] = self.hi[k].max(c[k]);
         }
     }
-    (lo, hi)
+
+    fn of<'a>(boxes: impl Iterator<Item = &'a Aabb4>) -> Self {
+        let mut cb = Self::EMPTY;
+        boxes.for_each(|b| cb.add(b));
+        cb
+    }
+
+    fn quantiser(&self) -> Option<Quantiser> {
+        Quantiser::new(self.lo, self.hi)
+    }
 }
 
 /// Stable LSD radix sort of `codes` (carrying `order`), 8 bits per pass; passes whose
@@ -131,6 +152,11 @@ impl Bvh {
     /// # Errors
     /// [`BvhError::TooManyItems`] over [`Bvh::MAX_ITEMS`] boxes (the tree is then empty).
     pub fn build(&mut self, boxes: &[Aabb4]) -> Result<(), BvhError> {
+        self.build_with(boxes, CentreBounds::of(boxes.iter()))
+    }
+
+    /// [`build`](Self::build) with the centre bounds of `boxes` already known.
+    fn build_with(&mut self, boxes: &[Aabb4], centres: CentreBounds) -> Result<(), BvhError> {
         self.nodes.clear();
         self.leaf_boxes.clear();
         self.order.clear();
@@ -139,15 +165,12 @@ impl Bvh {
         if n == 0 {
             return Ok(());
         }
-        let t0 = std::time::Instant::now();
         let s = &mut self.scratch;
-        let (cmin, cmax) = centre_bounds(boxes.iter());
         s.codes.clear();
-        match Quantiser::new(cmin, cmax) {
+        match centres.quantiser() {
             Some(qz) => s.codes.extend(boxes.iter().map(|b| qz.code(b))),
             None => s.codes.resize(n, 0),
         }
-        let t1 = std::time::Instant::now();
         self.order.extend(0..n as u32);
         s.codes_tmp.resize(n, 0);
         s.order_tmp.resize(n, 0);
@@ -158,9 +181,8 @@ impl Bvh {
             &mut s.order_tmp,
         );
 
-        let t2 = std::time::Instant::now();
         // Top-down: split ranges, creating both children next to each other.
-        self.nodes.reserve(2 * n);
+        self.nodes.reserve(n);
         self.nodes.push(Node {
             aabb: Aabb4::EMPTY,
             first: 0,
@@ -199,7 +221,6 @@ impl Bvh {
             s.ranges.push((child + 1, mid as u32, hi));
         }
 
-        let t3 = std::time::Instant::now();
         // Leaf boxes in leaf order; then bounds, children before parents.
         self.leaf_boxes.extend(self.order.iter().map(|&i| {
             let b = boxes[i as usize];
@@ -209,7 +230,6 @@ impl Bvh {
                 b
             }
         }));
-        let t4 = std::time::Instant::now();
         for n in (0..self.nodes.len()).rev() {
             let node = self.nodes[n];
             let (first, count) = (node.first as usize, node.count as usize);
@@ -224,20 +244,6 @@ impl Bvh {
             };
             self.nodes[n].aabb = aabb;
         }
-        let t5 = std::time::Instant::now();
-        eprintln!(
-            "rekey {} {} ",
-            REKEY.swap(0, std::sync::atomic::Ordering::Relaxed),
-            REKEY_N.swap(0, std::sync::atomic::Ordering::Relaxed)
-        );
-        eprintln!(
-            "codes {:?} sort {:?} split {:?} gather {:?} bounds {:?}",
-            t1 - t0,
-            t2 - t1,
-            t3 - t2,
-            t4 - t3,
-            t5 - t4
-        );
         Ok(())
     }
 
@@ -252,10 +258,10 @@ impl Bvh {
         vertices: &[LatticePoint],
         tets: &[[u32; 4]],
     ) -> Result<(), BvhError> {
-        let tb = std::time::Instant::now();
         let mut boxes = std::mem::take(&mut self.scratch.tet_boxes);
         boxes.clear();
         let mut bad = None;
+        let mut centres = CentreBounds::EMPTY;
         boxes.extend(tets.iter().enumerate().map(|(t, tet)| {
             let mut b = Aabb4::EMPTY;
             for &v in tet {
@@ -270,6 +276,7 @@ impl Bvh {
                     }
                 }
             }
+            centres.add(&b);
             b
         }));
         let result = match bad {
@@ -279,10 +286,7 @@ impl Bvh {
                 self.order.clear();
                 Err(e)
             }
-            None => {
-                eprintln!("tet boxes {:?}", tb.elapsed());
-                self.build(&boxes)
-            }
+            None => self.build_with(&boxes, centres),
         };
         self.scratch.tet_boxes = boxes;
         result
@@ -304,8 +308,6 @@ fn check_count(items: usize) -> Result<(), BvhError> {
 /// at the first item with the highest differing bit set. When all codes tie, the range
 /// is re-quantised on its own centre bounds and re-sorted (this always separates items
 /// whose centres differ); if all centres coincide, it is halved.
-static REKEY: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-static REKEY_N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 fn split_range(
     boxes: &[Aabb4],
     codes: &mut [u64],
@@ -316,10 +318,8 @@ fn split_range(
     let len = codes.len();
     let (first, last) = (codes[0], codes[len - 1]);
     if first == last {
-        REKEY.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        REKEY_N.fetch_add(len, std::sync::atomic::Ordering::Relaxed);
-        let (cmin, cmax) = centre_bounds(order.iter().map(|&i| &boxes[i as usize]));
-        let Some(qz) = Quantiser::new(cmin, cmax) else {
+        let Some(qz) = CentreBounds::of(order.iter().map(|&i| &boxes[i as usize])).quantiser()
+        else {
             return len / 2;
         };
         for (c, &i) in codes.iter_mut().zip(order.iter()) {
@@ -335,10 +335,14 @@ fn split_range(
     let bit = 63 - (first ^ last).leading_zeros();
     let mask = !0u64 << bit;
     let prefix = first & mask;
-    // Codes are sorted: those sharing the prefix (bit clear) come first.
-    codes
-        .partition_point(|&c| c & mask == prefix)
-        .clamp(1, len - 1)
+    // Codes are sorted: those sharing the prefix (bit clear) come first. Most ranges are
+    // short: a branch-free count over contiguous codes beats a binary search there.
+    let split = if len <= 64 {
+        codes.iter().map(|&c| usize::from(c & mask == prefix)).sum()
+    } else {
+        codes.partition_point(|&c| c & mask == prefix)
+    };
+    split.clamp(1, len - 1)
 }
 
 #[cfg(test)]

@@ -12,10 +12,11 @@
 //!   then it is the same sign for both groups because the coefficients sum to zero).
 //! - [`tets_cross`]: the tets lie in different hyperplanes and their *relative
 //!   interiors* meet. Then they meet in a convex polygon of positive area in the 2-plane
-//!   where the hyperplanes cut. Decided by the DESIGN §4 vertex tests (12 segment–tet and
-//!   16 triangle–triangle) in general position and by an exact strict separating-axis
-//!   test whenever one of those tests hits a zero predicate, so crossings whose polygon
-//!   has only degenerate vertices are still found (see the `tet_tet` module notes).
+//!   P where the hyperplanes cut. Decided exactly, degenerate positions included, by a
+//!   separating-axis test on the two cross-sections A ∩ P and B ∩ P whose vertex
+//!   positions come from the DESIGN §4 segment–tet signs (see the `tet_tet` module
+//!   notes; the DESIGN vertex tests with strict signs alone miss crossings whose polygon
+//!   has only degenerate vertices).
 //! - [`classify`]: [`TetPairRelation`], adding coplanar overlap (same 3-flat) decided by an
 //!   exact 3D test, and touching versus disjoint.
 //! - [`tets_intersect`] / [`relative_interiors_meet`]: the separating-axis versions
@@ -291,13 +292,20 @@ enum Outcome {
     Degenerate,
 }
 
-/// [`Outcome`] of "all of `signs` have one strict sign".
-fn common_strict_sign(signs: &[i8]) -> Outcome {
-    let pos = signs.iter().any(|&s| s > 0);
-    let neg = signs.iter().any(|&s| s < 0);
-    if pos && neg {
-        Outcome::No
-    } else if signs.contains(&0) {
+/// [`Outcome`] of "the `n` signs `sign(0)`, …, `sign(n − 1)` have one strict sign",
+/// evaluating them in order and stopping at the first strict conflict.
+fn common_strict_sign(n: usize, mut sign: impl FnMut(usize) -> i8) -> Outcome {
+    let (mut pos, mut neg, mut zero) = (false, false, false);
+    for k in 0..n {
+        let s = sign(k);
+        pos |= s > 0;
+        neg |= s < 0;
+        zero |= s == 0;
+        if pos && neg {
+            return Outcome::No;
+        }
+    }
+    if zero {
         Outcome::Degenerate
     } else {
         Outcome::Yes

@@ -46,21 +46,21 @@ fn segment_outcome<T: Exact>(p: &LatticePoint, q: &LatticePoint, tet: &LatticeTe
     let t = rel_tet::<T>(tet, &o);
     let side_p = sign(orient4(&t[0], &t[1], &t[2], &t[3], &p));
     let side_q = sign(orient4(&t[0], &t[1], &t[2], &t[3], &q));
-    if side_p * side_q != -1 {
-        return segment_rule(side_p, side_q, [0; 4]);
-    }
-    let faces = TET_TRIANGLES.map(|f| sign(orient4(&p, &q, &t[f[0]], &t[f[1]], &t[f[2]])));
-    segment_rule(side_p, side_q, faces)
+    segment_rule(side_p, side_q, |v| {
+        let [x, y, z] = TET_TRIANGLES[v];
+        sign(orient4(&p, &q, &t[x], &t[y], &t[z]))
+    })
 }
 
 /// The DESIGN §4 rule on signs: `side_p`, `side_q` = sign O(abcd, p), sign O(abcd, q);
-/// `faces[v]` = sign O(pq, face opposite v) with the face's vertices in increasing order
-/// (only read when the sides are strictly opposite).
-pub(super) fn segment_rule(side_p: i8, side_q: i8, faces: [i8; 4]) -> Outcome {
+/// `face(v)` = sign O(pq, face opposite v) with the face's vertices in increasing order
+/// (asked for only when the sides are strictly opposite, and only until a conflict).
+pub(super) fn segment_rule(side_p: i8, side_q: i8, mut face: impl FnMut(usize) -> i8) -> Outcome {
     match side_p * side_q {
         1 => Outcome::No,
         0 => Outcome::Degenerate,
-        _ => common_strict_sign(&[faces[0], -faces[1], faces[2], -faces[3]]),
+        // λ_v ∝ (−1)^v O(pq, face opposite v).
+        _ => common_strict_sign(4, |v| if v % 2 == 0 { face(v) } else { -face(v) }),
     }
 }
 

@@ -112,6 +112,9 @@ pub(super) fn separating_axes<T: Exact>(
     d: usize,
     strict: bool,
 ) -> bool {
+    if d == 4 {
+        return separating_axes_4d(a, b, strict);
+    }
     if d == 0 || d > 4 {
         return true;
     }
@@ -130,16 +133,56 @@ pub(super) fn separating_axes<T: Exact>(
                 let nb = face_vectors(b, j, fb, &mut vs[na..na + j]);
                 debug_assert_eq!(na + nb, d - 1);
                 let n = generalized_cross(&vs[..d - 1], d);
-                if n == zero {
-                    continue;
-                }
-                if separates(&n, a, b, strict) {
+                if !is_zero(&n) && separates(&n, a, b, strict) {
                     return false;
                 }
             }
         }
     }
     true
+}
+
+/// [`separating_axes`] in R^4, with the edge vectors and each triangle's 2x2 minors
+/// computed once: A's normal, B's normal, then the 24 + 24 triangle × edge axes.
+fn separating_axes_4d<T: Exact>(a: &[V4<T>; 4], b: &[V4<T>; 4], strict: bool) -> bool {
+    let edges = |t: &[V4<T>; 4]| TET_EDGES.map(|[i, j]| sub4(&t[j], &t[i]));
+    let (ea, eb) = (edges(a), edges(b));
+    // Edges 0, 1, 2 are v1−v0, v2−v0, v3−v0.
+    let na = cross3(&ea[0], &ea[1], &ea[2]);
+    let nb = cross3(&eb[0], &eb[1], &eb[2]);
+    for n in [na, nb] {
+        if !is_zero(&n) && separates(&n, a, b, strict) {
+            return false;
+        }
+    }
+    for (tris, edges_other) in [(a, &eb), (b, &ea)] {
+        for [x, y, z] in TET_TRIANGLES {
+            let (u, v) = (sub4(&tris[y], &tris[x]), sub4(&tris[z], &tris[x]));
+            let m = |i: usize, j: usize| u[i] * v[j] - u[j] * v[i];
+            let m = [m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3)];
+            for w in edges_other {
+                // cross3(u, v, w) from the minors (see `cross3`); for a triangle of B
+                // against an edge of A this is cross3(edge, u, v) (a cyclic shift).
+                let d3 = |i: usize, j: usize, k: usize, mjk: T, mik: T, mij: T| {
+                    w[i] * mjk - w[j] * mik + w[k] * mij
+                };
+                let n = [
+                    -d3(1, 2, 3, m[5], m[4], m[3]),
+                    d3(0, 2, 3, m[5], m[2], m[1]),
+                    -d3(0, 1, 3, m[4], m[2], m[0]),
+                    d3(0, 1, 2, m[3], m[1], m[0]),
+                ];
+                if !is_zero(&n) && separates(&n, a, b, strict) {
+                    return false;
+                }
+            }
+        }
+    }
+    true
+}
+
+fn is_zero<T: Exact>(n: &V4<T>) -> bool {
+    n.iter().all(|&c| c == T::ZERO)
 }
 
 /// Whether axis `n` separates A and B (`strict`: or makes their intervals touch).

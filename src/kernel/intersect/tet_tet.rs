@@ -14,23 +14,40 @@
 //!
 //! # How it is decided
 //!
-//! 1. Reject unless all four of B's vertices are *not* weakly on one side of H_A, and
-//!    vice versa (if B is weakly on one side and a relative-interior point of B lies on
-//!    H_A, all of B does). This also rejects flat tets, parallel and equal hyperplanes.
-//! 2. DESIGN §4 vertex tests: 12 segment–tet ([`segment_crosses_tet`]) and 16
-//!    triangle–triangle ([`triangles_cross`]) tests, sharing the 48 orient4 values
-//!    O(tri, edge) between them (O(pq, xyz) = O(xyz, pq)). Each test says yes, no (a
-//!    strict sign conflict), or degenerate (a zero without a strict conflict). A yes is
-//!    a point of both relative interiors nearby, so the tets cross.
-//! 3. If no test says yes and none says degenerate and no vertex lies on the other
-//!    hyperplane, they do not cross: every vertex of the polygon A ∩ B is then an
-//!    edge(A) ∩ tet(B), edge(B) ∩ tet(A) or tri(A) ∩ tri(B) point, and that point makes
-//!    its test say yes (strictly inside) or degenerate (on the boundary).
-//! 4. Otherwise (a degenerate position: the polygon's vertices may all be vertices or
-//!    edge–edge points, e.g. two tets cut by P in the same triangle) decide exactly with
-//!    the strict separating-axis test ([`relative_interiors_meet`]): the relative
-//!    interiors meet iff 0 is interior to A − B, iff no axis of the 50 makes the
-//!    projections only touch or separate.
+//! With g_B(x) = O(B, x) = orient4(b0, b1, b2, b3, x) and g_A likewise:
+//!
+//! 1. Reject unless B has vertices strictly on both sides of H_A and A strictly on both
+//!    sides of H_B. (If B is weakly on one side and a relative-interior point of B lies
+//!    on H_A, all of B does.) This also rejects flat tets, parallel and equal
+//!    hyperplanes.
+//! 2. Now P meets both relative interiors, so the cross-sections Pa = A ∩ P and
+//!    Pb = B ∩ P are convex polygons of positive area and relint A ∩ P = int Pa. The
+//!    vertices of Pa are the points X = line(pq) ∩ H_B for the edges pq of A whose ends
+//!    are strictly on opposite sides of H_B, and the vertices of A on H_B (for those take
+//!    any edge pq to a vertex off H_B: X = that vertex). By the segment–tet formula of
+//!    DESIGN §4 (see [`segment_crosses_tet`]) the barycentric coordinates of X in B are
+//!    λ_t(X) = (−1)^t O(pq, face_t(B)) / (g_B(p) − g_B(q)): their *signs* are exact
+//!    orient4 signs, O(pq, xyz) = orient4(x, y, z, p, q).
+//! 3. Pb = {x ∈ P : λ_t(x) ≥ 0, t = 0..3}, so every edge of Pb lies on a line λ_t = 0.
+//!    Separating axes in the plane: two convex polygons have disjoint interiors iff
+//!    a line through an edge of one has the other on its closed outer side. So
+//!
+//!    ```text
+//!    int Pa ∩ int Pb ≠ ∅  ⟺  for every face t of B some vertex X of Pa has λ_t(X) > 0,
+//!                             and for every face s of A some vertex Y of Pb has λ_s(Y) > 0.
+//!    ```
+//!
+//!    With "≥ 0" in place of "> 0" the same test decides whether the closed tets meet.
+//!
+//! This needs at most 16 + 16 orient4 signs (each computed once, on first use, and the
+//! search stops early) and no case analysis of degenerate positions: zeros (vertices on
+//! the other hyperplane, polygon vertices on the other tet's boundary, coincident
+//! cross-sections) are handled by the exact inequalities. It decides exactly what the
+//! DESIGN §4 vertex tests (12 segment–tet and 16 triangle–triangle, all signs strict)
+//! decide in general position; those tests alone miss crossings in degenerate position
+//! (for example two tets cut by P in the same triangle, through their vertices and edge
+//! midpoints), which this rule finds. The unit tests check it against the DESIGN tests
+//! completed by an exact fallback, and `tests/tet_tet.rs` against an exact LP oracle.
 //!
 //! No symbolic perturbation is used: a perturbation (translating B by εw) would turn
 //! half of all face-to-face contacts between bodies in adjacent voxels into
@@ -46,15 +63,10 @@
 //! pair (inside tests on untouched components are still needed).
 //!
 //! [`segment_crosses_tet`]: super::segment_crosses_tet
-//! [`triangles_cross`]: super::triangles_cross
-//! [`relative_interiors_meet`]: super::relative_interiors_meet
 
-use super::segment_tet::segment_rule;
 use super::separating_axis::{difference_contains_origin, separating_axes};
-use super::tri_tri::triangles_rule;
 use super::{
-    cross3, dot4, edge_index, orient4, rel_tet, sign, sub4, Exact, LatticeTet, Outcome, TET_EDGES,
-    TET_TRIANGLES, V4,
+    cross3, dot4, edge_index, rel_tet, sign, sub4, Exact, LatticeTet, TET_EDGES, TET_TRIANGLES, V4,
 };
 
 /// How two tets of R^4 relate (see the [module notes](self) for the exact rules).
@@ -170,90 +182,129 @@ fn cross_in<T: Exact>(a: &LatticeTet, b: &LatticeTet) -> bool {
     crosses(&pair)
 }
 
-/// Steps 1–4 of the module notes.
+/// Steps 1–3 of the module notes: the relative interiors meet.
 fn crosses<T: Exact>(p: &Pair<T>) -> bool {
-    if !straddles(&p.sides_of_b) || !straddles(&p.sides_of_a) {
-        return false;
+    straddling(p) && Sections::new(p).meet(true)
+}
+
+/// Both tets have vertices strictly on both sides of the other's hyperplane.
+fn straddling<T: Exact>(p: &Pair<T>) -> bool {
+    straddles(&p.sides_of_b) && straddles(&p.sides_of_a)
+}
+
+/// The cross-sections Pa = A ∩ P and Pb = B ∩ P of straddling tets, as vertex lists
+/// with lazily computed barycentric signs (steps 2 and 3 of the module notes).
+struct Sections<'a, T> {
+    /// Vertices of Pa: (edge of A, sign of g_B(p) − g_B(q) for that edge as (p, q)).
+    verts_a: ([(usize, i8); 4], usize),
+    /// Vertices of Pb: (edge of B, sign of g_A(p) − g_A(q)).
+    verts_b: ([(usize, i8); 4], usize),
+    /// O(edge of A, face of B).
+    ea_tb: TriEdgeSigns<'a, T>,
+    /// O(edge of B, face of A).
+    eb_ta: TriEdgeSigns<'a, T>,
+}
+
+impl<'a, T: Exact> Sections<'a, T> {
+    fn new(p: &'a Pair<T>) -> Self {
+        Sections {
+            verts_a: section_vertices(&p.sides_of_a),
+            verts_b: section_vertices(&p.sides_of_b),
+            ea_tb: TriEdgeSigns::new(&p.b, &p.a),
+            eb_ta: TriEdgeSigns::new(&p.a, &p.b),
+        }
     }
-    match vertex_tests(p) {
-        Outcome::Yes => true,
-        Outcome::No => false,
-        // Both tets are non-flat in transverse hyperplanes here, so A − B spans R^4.
-        Outcome::Degenerate => separating_axes(&p.a, &p.b, 4, true),
+
+    /// `strict`: int Pa ∩ int Pb ≠ ∅; otherwise Pa ∩ Pb ≠ ∅.
+    fn meet(&mut self, strict: bool) -> bool {
+        let need = if strict { 1 } else { 0 };
+        for t in 0..4 {
+            let parity = if t % 2 == 0 { 1 } else { -1 };
+            let (va, na) = self.verts_a;
+            if !va[..na]
+                .iter()
+                .any(|&(e, s)| s * parity * self.ea_tb.get(e, t) >= need)
+            {
+                return false;
+            }
+            let (vb, nb) = self.verts_b;
+            if !vb[..nb]
+                .iter()
+                .any(|&(e, s)| s * parity * self.eb_ta.get(e, t) >= need)
+            {
+                return false;
+            }
+        }
+        true
     }
 }
 
-/// The DESIGN §4 vertex tests for straddling tets: [`Outcome::Yes`] if one finds a
-/// crossing, [`Outcome::Degenerate`] if none does but the position is degenerate.
-fn vertex_tests<T: Exact>(p: &Pair<T>) -> Outcome {
-    let (a, b) = (&p.a, &p.b);
-    let (sa, sb) = (&p.sides_of_a, &p.sides_of_b);
-    let mut degenerate = sa.contains(&0) || sb.contains(&0);
-
-    // ea_tb[e][t] = orient4(triangle t of B, edge e of A) = O(edge, triangle);
-    // ta_eb[t][e] = orient4(triangle t of A, edge e of B).
-    let table = |tris: &[V4<T>; 4], edges: &[V4<T>; 4]| {
-        let mut out = [[0i8; 4]; 6];
-        for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
-            for (t, &[x, y, z]) in TET_TRIANGLES.iter().enumerate() {
-                out[e][t] = sign(orient4(&tris[x], &tris[y], &tris[z], &edges[i], &edges[j]));
-            }
+/// The vertices of a straddling tet's cross-section by the other hyperplane, given the
+/// sides of its vertices: each as (edge (i, j), i < j, sign of g(v_i) − g(v_j)).
+fn section_vertices(sides: &[i8; 4]) -> ([(usize, i8); 4], usize) {
+    let mut out = [(0, 0); 4];
+    let mut n = 0;
+    for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
+        if sides[i] * sides[j] == -1 && n < 4 {
+            out[n] = (e, sides[i]);
+            n += 1;
         }
-        out
-    };
-    let ea_tb = table(b, a);
-    let eb_ta = table(a, b);
-
-    // Edges of A against B, then edges of B against A.
-    for (sides, tab) in [(sa, &ea_tb), (sb, &eb_ta)] {
-        for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
-            if sides[i] * sides[j] != -1 {
-                continue;
-            }
-            match segment_rule(sides[i], sides[j], tab[e]) {
-                Outcome::Yes => return Outcome::Yes,
-                Outcome::Degenerate => degenerate = true,
-                Outcome::No => {}
+    }
+    for i in 0..4 {
+        if sides[i] == 0 && n < 4 {
+            // Any vertex off the hyperplane (one exists: the tet straddles it).
+            if let Some(j) = (0..4).find(|&j| sides[j] != 0) {
+                let (lo, hi) = if i < j { (i, j) } else { (j, i) };
+                out[n] = (edge_index(lo, hi), sides[lo] - sides[hi]);
+                n += 1;
             }
         }
     }
+    (out, n)
+}
 
-    // Triangles of A against triangles of B; a triangle strictly on one side of the
-    // other hyperplane cannot meet the other tet.
-    let off = |sides: &[i8; 4], [x, y, z]: [usize; 3]| {
-        sides[x] != 0 && sides[x] == sides[y] && sides[y] == sides[z]
-    };
-    for (ta, &[x0, x1, x2]) in TET_TRIANGLES.iter().enumerate() {
-        if off(sa, [x0, x1, x2]) {
-            continue;
-        }
-        for (tb, &[y0, y1, y2]) in TET_TRIANGLES.iter().enumerate() {
-            if off(sb, [y0, y1, y2]) {
-                continue;
-            }
-            // O(def,b,c), O(def,c,a), O(def,a,b) with abc = x0x1x2, def = y0y1y2.
-            let first = [
-                ea_tb[edge_index(x1, x2)][tb],
-                -ea_tb[edge_index(x0, x2)][tb],
-                ea_tb[edge_index(x0, x1)][tb],
-            ];
-            // O(abc,e,f), O(abc,f,d), O(abc,d,e).
-            let second = [
-                eb_ta[edge_index(y1, y2)][ta],
-                -eb_ta[edge_index(y0, y2)][ta],
-                eb_ta[edge_index(y0, y1)][ta],
-            ];
-            match triangles_rule(first, second) {
-                Outcome::Yes => return Outcome::Yes,
-                Outcome::Degenerate => degenerate = true,
-                Outcome::No => {}
-            }
+/// Signs of O(edge e of `edges`, triangle t of `tris`) = orient4(triangle, edge),
+/// computed on first use; each triangle's 2x2 minors are computed once.
+struct TriEdgeSigns<'a, T> {
+    tris: &'a [V4<T>; 4],
+    edges: &'a [V4<T>; 4],
+    minors: [Option<[T; 6]>; 4],
+    signs: [[i8; 4]; 6],
+}
+
+/// Marks a sign not computed yet.
+const UNKNOWN: i8 = 2;
+
+impl<'a, T: Exact> TriEdgeSigns<'a, T> {
+    fn new(tris: &'a [V4<T>; 4], edges: &'a [V4<T>; 4]) -> Self {
+        TriEdgeSigns {
+            tris,
+            edges,
+            minors: [None; 4],
+            signs: [[UNKNOWN; 4]; 6],
         }
     }
-    if degenerate {
-        Outcome::Degenerate
-    } else {
-        Outcome::No
+
+    /// sign orient4(y0, y1, y2, p, q) = sign det[y1−y0, y2−y0, p−y0, q−y0].
+    fn get(&mut self, e: usize, t: usize) -> i8 {
+        if self.signs[e][t] != UNKNOWN {
+            return self.signs[e][t];
+        }
+        let [y0, y1, y2] = TET_TRIANGLES[t].map(|i| self.tris[i]);
+        let m = *self.minors[t].get_or_insert_with(|| {
+            let (u, v) = (sub4(&y1, &y0), sub4(&y2, &y0));
+            let m = |i: usize, j: usize| u[i] * v[j] - u[j] * v[i];
+            [m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3)]
+        });
+        let [i, j] = TET_EDGES[e];
+        let (x, y) = (sub4(&self.edges[i], &y0), sub4(&self.edges[j], &y0));
+        let s = |i: usize, j: usize| x[i] * y[j] - x[j] * y[i];
+        let det = m[0] * s(2, 3) - m[1] * s(1, 3) + m[2] * s(1, 2) + m[3] * s(0, 3)
+            - m[4] * s(0, 2)
+            + m[5] * s(0, 1);
+        let sg = sign(det);
+        self.signs[e][t] = sg;
+        sg
     }
 }
 
@@ -276,10 +327,15 @@ fn classify_in<T: Exact>(a: &LatticeTet, b: &LatticeTet) -> TetPairRelation {
     if strictly_one_side(&p.sides_of_b) || strictly_one_side(&p.sides_of_a) {
         return TetPairRelation::Disjoint;
     }
-    if crosses(&p) {
-        return TetPairRelation::Crossing;
+    if straddling(&p) {
+        let mut sections = Sections::new(&p);
+        if sections.meet(true) {
+            return TetPairRelation::Crossing;
+        }
+        return touching_or_disjoint(sections.meet(false));
     }
-    // Non-flat tets in transverse hyperplanes: A − B spans R^4.
+    // One tet touches the other's hyperplane from one side; non-flat tets in transverse
+    // hyperplanes, so A − B spans R^4.
     touching_or_disjoint(separating_axes(&p.a, &p.b, 4, false))
 }
 
@@ -309,5 +365,153 @@ fn coplanar<T: Exact>(p: &Pair<T>) -> TetPairRelation {
     TetPairRelation::Coplanar {
         overlap_volume_positive: separating_axes(&a3, &b3, 3, true),
         same_orientation: sign(p.na[k]) == sign(p.nb[k]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The DESIGN §4 vertex tests (12 segment–tet, 16 triangle–triangle) as a second,
+    //! independent decision of "cross": with a three-valued outcome per test and the
+    //! exact strict separating-axis test as the fallback in degenerate positions.
+
+    use super::super::segment_tet::segment_rule;
+    use super::super::tri_tri::triangles_rule;
+    use super::super::Outcome;
+    use super::*;
+
+    /// "Cross" decided the DESIGN way. If some test says yes, they cross. If every test
+    /// says no and no vertex lies on the other hyperplane, they do not: every vertex of
+    /// the polygon A ∩ P ∩ B is an edge(A) ∩ tet(B), edge(B) ∩ tet(A) or tri(A) ∩ tri(B)
+    /// point, whose test would say yes (inside) or degenerate (on the boundary).
+    fn crosses_by_vertex_tests<T: Exact>(p: &Pair<T>) -> bool {
+        if !straddling(p) {
+            return false;
+        }
+        match vertex_tests(p) {
+            Outcome::Yes => true,
+            Outcome::No => false,
+            Outcome::Degenerate => separating_axes(&p.a, &p.b, 4, true),
+        }
+    }
+
+    /// The DESIGN §4 vertex tests for straddling tets: [`Outcome::Yes`] if one finds a
+    /// crossing, [`Outcome::Degenerate`] if none does but the position is degenerate.
+    pub(super) fn vertex_tests<T: Exact>(p: &Pair<T>) -> Outcome {
+        let (sa, sb) = (&p.sides_of_a, &p.sides_of_b);
+        let mut degenerate = sa.contains(&0) || sb.contains(&0);
+        // O(edge of A, triangle of B) and O(edge of B, triangle of A). The segment and the
+        // triangle tests share them: O(pq, xyz) = O(xyz, pq) (an even permutation).
+        let mut ea_tb = TriEdgeSigns::new(&p.b, &p.a);
+        let mut eb_ta = TriEdgeSigns::new(&p.a, &p.b);
+
+        // Edges of A against B, then edges of B against A.
+        for (sides, tab) in [(sa, &mut ea_tb), (sb, &mut eb_ta)] {
+            for (e, &[i, j]) in TET_EDGES.iter().enumerate() {
+                if sides[i] * sides[j] != -1 {
+                    continue;
+                }
+                match segment_rule(sides[i], sides[j], |t| tab.get(e, t)) {
+                    Outcome::Yes => return Outcome::Yes,
+                    Outcome::Degenerate => degenerate = true,
+                    Outcome::No => {}
+                }
+            }
+        }
+
+        // Triangles of A against triangles of B; a triangle strictly on one side of the
+        // other hyperplane cannot meet the other tet.
+        let off = |sides: &[i8; 4], [x, y, z]: [usize; 3]| {
+            sides[x] != 0 && sides[x] == sides[y] && sides[y] == sides[z]
+        };
+        for (ta, &[x0, x1, x2]) in TET_TRIANGLES.iter().enumerate() {
+            if off(sa, [x0, x1, x2]) {
+                continue;
+            }
+            for (tb, &[y0, y1, y2]) in TET_TRIANGLES.iter().enumerate() {
+                if off(sb, [y0, y1, y2]) {
+                    continue;
+                }
+                // abc = x0x1x2 (of A), def = y0y1y2 (of B).
+                let outcome = triangles_rule(
+                    // O(def,b,c), O(def,c,a), O(def,a,b).
+                    |k| match k {
+                        0 => ea_tb.get(edge_index(x1, x2), tb),
+                        1 => -ea_tb.get(edge_index(x0, x2), tb),
+                        _ => ea_tb.get(edge_index(x0, x1), tb),
+                    },
+                    // O(abc,e,f), O(abc,f,d), O(abc,d,e).
+                    |k| match k {
+                        0 => eb_ta.get(edge_index(y1, y2), ta),
+                        1 => -eb_ta.get(edge_index(y0, y2), ta),
+                        _ => eb_ta.get(edge_index(y0, y1), ta),
+                    },
+                );
+                match outcome {
+                    Outcome::Yes => return Outcome::Yes,
+                    Outcome::Degenerate => degenerate = true,
+                    Outcome::No => {}
+                }
+            }
+        }
+        if degenerate {
+            Outcome::Degenerate
+        } else {
+            Outcome::No
+        }
+    }
+
+    struct Rng(u64);
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+        fn tet(&mut self, lo: i32, hi: i32) -> LatticeTet {
+            let span = (hi - lo + 1) as u64;
+            [0; 4].map(|_| [0; 4].map(|_| lo + (self.next() % span) as i32))
+        }
+    }
+
+    #[test]
+    fn sections_agree_with_the_design_vertex_tests_and_the_strict_axes() {
+        let mut rng = Rng(0x5eed_1234_abcd_0001);
+        let mut crossing = 0;
+        for round in 0..40_000 {
+            let (lo, hi) = if round % 2 == 0 { (0, 2) } else { (-6, 6) };
+            let a = rng.tet(lo, hi);
+            let mut b = rng.tet(lo, hi);
+            if round % 3 == 0 {
+                b[0] = a[(round / 3) % 4];
+            }
+            let p = Pair::<i64>::new(&a, &b);
+            let by_sections = crosses(&p);
+            assert_eq!(by_sections, crosses_by_vertex_tests(&p), "{a:?} {b:?}");
+            let transverse = straddling(&p);
+            assert_eq!(
+                by_sections,
+                transverse && separating_axes(&p.a, &p.b, 4, true),
+                "{a:?} {b:?}"
+            );
+            if transverse {
+                assert_eq!(
+                    Sections::new(&p).meet(false),
+                    separating_axes(&p.a, &p.b, 4, false),
+                    "{a:?} {b:?}"
+                );
+            }
+            crossing += usize::from(by_sections);
+        }
+        assert!(crossing > 2_000, "{crossing}");
+    }
+
+    #[test]
+    fn design_tests_miss_a_crossing_with_only_degenerate_polygon_vertices() {
+        let a: LatticeTet = [[0, 0, 0, 0], [2, 0, 0, 0], [0, 2, 1, 0], [0, 2, -1, 0]];
+        let b: LatticeTet = [[0, 0, 0, 0], [2, 0, 0, 0], [0, 2, 0, 1], [0, 2, 0, -1]];
+        let p = Pair::<i64>::new(&a, &b);
+        assert_eq!(vertex_tests(&p), Outcome::Degenerate);
+        assert!(crosses(&p) && crosses_by_vertex_tests(&p));
     }
 }

@@ -43,27 +43,28 @@ fn triangles_outcome<T: Exact>(abc: &LatticeTriangle, def: &LatticeTriangle) -> 
     let o = abc[0];
     let [a, b, c] = abc.map(|x| rel::<T>(&x, &o));
     let [d, e, f] = def.map(|x| rel::<T>(&x, &o));
-    let s = |v: T| sign(v);
     triangles_rule(
-        [
-            s(orient4(&d, &e, &f, &b, &c)),
-            s(orient4(&d, &e, &f, &c, &a)),
-            s(orient4(&d, &e, &f, &a, &b)),
-        ],
-        [
-            s(orient4(&a, &b, &c, &e, &f)),
-            s(orient4(&a, &b, &c, &f, &d)),
-            s(orient4(&a, &b, &c, &d, &e)),
-        ],
+        |k| match k {
+            0 => sign(orient4(&d, &e, &f, &b, &c)),
+            1 => sign(orient4(&d, &e, &f, &c, &a)),
+            _ => sign(orient4(&d, &e, &f, &a, &b)),
+        },
+        |k| match k {
+            0 => sign(orient4(&a, &b, &c, &e, &f)),
+            1 => sign(orient4(&a, &b, &c, &f, &d)),
+            _ => sign(orient4(&a, &b, &c, &d, &e)),
+        },
     )
 }
 
-/// The rule on signs: `first` = signs of O(def,b,c), O(def,c,a), O(def,a,b); `second` =
-/// signs of O(abc,e,f), O(abc,f,d), O(abc,d,e). All six must share one strict sign.
-pub(super) fn triangles_rule(first: [i8; 3], second: [i8; 3]) -> Outcome {
-    common_strict_sign(&[
-        first[0], first[1], first[2], second[0], second[1], second[2],
-    ])
+/// The rule on signs: `first(k)`, k = 0, 1, 2 = signs of O(def,b,c), O(def,c,a),
+/// O(def,a,b); `second(k)` = signs of O(abc,e,f), O(abc,f,d), O(abc,d,e). All six must
+/// share one strict sign (evaluated lazily, up to the first conflict).
+pub(super) fn triangles_rule(
+    mut first: impl FnMut(usize) -> i8,
+    mut second: impl FnMut(usize) -> i8,
+) -> Outcome {
+    common_strict_sign(6, |k| if k < 3 { first(k) } else { second(k - 3) })
 }
 
 #[cfg(test)]
