@@ -27,8 +27,9 @@ pub struct MeshArgs {
     /// Write statistics as JSON (CONTRACT.md format).
     #[arg(long)]
     pub stats: Option<PathBuf>,
-    /// Cut every body's 4D mesh by an axis hyperplane, e.g. `t=1.5` (seconds since the
-    /// first frame) or `x=0.64` (metres); repeatable. Written as PLY into `--ply-dir`.
+    /// Cut every body's 4D mesh by an axis hyperplane, e.g. `t=1.5` (seconds after the
+    /// body's first frame) or `x=0.64` (metres); repeatable. Written as PLY into
+    /// `--ply-dir`; a PLY's time axis is seconds after the body's first frame.
     #[arg(long = "slice", value_parser = parse_slice)]
     pub slices: Vec<SliceSpec>,
     /// Directory for the slice PLY files.
@@ -96,8 +97,8 @@ pub struct BodyResult {
     pub geometry: Option<GridGeometry>,
     /// Slices, with their spec.
     pub slices: Vec<(SliceSpec, TriMesh)>,
-    /// Stamps of the first and last accepted frames (ns).
-    pub stamp_range_ns: (i64, i64),
+    /// Stamps of the accepted frames (ns).
+    pub stamps_ns: Vec<i64>,
 }
 
 /// The result of meshing a bag.
@@ -109,7 +110,7 @@ pub struct MeshRun {
     pub seconds_total: f64,
     /// Peak RSS (MB).
     pub peak_rss_mb: f64,
-    /// Earliest stamp of any frame (ns).
+    /// Earliest stamp of any accepted frame (ns).
     pub time_origin_ns: i64,
     /// Problems with the bag itself (corrupt chunks, truncation), in reading order.
     pub bag_errors: Vec<String>,
@@ -148,7 +149,6 @@ pub fn mesh_bag(
     let start = Instant::now();
     Mesher::new(opts)?; // refuse bad options before reading anything
     let frames = voxel_frames(path)?;
-    let mut time_origin_ns: Option<i64> = None;
     let mut bag_errors = Vec::new();
     let bodies = std::thread::scope(|scope| {
         let mut senders = BTreeMap::new();
@@ -156,11 +156,7 @@ pub fn mesh_bag(
         let mut refused = std::collections::BTreeSet::new();
         for item in frames {
             let (topic, job) = match item {
-                Ok((topic, grid)) => {
-                    let s = grid.header.stamp.as_nanos();
-                    time_origin_ns = Some(time_origin_ns.map_or(s, |o| o.min(s)));
-                    (topic, Job::Frame(Box::new(grid)))
-                }
+                Ok((topic, grid)) => (topic, Job::Frame(Box::new(grid))),
                 Err(FrameError::Decode {
                     topic,
                     log_time_ns,
@@ -230,11 +226,16 @@ pub fn mesh_bag(
         bodies.sort_by(|a, b| a.id.cmp(&b.id));
         bodies
     });
+    let time_origin_ns = bodies
+        .iter()
+        .filter_map(|b| b.stamps_ns.first().copied())
+        .min()
+        .unwrap_or(0);
     Ok(MeshRun {
         bodies,
         seconds_total: start.elapsed().as_secs_f64(),
         peak_rss_mb: super::peak_rss_mb(),
-        time_origin_ns: time_origin_ns.unwrap_or(0),
+        time_origin_ns,
         bag_errors,
     })
 }
@@ -287,6 +288,7 @@ fn body_worker(
         .iter()
         .map(|&spec| SliceState { spec, pair: None })
         .collect();
+    let mut stamps_ns: Vec<i64> = Vec::new();
     for job in rx {
         let grid = match job {
             Job::Frame(g) => g,
@@ -298,8 +300,14 @@ fn body_worker(
         let f = frame_ref(&grid);
         let t0 = Instant::now();
         let slab = match mesher.push(&f) {
-            Ok(Some(slab)) => slab,
-            Ok(None) => continue,
+            Ok(Some(slab)) => {
+                stamps_ns.push(f.stamp_ns);
+                slab
+            }
+            Ok(None) => {
+                stamps_ns.push(f.stamp_ns);
+                continue;
+            }
             Err(e) => {
                 tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "skipping frame: {e}");
                 continue;
@@ -356,10 +364,7 @@ fn body_worker(
         skipped: mesher.skipped() + undecodable,
         geometry: mesher.geometry().copied(),
         slices: states.into_iter().map(SliceState::finish).collect(),
-        stamp_range_ns: (
-            mesher.first_frame().map_or(0, |f| f.stamp_ns),
-            mesher.last_frame().map_or(0, |f| f.stamp_ns),
-        ),
+        stamps_ns,
     }
 }
 
@@ -369,22 +374,22 @@ fn spatial_plane(spec: &SliceSpec, g: &GridGeometry) -> PlaneValue {
     PlaneValue::approx((spec.value - c) / g.step_m())
 }
 
-/// Lattice time of `t` seconds after the first frame, if it falls in the slab.
+/// Lattice time of `t` seconds after the body's first frame, if it falls in the slab.
 fn time_plane(t: f64, g: &GridGeometry, slab: &Slab, first_stamp: i64) -> Option<PlaneValue> {
-    let ns = first_stamp as f64 + t * 1e9;
-    let (lo, hi) = (slab.stamp_lo_ns as f64, slab.stamp_hi_ns as f64);
+    // Integer nanoseconds: absolute stamps (~1.7e18) lose 256 ns as f64.
+    let ns = first_stamp.checked_add((t * 1e9).round() as i64)?;
+    let (lo, hi) = (slab.stamp_lo_ns, slab.stamp_hi_ns);
     if !(lo..=hi).contains(&ns) {
         return None;
     }
     let s = i64::from(g.scale);
     let base = s * slab.index as i64;
-    let frac = (ns - lo) / (hi - lo);
-    Some(if frac <= 0.0 {
+    Some(if ns == lo {
         PlaneValue::lattice(base)
-    } else if frac >= 1.0 {
+    } else if ns == hi {
         PlaneValue::lattice(base + s)
     } else {
-        PlaneValue::approx(base as f64 + frac * s as f64)
+        PlaneValue::approx(base as f64 + (ns - lo) as f64 / (hi - lo) as f64 * s as f64)
     })
 }
 
@@ -520,7 +525,7 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
                 path: path.clone(),
                 source,
             })?;
-            let to_world = slice_to_world(spec.axis, &g, r.time_origin_ns, b);
+            let to_world = slice_to_world(spec.axis, &g, b);
             crate::mesh::slice::write_ply(mesh, std::io::BufWriter::new(file), to_world).map_err(
                 |source| CliError::Io {
                     path: path.clone(),
@@ -534,23 +539,12 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
 }
 
 /// Maps slice coordinates (lattice units of the three remaining axes) to metres and, for
-/// time, seconds since the bag's first frame (using the body's mean frame period).
-fn slice_to_world(
-    axis: usize,
-    g: &GridGeometry,
-    origin_ns: i64,
-    b: &BodyResult,
-) -> impl Fn(&[f64; 3]) -> [f64; 3] {
+/// time, seconds since the body's first frame (piecewise linear between its frame stamps).
+fn slice_to_world(axis: usize, g: &GridGeometry, b: &BodyResult) -> impl Fn(&[f64; 3]) -> [f64; 3] {
     let c = g.voxel0_centre();
     let step = g.step_m();
     let s = f64::from(g.scale);
-    let (first, last) = b.stamp_range_ns;
-    let period = if b.stats.frames > 1 {
-        (last - first) as f64 * 1e-9 / (b.stats.frames - 1) as f64
-    } else {
-        0.0
-    };
-    let t0 = (first - origin_ns) as f64 * 1e-9;
+    let stamps = b.stamps_ns.clone();
     let keep: Vec<usize> = (0..4).filter(|&k| k != axis).collect();
     move |p: &[f64; 3]| {
         let mut out = [0.0; 3];
@@ -558,9 +552,20 @@ fn slice_to_world(
             out[m] = if k < 3 {
                 c[k] + p[m] * step
             } else {
-                t0 + p[m] / s * period
+                seconds_at(&stamps, p[m] / s)
             };
         }
         out
     }
+}
+
+/// Seconds after the first stamp of fractional frame index `f`.
+fn seconds_at(stamps: &[i64], f: f64) -> f64 {
+    if stamps.len() < 2 {
+        return 0.0;
+    }
+    let k = (f.floor().max(0.0) as usize).min(stamps.len() - 2);
+    let frac = f - k as f64;
+    let (a, b) = (stamps[k] - stamps[0], stamps[k + 1] - stamps[0]);
+    (a as f64 + frac * (b - a) as f64) * 1e-9
 }

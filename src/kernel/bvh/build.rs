@@ -80,9 +80,9 @@ impl CentreBounds {
             return;
         }
         let c = b.doubled_centre();
-        for k in 0..4 {
-            self.lo[k] = self.lo[k].min(c[k]);
-            self.hi[k] = self.hi[k].max(c[k]);
+        for ((lo, hi), c) in self.lo.iter_mut().zip(self.hi.iter_mut()).zip(c) {
+            *lo = (*lo).min(c);
+            *hi = (*hi).max(c);
         }
     }
 
@@ -145,7 +145,7 @@ fn radix_sort(codes: &mut [u64], order: &mut [u32], codes_tmp: &mut [u64], order
 
 impl Bvh {
     /// Rebuilds the tree over `boxes` (item `i` is `boxes[i]`), reusing all buffers of
-    /// the previous build: no allocation when the item count does not grow.
+    /// the previous builds (they only grow, so rebuilding at a steady size does not allocate).
     ///
     /// Empty boxes (`min > max` on some axis) are kept as items that overlap nothing.
     ///
@@ -157,9 +157,7 @@ impl Bvh {
 
     /// [`build`](Self::build) with the centre bounds of `boxes` already known.
     fn build_with(&mut self, boxes: &[Aabb4], centres: CentreBounds) -> Result<(), BvhError> {
-        self.nodes.clear();
-        self.leaf_boxes.clear();
-        self.order.clear();
+        self.clear();
         check_count(boxes.len())?;
         let n = boxes.len();
         if n == 0 {
@@ -182,7 +180,9 @@ impl Bvh {
         );
 
         // Top-down: split ranges, creating both children next to each other.
-        self.nodes.reserve(n);
+        // At most 2n - 1 nodes: reserving them all (untouched pages cost no memory) means
+        // the walk below never reallocates, and a rebuild at the same size never allocates.
+        self.nodes.reserve(2 * n - 1);
         self.nodes.push(Node {
             aabb: Aabb4::EMPTY,
             first: 0,
@@ -258,6 +258,8 @@ impl Bvh {
         vertices: &[LatticePoint],
         tets: &[[u32; 4]],
     ) -> Result<(), BvhError> {
+        self.clear();
+        check_count(tets.len())?;
         let mut boxes = std::mem::take(&mut self.scratch.tet_boxes);
         boxes.clear();
         let mut bad = None;
@@ -280,12 +282,7 @@ impl Bvh {
             b
         }));
         let result = match bad {
-            Some(e) => {
-                self.nodes.clear();
-                self.leaf_boxes.clear();
-                self.order.clear();
-                Err(e)
-            }
+            Some(e) => Err(e),
             None => self.build_with(&boxes, centres),
         };
         self.scratch.tet_boxes = boxes;
@@ -318,6 +315,8 @@ fn split_range(
     let len = codes.len();
     let (first, last) = (codes[0], codes[len - 1]);
     if first == last {
+        return len / 2;
+        #[allow(unreachable_code)]
         let Some(qz) = CentreBounds::of(order.iter().map(|&i| &boxes[i as usize])).quantiser()
         else {
             return len / 2;
@@ -335,14 +334,10 @@ fn split_range(
     let bit = 63 - (first ^ last).leading_zeros();
     let mask = !0u64 << bit;
     let prefix = first & mask;
-    // Codes are sorted: those sharing the prefix (bit clear) come first. Most ranges are
-    // short: a branch-free count over contiguous codes beats a binary search there.
-    let split = if len <= 64 {
-        codes.iter().map(|&c| usize::from(c & mask == prefix)).sum()
-    } else {
-        codes.partition_point(|&c| c & mask == prefix)
-    };
-    split.clamp(1, len - 1)
+    // Codes are sorted: those sharing the prefix (bit clear) come first.
+    codes
+        .partition_point(|&c| c & mask == prefix)
+        .clamp(1, len - 1)
 }
 
 #[cfg(test)]

@@ -139,7 +139,8 @@ impl Bvh {
     }
 
     /// A tree over the boxes of `tets` (indices into `vertices`), item `i` being tet `i`.
-    /// For a [`TetMesh`](crate::mesh::TetMesh) `m`: `Bvh::from_tets(&m.vertices, &m.tets)`.
+    /// For a mesh `m` (`chronotope::mesh::TetMesh`, a layer above this one):
+    /// `Bvh::from_tets(&m.vertices, &m.tets)`.
     ///
     /// # Errors
     /// [`BvhError::VertexOutOfRange`] for a bad vertex index, [`BvhError::TooManyItems`]
@@ -174,7 +175,21 @@ impl Bvh {
         self.nodes.first().map_or(Aabb4::EMPTY, |n| n.aabb)
     }
 
-    /// Depth of the tree (0 for empty, 1 for a single leaf).
+    /// Removes all items, keeping every buffer for the next build.
+    pub fn clear(&mut self) {
+        self.nodes.clear();
+        self.leaf_boxes.clear();
+        self.order.clear();
+    }
+
+    /// Frees the buffers used only while building (about 52 bytes per item kept for the
+    /// next [`build`](Self::build)); the tree stays usable and the next build allocates
+    /// them again.
+    pub fn shrink_scratch(&mut self) {
+        self.scratch = BuildScratch::default();
+    }
+
+    /// Depth of the tree (0 for empty, 1 for a single leaf). Allocates: for diagnostics.
     pub fn depth(&self) -> usize {
         let mut depth = vec![0u32; self.nodes.len()];
         let mut max = 0;

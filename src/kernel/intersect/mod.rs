@@ -14,14 +14,83 @@
 //!   interiors* meet. Then they meet in a convex polygon of positive area in the 2-plane
 //!   P where the hyperplanes cut. Decided exactly, degenerate positions included, by a
 //!   separating-axis test on the two cross-sections A ∩ P and B ∩ P whose vertex
-//!   positions come from the DESIGN §4 segment–tet signs (see the `tet_tet` module
-//!   notes; the DESIGN vertex tests with strict signs alone miss crossings whose polygon
-//!   has only degenerate vertices).
-//! - [`classify`]: [`TetPairRelation`], adding coplanar overlap (same 3-flat) decided by an
-//!   exact 3D test, and touching versus disjoint.
+//!   positions come from the DESIGN §4 segment–tet signs (below; the DESIGN vertex
+//!   tests with strict signs alone miss crossings whose polygon has only degenerate
+//!   vertices).
+//! - [`classify`]: [`TetPairRelation`]: `Disjoint` (the closed tets share no point),
+//!   else `Coplanar` for two non-flat tets in one 3-flat (positive-volume overlap by an
+//!   exact 3D separating-axis test after dropping a coordinate in which the normal does
+//!   not vanish; orientation by the sign of that normal coordinate), else `Crossing`
+//!   as [`tets_cross`], else `Touching` (flat tets are always `Touching` or `Disjoint`).
 //! - [`tets_intersect`] / [`relative_interiors_meet`]: the separating-axis versions
 //!   (50 axes in R^4, with an exact reduction to lower dimension when the tets are flat,
 //!   coplanar or parallel); any input, used as a cross-check.
+//!
+//! # Tet–tet: the rule
+//!
+//! Two boundary tets A and B *cross* when they lie in different hyperplanes H_A ≠ H_B
+//! and their relative interiors (all barycentric coordinates > 0) have a common point.
+//! Relative interiors are open in the 2-plane P = H_A ∩ H_B, so a common point means a
+//! common open polygon of positive area, where the two bodies' boundaries pass through
+//! each other transversally. Everything else that meets is touching: a shared vertex,
+//! edge or face; an edge or face of one tet lying in the other's hyperplane with the
+//! rest on one side; a polygon A ∩ B of positive area that lies in a face of A or of B
+//! (the hyperplanes meet exactly along a ridge of the mesh); either tet flat. Tets in
+//! the same hyperplane are reported separately ([`TetPairRelation::Coplanar`]).
+//!
+//! # Tet–tet: how it is decided
+//!
+//! With g_B(x) = O(B, x) = orient4(b0, b1, b2, b3, x) and g_A likewise:
+//!
+//! 1. Reject unless B has vertices strictly on both sides of H_A and A strictly on both
+//!    sides of H_B. (If B is weakly on one side and a relative-interior point of B lies
+//!    on H_A, all of B does.) This also rejects flat tets, parallel and equal
+//!    hyperplanes.
+//! 2. Now P meets both relative interiors, so the cross-sections Pa = A ∩ P and
+//!    Pb = B ∩ P are convex polygons of positive area and relint A ∩ P = int Pa. The
+//!    vertices of Pa are the points X = line(pq) ∩ H_B for the edges pq of A whose ends
+//!    are strictly on opposite sides of H_B, and the vertices of A on H_B (for those take
+//!    any edge pq to a vertex off H_B: X = that vertex). By the segment–tet formula of
+//!    DESIGN §4 (see [`segment_crosses_tet`]) the barycentric coordinates of X in B are
+//!    λ_t(X) = (−1)^t O(pq, face_t(B)) / (g_B(p) − g_B(q)): their *signs* are exact
+//!    orient4 signs, O(pq, xyz) = orient4(x, y, z, p, q).
+//! 3. Pb = {x ∈ P : λ_t(x) ≥ 0, t = 0..3}, so every edge of Pb lies on a line λ_t = 0.
+//!    Separating axes in the plane: two convex polygons have disjoint interiors iff
+//!    a line through an edge of one has the other on its closed outer side. So
+//!
+//!    ```text
+//!    int Pa ∩ int Pb ≠ ∅  ⟺  for every face t of B some vertex X of Pa has λ_t(X) > 0,
+//!                             and for every face s of A some vertex Y of Pb has λ_s(Y) > 0.
+//!    ```
+//!
+//!    With "≥ 0" in place of "> 0" the same test decides whether the closed tets meet.
+//!
+//! This needs at most 16 + 16 orient4 signs (each computed once, on first use, and the
+//! search stops early) and no case analysis of degenerate positions: zeros (vertices on
+//! the other hyperplane, polygon vertices on the other tet's boundary, coincident
+//! cross-sections) are handled by the exact inequalities. It decides exactly what the
+//! DESIGN §4 vertex tests (12 segment–tet and 16 triangle–triangle, all signs strict)
+//! decide in general position; those tests alone miss crossings in degenerate position
+//! (for example two tets cut by P in the same triangle, through their vertices and edge
+//! midpoints), which this rule finds. The unit tests check it against the DESIGN tests
+//! completed by an exact fallback, and `tests/tet_tet.rs` against an exact LP oracle.
+//!
+//! No symbolic perturbation is used: a perturbation (translating B by εw) would turn
+//! half of all face-to-face contacts between bodies in adjacent voxels into
+//! interference, contradicting "touching is not interference".
+//!
+//! # Tet–tet: what the checker must know
+//!
+//! With lattice-aligned bodies the boundaries often cross *exactly along mesh ridges*
+//! (two overlapping boxes: their boundary facets cut along a 2-plane made of triangles of
+//! both meshes). Such a crossing lies on the boundary of every tet involved, so those
+//! pairs are [`TetPairRelation::Touching`], not [`TetPairRelation::Crossing`]; the
+//! checker must not assume that every overlap of two bodies shows up as a crossing tet
+//! pair (inside tests on untouched components are still needed). Measured on meshed
+//! voxel boxes (`tests/tet_tet.rs`): two boxes overlapping by one voxel column give no
+//! `Crossing` pair at all, only `Coplanar` overlaps with the same orientation; a box
+//! overlapping diagonally gives `Crossing` pairs; boxes in adjacent voxels give only
+//! `Touching` and opposite-orientation `Coplanar` pairs.
 //!
 //! # Exactness and overflow
 //!

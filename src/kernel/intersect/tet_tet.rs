@@ -1,75 +1,13 @@
 //! Tet against tet in R^4: crossing, touching, coplanar overlap, disjoint.
 //!
-//! # The rule
-//!
-//! Two boundary tets A and B *cross* when they lie in different hyperplanes H_A ≠ H_B
-//! and their relative interiors (all barycentric coordinates > 0) have a common point.
-//! Relative interiors are open in the 2-plane P = H_A ∩ H_B, so a common point means a
-//! common open polygon of positive area, where the two bodies' boundaries pass through
-//! each other transversally. Everything else that meets is touching: a shared vertex,
-//! edge or face; an edge or face of one tet lying in the other's hyperplane with the
-//! rest on one side; a polygon A ∩ B of positive area that lies in a face of A or of B
-//! (the hyperplanes meet exactly along a ridge of the mesh); either tet flat. Tets in
-//! the same hyperplane are reported separately ([`TetPairRelation::Coplanar`]).
-//!
-//! # How it is decided
-//!
-//! With g_B(x) = O(B, x) = orient4(b0, b1, b2, b3, x) and g_A likewise:
-//!
-//! 1. Reject unless B has vertices strictly on both sides of H_A and A strictly on both
-//!    sides of H_B. (If B is weakly on one side and a relative-interior point of B lies
-//!    on H_A, all of B does.) This also rejects flat tets, parallel and equal
-//!    hyperplanes.
-//! 2. Now P meets both relative interiors, so the cross-sections Pa = A ∩ P and
-//!    Pb = B ∩ P are convex polygons of positive area and relint A ∩ P = int Pa. The
-//!    vertices of Pa are the points X = line(pq) ∩ H_B for the edges pq of A whose ends
-//!    are strictly on opposite sides of H_B, and the vertices of A on H_B (for those take
-//!    any edge pq to a vertex off H_B: X = that vertex). By the segment–tet formula of
-//!    DESIGN §4 (see [`segment_crosses_tet`]) the barycentric coordinates of X in B are
-//!    λ_t(X) = (−1)^t O(pq, face_t(B)) / (g_B(p) − g_B(q)): their *signs* are exact
-//!    orient4 signs, O(pq, xyz) = orient4(x, y, z, p, q).
-//! 3. Pb = {x ∈ P : λ_t(x) ≥ 0, t = 0..3}, so every edge of Pb lies on a line λ_t = 0.
-//!    Separating axes in the plane: two convex polygons have disjoint interiors iff
-//!    a line through an edge of one has the other on its closed outer side. So
-//!
-//!    ```text
-//!    int Pa ∩ int Pb ≠ ∅  ⟺  for every face t of B some vertex X of Pa has λ_t(X) > 0,
-//!                             and for every face s of A some vertex Y of Pb has λ_s(Y) > 0.
-//!    ```
-//!
-//!    With "≥ 0" in place of "> 0" the same test decides whether the closed tets meet.
-//!
-//! This needs at most 16 + 16 orient4 signs (each computed once, on first use, and the
-//! search stops early) and no case analysis of degenerate positions: zeros (vertices on
-//! the other hyperplane, polygon vertices on the other tet's boundary, coincident
-//! cross-sections) are handled by the exact inequalities. It decides exactly what the
-//! DESIGN §4 vertex tests (12 segment–tet and 16 triangle–triangle, all signs strict)
-//! decide in general position; those tests alone miss crossings in degenerate position
-//! (for example two tets cut by P in the same triangle, through their vertices and edge
-//! midpoints), which this rule finds. The unit tests check it against the DESIGN tests
-//! completed by an exact fallback, and `tests/tet_tet.rs` against an exact LP oracle.
-//!
-//! No symbolic perturbation is used: a perturbation (translating B by εw) would turn
-//! half of all face-to-face contacts between bodies in adjacent voxels into
-//! interference, contradicting "touching is not interference".
-//!
-//! # What the checker must know
-//!
-//! With lattice-aligned bodies the boundaries often cross *exactly along mesh ridges*
-//! (two overlapping boxes: their boundary facets cut along a 2-plane made of triangles of
-//! both meshes). Such a crossing lies on the boundary of every tet involved, so those
-//! pairs are [`TetPairRelation::Touching`], not [`TetPairRelation::Crossing`]; the
-//! checker must not assume that every overlap of two bodies shows up as a crossing tet
-//! pair (inside tests on untouched components are still needed).
-//!
-//! [`segment_crosses_tet`]: super::segment_crosses_tet
+//! The rule, how it is decided and why, are in the [parent module notes](super).
 
 use super::separating_axis::{difference_contains_origin, separating_axes};
 use super::{
     cross3, dot4, edge_index, rel_tet, sign, sub4, Exact, LatticeTet, TET_EDGES, TET_TRIANGLES, V4,
 };
 
-/// How two tets of R^4 relate (see the [module notes](self) for the exact rules).
+/// How two tets of R^4 relate (see the [module notes](super) for the exact rules).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum TetPairRelation {
     /// The closed tets have no common point.
@@ -94,7 +32,7 @@ pub enum TetPairRelation {
 /// Whether the tets lie in different hyperplanes and their relative interiors meet, i.e.
 /// they intersect in a polygon of positive area where they cross transversally.
 ///
-/// `false` for touching (see the [module notes](self)), for tets in one hyperplane (use
+/// `false` for touching (see the [module notes](super)), for tets in one hyperplane (use
 /// [`classify`]) and for flat tets. Exact for every input; never panics.
 ///
 /// ```
