@@ -22,6 +22,7 @@ pub mod adjacency;
 pub mod contact;
 pub mod inclusion;
 pub mod labels;
+pub mod resolve;
 
 use crate::kernel::bvh::{overlapping_pairs, Bvh, BvhError, TraverseWorkspace};
 use crate::kernel::intersect::{classify, TetPairRelation};
@@ -103,6 +104,29 @@ pub struct Prepared {
     /// Frame stamps (ns) of the common time lattice: checker time `t` is at
     /// `stamps[t / (8·scale)]` plus the fraction within that frame period.
     pub stamps_ns: Vec<i64>,
+}
+
+impl Prepared {
+    /// The same body with another mesh on the same tets (moved or re-timed): the tree is
+    /// rebuilt, the adjacency kept.
+    ///
+    /// # Errors
+    /// The tree cannot be built.
+    pub fn with_mesh(&self, mesh: TetMesh) -> Result<Prepared, CheckError> {
+        let bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
+            id: self.id.clone(),
+            source,
+        })?;
+        Ok(Prepared {
+            id: self.id.clone(),
+            mesh,
+            bvh,
+            adjacency: self.adjacency.clone(),
+            factor: self.factor,
+            geometry: self.geometry,
+            stamps_ns: self.stamps_ns.clone(),
+        })
+    }
 }
 
 /// The common lattice of a set of bodies.

@@ -1,11 +1,13 @@
-//! `chronotope check BAG [--report FILE.json]`: mesh every body, check every pair, and
-//! write the CONTRACT.md report (`chronotope.report/1`). Resolution suggestions are not
-//! computed yet (`resolutions` is empty).
+//! `chronotope check BAG [--report FILE.json]`: mesh every body, check every pair, suggest
+//! resolutions for the body whose id sorts first (a translation and a time scaling, each
+//! verified against every other body), and write the CONTRACT.md report
+//! (`chronotope.report/1`).
 
 use super::mesh::{mesher_options_from, MesherArgs};
 use super::{frame_ref, CliError};
 use crate::bag::{voxel_frames, FrameError};
 use crate::checker::labels::LabelCounts;
+use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{check_pair, CommonLattice, PairResult};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::MesherOptions;
@@ -112,7 +114,7 @@ pub struct Report {
     pub bodies: Vec<BodyReport>,
     /// Every pair (a < b).
     pub pairs: Vec<PairReport>,
-    /// Resolve suggestions (not computed yet).
+    /// Resolve suggestions for the body whose id sorts first.
     pub resolutions: Vec<serde_json::Value>,
     /// Timings.
     pub timings_ms: Timings,
@@ -206,6 +208,8 @@ pub fn check_bag(
         .min()
         .unwrap_or(0);
     let mut pairs = Vec::new();
+    let mut resolutions = Vec::new();
+    let mut t_resolve = std::time::Duration::ZERO;
     let mut c = time_scale.unwrap_or(0.0);
     if !named.is_empty() {
         let lat = CommonLattice::of(&named)?;
@@ -218,6 +222,7 @@ pub fn check_bag(
             .iter()
             .map(|(id, b)| lat.prepare(id, b))
             .collect::<Result<_, _>>()?;
+        let mut first_results = Vec::new();
         for i in 0..prepared.len() {
             for j in i + 1..prepared.len() {
                 let r = check_pair(&prepared[i], &prepared[j]);
@@ -234,10 +239,18 @@ pub fn check_bag(
                     &lat,
                     time_origin_ns,
                 ));
+                if i == 0 {
+                    first_results.push(r);
+                }
             }
         }
+        let t0 = Instant::now();
+        if first_results.iter().any(PairResult::interfering) {
+            resolutions = resolve_first(&prepared, &first_results, &lat, c, time_origin_ns);
+        }
+        t_resolve = t0.elapsed();
     }
-    let t_check = start.elapsed() - t_mesh;
+    let t_check = start.elapsed() - t_mesh - t_resolve;
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     Ok(Report {
         schema: "chronotope.report/1",
@@ -256,14 +269,53 @@ pub fn check_bag(
             })
             .collect(),
         pairs,
-        resolutions: Vec::new(),
+        resolutions,
         timings_ms: Timings {
             mesh: ms(t_mesh),
             check: ms(t_check),
-            resolve: 0.0,
+            resolve: ms(t_resolve),
             total: ms(start.elapsed()),
         },
     })
+}
+
+/// Translation and time scaling of the first body against all the others.
+fn resolve_first(
+    prepared: &[crate::checker::Prepared],
+    results: &[PairResult],
+    lat: &CommonLattice,
+    c: f64,
+    origin: i64,
+) -> Vec<serde_json::Value> {
+    let a = &prepared[0];
+    let others: Vec<&crate::checker::Prepared> = prepared[1..].iter().collect();
+    let rs: Vec<&PairResult> = results.iter().collect();
+    let m = Metric::new(lat, c);
+    let mut out = Vec::new();
+    if let Some(t) = suggest_translation(a, &others, &rs, &m) {
+        let v: Vec<f64> = (0..4)
+            .map(|k| {
+                if k < 3 {
+                    t.lattice[k] as f64 * m.sigma[k]
+                } else {
+                    t.lattice[k] as f64 * m.sigma[3] / c
+                }
+            })
+            .collect();
+        out.push(serde_json::json!({
+            "body": a.id, "kind": "translate", "vector": v, "distance": t.distance_m,
+            "verified_clear": t.verified_clear, "direction": t.direction,
+        }));
+    } else {
+        tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
+    }
+    if let Some(ts) = suggest_time_scaling(a, &others, &rs, lat) {
+        out.push(serde_json::json!({
+            "body": a.id, "kind": "time_scale", "t0_s": lat.time_s(ts.t0 as f64, origin), "scale": ts.scale,
+            "verified_clear": ts.verified_clear,
+        }));
+    }
+    out
 }
 
 fn pair_report(
@@ -333,9 +385,12 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
             println!("clear   {} x {}", p.a, p.b);
         }
     }
+    for s in &r.resolutions {
+        println!("resolve {}", s);
+    }
     println!(
-        "mesh {:.0} ms, check {:.0} ms, total {:.0} ms",
-        r.timings_ms.mesh, r.timings_ms.check, r.timings_ms.total
+        "mesh {:.0} ms, check {:.0} ms, resolve {:.0} ms, total {:.0} ms",
+        r.timings_ms.mesh, r.timings_ms.check, r.timings_ms.resolve, r.timings_ms.total
     );
     if let Some(p) = &a.report {
         if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {

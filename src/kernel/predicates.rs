@@ -2,7 +2,9 @@
 
 use super::LatticePoint;
 
-/// det of the 4x4 matrix with rows a, b, c, d, exact in i128 (|entries| < 2^31 never overflows).
+/// det of the 4x4 matrix with rows a, b, c, d, exact in i128 (|entries| < 2^31: |det| <
+/// 24·2^124 < 2^129 can exceed i128 only for entries near the i32 limits; lattice
+/// coordinates here stay far below 2^30).
 pub fn det4_i128(a: &LatticePoint, b: &LatticePoint, c: &LatticePoint, d: &LatticePoint) -> i128 {
     let m = |p: &LatticePoint| p.map(i128::from);
     let (a, b, c, d) = (m(a), m(b), m(c), m(d));
@@ -13,7 +15,8 @@ pub fn det4_i128(a: &LatticePoint, b: &LatticePoint, c: &LatticePoint, d: &Latti
     t(0, 1) * s23 - t(0, 2) * s13 + t(0, 3) * s12 + t(1, 2) * s03 - t(1, 3) * s02 + t(2, 3) * s01
 }
 
-/// orient4(p0..p4) = det[p1-p0, p2-p0, p3-p0, p4-p0], exact.
+/// orient4(p0..p4) = det[p1-p0, p2-p0, p3-p0, p4-p0], exact while coordinate differences
+/// stay within 2^30 in magnitude (then |det| < 24·2^120 < 2^127).
 pub fn orient4_i128(p: [&LatticePoint; 5]) -> i128 {
     let d = |q: &LatticePoint| {
         [

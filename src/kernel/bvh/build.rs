@@ -315,8 +315,6 @@ fn split_range(
     let len = codes.len();
     let (first, last) = (codes[0], codes[len - 1]);
     if first == last {
-        return len / 2;
-        #[allow(unreachable_code)]
         let Some(qz) = CentreBounds::of(order.iter().map(|&i| &boxes[i as usize])).quantiser()
         else {
             return len / 2;
