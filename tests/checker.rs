@@ -224,9 +224,20 @@ mod resolution {
     use super::*;
     use chronotope::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 
-    fn prepare2(a: &BodyMesh, b: &BodyMesh) -> (chronotope::checker::Prepared, chronotope::checker::Prepared, CommonLattice) {
+    fn prepare2(
+        a: &BodyMesh,
+        b: &BodyMesh,
+    ) -> (
+        chronotope::checker::Prepared,
+        chronotope::checker::Prepared,
+        CommonLattice,
+    ) {
         let lat = CommonLattice::of(&[("a", a), ("b", b)]).unwrap();
-        (lat.prepare("a", a).unwrap(), lat.prepare("b", b).unwrap(), lat)
+        (
+            lat.prepare("a", a).unwrap(),
+            lat.prepare("b", b).unwrap(),
+            lat,
+        )
     }
 
     #[test]
@@ -245,9 +256,16 @@ mod resolution {
         assert_eq!(t.direction, "gradient");
         let per = lat.per_step();
         assert!(t.lattice[0] < 0, "{t:?}");
-        assert!(t.lattice[1].abs() + t.lattice[2].abs() + t.lattice[3].abs() <= per / 4, "{t:?}");
+        assert!(
+            t.lattice[1].abs() + t.lattice[2].abs() + t.lattice[3].abs() <= per / 4,
+            "{t:?}"
+        );
         let exact = 2.0 * 0.1;
-        assert!(t.distance_m >= exact * 0.99 && t.distance_m <= exact * 1.1, "{} vs {exact}", t.distance_m);
+        assert!(
+            t.distance_m >= exact * 0.99 && t.distance_m <= exact * 1.1,
+            "{} vs {exact}",
+            t.distance_m
+        );
     }
 
     #[test]

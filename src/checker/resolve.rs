@@ -399,8 +399,8 @@ fn scaled_clears(a: &Prepared, others: &[&Prepared], t0: i64, p: i64, q: i64) ->
     let refine = |m: &Prepared, time: &dyn Fn(i64) -> i64| -> Option<Prepared> {
         let mut mesh = m.mesh.clone();
         for v in &mut mesh.vertices {
-            for k in 0..3 {
-                v[k] = i32::try_from(i64::from(v[k]) * q).ok()?;
+            for c in v.iter_mut().take(3) {
+                *c = i32::try_from(i64::from(*c) * q).ok()?;
             }
             v[3] = i32::try_from(time(i64::from(v[3]))).ok()?;
         }
