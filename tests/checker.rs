@@ -289,3 +289,112 @@ mod resolution {
         }
     }
 }
+
+mod stiff {
+    use super::*;
+
+    fn frames_of(
+        size: [u32; 3],
+        stamps: &[i64],
+        occ: &dyn Fn(usize, usize, usize, usize) -> bool,
+    ) -> Vec<TestFrame> {
+        stamps
+            .iter()
+            .enumerate()
+            .map(|(k, &s)| TestFrame {
+                stamp_ns: s,
+                encoding: 0,
+                data: bits_data(size, |x, y, z| occ(k, x, y, z)),
+            })
+            .collect()
+    }
+
+    #[test]
+    fn bodies_disjoint_in_time_do_not_interfere() {
+        // Same place, frames 0-2 for one and 3-5 for the other.
+        let size = [6, 6, 6];
+        let occ = |_: usize, x: usize, y: usize, z: usize| {
+            (1..4).contains(&x) && (1..4).contains(&y) && (1..4).contains(&z)
+        };
+        let a = assemble(&frames_of(size, &[0, 10, 20], &occ), size);
+        let b = assemble(&frames_of(size, &[30, 40, 50], &occ), size);
+        let (r, _) = check(&a, &b);
+        assert!(!r.interfering(), "{:?}", r.counts());
+    }
+
+    #[test]
+    fn a_single_voxel_body_is_found_inside_a_big_one() {
+        let size = [7, 7, 7];
+        let big = body_over(size, 0..5, in_box([1, 1, 1], [5, 5, 5]));
+        let dot = body_over(size, 1..4, in_box([3, 3, 3], [3, 3, 3]));
+        let (r, _) = check(&dot, &big);
+        let (cd, _) = r.counts();
+        assert_eq!(cd.inside as usize, dot.mesh.tets.len());
+        assert!(r.interfering());
+    }
+
+    fn moving_pair(origin: [f64; 3], period_ns: i64) -> (PairResult, CommonLattice, i64) {
+        // A box moving +x one voxel per frame towards a static box: they meet.
+        let size = [12u32, 5, 5];
+        let stamps: Vec<i64> = (0..6).map(|k| 7_000_000_000 + k * period_ns).collect();
+        let mover = |k: usize, x: usize, y: usize, z: usize| {
+            (k..k + 2).contains(&x) && (1..4).contains(&y) && (1..4).contains(&z)
+        };
+        let wall = |_: usize, x: usize, y: usize, z: usize| {
+            (6..8).contains(&x) && (1..4).contains(&y) && (1..4).contains(&z)
+        };
+        let asm = |occ: &dyn Fn(usize, usize, usize, usize) -> bool| {
+            let fr = frames_of(size, &stamps, occ);
+            let mut a = BodyAssembler::new(MesherOptions::default()).unwrap();
+            for f in &fr {
+                let mut r = test_frame_ref(f, size, 0.05);
+                r.origin = origin;
+                a.push(&r).unwrap();
+            }
+            a.finish()
+        };
+        let (a, b) = (asm(&mover), asm(&wall));
+        let (r, lat) = check(&a, &b);
+        (r, lat, stamps[0])
+    }
+
+    #[test]
+    fn far_origins_and_extreme_frame_periods_change_nothing_but_units() {
+        let (base, lat0, s0) = moving_pair([0.0; 3], 100_000_000);
+        assert!(base.interfering());
+        let first = |r: &PairResult, lat: &CommonLattice, s: i64, period: f64| {
+            lat.time_s(r.first_contact().unwrap(), s) / period
+        };
+        let f0 = first(&base, &lat0, s0, 0.1);
+        for (origin, period_ns) in [
+            ([1e5, -1e5, 1e5], 100_000_000i64),
+            ([0.0; 3], 100_000),
+            ([0.0; 3], 1_000_000_000_000),
+        ] {
+            let (r, lat, s) = moving_pair(origin, period_ns);
+            assert_eq!(
+                r.counts(),
+                base.counts(),
+                "origin {origin:?}, period {period_ns} ns"
+            );
+            let f = first(&r, &lat, s, period_ns as f64 * 1e-9);
+            assert!(
+                (f - f0).abs() < 1e-6,
+                "first contact in frames: {f} vs {f0}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_body_faster_than_its_thickness_per_frame_is_flagged() {
+        // A one-voxel-thick plate jumping 3 voxels per frame: consecutive frames share no
+        // voxel, so in 4D it vanishes between frames.
+        let size = [16u32, 4, 4];
+        let plate = |k: usize, x: usize, _: usize, _: usize| x == 1 + 3 * k;
+        let body = assemble(&frames_of(size, &[0, 10, 20, 30], &plate), size);
+        assert_eq!(body.stats.vanishing_slabs, 3);
+        let slow = |k: usize, x: usize, _: usize, _: usize| x == 1 + k || x == 2 + k;
+        let body = assemble(&frames_of(size, &[0, 10, 20, 30], &slow), size);
+        assert_eq!(body.stats.vanishing_slabs, 0);
+    }
+}

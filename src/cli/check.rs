@@ -51,6 +51,9 @@ pub struct BodyReport {
     pub hypervolume_m3s: f64,
     /// Frames refused (extra field).
     pub skipped_frames: u64,
+    /// Slabs in which the body vanishes between its frames: the frame rate is too low for
+    /// its motion and contacts there can be missed (extra field).
+    pub vanishing_slabs: u64,
 }
 
 /// Label counts of both bodies of a pair.
@@ -266,6 +269,7 @@ pub fn check_bag(
                 closed: b.stats.closed.is_closed(),
                 hypervolume_m3s: b.stats.hypervolume_m3s,
                 skipped_frames: b.skipped,
+                vanishing_slabs: b.stats.vanishing_slabs,
             })
             .collect(),
         pairs,
@@ -364,6 +368,13 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
             "{:<24} {:>4} frames {:>10} tets  closed {}",
             b.id, b.frames, b.tets, b.closed
         );
+        if b.vanishing_slabs > 0 {
+            println!(
+                "WARNING {}: in {} frame periods it moves more than its own thickness and vanishes between \
+                 frames; contacts there can be missed. Raise the frame rate.",
+                b.id, b.vanishing_slabs
+            );
+        }
     }
     for p in &r.pairs {
         if p.interfering {

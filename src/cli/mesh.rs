@@ -408,6 +408,7 @@ struct BodyJson<'a> {
     skipped_frames: u64,
     unpaired_triangles: u64,
     misoriented_triangles: u64,
+    vanishing_slabs: u64,
 }
 
 /// The `--stats` JSON (CONTRACT.md).
@@ -437,6 +438,7 @@ pub fn stats_json(r: &MeshRun) -> String {
             skipped_frames: b.skipped,
             unpaired_triangles: b.stats.closed.unpaired + b.stats.closed.overshared,
             misoriented_triangles: b.stats.closed.misoriented,
+            vanishing_slabs: b.stats.vanishing_slabs,
         })
         .collect();
     let j = StatsJson {
@@ -488,6 +490,15 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
             s.slab_ms_p99(),
             b.skipped
         );
+        if s.vanishing_slabs > 0 {
+            tracing::warn!(
+                topic = %b.id,
+                "{} of {} slabs: consecutive frames share no occupied voxel: the body moves more than its own \
+                 thickness per frame, vanishes between frames in 4D, and contacts there can be missed; raise the frame rate",
+                s.vanishing_slabs,
+                s.slabs
+            );
+        }
         if s.frames == 1 {
             tracing::warn!(topic = %b.id, "only one frame: a 4D mesh needs at least two frames");
         }

@@ -70,6 +70,10 @@ pub struct Slab {
     pub geometry: GridGeometry,
     /// Lateral tets; vertex t ranges over [scale·k, scale·(k+1)].
     pub mesh: TetMesh,
+    /// Both frames are occupied but share no occupied voxel: the body moved more than its
+    /// own thickness in one frame period, so in 4D it vanishes between the frames and a
+    /// contact in between can be missed (the frame rate is too low for this motion).
+    pub vanishes: bool,
 }
 
 impl Slab {
@@ -253,12 +257,21 @@ impl Mesher {
                 {
                     return Err(MeshError::SlabTooComplex { limit });
                 }
+                let vanishes = prev.grid.occupied > 0
+                    && grid.occupied > 0
+                    && prev
+                        .grid
+                        .bits
+                        .iter()
+                        .zip(&grid.bits)
+                        .all(|(a, b)| a & b == 0);
                 Some(Slab {
                     index: prev.index,
                     stamp_lo_ns: prev.stamp_ns,
                     stamp_hi_ns: stamp_ns,
                     geometry,
                     mesh,
+                    vanishes,
                 })
             }
         };

@@ -52,6 +52,9 @@ pub struct BodyStats {
     pub hypervolume_lattice: f64,
     /// Milliseconds spent meshing each slab.
     pub slab_ms: Vec<f64>,
+    /// Slabs in which the body vanishes between its two frames (see
+    /// [`Slab::vanishes`]): the frame rate is too low for its motion there.
+    pub vanishing_slabs: u64,
 }
 
 impl BodyStats {
@@ -179,6 +182,7 @@ impl StatsAccumulator {
         self.prev_hi_hash = hi_hash;
 
         self.lateral_vertices += m.vertices.len() as u64;
+        self.stats.vanishing_slabs += u64::from(slab.vanishes);
         self.stats.tets += m.tets.len() as u64;
         self.stats.slabs += 1;
         self.add_volume(vol24, &slab.geometry, slab.stamp_hi_ns - slab.stamp_lo_ns);
