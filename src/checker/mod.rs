@@ -22,6 +22,7 @@ pub mod adjacency;
 pub mod contact;
 pub mod inclusion;
 pub mod labels;
+pub mod oracle;
 pub mod resolve;
 
 use crate::kernel::bvh::{overlapping_pairs, Bvh, BvhError, TraverseWorkspace};

@@ -6,10 +6,14 @@
 
 use super::CliError;
 use super::{frame_ref, EncodingArg};
+use crate::checker::oracle::{shortest_translation, MovingSphere};
+use crate::checker::resolve::{suggest_translation, Metric};
+use crate::checker::{check_pair, CommonLattice, PairResult, Prepared};
+use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::stats::{percentile, StatsAccumulator};
 use crate::mesh::{CapSide, Mesher, MesherOptions};
 use crate::msg::VoxelGrid;
-use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions};
+use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions, FOUR_SPHERES};
 use clap::{Args, Subcommand};
 use std::time::Instant;
 
@@ -42,6 +46,21 @@ pub enum BenchWhich {
         #[arg(long)]
         validate: bool,
     },
+    /// Error against run time on four-spheres: the checker's intervals, first contacts,
+    /// overlap hypervolumes and translations against the exact answers.
+    Accuracy {
+        /// Grids (frames = grid + 1 over 1 s, so c = 1 m/s at every grid).
+        #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
+        grids: Vec<u32>,
+        /// Encodings.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            value_enum,
+            default_value = "bits,percent"
+        )]
+        encodings: Vec<EncodingArg>,
+    },
 }
 
 /// Runs a benchmark and prints its figures.
@@ -66,7 +85,128 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             }
             bench_mesh(*scene, &o, *validate)
         }
+        BenchWhich::Accuracy { grids, encodings } => bench_accuracy(grids, encodings),
     }
+}
+
+fn sphere(i: usize) -> MovingSphere {
+    let p = &FOUR_SPHERES;
+    MovingSphere {
+        c0: p.centres_at_t0[i],
+        v: p.velocities[i],
+        r: p.radius,
+        t: p.t_span,
+    }
+}
+
+fn bench_accuracy(grids: &[u32], encodings: &[EncodingArg]) -> Result<(), CliError> {
+    let c = 1.0;
+    let exact_single = shortest_translation(&sphere(0), &[sphere(1)], c);
+    let exact_multi = shortest_translation(&sphere(0), &[sphere(1), sphere(2), sphere(3)], c);
+    println!(
+        "exact shortest translation of A (metric c = 1 m/s): against B {:.5} m along {:?};",
+        exact_single.0,
+        exact_single.1.map(|x| (x * 1000.0).round() / 1000.0)
+    );
+    println!(
+        "  against B, C and D at once {:.5} m along {:?}",
+        exact_multi.0,
+        exact_multi.1.map(|x| (x * 1000.0).round() / 1000.0)
+    );
+    println!();
+    println!("| grid | encoding | tets/body | mesh s | check s | resolve s | first contact err (s) | interval end err (s) | frame period (s) | overlap err | translate A vs B: got / exact | A vs B,C,D: got / exact | verified |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for &n in grids {
+        for &e in encodings {
+            let o = SceneOptions::for_scene(SceneName::FourSpheres)
+                .grid(n)
+                .frames(n + 1)
+                .encoding(e.into());
+            let scene = build_scene(SceneName::FourSpheres, &o)?;
+            let t0 = Instant::now();
+            let mut bodies = Vec::new();
+            let mut raster = Rasterizer::new();
+            let mut grid = VoxelGrid::default();
+            for b in 0..4 {
+                let mut asm = BodyAssembler::new(MesherOptions::default())?.keep_frames(true);
+                for k in 0..scene.frame_count() {
+                    scene.write_frame(b, k, &mut raster, &mut grid)?;
+                    asm.push(&frame_ref(&grid))?;
+                }
+                bodies.push(asm.finish());
+            }
+            let t_mesh = t0.elapsed().as_secs_f64();
+            let topics = scene.topics();
+            let named: Vec<(&str, &BodyMesh)> = topics
+                .iter()
+                .map(|t| t.as_str())
+                .zip(bodies.iter())
+                .collect();
+            let lat = CommonLattice::of(&named)?;
+            let t1 = Instant::now();
+            let prepared: Vec<Prepared> = named
+                .iter()
+                .map(|(id, b)| lat.prepare(id, b))
+                .collect::<Result<_, _>>()?;
+            let results: Vec<PairResult> = (1..4)
+                .map(|j| check_pair(&prepared[0], &prepared[j]))
+                .collect();
+            let t_check = t1.elapsed().as_secs_f64();
+            let origin = lat.stamps_ns[0];
+            let (mut err_first, mut err_ends, mut err_hv) = (0.0f64, 0.0f64, 0.0f64);
+            for (j, r) in results.iter().enumerate() {
+                let (x0, x1) = FOUR_SPHERES
+                    .overlap_interval(0, j + 1)
+                    .expect("A meets B, C and D");
+                let first = r
+                    .first_contact()
+                    .map_or(f64::NAN, |t| lat.time_s(t, origin));
+                let last = r
+                    .intervals
+                    .last()
+                    .map_or(f64::NAN, |iv| lat.time_s(iv.1, origin));
+                err_first = err_first.max((first - x0).abs());
+                err_ends = err_ends.max((first - x0).abs()).max((last - x1).abs());
+                let hv = overlap_hypervolume_of(&bodies[0], &bodies[j + 1]);
+                let exact = FOUR_SPHERES.overlap_hypervolume(0, j + 1);
+                err_hv = err_hv.max((hv - exact).abs() / exact);
+            }
+            let m = Metric::new(&lat, c);
+            let t2 = Instant::now();
+            let single = suggest_translation(&prepared[0], &[&prepared[1]], &[&results[0]], &m);
+            let others: Vec<&Prepared> = prepared[1..].iter().collect();
+            let rs: Vec<&PairResult> = results.iter().collect();
+            let multi = suggest_translation(&prepared[0], &others, &rs, &m);
+            let t_resolve = t2.elapsed().as_secs_f64();
+            let d = |t: &Option<crate::checker::resolve::Translation>| {
+                t.as_ref().map_or(f64::NAN, |t| t.distance_m)
+            };
+            let ok = |t: &Option<crate::checker::resolve::Translation>| {
+                t.as_ref().is_some_and(|t| t.verified_clear)
+            };
+            println!(
+                "| {n} | {:?} | {} | {t_mesh:.2} | {t_check:.2} | {t_resolve:.2} | {err_first:.4} | {err_ends:.4} | {:.4} | {:.2} % | {:.4} / {:.4} ({:+.0} %) | {:.4} / {:.4} ({:+.0} %) | {} / {} |",
+                e,
+                bodies[0].mesh.tets.len(),
+                1.0 / f64::from(n),
+                100.0 * err_hv,
+                d(&single),
+                exact_single.0,
+                100.0 * (d(&single) / exact_single.0 - 1.0),
+                d(&multi),
+                exact_multi.0,
+                100.0 * (d(&multi) / exact_multi.0 - 1.0),
+                ok(&single),
+                ok(&multi),
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Overlap hypervolume of two bodies from their intersected occupancy (see `check`).
+fn overlap_hypervolume_of(a: &BodyMesh, b: &BodyMesh) -> f64 {
+    super::check::overlap_hypervolume(a, b, MesherOptions::default()).unwrap_or(f64::NAN)
 }
 
 fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), CliError> {

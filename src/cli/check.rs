@@ -164,7 +164,7 @@ pub fn load_bodies(
 }
 
 /// Overlap hypervolume from the intersection of the two bodies' frames, meshed like a body.
-fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<f64> {
+pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<f64> {
     let (ga, gb) = (a.geometry?, b.geometry?);
     if ga != gb {
         return None;
