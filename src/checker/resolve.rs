@@ -242,7 +242,27 @@ pub fn translated(a: &Prepared, v: [i64; 4]) -> Option<Prepared> {
 
 /// True if `a` interferes with none of `others`.
 pub fn clears(a: &Prepared, others: &[&Prepared]) -> bool {
-    others.iter().all(|b| !check_pair(a, b).interfering())
+    others.iter().all(|b| !interferes(a, b))
+}
+
+/// Whether two bodies interfere: stops at the first interfering tet pair, and runs the full
+/// labelling only when no pair crosses (then only containment can make them interfere).
+pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
+    use crate::kernel::bvh::try_overlapping_pairs;
+    use crate::kernel::intersect::{classify, TetPairRelation};
+    use std::ops::ControlFlow;
+    let mut ws = TraverseWorkspace::new();
+    let hit = try_overlapping_pairs(&a.bvh, &b.bvh, &mut ws, |i, j| {
+        match classify(&tet_pts(&a.mesh, i as usize), &tet_pts(&b.mesh, j as usize)) {
+            TetPairRelation::Crossing
+            | TetPairRelation::Coplanar {
+                overlap_volume_positive: true,
+                same_orientation: true,
+            } => ControlFlow::Break(()),
+            _ => ControlFlow::Continue(()),
+        }
+    });
+    hit.is_break() || check_pair(a, b).interfering()
 }
 
 /// Suggests a translation of `a` that clears every body of `others` (`results[i]` is the
@@ -265,16 +285,31 @@ pub fn suggest_translation(
     let norm = gy.iter().map(|x| x * x).sum::<f64>().sqrt();
     let scale: f64 = g.iter().map(|x| x.abs()).sum::<f64>().max(1.0);
     let mut directions: Vec<(V4, &'static str)> = Vec::new();
-    if norm > 1e-9 * scale / m.sigma.iter().cloned().fold(f64::INFINITY, f64::min) {
-        directions.push((gy.map(|x| -x / norm), "gradient"));
-    } else {
+    let axes = |how: &'static str, out: &mut Vec<(V4, &'static str)>| {
         for k in 0..4 {
             for s in [1.0, -1.0] {
                 let mut u = [0.0; 4];
                 u[k] = s;
-                directions.push((u, "axis fallback"));
+                out.push((u, how));
             }
         }
+    };
+    if norm > 1e-9 * scale / m.sigma.iter().cloned().fold(f64::INFINITY, f64::min) {
+        // The seed's direction first, then a local search around it and the axes: the
+        // gradient is not the shortest way out when the body hits several others.
+        let ug = gy.map(|x| -x / norm);
+        directions.push((ug, "gradient"));
+        for k in 0..4 {
+            for s in [0.35, -0.35] {
+                let mut u = ug;
+                u[k] += s;
+                let n = u.iter().map(|x| x * x).sum::<f64>().sqrt();
+                directions.push((u.map(|x| x / n), "search"));
+            }
+        }
+        axes("search", &mut directions);
+    } else {
+        axes("axis fallback", &mut directions);
     }
     let mut best: Option<(f64, V4, &'static str)> = None;
     for (u, how) in directions {
@@ -291,12 +326,11 @@ pub fn suggest_translation(
         }
     }
     let (d, u, how) = best?;
-    let mut length = d;
-    let mut out = None;
-    for _ in 0..=GROWTH_STEPS {
-        // Snap to the lattice, rounding each component away from zero.
+    // Place the body at metric length `len` along u (snapped to the lattice, each component
+    // rounded away from zero) and verify exactly.
+    let place = |len: f64| {
         let v: [i64; 4] = [0, 1, 2, 3].map(|k| {
-            let x = length * u[k] / m.sigma[k];
+            let x = len * u[k] / m.sigma[k];
             (x.abs().ceil() * x.signum()) as i64
         });
         let ok = translated(a, v).is_some_and(|moved| clears(&moved, others));
@@ -304,18 +338,52 @@ pub fn suggest_translation(
             .map(|k| (v[k] as f64 * m.sigma[k]).powi(2))
             .sum::<f64>()
             .sqrt();
-        out = Some(Translation {
+        Translation {
             lattice: v,
             distance_m: dist,
             verified_clear: ok,
             direction: how,
-        });
-        if ok {
-            break;
         }
-        length *= 1.1;
+    };
+    // Grow until it clears ...
+    let (mut lo, mut hi, mut best_t) = (None, d, place(d));
+    let mut steps = 0;
+    while !best_t.verified_clear && steps < GROWTH_STEPS {
+        lo = Some(hi);
+        hi *= 1.1;
+        best_t = place(hi);
+        steps += 1;
     }
-    out
+    if !best_t.verified_clear {
+        return Some(best_t);
+    }
+    // ... probe shorter if the first try already cleared ...
+    let mut probes = 0;
+    while lo.is_none() && probes < 3 {
+        let l = hi / 1.15;
+        let t = place(l);
+        if t.verified_clear {
+            hi = l;
+            best_t = t;
+        } else {
+            lo = Some(l);
+        }
+        probes += 1;
+    }
+    // ... and bisect between the last length that failed and the first that cleared.
+    if let Some(mut lo) = lo {
+        for _ in 0..4 {
+            let mid = 0.5 * (lo + hi);
+            let t = place(mid);
+            if t.verified_clear {
+                hi = mid;
+                best_t = t;
+            } else {
+                lo = mid;
+            }
+        }
+    }
+    Some(best_t)
 }
 
 /// Suggests a time scaling of `a` about t0 that clears every body of `others`.

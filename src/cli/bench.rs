@@ -60,6 +60,9 @@ pub enum BenchWhich {
             default_value = "bits,percent"
         )]
         encodings: Vec<EncodingArg>,
+        /// Also write a log-log plot of the errors against the run time (SVG).
+        #[arg(long)]
+        svg: Option<std::path::PathBuf>,
     },
 }
 
@@ -85,7 +88,11 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             }
             bench_mesh(*scene, &o, *validate)
         }
-        BenchWhich::Accuracy { grids, encodings } => bench_accuracy(grids, encodings),
+        BenchWhich::Accuracy {
+            grids,
+            encodings,
+            svg,
+        } => bench_accuracy(grids, encodings, svg.as_deref()),
     }
 }
 
@@ -99,7 +106,12 @@ fn sphere(i: usize) -> MovingSphere {
     }
 }
 
-fn bench_accuracy(grids: &[u32], encodings: &[EncodingArg]) -> Result<(), CliError> {
+fn bench_accuracy(
+    grids: &[u32],
+    encodings: &[EncodingArg],
+    svg: Option<&std::path::Path>,
+) -> Result<(), CliError> {
+    let mut points: Vec<(String, f64, f64)> = Vec::new();
     let c = 1.0;
     let exact_single = shortest_translation(&sphere(0), &[sphere(1)], c);
     let exact_multi = shortest_translation(&sphere(0), &[sphere(1), sphere(2), sphere(3)], c);
@@ -181,6 +193,14 @@ fn bench_accuracy(grids: &[u32], encodings: &[EncodingArg]) -> Result<(), CliErr
             let d = |t: &Option<crate::checker::resolve::Translation>| {
                 t.as_ref().map_or(f64::NAN, |t| t.distance_m)
             };
+            let run = t_mesh + t_check + t_resolve;
+            points.push((format!("first contact ({e:?})"), run, err_first));
+            points.push((format!("overlap rel. ({e:?})"), run, err_hv));
+            points.push((
+                format!("translation rel. ({e:?})"),
+                run,
+                (d(&multi) / exact_multi.0 - 1.0).abs(),
+            ));
             let ok = |t: &Option<crate::checker::resolve::Translation>| {
                 t.as_ref().is_some_and(|t| t.verified_clear)
             };
@@ -201,7 +221,82 @@ fn bench_accuracy(grids: &[u32], encodings: &[EncodingArg]) -> Result<(), CliErr
             );
         }
     }
+    if let Some(path) = svg {
+        std::fs::write(path, error_plot(&points)).map_err(|source| CliError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+    }
     Ok(())
+}
+
+/// A log-log SVG of (series, run time s, error) points, one polyline per series.
+fn error_plot(points: &[(String, f64, f64)]) -> String {
+    let pts: Vec<&(String, f64, f64)> = points
+        .iter()
+        .filter(|p| p.1 > 0.0 && p.2 > 0.0 && p.2.is_finite())
+        .collect();
+    let (w, h, m) = (720.0, 440.0, 60.0);
+    let lx = |v: f64| v.log10();
+    let (x0, x1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+        (a.0.min(lx(p.1)), a.1.max(lx(p.1)))
+    });
+    let (y0, y1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
+        (a.0.min(lx(p.2)), a.1.max(lx(p.2)))
+    });
+    let (x0, x1, y0, y1) = (
+        x0.floor(),
+        x1.ceil().max(x0.floor() + 1.0),
+        y0.floor(),
+        y1.ceil().max(y0.floor() + 1.0),
+    );
+    let sx = |v: f64| m + (lx(v) - x0) / (x1 - x0) * (w - 2.0 * m);
+    let sy = |v: f64| h - m - (lx(v) - y0) / (y1 - y0) * (h - 2.0 * m);
+    let mut out = format!("<svg xmlns='http://www.w3.org/2000/svg' width='{w}' height='{h}' font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' fill='white'/>\n");
+    out += &format!("<line x1='{m}' y1='{}' x2='{}' y2='{}' stroke='black'/><line x1='{m}' y1='{m}' x2='{m}' y2='{}' stroke='black'/>\n", h - m, w - m, h - m, h - m);
+    for e in (x0 as i32)..=(x1 as i32) {
+        let x = m + (f64::from(e) - x0) / (x1 - x0) * (w - 2.0 * m);
+        out += &format!(
+            "<text x='{x}' y='{}' text-anchor='middle'>1e{e} s</text>\n",
+            h - m + 18.0
+        );
+    }
+    for e in (y0 as i32)..=(y1 as i32) {
+        let y = h - m - (f64::from(e) - y0) / (y1 - y0) * (h - 2.0 * m);
+        out += &format!(
+            "<text x='{}' y='{y}' text-anchor='end'>1e{e}</text>\n",
+            m - 6.0
+        );
+    }
+    out += &format!("<text x='{}' y='20' text-anchor='middle'>four-spheres: error against run time (grids 32..128)</text>\n", w / 2.0);
+    let colours = [
+        "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b",
+    ];
+    let mut series: Vec<&str> = pts.iter().map(|p| p.0.as_str()).collect();
+    series.sort_unstable();
+    series.dedup();
+    for (i, name) in series.iter().enumerate() {
+        let c = colours[i % colours.len()];
+        let line: Vec<String> = pts
+            .iter()
+            .filter(|p| p.0 == *name)
+            .map(|p| format!("{:.1},{:.1}", sx(p.1), sy(p.2)))
+            .collect();
+        out += &format!(
+            "<polyline fill='none' stroke='{c}' stroke-width='2' points='{}'/>\n",
+            line.join(" ")
+        );
+        for xy in &line {
+            let (x, y) = xy.split_once(',').unwrap_or(("0", "0"));
+            out += &format!("<circle cx='{x}' cy='{y}' r='3' fill='{c}'/>\n");
+        }
+        out += &format!(
+            "<text x='{}' y='{}' fill='{c}'>{name}</text>\n",
+            w - m - 170.0,
+            m + 16.0 * i as f64
+        );
+    }
+    out + "</svg>\n"
 }
 
 /// Overlap hypervolume of two bodies from their intersected occupancy (see `check`).
