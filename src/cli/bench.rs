@@ -232,11 +232,14 @@ fn bench_accuracy(
 
 /// A log-log SVG of (series, run time s, error) points, one polyline per series.
 fn error_plot(points: &[(String, f64, f64)]) -> String {
-    let pts: Vec<&(String, f64, f64)> = points
+    // Errors below 1e-4 (e.g. an exact hit) are drawn at 1e-4.
+    let floored: Vec<(String, f64, f64)> = points
         .iter()
-        .filter(|p| p.1 > 0.0 && p.2 > 0.0 && p.2.is_finite())
+        .filter(|p| p.1 > 0.0 && p.2.is_finite())
+        .map(|p| (p.0.clone(), p.1, p.2.max(1e-4)))
         .collect();
-    let (w, h, m) = (720.0, 440.0, 60.0);
+    let pts: Vec<&(String, f64, f64)> = floored.iter().collect();
+    let (w, h, m, legend) = (900.0, 440.0, 60.0, 200.0);
     let lx = |v: f64| v.log10();
     let (x0, x1) = pts.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, p| {
         (a.0.min(lx(p.1)), a.1.max(lx(p.1)))
@@ -250,12 +253,12 @@ fn error_plot(points: &[(String, f64, f64)]) -> String {
         y0.floor(),
         y1.ceil().max(y0.floor() + 1.0),
     );
-    let sx = |v: f64| m + (lx(v) - x0) / (x1 - x0) * (w - 2.0 * m);
+    let sx = |v: f64| m + (lx(v) - x0) / (x1 - x0) * (w - legend - 2.0 * m);
     let sy = |v: f64| h - m - (lx(v) - y0) / (y1 - y0) * (h - 2.0 * m);
     let mut out = format!("<svg xmlns='http://www.w3.org/2000/svg' width='{w}' height='{h}' font-family='sans-serif' font-size='12'>\n<rect width='100%' height='100%' fill='white'/>\n");
-    out += &format!("<line x1='{m}' y1='{}' x2='{}' y2='{}' stroke='black'/><line x1='{m}' y1='{m}' x2='{m}' y2='{}' stroke='black'/>\n", h - m, w - m, h - m, h - m);
+    out += &format!("<line x1='{m}' y1='{}' x2='{}' y2='{}' stroke='black'/><line x1='{m}' y1='{m}' x2='{m}' y2='{}' stroke='black'/>\n", h - m, w - legend - m, h - m, h - m);
     for e in (x0 as i32)..=(x1 as i32) {
-        let x = m + (f64::from(e) - x0) / (x1 - x0) * (w - 2.0 * m);
+        let x = m + (f64::from(e) - x0) / (x1 - x0) * (w - legend - 2.0 * m);
         out += &format!(
             "<text x='{x}' y='{}' text-anchor='middle'>1e{e} s</text>\n",
             h - m + 18.0
@@ -268,7 +271,7 @@ fn error_plot(points: &[(String, f64, f64)]) -> String {
             m - 6.0
         );
     }
-    out += &format!("<text x='{}' y='20' text-anchor='middle'>four-spheres: error against run time (grids 32..128)</text>\n", w / 2.0);
+    out += &format!("<text x='{}' y='20' text-anchor='middle'>four-spheres: error against run time (mesh + check + resolve), one point per grid; errors below 1e-4 drawn at 1e-4</text>\n", (w - legend) / 2.0);
     let colours = [
         "#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b",
     ];

@@ -82,9 +82,10 @@ pub struct PairReport {
     pub overlap_hypervolume_m3s: Option<f64>,
     /// Label counts.
     pub labels: PairLabels,
-    /// Half a frame period at the first contact (s): how far the contact time can be off
-    /// because the motion between frames is interpolated (extra field).
-    pub first_contact_bound_s: Option<f64>,
+    /// The frame period at the first contact (s), the time resolution of the input (extra
+    /// field; a full error bound, which also needs the voxel size over the relative speed,
+    /// is not computed yet).
+    pub frame_period_s: Option<f64>,
     /// Candidate tet pairs from the trees (extra field).
     pub candidate_pairs: u64,
     /// Tet pairs whose boundaries cross (extra field).
@@ -344,7 +345,7 @@ fn pair_report(
         first_contact_s: first.map(|t| lat.time_s(t, origin)),
         overlap_hypervolume_m3s: hv,
         labels: PairLabels { a: ca, b: cb },
-        first_contact_bound_s: first.map(|t| 0.5 * lat.period_s(t)),
+        frame_period_s: first.map(|t| lat.period_s(t)),
         candidate_pairs: r.candidate_pairs,
         crossing_pairs: r.interfering_pairs,
     }
@@ -384,11 +385,11 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
                 .map(|[s, e]| format!("{s:.3}-{e:.3} s"))
                 .collect();
             println!(
-                "COLLIDE {} x {}: first contact {:.3} s (±{:.3}), during {}; overlap {:.4e} m3s",
+                "COLLIDE {} x {}: first contact {:.3} s (frame period {:.3} s), during {}; overlap {:.4e} m3s",
                 p.a,
                 p.b,
                 p.first_contact_s.unwrap_or(f64::NAN),
-                p.first_contact_bound_s.unwrap_or(f64::NAN),
+                p.frame_period_s.unwrap_or(f64::NAN),
                 spans.join(", "),
                 p.overlap_hypervolume_m3s.unwrap_or(f64::NAN)
             );
