@@ -5,23 +5,9 @@
 
 use crate::kernel::{orient4_i128, LatticePoint};
 
+use crate::kernel::float::{cross4, det4, dot4 as dot, sub4 as sub};
+
 type P = [f64; 4];
-
-fn sub(a: &P, b: &P) -> P {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]]
-}
-
-fn det4(a: &P, b: &P, c: &P, d: &P) -> f64 {
-    let s = |i: usize, j: usize| c[i] * d[j] - c[j] * d[i];
-    let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
-    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3)
-        - t(1, 3) * s(0, 2)
-        + t(2, 3) * s(0, 1)
-}
-
-fn dot(a: &P, b: &P) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3]
-}
 
 /// The t-range of τ_A ∩ τ_B for two tets whose boundaries cross, or `None` if the section
 /// is empty (then the caller keeps the conservative range).
@@ -83,11 +69,7 @@ pub fn crossing_t_range(a: &[LatticePoint; 4], b: &[LatticePoint; 4]) -> Option<
         sub(&bf[2], &bf[0]),
         sub(&bf[3], &bf[0]),
     ];
-    let normal: P = [0, 1, 2, 3].map(|k| {
-        let mut unit = [0.0; 4];
-        unit[k] = 1.0;
-        det4(&e[0], &e[1], &e[2], &unit)
-    });
+    let normal: P = cross4(&e[0], &e[1], &e[2]);
     for i in 0..4 {
         let face: Vec<&P> = (0..4).filter(|&j| j != i).map(|j| &bf[j]).collect();
         let (f0, f1, f2) = (face[0], face[1], face[2]);

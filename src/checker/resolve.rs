@@ -82,24 +82,7 @@ fn tet_pts(m: &crate::mesh::TetMesh, i: usize) -> [LatticePoint; 4] {
     m.tets[i].map(|v| m.vertices[v as usize])
 }
 
-/// N with N·x = det[b−a, c−a, d−a, x] (outward for our orientation), as floats.
-fn normal(t: &[LatticePoint; 4]) -> V4 {
-    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| f64::from(q[k] - t[0][k]));
-    let (u, v, w) = (d(&t[1]), d(&t[2]), d(&t[3]));
-    [0, 1, 2, 3].map(|k| {
-        let mut e = [0.0; 4];
-        e[k] = 1.0;
-        det4(&u, &v, &w, &e)
-    })
-}
-
-fn det4(a: &V4, b: &V4, c: &V4, d: &V4) -> f64 {
-    let s = |i: usize, j: usize| c[i] * d[j] - c[j] * d[i];
-    let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
-    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3)
-        - t(1, 3) * s(0, 2)
-        + t(2, 3) * s(0, 1)
-}
+use crate::kernel::float::{det4, tet_normal as normal};
 
 fn centroid(t: &[LatticePoint; 4]) -> V4 {
     [0, 1, 2, 3].map(|k| t.iter().map(|p| f64::from(p[k])).sum::<f64>() / 4.0)
@@ -228,6 +211,14 @@ fn overlap_gradient(a: &Prepared, results: &[&PairResult]) -> V4 {
     g
 }
 
+/// Indices of the pairs that interfere, or `None` if nothing does.
+fn interfering(results: &[&PairResult]) -> Option<Vec<usize>> {
+    let hits: Vec<usize> = (0..results.len())
+        .filter(|&i| results[i].interfering())
+        .collect();
+    (!hits.is_empty()).then_some(hits)
+}
+
 /// A copy of `a` translated by an integer lattice vector (None if it leaves the lattice's
 /// range).
 pub fn translated(a: &Prepared, v: [i64; 4]) -> Option<Prepared> {
@@ -273,12 +264,7 @@ pub fn suggest_translation(
     results: &[&PairResult],
     m: &Metric,
 ) -> Option<Translation> {
-    let hits: Vec<usize> = (0..others.len())
-        .filter(|&i| results[i].interfering())
-        .collect();
-    if hits.is_empty() {
-        return None;
-    }
+    let hits = interfering(results)?;
     let g = overlap_gradient(a, results);
     // Gradient in metric coordinates y = σ x: covariant, so g_y,k ∝ g_k / σ_k.
     let gy: V4 = [0, 1, 2, 3].map(|k| g[k] / m.sigma[k]);
@@ -393,12 +379,7 @@ pub fn suggest_time_scaling(
     results: &[&PairResult],
     lat: &CommonLattice,
 ) -> Option<TimeScaling> {
-    let hits: Vec<usize> = (0..others.len())
-        .filter(|&i| results[i].interfering())
-        .collect();
-    if hits.is_empty() {
-        return None;
-    }
+    let hits = interfering(results)?;
     let g = overlap_gradient(a, results);
     let sign = if g[3] > 0.0 { -1.0 } else { 1.0 };
     let dir = [0.0, 0.0, 0.0, sign];

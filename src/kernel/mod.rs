@@ -4,6 +4,7 @@
 //! [`LatticePoint`]s (integers) with exact arithmetic; floats appear only when a result is
 //! reported in metres and seconds (see [`LatticeFrame`]). Knows nothing of ROS, MCAP or tokio.
 
+pub mod float;
 mod lattice;
 mod predicates;
 
