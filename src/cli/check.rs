@@ -222,30 +222,35 @@ pub fn check_bag(
         if time_scale.is_none() {
             c = lat.resolution / period;
         }
-        let prepared: Vec<_> = named
-            .iter()
-            .map(|(id, b)| lat.prepare(id, b))
+        // Bodies are prepared, and pairs checked, on all cores: they are independent.
+        let prepared: Vec<_> = par_map(named.len(), |i| lat.prepare(named[i].0, named[i].1))
+            .into_iter()
             .collect::<Result<_, _>>()?;
+        let jobs: Vec<(usize, usize)> = (0..prepared.len())
+            .flat_map(|i| (i + 1..prepared.len()).map(move |j| (i, j)))
+            .collect();
+        let results = par_map(jobs.len(), |k| {
+            let (i, j) = jobs[k];
+            let r = check_pair(&prepared[i], &prepared[j]);
+            let hv = if r.interfering() {
+                overlap_hypervolume(named[i].1, named[j].1, opts)
+            } else {
+                Some(0.0)
+            };
+            (r, hv)
+        });
         let mut first_results = Vec::new();
-        for i in 0..prepared.len() {
-            for j in i + 1..prepared.len() {
-                let r = check_pair(&prepared[i], &prepared[j]);
-                let hv = if r.interfering() {
-                    overlap_hypervolume(named[i].1, named[j].1, opts)
-                } else {
-                    Some(0.0)
-                };
-                pairs.push(pair_report(
-                    named[i].0,
-                    named[j].0,
-                    &r,
-                    hv,
-                    &lat,
-                    time_origin_ns,
-                ));
-                if i == 0 {
-                    first_results.push(r);
-                }
+        for (&(i, j), (r, hv)) in jobs.iter().zip(results) {
+            pairs.push(pair_report(
+                named[i].0,
+                named[j].0,
+                &r,
+                hv,
+                &lat,
+                time_origin_ns,
+            ));
+            if i == 0 {
+                first_results.push(r);
             }
         }
         let t0 = Instant::now();
@@ -282,6 +287,41 @@ pub fn check_bag(
             total: ms(start.elapsed()),
         },
     })
+}
+
+/// `f(0..n)` computed on all available cores, results in index order.
+pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(n.max(1));
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    let done: Vec<Vec<(usize, T)>> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if k >= n {
+                            break mine;
+                        }
+                        mine.push((k, f(k)));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().expect("worker panicked"))
+            .collect()
+    });
+    for (k, v) in done.into_iter().flatten() {
+        out[k] = Some(v);
+    }
+    out.into_iter()
+        .map(|v| v.expect("every index computed"))
+        .collect()
 }
 
 /// Translation and time scaling of the first body against all the others.
