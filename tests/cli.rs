@@ -277,3 +277,92 @@ fn bad_command_lines_are_refused() {
         );
     }
 }
+
+#[test]
+fn check_writes_the_contract_report() {
+    let d = tmp();
+    let root = env!("CARGO_MANIFEST_DIR");
+    let report = p(d.path(), "out/report.json");
+    let out = run_ok(&[
+        "check",
+        &format!("{root}/bags/four-spheres-32-bits.mcap"),
+        "--report",
+        &report,
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("COLLIDE /sphere_a/occupancy x /sphere_b/occupancy"),
+        "{text}"
+    );
+    let j = read_json(&report);
+    assert_eq!(j["schema"], "chronotope.report/1");
+    assert_eq!(j["time_origin_ns"], 1_700_000_000_000_000_000i64);
+    assert!(
+        (j["time_scale_m_per_s"].as_f64().unwrap() - (1.0 / 32.0) / (1.0 / 16.0)).abs() < 1e-12
+    );
+    let bodies = j["bodies"].as_array().unwrap();
+    assert_eq!(bodies.len(), 4);
+    for b in bodies {
+        for key in [
+            "id",
+            "frames",
+            "tets",
+            "vertices",
+            "closed",
+            "hypervolume_m3s",
+        ] {
+            assert!(b.get(key).is_some(), "missing {key}");
+        }
+        assert_eq!(b["closed"], true);
+    }
+    let pairs = j["pairs"].as_array().unwrap();
+    assert_eq!(pairs.len(), 6);
+    for p in pairs {
+        for key in [
+            "a",
+            "b",
+            "interfering",
+            "intervals_s",
+            "first_contact_s",
+            "overlap_hypervolume_m3s",
+            "labels",
+        ] {
+            assert!(p.get(key).is_some(), "missing {key}");
+        }
+        for side in ["a", "b"] {
+            for k in ["interference", "inside", "outside"] {
+                assert!(p["labels"][side][k].is_u64());
+            }
+        }
+        // Exactly the pairs with A overlap (B, C and D never meet).
+        let with_a = p["a"] == "/sphere_a/occupancy";
+        assert_eq!(p["interfering"], with_a, "{p}");
+    }
+    let res = j["resolutions"].as_array().unwrap();
+    let translate = res
+        .iter()
+        .find(|r| r["kind"] == "translate")
+        .expect("a translation");
+    assert_eq!(translate["body"], "/sphere_a/occupancy");
+    assert_eq!(translate["vector"].as_array().unwrap().len(), 4);
+    assert_eq!(translate["verified_clear"], true);
+    let v: Vec<f64> = translate["vector"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let c = j["time_scale_m_per_s"].as_f64().unwrap();
+    let dist = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + (c * v[3]).powi(2)).sqrt();
+    assert!((dist - translate["distance"].as_f64().unwrap()).abs() < 1e-9);
+    let scale = res
+        .iter()
+        .find(|r| r["kind"] == "time_scale")
+        .expect("a time scaling");
+    assert!(
+        scale["t0_s"].is_f64() && scale["scale"].is_f64() && scale["verified_clear"].is_boolean()
+    );
+    for k in ["mesh", "check", "resolve", "total"] {
+        assert!(j["timings_ms"][k].as_f64().unwrap() >= 0.0);
+    }
+}
