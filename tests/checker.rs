@@ -398,3 +398,19 @@ mod stiff {
         assert_eq!(body.stats.vanishing_slabs, 0);
     }
 }
+
+#[test]
+fn bodies_too_far_apart_for_one_lattice_are_refused_not_wrapped() {
+    let size = [4, 4, 4];
+    let a = static_body(size, 3, in_box([1, 1, 1], [2, 2, 2]));
+    let mut b = a.clone();
+    // 1e8 voxels away: on the ×8 checker lattice that exceeds i32.
+    let g = b.geometry.as_mut().unwrap();
+    g.origin[0] += 1e8 * g.resolution;
+    let lat = CommonLattice::of(&[("a", &a), ("b", &b)]).unwrap();
+    assert!(lat.prepare("a", &a).is_ok());
+    assert!(matches!(
+        lat.prepare("b", &b),
+        Err(chronotope::checker::CheckError::LatticeMismatch { .. })
+    ));
+}

@@ -226,16 +226,36 @@ impl CommonLattice {
             reason,
         })?;
         let frame0 = self.stamps_ns.binary_search(&b.stamps_ns[0]).unwrap_or(0) as i64;
-        let shift: LatticePoint = [
-            (voxels[0] * self.per_step()) as i32,
-            (voxels[1] * self.per_step()) as i32,
-            (voxels[2] * self.per_step()) as i32,
-            (frame0 * self.per_step()) as i32,
+        // Checker coordinates must fit in i32 with room for far points (2^30): bodies far
+        // apart on a fine lattice are refused, never wrapped.
+        let too_far = || {
+            CheckError::LatticeMismatch {
+            a: "reference".into(),
+            b: id.to_string(),
+            reason: "checker lattice coordinates would overflow (bodies too far apart, or grids too large \
+                     for a common fine lattice)"
+                .into(),
+        }
+        };
+        const LIMIT: i64 = 1 << 30;
+        let fit = |v: i64| {
+            if v.abs() < LIMIT {
+                Ok(v)
+            } else {
+                Err(too_far())
+            }
+        };
+        let step = self.per_step();
+        let shift = [
+            fit(voxels[0].saturating_mul(step))?,
+            fit(voxels[1].saturating_mul(step))?,
+            fit(voxels[2].saturating_mul(step))?,
+            fit(frame0.saturating_mul(step))?,
         ];
         let mut mesh = b.mesh.clone();
         for p in &mut mesh.vertices {
             for k in 0..4 {
-                p[k] = p[k] * factor + shift[k];
+                p[k] = fit(i64::from(p[k]) * i64::from(factor) + shift[k])? as i32;
             }
         }
         let bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {

@@ -225,7 +225,12 @@ pub fn translated(a: &Prepared, v: [i64; 4]) -> Option<Prepared> {
     let mut mesh = a.mesh.clone();
     for p in &mut mesh.vertices {
         for k in 0..4 {
-            p[k] = (i64::from(p[k]) + v[k]).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            // Beyond ±2^30 the exact predicates' far points would not fit: refuse, never clamp.
+            let x = i64::from(p[k]).checked_add(v[k])?;
+            if x.abs() >= 1 << 30 {
+                return None;
+            }
+            p[k] = x as i32;
         }
     }
     a.with_mesh(mesh).ok()
