@@ -30,14 +30,7 @@ fn static_body(
     frames: usize,
     occ: impl Fn(usize, usize, usize) -> bool + Copy,
 ) -> BodyMesh {
-    let f: Vec<TestFrame> = (0..frames)
-        .map(|k| TestFrame {
-            stamp_ns: 1_000_000 * k as i64,
-            encoding: 0,
-            data: bits_data(size, occ),
-        })
-        .collect();
-    assemble(&f, size)
+    body_over(size, 0..frames, occ)
 }
 
 fn in_box(lo: [usize; 3], hi: [usize; 3]) -> impl Fn(usize, usize, usize) -> bool + Copy {
@@ -284,7 +277,7 @@ mod resolution {
         assert!(t.verified_clear, "{t:?}");
         // Along time the small body leaves the big one by shifting past its end: a scaling
         // about an end of its span cannot do that, and the report says so honestly.
-        if let Some(ts) = suggest_time_scaling(&ps, &[&pb], &[&r], &lat) {
+        if let Some(ts) = suggest_time_scaling(&ps, &[&pb], &[&r]) {
             assert!(ts.scale.is_finite() && ts.scale > 0.0);
         }
     }

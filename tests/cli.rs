@@ -366,3 +366,38 @@ fn check_writes_the_contract_report() {
         assert!(j["timings_ms"][k].as_f64().unwrap() >= 0.0);
     }
 }
+
+#[test]
+fn topics_beyond_the_body_limit_are_refused_and_listed() {
+    let d = tmp();
+    let bag = d.path().join("many.mcap");
+    let size = [2u32, 2, 2];
+    let mut w = BagWriter::create(&bag).unwrap();
+    let n = chronotope::cli::MAX_BODIES + 44;
+    for b in 0..n {
+        w.add_topic::<VoxelGrid>(&format!("/b{b:03}/occupancy"))
+            .unwrap();
+    }
+    for k in 0..2i64 {
+        for b in 0..n {
+            let g = grid(1_000 * (k + 1), size, vec![0b0000_0001]);
+            w.write(
+                &format!("/b{b:03}/occupancy"),
+                g.header.stamp.as_nanos() as u64,
+                &g,
+            )
+            .unwrap();
+        }
+    }
+    w.finish().unwrap();
+    let stats = p(d.path(), "s.json");
+    run_ok(&["mesh", bag.to_str().unwrap(), "--stats", &stats]);
+    let j = read_json(&stats);
+    assert_eq!(
+        j["bodies"].as_array().unwrap().len(),
+        chronotope::cli::MAX_BODIES
+    );
+    let errors = j["bag_errors"].as_array().unwrap();
+    assert_eq!(errors.len(), 44);
+    assert!(errors[0].as_str().unwrap().contains("not read"));
+}

@@ -281,15 +281,7 @@ impl CommonLattice {
 
     /// Seconds since `origin_ns` of checker time `t` (piecewise linear between frames).
     pub fn time_s(&self, t: f64, origin_ns: i64) -> f64 {
-        let per = self.per_step() as f64;
-        let n = self.stamps_ns.len() as i64;
-        let k = ((t / per).floor() as i64).clamp(0, n - 2);
-        let frac = (t - k as f64 * per) / per;
-        let (a, b) = (
-            self.stamps_ns[k as usize] - origin_ns,
-            self.stamps_ns[k as usize + 1] - origin_ns,
-        );
-        (a as f64 + frac * (b - a) as f64) * 1e-9
+        crate::kernel::stamp_time_s(&self.stamps_ns, self.per_step() as f64, t, origin_ns)
     }
 
     /// Length of one frame period containing checker time `t` (s).

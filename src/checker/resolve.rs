@@ -382,7 +382,6 @@ pub fn suggest_time_scaling(
     a: &Prepared,
     others: &[&Prepared],
     results: &[&PairResult],
-    lat: &CommonLattice,
 ) -> Option<TimeScaling> {
     let hits = interfering(results)?;
     let g = overlap_gradient(a, results);
@@ -443,7 +442,6 @@ pub fn suggest_time_scaling(
         }
         s = if s >= 1.0 { s * 1.1 } else { s / 1.1 };
     }
-    let _ = lat;
     out
 }
 

@@ -4,8 +4,7 @@
 //! (`chronotope.report/1`).
 
 use super::mesh::{mesher_options_from, MesherArgs};
-use super::{frame_ref, CliError};
-use crate::bag::{voxel_frames, FrameError};
+use super::{frame_ref, BagFrames, CliError};
 use crate::checker::labels::LabelCounts;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{check_pair, CommonLattice, PairResult};
@@ -132,36 +131,30 @@ pub fn load_bodies(
     path: &Path,
     opts: MesherOptions,
 ) -> Result<BTreeMap<String, BodyMesh>, CliError> {
-    let mut asm: BTreeMap<String, BodyAssembler> = BTreeMap::new();
-    for item in voxel_frames(path)? {
-        match item {
-            Ok((topic, grid)) => {
-                let a = match asm.entry(topic.clone()) {
-                    std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
-                    std::collections::btree_map::Entry::Vacant(e) => {
-                        e.insert(BodyAssembler::new(opts)?.keep_frames(true))
-                    }
-                };
-                if let Err(e) = a.push(&frame_ref(&grid)) {
-                    tracing::warn!(topic = %topic, stamp_ns = grid.header.stamp.as_nanos(), "skipping frame: {e}");
-                }
+    let mut asm: BTreeMap<String, (BodyAssembler, u64)> = BTreeMap::new();
+    for (topic, grid) in BagFrames::open(path)? {
+        let (a, undecodable) = match asm.entry(topic.clone()) {
+            std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::btree_map::Entry::Vacant(e) => {
+                e.insert((BodyAssembler::new(opts)?.keep_frames(true), 0))
             }
-            Err(FrameError::Decode {
-                topic,
-                log_time_ns,
-                reason,
-            }) => {
-                tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
-            }
-            Err(FrameError::Bag(e)) => {
-                tracing::error!("{e}");
-                if e.is_fatal() {
-                    break;
-                }
-            }
+        };
+        let Some(grid) = grid else {
+            *undecodable += 1;
+            continue;
+        };
+        if let Err(e) = a.push(&frame_ref(&grid)) {
+            tracing::warn!(topic = %topic, stamp_ns = grid.header.stamp.as_nanos(), "skipping frame: {e}");
         }
     }
-    Ok(asm.into_iter().map(|(k, a)| (k, a.finish())).collect())
+    Ok(asm
+        .into_iter()
+        .map(|(k, (a, undecodable))| {
+            let mut body = a.finish();
+            body.skipped += undecodable;
+            (k, body)
+        })
+        .collect())
 }
 
 /// Overlap hypervolume from the intersection of the two bodies' frames, meshed like a body.
@@ -354,7 +347,7 @@ fn resolve_first(
     } else {
         tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
     }
-    if let Some(ts) = suggest_time_scaling(a, &others, &rs, lat) {
+    if let Some(ts) = suggest_time_scaling(a, &others, &rs) {
         out.push(serde_json::json!({
             "body": a.id, "kind": "time_scale", "t0_s": lat.time_s(ts.t0 as f64, origin), "scale": ts.scale,
             "verified_clear": ts.verified_clear,

@@ -5,9 +5,8 @@
 //! few frames and one slab per body, whatever the bag's length. A frame that cannot be
 //! decoded or meshed is logged with its topic, stamp and reason, counted, and skipped.
 
-use super::frame_ref;
 use super::CliError;
-use crate::bag::{voxel_frames, FrameError};
+use super::{frame_ref, BagFrames};
 use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
 use crate::mesh::stats::{BodyStats, StatsAccumulator};
 use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, Slab, TetMesh};
@@ -110,8 +109,6 @@ pub struct MeshRun {
     pub seconds_total: f64,
     /// Peak RSS (MB).
     pub peak_rss_mb: f64,
-    /// Earliest stamp of any accepted frame (ns).
-    pub time_origin_ns: i64,
     /// Problems with the bag itself (corrupt chunks, truncation), in reading order.
     pub bag_errors: Vec<String>,
 }
@@ -126,10 +123,6 @@ pub fn mesher_options_from(a: &MesherArgs) -> MesherOptions {
     o.decode.unknown_occupied = !a.unknown_free;
     o
 }
-
-/// Most bodies (VoxelGrid topics) meshed from one bag; frames of further topics are
-/// refused, logged and listed in `bag_errors`.
-pub const MAX_BODIES: usize = 256;
 
 enum Job {
     Frame(Box<VoxelGrid>),
@@ -148,60 +141,31 @@ pub fn mesh_bag(
 ) -> Result<MeshRun, CliError> {
     let start = Instant::now();
     Mesher::new(opts)?; // refuse bad options before reading anything
-    let frames = voxel_frames(path)?;
+    let mut frames = BagFrames::open(path)?;
     let mut bag_errors = Vec::new();
     let bodies = std::thread::scope(|scope| {
         let mut senders = BTreeMap::new();
         let mut handles = Vec::new();
         let mut refused = std::collections::BTreeSet::new();
-        for item in frames {
-            let (topic, job) = match item {
-                Ok((topic, grid)) => (topic, Job::Frame(Box::new(grid))),
-                Err(FrameError::Decode {
-                    topic,
-                    log_time_ns,
-                    reason,
-                }) => {
-                    tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
-                    (topic, Job::Undecodable)
-                }
-                Err(FrameError::Bag(e)) => {
-                    let fatal = e.is_fatal();
-                    tracing::error!(
-                        "{e}{}",
-                        if fatal {
-                            "; meshing what was read before it"
-                        } else {
-                            "; reading on"
-                        }
-                    );
-                    bag_errors.push(e.to_string());
-                    if fatal {
-                        break;
-                    }
-                    continue;
-                }
+        for (topic, grid) in frames.by_ref() {
+            let job = match grid {
+                Some(grid) => Job::Frame(Box::new(grid)),
+                None => Job::Undecodable,
             };
             if !senders.contains_key(&topic) {
                 if refused.contains(&topic) {
                     continue;
                 }
-                let spawned = if senders.len() >= MAX_BODIES {
-                    Err(format!(
-                        "more than {MAX_BODIES} VoxelGrid topics in one bag"
-                    ))
-                } else {
-                    let (tx, rx) = sync_channel::<Job>(2);
-                    let name = topic.clone();
-                    std::thread::Builder::new()
-                        .name(format!("mesh {topic}"))
-                        .spawn_scoped(scope, move || body_worker(name, rx, opts, slices))
-                        .map(|h| {
-                            handles.push(h);
-                            tx
-                        })
-                        .map_err(|e| format!("cannot start a worker: {e}"))
-                };
+                let (tx, rx) = sync_channel::<Job>(2);
+                let name = topic.clone();
+                let spawned = std::thread::Builder::new()
+                    .name(format!("mesh {topic}"))
+                    .spawn_scoped(scope, move || body_worker(name, rx, opts, slices))
+                    .map(|h| {
+                        handles.push(h);
+                        tx
+                    })
+                    .map_err(|e| format!("cannot start a worker: {e}"));
                 match spawned {
                     Ok(tx) => {
                         senders.insert(topic.clone(), tx);
@@ -226,17 +190,14 @@ pub fn mesh_bag(
         bodies.sort_by(|a, b| a.id.cmp(&b.id));
         bodies
     });
-    let time_origin_ns = bodies
-        .iter()
-        .filter_map(|b| b.stamps_ns.first().copied())
-        .min()
-        .unwrap_or(0);
+    // Bag problems first (in reading order), then refused topics.
+    let mut errors = frames.errors;
+    errors.extend(bag_errors);
     Ok(MeshRun {
         bodies,
         seconds_total: start.elapsed().as_secs_f64(),
         peak_rss_mb: super::peak_rss_mb(),
-        time_origin_ns,
-        bag_errors,
+        bag_errors: errors,
     })
 }
 
@@ -563,20 +524,9 @@ fn slice_to_world(axis: usize, g: &GridGeometry, b: &BodyResult) -> impl Fn(&[f6
             out[m] = if k < 3 {
                 c[k] + p[m] * step
             } else {
-                seconds_at(&stamps, p[m] / s)
+                crate::kernel::stamp_time_s(&stamps, s, p[m], stamps.first().copied().unwrap_or(0))
             };
         }
         out
     }
-}
-
-/// Seconds after the first stamp of fractional frame index `f`.
-fn seconds_at(stamps: &[i64], f: f64) -> f64 {
-    if stamps.len() < 2 {
-        return 0.0;
-    }
-    let k = (f.floor().max(0.0) as usize).min(stamps.len() - 2);
-    let frac = f - k as f64;
-    let (a, b) = (stamps[k] - stamps[0], stamps[k + 1] - stamps[0]);
-    (a as f64 + frac * (b - a) as f64) * 1e-9
 }

@@ -63,6 +63,90 @@ pub enum CliError {
     Usage(String),
 }
 
+/// The VoxelGrid frames of a bag with its problems handled once for every command: an
+/// undecodable message is logged and yielded as `(topic, None)` (the caller counts it as a
+/// skipped frame of that body); a problem with the bag itself is logged and kept in
+/// [`Self::errors`], and after a fatal one iteration ends (what was read before it stays).
+/// At most [`MAX_BODIES`] topics are read: frames of further topics are refused, and each
+/// refused topic is logged once and listed in [`Self::errors`].
+pub struct BagFrames {
+    inner: crate::bag::VoxelFrames,
+    /// Problems with the bag itself, in reading order.
+    pub errors: Vec<String>,
+    done: bool,
+    topics: std::collections::BTreeSet<String>,
+    refused: std::collections::BTreeSet<String>,
+}
+
+/// Most bodies (VoxelGrid topics) read from one bag.
+pub const MAX_BODIES: usize = 256;
+
+impl BagFrames {
+    /// Opens a bag's VoxelGrid frames.
+    ///
+    /// # Errors
+    /// The bag cannot be opened, is empty, or has no VoxelGrid topic.
+    pub fn open(path: &std::path::Path) -> Result<Self, CliError> {
+        Ok(Self {
+            inner: crate::bag::voxel_frames(path)?,
+            errors: Vec::new(),
+            done: false,
+            topics: Default::default(),
+            refused: Default::default(),
+        })
+    }
+}
+
+impl Iterator for BagFrames {
+    type Item = (String, Option<VoxelGrid>);
+
+    fn next(&mut self) -> Option<Self::Item> {
+        use crate::bag::FrameError;
+        while !self.done {
+            let item = self.inner.next()?;
+            let topic = match &item {
+                Ok((topic, _)) | Err(FrameError::Decode { topic, .. }) => Some(topic.clone()),
+                Err(FrameError::Bag(_)) => None,
+            };
+            if let Some(topic) = topic {
+                if !self.topics.contains(&topic) {
+                    if self.topics.len() >= MAX_BODIES {
+                        if self.refused.insert(topic.clone()) {
+                            let why = format!("{topic}: not read: more than {MAX_BODIES} VoxelGrid topics in one bag");
+                            tracing::error!("{why}");
+                            self.errors.push(why);
+                        }
+                        continue;
+                    }
+                    self.topics.insert(topic);
+                }
+            }
+            match item {
+                Ok((topic, grid)) => return Some((topic, Some(grid))),
+                Err(FrameError::Decode {
+                    topic,
+                    log_time_ns,
+                    reason,
+                }) => {
+                    tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
+                    return Some((topic, None));
+                }
+                Err(FrameError::Bag(e)) => {
+                    self.done = e.is_fatal();
+                    let then = if self.done {
+                        "; using what was read before it"
+                    } else {
+                        "; reading on"
+                    };
+                    tracing::error!("{e}{then}");
+                    self.errors.push(e.to_string());
+                }
+            }
+        }
+        None
+    }
+}
+
 /// Peak resident set size of this process so far (MB) (Linux: VmHWM), 0 if unknown.
 pub fn peak_rss_mb() -> f64 {
     std::fs::read_to_string("/proc/self/status")

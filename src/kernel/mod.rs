@@ -2,13 +2,13 @@
 //!
 //! Everything that decides *where* a surface is or *whether* two things touch works on
 //! [`LatticePoint`]s (integers) with exact arithmetic; floats appear only when a result is
-//! reported in metres and seconds (see [`LatticeFrame`]). Knows nothing of ROS, MCAP or tokio.
+//! reported in metres and seconds (see [`stamp_time_s`] and [`float`]). Knows nothing of ROS, MCAP or tokio.
 
 pub mod float;
 mod lattice;
 mod predicates;
 
-pub use lattice::{LatticeFrame, LatticePoint, SpaceTimePoint};
+pub use lattice::{stamp_time_s, LatticePoint, SpaceTimePoint};
 pub use predicates::{det4_i128, orient4_i128};
 
 pub mod intersect;

@@ -1,12 +1,10 @@
 //! Whole-body 4D meshes: every slab of a stream welded into one closed mesh with its two
 //! end caps, for consumers that need the body at once (the interference checker).
 
-use super::march::{CapSide, TetMesh};
+use super::march::{CapSide, TetMesh, Welder};
 use super::mesher::{GridGeometry, Mesher, MesherOptions, Slab};
 use super::stats::{BodyStats, StatsAccumulator};
 use super::{FrameRef, MeshError, OccupancyGrid};
-use crate::kernel::LatticePoint;
-use std::collections::HashMap;
 
 /// One body's closed 4D mesh over all its frames.
 #[derive(Debug, Clone, Default)]
@@ -30,7 +28,7 @@ pub struct BodyMesh {
 pub struct BodyAssembler {
     mesher: Mesher,
     body: BodyMesh,
-    index: HashMap<LatticePoint, u32>,
+    welder: Welder,
     keep_frames: bool,
     acc: StatsAccumulator,
     first_cap: Option<TetMesh>,
@@ -45,7 +43,7 @@ impl BodyAssembler {
         Ok(Self {
             mesher: Mesher::new(opts)?,
             body: BodyMesh::default(),
-            index: HashMap::new(),
+            welder: Welder::default(),
             keep_frames: false,
             acc: StatsAccumulator::new(),
             first_cap: None,
@@ -107,19 +105,7 @@ impl BodyAssembler {
     }
 
     fn weld(&mut self, part: &TetMesh) {
-        let m = &mut self.body.mesh;
-        let remap: Vec<u32> = part
-            .vertices
-            .iter()
-            .map(|p| {
-                *self.index.entry(*p).or_insert_with(|| {
-                    m.vertices.push(*p);
-                    (m.vertices.len() - 1) as u32
-                })
-            })
-            .collect();
-        m.tets
-            .extend(part.tets.iter().map(|t| t.map(|v| remap[v as usize])));
+        self.welder.append(&mut self.body.mesh, part);
     }
 
     /// Closes the mesh with the last frame's cap and returns the body. With fewer than two

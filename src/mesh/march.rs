@@ -28,26 +28,10 @@ impl TetMesh {
         self.tets.clear();
     }
 
-    /// Appends `other`, merging vertices with equal coordinates.
+    /// Appends `other`, merging vertices with equal coordinates (see [`Welder`] to append
+    /// many parts without re-indexing).
     pub fn append_welded(&mut self, other: &TetMesh) {
-        let mut index: HashMap<LatticePoint, u32> = self
-            .vertices
-            .iter()
-            .enumerate()
-            .map(|(i, p)| (*p, i as u32))
-            .collect();
-        let remap: Vec<u32> = other
-            .vertices
-            .iter()
-            .map(|p| {
-                *index.entry(*p).or_insert_with(|| {
-                    self.vertices.push(*p);
-                    (self.vertices.len() - 1) as u32
-                })
-            })
-            .collect();
-        self.tets
-            .extend(other.tets.iter().map(|t| t.map(|v| remap[v as usize])));
+        Welder::of(self).append(self, other);
     }
 
     /// Translates every vertex by an integer lattice vector.
@@ -57,6 +41,44 @@ impl TetMesh {
                 p[k] += d[k];
             }
         }
+    }
+}
+
+/// Appends meshes to one mesh, merging vertices with equal lattice coordinates; keeps its
+/// index between appends.
+#[derive(Debug, Default)]
+pub struct Welder {
+    index: HashMap<LatticePoint, u32>,
+}
+
+impl Welder {
+    /// A welder for appending to `mesh` (indexes its current vertices).
+    pub fn of(mesh: &TetMesh) -> Self {
+        Self {
+            index: mesh
+                .vertices
+                .iter()
+                .enumerate()
+                .map(|(i, p)| (*p, i as u32))
+                .collect(),
+        }
+    }
+
+    /// Appends `part` to `into` (which must only have grown through this welder since
+    /// [`Self::of`]).
+    pub fn append(&mut self, into: &mut TetMesh, part: &TetMesh) {
+        let remap: Vec<u32> = part
+            .vertices
+            .iter()
+            .map(|p| {
+                *self.index.entry(*p).or_insert_with(|| {
+                    into.vertices.push(*p);
+                    (into.vertices.len() - 1) as u32
+                })
+            })
+            .collect();
+        into.tets
+            .extend(part.tets.iter().map(|t| t.map(|v| remap[v as usize])));
     }
 }
 

@@ -173,16 +173,11 @@ impl Slicer {
             beta = -beta;
             w = -w;
         }
-        let mut out = [0i128; 3];
-        let mut m = 0;
-        for c in 0..4 {
-            if c != k {
-                let (du, dv) = (i128::from(u[c] - p[0][c]), i128::from(v[c] - p[0][c]));
-                out[m] = du * alpha + dv * beta;
-                m += 1;
-            }
-        }
-        (out, w)
+        let all = [0, 1, 2, 3].map(|c| {
+            let (du, dv) = (i128::from(u[c] - p[0][c]), i128::from(v[c] - p[0][c]));
+            du * alpha + dv * beta
+        });
+        (drop_axis(&all, k), w)
     }
 
     fn key(&self, p: &[LatticePoint; 4], i: usize, j: usize) -> Key {
@@ -240,16 +235,10 @@ impl Slicer {
     }
 }
 
-fn drop_axis(p: &LatticePoint, k: usize) -> [i32; 3] {
-    let mut r = [0i32; 3];
-    let mut m = 0;
-    for (c, v) in p.iter().enumerate() {
-        if c != k {
-            r[m] = *v;
-            m += 1;
-        }
-    }
-    r
+/// The three coordinates other than `k`, in order.
+fn drop_axis<T: Copy>(p: &[T; 4], k: usize) -> [T; 3] {
+    let keep = |m: usize| if m < k { m } else { m + 1 };
+    [p[keep(0)], p[keep(1)], p[keep(2)]]
 }
 
 /// N with N·x = det[b−a, c−a, d−a, x]: outward for our orientation convention, since
@@ -282,17 +271,7 @@ fn orientation(
     n: &[i128; 4],
     k: usize,
 ) -> i128 {
-    let n3 = {
-        let mut m = [0i128; 3];
-        let mut j = 0;
-        for (c, v) in n.iter().enumerate() {
-            if c != k {
-                m[j] = *v;
-                j += 1;
-            }
-        }
-        m
-    };
+    let n3 = drop_axis(n, k);
     let u = [0, 1, 2].map(|i| p.1 * q.0[i] - q.1 * p.0[i]);
     let v = [0, 1, 2].map(|i| p.1 * r.0[i] - r.1 * p.0[i]);
     let c = [

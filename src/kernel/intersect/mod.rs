@@ -399,23 +399,35 @@ fn edge_index(i: usize, j: usize) -> usize {
     }
 }
 
+/// Deterministic pseudo-random numbers (xorshift) for this module's unit tests.
 #[cfg(test)]
-mod tests {
-    use super::*;
+pub(crate) mod test_rng {
+    use super::LatticeTet;
 
-    /// Deterministic pseudo-random numbers (xorshift) for the unit tests.
-    struct Rng(u64);
+    /// A xorshift64 generator.
+    pub(crate) struct Rng(pub(crate) u64);
+
     impl Rng {
-        fn next(&mut self) -> u64 {
+        pub(crate) fn next(&mut self) -> u64 {
             self.0 ^= self.0 << 13;
             self.0 ^= self.0 >> 7;
             self.0 ^= self.0 << 17;
             self.0
         }
-        fn range(&mut self, lo: i64, hi: i64) -> i64 {
+        pub(crate) fn range(&mut self, lo: i64, hi: i64) -> i64 {
             lo + (self.next() % (hi - lo + 1) as u64) as i64
         }
+        pub(crate) fn tet(&mut self, lo: i32, hi: i32) -> LatticeTet {
+            [0; 4].map(|_| [0; 4].map(|_| self.range(i64::from(lo), i64::from(hi)) as i32))
+        }
     }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    use super::test_rng::Rng;
 
     fn to_i128(v: I256) -> Option<i128> {
         let lo = u128::from(v.0[0]) | (u128::from(v.0[1]) << 64);

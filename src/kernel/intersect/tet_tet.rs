@@ -398,19 +398,7 @@ mod tests {
         }
     }
 
-    struct Rng(u64);
-    impl Rng {
-        fn next(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-        fn tet(&mut self, lo: i32, hi: i32) -> LatticeTet {
-            let span = (hi - lo + 1) as u64;
-            [0; 4].map(|_| [0; 4].map(|_| lo + (self.next() % span) as i32))
-        }
-    }
+    use super::super::test_rng::Rng;
 
     #[test]
     fn sections_agree_with_the_design_vertex_tests_and_the_strict_axes() {
