@@ -110,15 +110,22 @@ impl<'a> Inclusion<'a> {
     /// The signed count towards far point `k`, or `None` if degenerate.
     pub fn contains_towards(&mut self, p: &LatticePoint, k: usize) -> Option<bool> {
         let q = self.far[k % FAR_POINTS];
+        self.contains_from(p, &q, false)
+    }
+
+    /// Whether `p` is inside, given a point `q` off the boundary whose answer is
+    /// `q_inside`: each crossing of the segment p→q adds +1 leaving and −1 entering, so the
+    /// sum is in(p) − in(q). `None` if a crossing is degenerate (or the sum is impossible).
+    pub fn contains_from(&mut self, p: &LatticePoint, q: &LatticePoint, q_inside: bool) -> Option<bool> {
         let wide = |x: &LatticePoint| x.map(i64::from);
         self.hits.clear();
         let hits = &mut self.hits;
         self.bvh
-            .segment_candidates(wide(p), wide(&q), &mut self.ws, |i| hits.push(i));
-        let mut sum = 0i32;
+            .segment_candidates(wide(p), wide(q), &mut self.ws, |i| hits.push(i));
+        let mut sum = i32::from(q_inside);
         for &i in &self.hits {
             let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
-            match segment_tet(p, &q, &t) {
+            match segment_tet(p, q, &t) {
                 Cross::No => {}
                 Cross::Yes(s) => sum += i32::from(s),
                 Cross::Degenerate => return None,

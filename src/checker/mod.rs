@@ -25,8 +25,10 @@ pub mod labels;
 pub mod oracle;
 pub mod resolve;
 
-use crate::kernel::bvh::{overlapping_pairs, Bvh, BvhError, TraverseWorkspace};
-use crate::kernel::intersect::{classify, TetPairRelation};
+use crate::kernel::bvh::{overlapping_pairs_under, top_pairs, Bvh, BvhError, TraverseWorkspace};
+use crate::kernel::intersect::{classify_if, TetPairRelation};
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicUsize, Ordering};
 use crate::kernel::LatticePoint;
 use crate::mesh::glue::BodyMesh;
 use crate::mesh::{GridGeometry, TetMesh};
@@ -98,6 +100,9 @@ pub struct Prepared {
     pub bvh: Bvh,
     /// Face adjacency.
     pub adjacency: Vec<[u32; 4]>,
+    /// A normal of each tet's hyperplane ([`NO_NORMAL`] if it does not fit `i32`): a cheap
+    /// exact first test of candidate pairs.
+    pub normals: Vec<[i32; 4]>,
     /// Checker lattice units per original lattice unit of this body.
     pub factor: i32,
     /// The body's lattice.
@@ -120,6 +125,7 @@ impl Prepared {
         })?;
         Ok(Prepared {
             id: self.id.clone(),
+            normals: tet_normals(&mesh),
             mesh,
             bvh,
             adjacency: self.adjacency.clone(),
@@ -265,6 +271,7 @@ impl CommonLattice {
         let adjacency = face_adjacency(&mesh);
         Ok(Prepared {
             id: id.to_string(),
+            normals: tet_normals(&mesh),
             mesh,
             bvh,
             adjacency,
@@ -322,6 +329,17 @@ pub struct PairResult {
     pub interfering_pairs: u64,
     /// Checker-time ranges where the bodies overlap, merged and sorted.
     pub intervals: Vec<(f64, f64)>,
+    /// Where the time went.
+    pub timing: PairTiming,
+}
+
+/// Wall-clock seconds of the phases of [`check_pair`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PairTiming {
+    /// Tree traversal and exact tet-pair classification.
+    pub detect_s: f64,
+    /// Labels of both bodies (inclusion tests and propagation) and the intervals.
+    pub label_s: f64,
 }
 
 impl PairResult {
@@ -352,45 +370,136 @@ fn t_range(t: &[LatticePoint; 4]) -> (f64, f64) {
     )
 }
 
-/// Checks two prepared bodies.
+/// Marks a tet normal that does not fit `i32` (the exact predicate decides alone).
+pub const NO_NORMAL: [i32; 4] = [i32::MIN; 4];
+
+/// A normal of each tet's hyperplane: N_k = (−1)^k det of the edge vectors without
+/// coordinate k (zero for a flat tet), or [`NO_NORMAL`].
+fn tet_normals(m: &TetMesh) -> Vec<[i32; 4]> {
+    m.tets
+        .iter()
+        .map(|t| {
+            let p = t.map(|v| m.vertices[v as usize].map(i128::from));
+            let e = [1, 2, 3].map(|i| [0, 1, 2, 3].map(|k| p[i][k] - p[0][k]));
+            let minor = |c: [usize; 3]| {
+                e[0][c[0]] * (e[1][c[1]] * e[2][c[2]] - e[1][c[2]] * e[2][c[1]])
+                    - e[0][c[1]] * (e[1][c[0]] * e[2][c[2]] - e[1][c[2]] * e[2][c[0]])
+                    + e[0][c[2]] * (e[1][c[0]] * e[2][c[1]] - e[1][c[1]] * e[2][c[0]])
+            };
+            let n = [
+                minor([1, 2, 3]),
+                -minor([0, 2, 3]),
+                minor([0, 1, 3]),
+                -minor([0, 1, 2]),
+            ];
+            let fit = |v: i128| i32::try_from(v).ok().filter(|&v| v != i32::MIN);
+            match n.map(fit) {
+                [Some(a), Some(b), Some(c), Some(d)] => [a, b, c, d],
+                _ => NO_NORMAL,
+            }
+        })
+        .collect()
+}
+
+/// True if tet `q` lies strictly on one side of the hyperplane of tet `p` (normal `n`):
+/// the closed tets are disjoint. Exact (i128); false when `n` is unknown or zero.
+#[inline]
+fn strictly_beyond(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -> bool {
+    if *n == NO_NORMAL {
+        return false;
+    }
+    let side = |x: &LatticePoint| -> i128 {
+        (0..4)
+            .map(|k| i128::from(n[k]) * (i128::from(x[k]) - i128::from(p[0][k])))
+            .sum()
+    };
+    let s = q.map(|x| side(&x).signum());
+    s[0] != 0 && s.iter().all(|&v| v == s[0])
+}
+
+/// One worker's share of a pair check.
+struct Part {
+    hit_a: Vec<Touch>,
+    hit_b: Vec<Touch>,
+    ranges: Vec<(f64, f64)>,
+    candidate_pairs: u64,
+    interfering_pairs: u64,
+}
+
+/// How many node-pair levels the tree-against-tree walk is split at for the workers
+/// (at most 4^6 independent sub-walks).
+const SPLIT_DEPTH: u32 = 6;
+
+/// Checks two prepared bodies: the tree walk and exact predicate on all cores, then the
+/// two bodies' labels side by side. The result does not depend on the number of threads.
 pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
-    let mut ws = TraverseWorkspace::new();
-    let mut hit_a = vec![Touch::Clear; a.mesh.tets.len()];
-    let mut hit_b = vec![Touch::Clear; b.mesh.tets.len()];
-    let mut ranges: Vec<(f64, f64)> = Vec::new();
-    let mut r = PairResult::default();
-    overlapping_pairs(&a.bvh, &b.bvh, &mut ws, |i, j| {
-        r.candidate_pairs += 1;
-        let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
-        let (ra, rb) = (t_range(&ta), t_range(&tb));
-        let overlap = (ra.0.max(rb.0), ra.1.min(rb.1));
-        // Where the two tets meet in time: their section polygon for a crossing; for a
-        // coplanar overlap, within both time ranges.
-        let (range, touch) = match classify(&ta, &tb) {
-            TetPairRelation::Crossing => (
-                Some(contact::crossing_t_range(&ta, &tb).unwrap_or(overlap)),
-                Touch::Interference,
-            ),
-            TetPairRelation::Coplanar {
-                overlap_volume_positive: true,
-                same_orientation: true,
-            } => (Some(overlap), Touch::Interference),
-            TetPairRelation::Coplanar {
-                overlap_volume_positive: true,
-                same_orientation: false,
-            } => (None, Touch::FaceToFace),
-            TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => (None, Touch::Contact),
-            TetPairRelation::Disjoint => (None, Touch::Clear),
+    let start = std::time::Instant::now();
+    let mut tops = Vec::new();
+    top_pairs(&a.bvh, &b.bvh, SPLIT_DEPTH, &mut tops);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .clamp(1, 8)
+        .min(tops.len().max(1));
+    let next = AtomicUsize::new(0);
+    let work = || {
+        let mut part = Part {
+            hit_a: vec![Touch::Clear; a.mesh.tets.len()],
+            hit_b: vec![Touch::Clear; b.mesh.tets.len()],
+            ranges: Vec::new(),
+            candidate_pairs: 0,
+            interfering_pairs: 0,
         };
-        if let Some(range) = range {
-            r.interfering_pairs += 1;
-            ranges.push(range);
+        let mut ws = TraverseWorkspace::new();
+        loop {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            let Some(&top) = tops.get(k) else { break };
+            let _ = overlapping_pairs_under(&a.bvh, &b.bvh, top, &mut ws, |i, j| {
+                visit(a, b, i, j, &mut part);
+                ControlFlow::<()>::Continue(())
+            });
         }
-        hit_a[i as usize] = hit_a[i as usize].max(touch);
-        hit_b[j as usize] = hit_b[j as usize].max(touch);
+        part
+    };
+    let parts: Vec<Part> = if threads == 1 {
+        vec![work()]
+    } else {
+        std::thread::scope(|s| {
+            let handles: Vec<_> = (0..threads).map(|_| s.spawn(&work)).collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("checker worker panicked"))
+                .collect()
+        })
+    };
+    let mut parts = parts.into_iter();
+    let mut all = parts.next().expect("at least one worker");
+    for p in parts {
+        for (x, y) in all.hit_a.iter_mut().zip(&p.hit_a) {
+            *x = (*x).max(*y);
+        }
+        for (x, y) in all.hit_b.iter_mut().zip(&p.hit_b) {
+            *x = (*x).max(*y);
+        }
+        all.ranges.extend(p.ranges);
+        all.candidate_pairs += p.candidate_pairs;
+        all.interfering_pairs += p.interfering_pairs;
+    }
+    let mut r = PairResult {
+        candidate_pairs: all.candidate_pairs,
+        interfering_pairs: all.interfering_pairs,
+        ..PairResult::default()
+    };
+    let mut ranges = all.ranges;
+    r.timing.detect_s = start.elapsed().as_secs_f64();
+    let start = std::time::Instant::now();
+    let (la, lb) = std::thread::scope(|s| {
+        let hb = &all.hit_b;
+        let other = s.spawn(move || label_against(b, a, hb));
+        let la = label_against(a, b, &all.hit_a);
+        (la, other.join().expect("labelling worker panicked"))
     });
-    r.labels_a = label_against(a, b, &hit_a);
-    r.labels_b = label_against(b, a, &hit_b);
+    r.labels_a = la;
+    r.labels_b = lb;
     for (p, labels) in [(a, &r.labels_a), (b, &r.labels_b)] {
         for (i, l) in labels.labels.iter().enumerate() {
             if *l == labels::Label::Inside {
@@ -399,20 +508,92 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
         }
     }
     r.intervals = merge_ranges(ranges);
+    r.timing.label_s = start.elapsed().as_secs_f64();
     r
 }
 
+/// One candidate pair: the exact relation, recorded in the worker's share.
+#[inline]
+fn visit(a: &Prepared, b: &Prepared, i: u32, j: u32, part: &mut Part) {
+    part.candidate_pairs += 1;
+    let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
+    // Most candidates lie strictly on one side of the other's hyperplane.
+    if strictly_beyond(&a.normals[i as usize], &ta, &tb)
+        || strictly_beyond(&b.normals[j as usize], &tb, &ta)
+    {
+        return;
+    }
+    let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
+    // Whether the pair merely touches matters only to a tet not yet known to touch.
+    let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
+    // Where the two tets meet in time: their section polygon for a crossing; for a
+    // coplanar overlap, within both time ranges.
+    let (range, touch) = match classify_if(&ta, &tb, touching_matters) {
+        TetPairRelation::Crossing => (
+            Some(contact::crossing_t_range(&ta, &tb).unwrap_or_else(|| overlap_t(&ta, &tb))),
+            Touch::Interference,
+        ),
+        TetPairRelation::Coplanar {
+            overlap_volume_positive: true,
+            same_orientation: true,
+        } => (Some(overlap_t(&ta, &tb)), Touch::Interference),
+        TetPairRelation::Coplanar {
+            overlap_volume_positive: true,
+            same_orientation: false,
+        } => (None, Touch::FaceToFace),
+        TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => (None, Touch::Contact),
+        TetPairRelation::Disjoint => return,
+    };
+    if let Some(range) = range {
+        part.interfering_pairs += 1;
+        part.ranges.push(range);
+    }
+    part.hit_a[i as usize] = ha.max(touch);
+    part.hit_b[j as usize] = hb.max(touch);
+}
+
+/// The common time range of two tets.
+fn overlap_t(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4]) -> (f64, f64) {
+    let (ra, rb) = (t_range(ta), t_range(tb));
+    (ra.0.max(rb.0), ra.1.min(rb.1))
+}
+
 fn label_against(p: &Prepared, other: &Prepared, hit: &[Touch]) -> Labeling {
-    let mut inc = Inclusion::new(&other.mesh, &other.bvh);
-    label_regions(&p.adjacency, hit, |t, tries| {
-        let tet = tet_of(&p.mesh, t);
-        // Interior points: coordinates are ×8, so (w·tet)/8 is a lattice point.
+    let mut test = TetInside {
+        mesh: &p.mesh,
+        inc: Inclusion::new(&other.mesh, &other.bvh),
+    };
+    label_regions(&p.adjacency, hit, &mut test)
+}
+
+/// Inclusion tests of one body's tets against the other body.
+struct TetInside<'a> {
+    mesh: &'a TetMesh,
+    inc: Inclusion<'a>,
+}
+
+impl TetInside<'_> {
+    /// Interior point `w` of tet `t`: coordinates are ×8, so (w·tet)/8 is a lattice point.
+    fn interior(&self, t: u32, w: &[i64; 4]) -> LatticePoint {
+        let tet = tet_of(self.mesh, t);
+        [0, 1, 2, 3].map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32)
+    }
+}
+
+impl labels::InsideTest for TetInside<'_> {
+    fn far(&mut self, t: u32, tries: usize) -> Option<(bool, LatticePoint)> {
         INTERIOR_WEIGHTS.iter().take(tries).find_map(|w| {
-            let c = [0, 1, 2, 3]
-                .map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32);
-            inc.contains(&c)
+            let c = self.interior(t, w);
+            self.inc.contains(&c).map(|inside| (inside, c))
         })
-    })
+    }
+    fn from_known(&mut self, t: u32, q: &LatticePoint, q_inside: bool) -> Option<(bool, LatticePoint)> {
+        let c = self.interior(t, &INTERIOR_WEIGHTS[0]);
+        self.inc.contains_from(&c, q, q_inside).map(|inside| (inside, c))
+    }
+    fn point(&self, t: u32) -> LatticePoint {
+        self.interior(t, &INTERIOR_WEIGHTS[0])
+    }
 }
 
 /// Sorts closed ranges and merges those that overlap or touch.

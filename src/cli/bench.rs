@@ -64,6 +64,22 @@ pub enum BenchWhich {
         #[arg(long)]
         svg: Option<std::path::PathBuf>,
     },
+    /// Two spheres at the seed's scale (~1.5M tets each at grid 88): detection plus labels
+    /// and resolution timed, next to per-frame 3D checks with parry3d, and what each misses.
+    Check {
+        /// Voxels per edge (frames = grid + 1 over 1 s).
+        #[arg(long, default_value_t = 88)]
+        grid: u32,
+        /// Encoding.
+        #[arg(long, value_enum, default_value_t = EncodingArg::Bits)]
+        encoding: EncodingArg,
+        /// Timed repetitions of detection plus labels (the median is printed).
+        #[arg(long, default_value_t = 3)]
+        reps: usize,
+        /// Frame counts of the what-each-misses sweep (empty to skip).
+        #[arg(long, value_delimiter = ',', default_value = "3,5,9,17,33")]
+        sweep: Vec<u32>,
+    },
 }
 
 /// Runs a benchmark and prints its figures.
@@ -93,6 +109,12 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             encodings,
             svg,
         } => bench_accuracy(grids, encodings, svg.as_deref()),
+        BenchWhich::Check {
+            grid,
+            encoding,
+            reps,
+            sweep,
+        } => super::bench_check::bench_check(*grid, *encoding, *reps, sweep),
     }
 }
 

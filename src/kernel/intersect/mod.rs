@@ -129,7 +129,7 @@ mod tri_tri;
 
 pub use segment_tet::segment_crosses_tet;
 pub use separating_axis::{relative_interiors_meet, tets_intersect};
-pub use tet_tet::{classify, tets_cross, TetPairRelation};
+pub use tet_tet::{classify, classify_if, tets_cross, TetPairRelation};
 pub use tri_tri::triangles_cross;
 
 /// A tetrahedron (3-simplex) in R^4 given by its four lattice vertices. Its orientation is

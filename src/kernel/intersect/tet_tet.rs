@@ -62,8 +62,16 @@ pub fn tets_cross(a: &LatticeTet, b: &LatticeTet) -> bool {
 /// );
 /// ```
 pub fn classify(a: &LatticeTet, b: &LatticeTet) -> TetPairRelation {
+    classify_if(a, b, true)
+}
+
+/// [`classify`], but when `touching_matters` is false a pair that is `Touching` may be
+/// reported `Disjoint` (the costly touching-or-disjoint decision is skipped; `Crossing`
+/// and `Coplanar` are decided as always). For callers that already know both tets touch
+/// the other boundary somewhere.
+pub fn classify_if(a: &LatticeTet, b: &LatticeTet, touching_matters: bool) -> TetPairRelation {
     let points = [a[0], a[1], a[2], a[3], b[0], b[1], b[2], b[3]];
-    with_exact_width!(&points, classify_in(a, b))
+    with_exact_width!(&points, classify_in(a, b, touching_matters))
 }
 
 /// The two tets relative to a[0], their normals and the sides of each one's vertices
@@ -246,18 +254,18 @@ impl<'a, T: Exact> TriEdgeSigns<'a, T> {
     }
 }
 
-fn classify_in<T: Exact>(a: &LatticeTet, b: &LatticeTet) -> TetPairRelation {
+fn classify_in<T: Exact>(a: &LatticeTet, b: &LatticeTet, touching_matters: bool) -> TetPairRelation {
     let p = Pair::<T>::new(a, b);
     let zero = [T::ZERO; 4];
-    let touching_or_disjoint = |meet: bool| {
-        if meet {
+    let touching_or_disjoint = |meet: &mut dyn FnMut() -> bool| {
+        if touching_matters && meet() {
             TetPairRelation::Touching
         } else {
             TetPairRelation::Disjoint
         }
     };
     if p.na == zero || p.nb == zero {
-        return touching_or_disjoint(difference_contains_origin(&p.a, &p.b, 4, false));
+        return touching_or_disjoint(&mut || difference_contains_origin(&p.a, &p.b, 4, false));
     }
     if p.sides_of_b == [0; 4] {
         return coplanar(&p);
@@ -270,11 +278,59 @@ fn classify_in<T: Exact>(a: &LatticeTet, b: &LatticeTet) -> TetPairRelation {
         if sections.meet(true) {
             return TetPairRelation::Crossing;
         }
-        return touching_or_disjoint(sections.meet(false));
+
+        return touching_or_disjoint(&mut || sections.meet(false));
     }
-    // One tet touches the other's hyperplane from one side; non-flat tets in transverse
-    // hyperplanes, so A − B spans R^4.
-    touching_or_disjoint(separating_axes(&p.a, &p.b, 4, false))
+    // One tet, say B, lies weakly on one side of the other's hyperplane H_A with some
+    // vertices Z on it. Then B ∩ H_A = conv(Z) and A ∩ B = A ∩ conv(Z): a question inside
+    // the 3-flat H_A (and symmetrically with A and H_B).
+    if !straddles(&p.sides_of_b) {
+        touching_or_disjoint(&mut || meets_in_hyperplane(&p.a, &p.na, &p.b, &p.sides_of_b))
+    } else {
+        touching_or_disjoint(&mut || meets_in_hyperplane(&p.b, &p.nb, &p.a, &p.sides_of_a))
+    }
+}
+
+/// Whether the non-flat tet `t` (normal `n`) meets the convex hull of the vertices of
+/// `other` that lie on its hyperplane (`sides[j] == 0`; one to three of them). Exact, in
+/// R^3 after dropping a coordinate in which `n` does not vanish (an affine bijection of
+/// the hyperplane onto R^3); t − conv(Z) is full-dimensional there, so the 3D
+/// separating-axis test applies.
+fn meets_in_hyperplane<T: Exact>(
+    t: &[V4<T>; 4],
+    n: &V4<T>,
+    other: &[V4<T>; 4],
+    sides: &[i8; 4],
+) -> bool {
+    let k = (0..4).find(|&k| n[k] != T::ZERO).unwrap_or(3);
+    let drop = |x: &V4<T>| {
+        let mut out = [T::ZERO; 4];
+        let mut m = 0;
+        for (i, &c) in x.iter().enumerate() {
+            if i != k {
+                out[m] = c;
+                m += 1;
+            }
+        }
+        out
+    };
+    let mut z = [[T::ZERO; 4]; 4];
+    let mut count = 0;
+    for (j, v) in other.iter().enumerate() {
+        if sides[j] == 0 {
+            z[count] = drop(v);
+            count += 1;
+        }
+    }
+    if count == 0 {
+        return false;
+    }
+
+    // Pad with the last point: a repeated vertex adds only zero axes, which never separate.
+    for j in count..4 {
+        z[j] = z[count - 1];
+    }
+    separating_axes(&t.map(|x| drop(&x)), &z, 3, false)
 }
 
 /// Non-flat tets in one hyperplane: an exact 3D test after dropping a coordinate in which
