@@ -28,7 +28,7 @@ pub mod resolve;
 use crate::kernel::bvh::{overlapping_pairs_under, top_pairs, Bvh, BvhError, TraverseWorkspace};
 use crate::kernel::intersect::{classify_if, TetPairRelation};
 use std::ops::ControlFlow;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use crate::kernel::LatticePoint;
 use crate::mesh::glue::BodyMesh;
 use crate::mesh::{GridGeometry, TetMesh};
@@ -94,7 +94,8 @@ pub const INTERIOR_WEIGHTS: [[i64; 4]; 5] = [
 pub struct Prepared {
     /// Body id (topic).
     pub id: String,
-    /// The mesh in checker coordinates.
+    /// The mesh in checker coordinates, tets in the tree's leaf order (labels refer to
+    /// these indices, not to the body's mesh).
     pub mesh: TetMesh,
     /// Tree over the tets.
     pub bvh: Bvh,
@@ -113,16 +114,59 @@ pub struct Prepared {
 }
 
 impl Prepared {
+    /// The same body translated by a lattice vector (see [`Prepared::mapped`]).
+    pub fn translated(&self, v: [i64; 4]) -> Option<Prepared> {
+        self.mapped([1; 4], v)
+    }
+
+    /// The same body mapped by x_k → mul_k·x_k + add_k on each axis (`mul_k > 0`: a
+    /// translation, a refinement of the lattice, a time scaling): the tree's boxes are
+    /// mapped, not rebuilt; adjacency is kept, normals recomputed. `None` if a coordinate
+    /// would leave ±2^30 (the exact predicates' far points must fit), never clamped.
+    pub fn mapped(&self, mul: [i64; 4], add: [i64; 4]) -> Option<Prepared> {
+        let mut mesh = self.mesh.clone();
+        for p in &mut mesh.vertices {
+            for k in 0..4 {
+                let c = i64::from(p[k]).checked_mul(mul[k])?.checked_add(add[k])?;
+                if c.abs() >= 1 << 30 {
+                    return None;
+                }
+                p[k] = c as i32;
+            }
+        }
+        let mut bvh = self.bvh.clone();
+        if !bvh.map_axes(mul, add) {
+            return None;
+        }
+        let normals = if mul == [1; 4] {
+            self.normals.clone()
+        } else {
+            tet_normals(&mesh)
+        };
+        Some(Prepared {
+            id: self.id.clone(),
+            mesh,
+            bvh,
+            adjacency: self.adjacency.clone(),
+            normals,
+            factor: self.factor,
+            geometry: self.geometry,
+            stamps_ns: self.stamps_ns.clone(),
+        })
+    }
+
     /// The same body with another mesh on the same tets (moved or re-timed): the tree is
     /// rebuilt, the adjacency kept.
     ///
     /// # Errors
     /// The tree cannot be built.
     pub fn with_mesh(&self, mesh: TetMesh) -> Result<Prepared, CheckError> {
-        let bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
-            id: self.id.clone(),
-            source,
-        })?;
+        let mut bvh =
+            Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
+                id: self.id.clone(),
+                source,
+            })?;
+        bvh.shrink_scratch();
         Ok(Prepared {
             id: self.id.clone(),
             normals: tet_normals(&mesh),
@@ -264,10 +308,14 @@ impl CommonLattice {
                 p[k] = fit(i64::from(p[k]) * i64::from(factor) + shift[k])? as i32;
             }
         }
-        let bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
+        let mut bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
             id: id.to_string(),
             source,
         })?;
+        bvh.shrink_scratch();
+        // Tets in leaf order: the walks read them in memory order.
+        let order = bvh.renumber_in_leaf_order();
+        mesh.tets = order.iter().map(|&t| mesh.tets[t as usize]).collect();
         let adjacency = face_adjacency(&mesh);
         Ok(Prepared {
             id: id.to_string(),
@@ -393,12 +441,35 @@ fn tet_normals(m: &TetMesh) -> Vec<[i32; 4]> {
                 -minor([0, 1, 2]),
             ];
             let fit = |v: i128| i32::try_from(v).ok().filter(|&v| v != i32::MIN);
-            match n.map(fit) {
+            if let [Some(a), Some(b), Some(c), Some(d)] = n.map(fit) {
+                return [a, b, c, d];
+            }
+            // Only the direction matters: divide by the gcd so that fine lattices fit too.
+            let g = n.iter().fold(0u128, |g, &c| gcd(g, c.unsigned_abs())).max(1) as i128;
+            match n.map(|v| fit(v / g)) {
                 [Some(a), Some(b), Some(c), Some(d)] => [a, b, c, d],
                 _ => NO_NORMAL,
             }
         })
         .collect()
+}
+
+fn gcd(mut a: u128, mut b: u128) -> u128 {
+    // 64-bit remainders while both fit (128-bit division is a slow library call).
+    while b != 0 {
+        if let (Ok(x), Ok(y)) = (u64::try_from(a), u64::try_from(b)) {
+            return u128::from(gcd64(x, y));
+        }
+        (a, b) = (b, a % b);
+    }
+    a
+}
+
+fn gcd64(mut a: u64, mut b: u64) -> u64 {
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    a
 }
 
 /// True if tet `q` lies strictly on one side of the hyperplane of tet `p` (normal `n`):
@@ -434,6 +505,55 @@ const SPLIT_DEPTH: u32 = 6;
 /// two bodies' labels side by side. The result does not depend on the number of threads.
 pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
     let start = std::time::Instant::now();
+    let all = walk(a, b, false);
+    let mut r = PairResult {
+        candidate_pairs: all.candidate_pairs,
+        interfering_pairs: all.interfering_pairs,
+        ..PairResult::default()
+    };
+    let mut ranges = all.ranges;
+    r.timing.detect_s = start.elapsed().as_secs_f64();
+    let start = std::time::Instant::now();
+    let (la, lb) = std::thread::scope(|s| {
+        let hb = &all.hit_b;
+        let other = s.spawn(move || label_against(b, a, hb));
+        let la = label_against(a, b, &all.hit_a);
+        (la, other.join().expect("labelling worker panicked"))
+    });
+    r.labels_a = la;
+    r.labels_b = lb;
+    for (p, labels) in [(a, &r.labels_a), (b, &r.labels_b)] {
+        for (i, l) in labels.labels.iter().enumerate() {
+            if *l == labels::Label::Inside {
+                ranges.push(t_range(&tet_of(&p.mesh, i as u32)));
+            }
+        }
+    }
+    r.intervals = merge_ranges(ranges);
+    r.timing.label_s = start.elapsed().as_secs_f64();
+    r
+}
+
+/// Whether two bodies interfere, exactly as [`check_pair`] decides it, but stopping at
+/// the first interfering tet pair; the labels are computed only when no pair crosses
+/// (then only containment can make them interfere).
+pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
+    let all = walk(a, b, true);
+    if all.interfering_pairs > 0 {
+        return true;
+    }
+    std::thread::scope(|s| {
+        let hb = &all.hit_b;
+        let other = s.spawn(move || label_against(b, a, hb).labels.contains(&labels::Label::Inside));
+        let a_inside = label_against(a, b, &all.hit_a).labels.contains(&labels::Label::Inside);
+        let b_inside = other.join().expect("labelling worker panicked");
+        a_inside || b_inside
+    })
+}
+
+/// The tree-against-tree walk with the exact predicate, split over all cores; with
+/// `stop_at_interference` every worker stops once any finds an interfering pair.
+fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Part {
     let mut tops = Vec::new();
     top_pairs(&a.bvh, &b.bvh, SPLIT_DEPTH, &mut tops);
     let threads = std::thread::available_parallelism()
@@ -441,6 +561,7 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
         .clamp(1, 8)
         .min(tops.len().max(1));
     let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
     let work = || {
         let mut part = Part {
             hit_a: vec![Touch::Clear; a.mesh.tets.len()],
@@ -450,12 +571,16 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
             interfering_pairs: 0,
         };
         let mut ws = TraverseWorkspace::new();
-        loop {
+        while !stop.load(Ordering::Relaxed) {
             let k = next.fetch_add(1, Ordering::Relaxed);
             let Some(&top) = tops.get(k) else { break };
             let _ = overlapping_pairs_under(&a.bvh, &b.bvh, top, &mut ws, |i, j| {
                 visit(a, b, i, j, &mut part);
-                ControlFlow::<()>::Continue(())
+                if stop_at_interference && part.interfering_pairs > 0 {
+                    stop.store(true, Ordering::Relaxed);
+                    return ControlFlow::Break(());
+                }
+                ControlFlow::Continue(())
             });
         }
         part
@@ -484,32 +609,7 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
         all.candidate_pairs += p.candidate_pairs;
         all.interfering_pairs += p.interfering_pairs;
     }
-    let mut r = PairResult {
-        candidate_pairs: all.candidate_pairs,
-        interfering_pairs: all.interfering_pairs,
-        ..PairResult::default()
-    };
-    let mut ranges = all.ranges;
-    r.timing.detect_s = start.elapsed().as_secs_f64();
-    let start = std::time::Instant::now();
-    let (la, lb) = std::thread::scope(|s| {
-        let hb = &all.hit_b;
-        let other = s.spawn(move || label_against(b, a, hb));
-        let la = label_against(a, b, &all.hit_a);
-        (la, other.join().expect("labelling worker panicked"))
-    });
-    r.labels_a = la;
-    r.labels_b = lb;
-    for (p, labels) in [(a, &r.labels_a), (b, &r.labels_b)] {
-        for (i, l) in labels.labels.iter().enumerate() {
-            if *l == labels::Label::Inside {
-                ranges.push(t_range(&tet_of(&p.mesh, i as u32)));
-            }
-        }
-    }
-    r.intervals = merge_ranges(ranges);
-    r.timing.label_s = start.elapsed().as_secs_f64();
-    r
+    all
 }
 
 /// One candidate pair: the exact relation, recorded in the worker's share.

@@ -21,7 +21,7 @@
 //! checker.
 
 use super::labels::Label;
-use super::{check_pair, CommonLattice, PairResult, Prepared};
+use super::{interferes, CommonLattice, PairResult, Prepared};
 use crate::kernel::bvh::TraverseWorkspace;
 use crate::kernel::LatticePoint;
 
@@ -222,43 +222,12 @@ fn interfering(results: &[&PairResult]) -> Option<Vec<usize>> {
 /// A copy of `a` translated by an integer lattice vector (None if it leaves the lattice's
 /// range).
 pub fn translated(a: &Prepared, v: [i64; 4]) -> Option<Prepared> {
-    let mut mesh = a.mesh.clone();
-    for p in &mut mesh.vertices {
-        for k in 0..4 {
-            // Beyond ±2^30 the exact predicates' far points would not fit: refuse, never clamp.
-            let x = i64::from(p[k]).checked_add(v[k])?;
-            if x.abs() >= 1 << 30 {
-                return None;
-            }
-            p[k] = x as i32;
-        }
-    }
-    a.with_mesh(mesh).ok()
+    a.translated(v)
 }
 
 /// True if `a` interferes with none of `others`.
 pub fn clears(a: &Prepared, others: &[&Prepared]) -> bool {
     others.iter().all(|b| !interferes(a, b))
-}
-
-/// Whether two bodies interfere: stops at the first interfering tet pair, and runs the full
-/// labelling only when no pair crosses (then only containment can make them interfere).
-pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
-    use crate::kernel::bvh::try_overlapping_pairs;
-    use crate::kernel::intersect::{classify, TetPairRelation};
-    use std::ops::ControlFlow;
-    let mut ws = TraverseWorkspace::new();
-    let hit = try_overlapping_pairs(&a.bvh, &b.bvh, &mut ws, |i, j| {
-        match classify(&tet_pts(&a.mesh, i as usize), &tet_pts(&b.mesh, j as usize)) {
-            TetPairRelation::Crossing
-            | TetPairRelation::Coplanar {
-                overlap_volume_positive: true,
-                same_orientation: true,
-            } => ControlFlow::Break(()),
-            _ => ControlFlow::Continue(()),
-        }
-    });
-    hit.is_break() || check_pair(a, b).interfering()
 }
 
 /// Suggests a translation of `a` that clears every body of `others` (`results[i]` is the
@@ -421,17 +390,19 @@ pub fn suggest_time_scaling(
     if !(s.is_finite() && s > 0.0) {
         return None;
     }
+    // s = p/Q with Q = 64, rounded away from 1; the others are refined once.
+    const Q: i64 = 64;
+    let refined_others: Vec<Option<Prepared>> =
+        others.iter().map(|b| refined(b, Q, Q, 0)).collect();
     let mut out = None;
     for _ in 0..=GROWTH_STEPS {
-        // s = p/Q with Q = 64, rounded away from 1.
-        const Q: i64 = 64;
         let p = if s >= 1.0 {
             (s * Q as f64).ceil()
         } else {
             (s * Q as f64).floor()
         }
         .max(1.0) as i64;
-        let ok = scaled_clears(a, others, t0, p, Q);
+        let ok = scaled_clears(a, &refined_others, t0, p, Q);
         out = Some(TimeScaling {
             t0,
             scale: p as f64 / Q as f64,
@@ -445,24 +416,18 @@ pub fn suggest_time_scaling(
     out
 }
 
-/// Checks `a` with time scaled by p/q about t0 against `others`, exactly: every body's
-/// coordinates are multiplied by q, and a's times become q·t0 + p·(t − t0).
-fn scaled_clears(a: &Prepared, others: &[&Prepared], t0: i64, p: i64, q: i64) -> bool {
-    let refine = |m: &Prepared, time: &dyn Fn(i64) -> i64| -> Option<Prepared> {
-        let mut mesh = m.mesh.clone();
-        for v in &mut mesh.vertices {
-            for c in v.iter_mut().take(3) {
-                *c = i32::try_from(i64::from(*c) * q).ok()?;
-            }
-            v[3] = i32::try_from(time(i64::from(v[3]))).ok()?;
-        }
-        m.with_mesh(mesh).ok()
-    };
-    let Some(sa) = refine(a, &|t| q * t0 + p * (t - t0)) else {
+/// `m` on a lattice refined `q` times, its times t mapped to `tmul`·t + `tadd` (None if
+/// a coordinate would not fit).
+fn refined(m: &Prepared, q: i64, tmul: i64, tadd: i64) -> Option<Prepared> {
+    m.mapped([q, q, q, tmul], [0, 0, 0, tadd])
+}
+
+/// Checks `a` with time scaled by p/q about t0 against `others` (already refined `q`
+/// times), exactly: a's coordinates are multiplied by q, and its times become
+/// q·t0 + p·(t − t0).
+fn scaled_clears(a: &Prepared, others: &[Option<Prepared>], t0: i64, p: i64, q: i64) -> bool {
+    let Some(sa) = refined(a, q, p, q * t0 - p * t0) else {
         return false;
     };
-    others.iter().all(|b| match refine(b, &|t| q * t) {
-        Some(sb) => !check_pair(&sa, &sb).interfering(),
-        None => false,
-    })
+    others.iter().all(|b| b.as_ref().is_some_and(|b| !interferes(&sa, b)))
 }

@@ -175,6 +175,46 @@ impl Bvh {
         self.nodes.first().map_or(Aabb4::EMPTY, |n| n.aabb)
     }
 
+    /// Renumbers the items in leaf order (from now on item `k` is the `k`-th leaf slot) and
+    /// returns, for each new index, the item's old index, so that the caller can reorder
+    /// its items alike: walks then visit items in memory order.
+    pub fn renumber_in_leaf_order(&mut self) -> Vec<u32> {
+        let old = std::mem::take(&mut self.order);
+        self.order = (0..old.len() as u32).collect();
+        old
+    }
+
+    /// Maps every box by x_k → mul_k·x_k + add_k on each axis, as the tree of the same items
+    /// mapped alike (with every `mul_k > 0` the map is increasing on each axis, so it maps
+    /// each box onto the box of the mapped items and keeps every containment: the tree
+    /// stays valid). Empty boxes stay empty. `false`, with the tree unchanged, if some `mul_k`
+    /// is not positive or a coordinate would leave the `i32` range.
+    pub fn map_axes(&mut self, mul: [i64; 4], add: [i64; 4]) -> bool {
+        if mul.iter().any(|&m| m <= 0) {
+            return false;
+        }
+        let map = |k: usize, c: i32| i32::try_from(i64::from(c) * mul[k] + add[k]).ok();
+        let fits = |b: &Aabb4| {
+            b.is_empty() || (0..4).all(|k| map(k, b.min[k]).is_some() && map(k, b.max[k]).is_some())
+        };
+        // The root box bounds every other box: checking it checks them all.
+        if !self.nodes.first().is_none_or(|n| fits(&n.aabb)) {
+            return false;
+        }
+        let apply = |b: &mut Aabb4| {
+            if b.is_empty() {
+                return;
+            }
+            for k in 0..4 {
+                b.min[k] = map(k, b.min[k]).unwrap_or(b.min[k]);
+                b.max[k] = map(k, b.max[k]).unwrap_or(b.max[k]);
+            }
+        };
+        self.nodes.iter_mut().for_each(|n| apply(&mut n.aabb));
+        self.leaf_boxes.iter_mut().for_each(apply);
+        true
+    }
+
     /// Removes all items, keeping every buffer for the next build.
     pub fn clear(&mut self) {
         self.nodes.clear();
