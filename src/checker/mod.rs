@@ -19,6 +19,7 @@
 //! region touching the other body only that way is OUTSIDE.
 
 pub mod adjacency;
+pub mod bounds;
 pub mod contact;
 pub mod inclusion;
 pub mod labels;
@@ -377,6 +378,9 @@ pub struct PairResult {
     pub interfering_pairs: u64,
     /// Checker-time ranges where the bodies overlap, merged and sorted.
     pub intervals: Vec<(f64, f64)>,
+    /// For each interval, how fast the boundaries approach at its start and recede at its
+    /// end (voxels per frame period; see [`contact_speeds`]).
+    pub interval_speeds: Vec<(Option<f64>, Option<f64>)>,
     /// Where the time went.
     pub timing: PairTiming,
 }
@@ -492,7 +496,8 @@ fn strictly_beyond(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -
 struct Part {
     hit_a: Vec<Touch>,
     hit_b: Vec<Touch>,
-    ranges: Vec<(f64, f64)>,
+    /// Time ranges of the interfering pairs, with the pair.
+    ranges: Vec<(f64, f64, u32, u32)>,
     candidate_pairs: u64,
     interfering_pairs: u64,
 }
@@ -511,7 +516,7 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
         interfering_pairs: all.interfering_pairs,
         ..PairResult::default()
     };
-    let mut ranges = all.ranges;
+    let mut ranges: Vec<(f64, f64)> = all.ranges.iter().map(|r| (r.0, r.1)).collect();
     r.timing.detect_s = start.elapsed().as_secs_f64();
     let start = std::time::Instant::now();
     let (la, lb) = std::thread::scope(|s| {
@@ -530,8 +535,55 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
         }
     }
     r.intervals = merge_ranges(ranges);
+    r.interval_speeds = r
+        .intervals
+        .iter()
+        .map(|&(s, e)| contact_speeds(a, b, &all.ranges, s, e))
+        .collect();
     r.timing.label_s = start.elapsed().as_secs_f64();
     r
+}
+
+/// How fast the two boundaries approach at `start` and recede at `end` (voxels per frame
+/// period), from the interfering pairs within one frame period of each end: each body's
+/// boundary patch there moves along its spatial normal at −N_t/|N_s| (outward normals N
+/// summed over the patch's tets, which smooths voxel staircases); the closing speed is
+/// the sum for the two bodies, positive while they approach. `None` where no pair lies
+/// near that end (an end made by a body starting or ending inside the other).
+fn contact_speeds(
+    a: &Prepared,
+    b: &Prepared,
+    pairs: &[(f64, f64, u32, u32)],
+    start: f64,
+    end: f64,
+) -> (Option<f64>, Option<f64>) {
+    let frame = (a.factor as f64) * f64::from(a.geometry.scale);
+    let speed = |near: &dyn Fn(&(f64, f64, u32, u32)) -> bool| -> Option<f64> {
+        let (mut ta, mut tb): (Vec<u32>, Vec<u32>) = pairs
+            .iter()
+            .filter(|p| near(p))
+            .map(|p| (p.2, p.3))
+            .unzip();
+        if ta.is_empty() {
+            return None;
+        }
+        let surface = |tets: &mut Vec<u32>, m: &TetMesh| {
+            tets.sort_unstable();
+            tets.dedup();
+            let mut n = [0.0f64; 4];
+            for &t in tets.iter() {
+                let v = crate::kernel::float::tet_normal(&tet_of(m, t));
+                (0..4).for_each(|k| n[k] += v[k]);
+            }
+            let ns = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            (ns > 0.0).then(|| -n[3] / ns)
+        };
+        Some(surface(&mut ta, &a.mesh)? + surface(&mut tb, &b.mesh)?)
+    };
+    (
+        speed(&|p| p.0 >= start && p.0 <= start + frame),
+        speed(&|p| p.1 <= end && p.1 >= end - frame).map(|v| -v),
+    )
 }
 
 /// Whether two bodies interfere, exactly as [`check_pair`] decides it, but stopping at
@@ -646,7 +698,7 @@ fn visit(a: &Prepared, b: &Prepared, i: u32, j: u32, part: &mut Part) {
     };
     if let Some(range) = range {
         part.interfering_pairs += 1;
-        part.ranges.push(range);
+        part.ranges.push((range.0, range.1, i, j));
     }
     part.hit_a[i as usize] = ha.max(touch);
     part.hit_b[j as usize] = hb.max(touch);

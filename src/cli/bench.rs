@@ -8,7 +8,7 @@ use super::CliError;
 use super::{frame_ref, EncodingArg};
 use crate::checker::oracle::{shortest_translation, MovingSphere};
 use crate::checker::resolve::{suggest_translation, Metric};
-use crate::checker::{check_pair, CommonLattice, PairResult, Prepared};
+use crate::checker::{bounds, check_pair, CommonLattice, PairResult, Prepared};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::stats::{percentile, StatsAccumulator};
 use crate::mesh::{CapSide, Mesher, MesherOptions};
@@ -76,9 +76,12 @@ pub enum BenchWhich {
         /// Timed repetitions of detection plus labels (the median is printed).
         #[arg(long, default_value_t = 3)]
         reps: usize,
-        /// Frame counts of the what-each-misses sweep (empty to skip).
+        /// Frame counts of the what-each-misses sweep.
         #[arg(long, value_delimiter = ',', default_value = "3,5,9,17,33")]
         sweep: Vec<u32>,
+        /// Skip the sweep.
+        #[arg(long)]
+        no_sweep: bool,
     },
 }
 
@@ -114,7 +117,13 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             encoding,
             reps,
             sweep,
-        } => super::bench_check::bench_check(*grid, *encoding, *reps, sweep),
+            no_sweep,
+        } => super::bench_check::bench_check(
+            *grid,
+            *encoding,
+            *reps,
+            if *no_sweep { &[] } else { sweep },
+        ),
     }
 }
 
@@ -148,8 +157,8 @@ fn bench_accuracy(
         exact_multi.1.map(|x| (x * 1000.0).round() / 1000.0)
     );
     println!();
-    println!("| grid | encoding | tets/body | mesh s | check s | resolve s | first contact err (s) | interval end err (s) | frame period (s) | overlap err | translate A vs B: got / exact | A vs B,C,D: got / exact | verified |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| grid | encoding | tets/body | mesh s | check s | resolve s | first contact err / bound (s) | interval end err / bound (s) | overlap err / bound | translate A vs B: got / exact | A vs B,C,D: got / exact | translation bound (m) | verified | errors within bound |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for &n in grids {
         for &e in encodings {
             let o = SceneOptions::for_scene(SceneName::FourSpheres)
@@ -188,22 +197,44 @@ fn bench_accuracy(
             let t_check = t1.elapsed().as_secs_f64();
             let origin = lat.stamps_ns[0];
             let (mut err_first, mut err_ends, mut err_hv) = (0.0f64, 0.0f64, 0.0f64);
+            let (mut b_first, mut b_ends, mut b_hv) = (0.0f64, 0.0f64, 0.0f64);
+            // Errors checked against their bounds (a missing bound counts as a miss).
+            let (mut within, mut checked) = (0, 0);
+            let mut tally = |err: f64, bound: Option<f64>| {
+                checked += 1;
+                if bound.is_some_and(|b| err <= b) {
+                    within += 1;
+                }
+            };
             for (j, r) in results.iter().enumerate() {
                 let (x0, x1) = FOUR_SPHERES
                     .overlap_interval(0, j + 1)
                     .expect("A meets B, C and D");
-                let first = r
-                    .first_contact()
-                    .map_or(f64::NAN, |t| lat.time_s(t, origin));
-                let last = r
-                    .intervals
-                    .last()
-                    .map_or(f64::NAN, |iv| lat.time_s(iv.1, origin));
+                let (Some(&(s, e)), Some(&(vs, _)), Some(&(_, ve))) = (
+                    r.intervals.first(),
+                    r.interval_speeds.first(),
+                    r.interval_speeds.last(),
+                ) else {
+                    tally(f64::INFINITY, None);
+                    continue;
+                };
+                let e = r.intervals.last().map_or(e, |iv| iv.1);
+                let (first, last) = (lat.time_s(s, origin), lat.time_s(e, origin));
+                let bs = bounds::contact_time_bound(lat.period_s(s), vs);
+                let be = bounds::contact_time_bound(lat.period_s(e), ve);
+                tally((first - x0).abs(), bs);
+                tally((last - x1).abs(), be);
                 err_first = err_first.max((first - x0).abs());
                 err_ends = err_ends.max((first - x0).abs()).max((last - x1).abs());
-                let hv = overlap_hypervolume_of(&bodies[0], &bodies[j + 1]);
+                b_first = b_first.max(bs.unwrap_or(f64::INFINITY));
+                b_ends = b_ends
+                    .max(bs.unwrap_or(f64::INFINITY))
+                    .max(be.unwrap_or(f64::INFINITY));
+                let (hv, hv_bound) = overlap_hypervolume_of(&bodies[0], &bodies[j + 1]);
                 let exact = FOUR_SPHERES.overlap_hypervolume(0, j + 1);
+                tally((hv - exact).abs(), Some(hv_bound));
                 err_hv = err_hv.max((hv - exact).abs() / exact);
+                b_hv = b_hv.max(hv_bound / exact);
             }
             let m = Metric::new(&lat, c);
             let t2 = Instant::now();
@@ -226,12 +257,17 @@ fn bench_accuracy(
             let ok = |t: &Option<crate::checker::resolve::Translation>| {
                 t.as_ref().is_some_and(|t| t.verified_clear)
             };
+            let period = 1.0 / f64::from(n);
+            let snap = m.sigma.iter().map(|s| s * s).sum::<f64>().sqrt();
+            let b_tr = bounds::translation_bound(lat.resolution, period, c, snap);
+            tally((d(&single) - exact_single.0).abs(), Some(b_tr));
+            tally((d(&multi) - exact_multi.0).abs(), Some(b_tr));
             println!(
-                "| {n} | {:?} | {} | {t_mesh:.2} | {t_check:.2} | {t_resolve:.2} | {err_first:.4} | {err_ends:.4} | {:.4} | {:.2} % | {:.4} / {:.4} ({:+.0} %) | {:.4} / {:.4} ({:+.0} %) | {} / {} |",
+                "| {n} | {:?} | {} | {t_mesh:.2} | {t_check:.2} | {t_resolve:.2} | {err_first:.4} / {b_first:.4} | {err_ends:.4} / {b_ends:.4} | {:.2} % / {:.1} % | {:.4} / {:.4} ({:+.0} %) | {:.4} / {:.4} ({:+.0} %) | {b_tr:.4} | {} / {} | {within} / {checked} |",
                 e,
                 bodies[0].mesh.tets.len(),
-                1.0 / f64::from(n),
                 100.0 * err_hv,
+                100.0 * b_hv,
                 d(&single),
                 exact_single.0,
                 100.0 * (d(&single) / exact_single.0 - 1.0),
@@ -324,9 +360,11 @@ fn error_plot(points: &[(String, f64, f64)]) -> String {
     out + "</svg>\n"
 }
 
-/// Overlap hypervolume of two bodies from their intersected occupancy (see `check`).
-fn overlap_hypervolume_of(a: &BodyMesh, b: &BodyMesh) -> f64 {
-    super::check::overlap_hypervolume(a, b, MesherOptions::default()).unwrap_or(f64::NAN)
+/// Overlap hypervolume of two bodies from their intersected occupancy, and its bound (see
+/// `check`).
+fn overlap_hypervolume_of(a: &BodyMesh, b: &BodyMesh) -> (f64, f64) {
+    super::check::overlap_hypervolume(a, b, MesherOptions::default())
+        .unwrap_or((f64::NAN, f64::NAN))
 }
 
 fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), CliError> {

@@ -5,6 +5,7 @@
 
 use super::mesh::{mesher_options_from, MesherArgs};
 use super::{frame_ref, BagFrames, CliError};
+use crate::checker::bounds;
 use crate::checker::labels::LabelCounts;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{check_pair, CommonLattice, PairResult};
@@ -82,9 +83,21 @@ pub struct PairReport {
     /// Label counts.
     pub labels: PairLabels,
     /// The frame period at the first contact (s), the time resolution of the input (extra
-    /// field; a full error bound, which also needs the voxel size over the relative speed,
-    /// is not computed yet).
+    /// field).
     pub frame_period_s: Option<f64>,
+    /// Voxel edge (m), the space resolution of the input (extra field).
+    pub voxel_size_m: f64,
+    /// Bound on the error of `first_contact_s` (s): Δt/2 + h/v at closing speed v; null
+    /// for a grazing contact or one not made by crossing boundaries (extra field; README,
+    /// "Error bounds").
+    pub first_contact_error_bound_s: Option<f64>,
+    /// The closing speed v of the two boundaries at the first contact (m/s, extra field).
+    pub closing_speed_mps: Option<f64>,
+    /// Bounds on the errors of each interval's start and end (s; null as above; extra
+    /// field).
+    pub interval_error_bounds_s: Vec<[Option<f64>; 2]>,
+    /// Bound on the error of `overlap_hypervolume_m3s` (m³·s, extra field).
+    pub overlap_hypervolume_error_bound_m3s: Option<f64>,
     /// Candidate tet pairs from the trees (extra field).
     pub candidate_pairs: u64,
     /// Tet pairs whose boundaries cross (extra field).
@@ -157,8 +170,9 @@ pub fn load_bodies(
         .collect())
 }
 
-/// Overlap hypervolume from the intersection of the two bodies' frames, meshed like a body.
-pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<f64> {
+/// Overlap hypervolume (m³·s) from the intersection of the two bodies' frames, meshed
+/// like a body, with its error bound (see `checker::bounds`).
+pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<(f64, f64)> {
     let (ga, gb) = (a.geometry?, b.geometry?);
     if ga != gb {
         return None;
@@ -174,7 +188,15 @@ pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> O
             asm.push_decoded(s, ga, both).ok()?;
         }
     }
-    Some(asm.finish().stats.hypervolume_m3s)
+    let body = asm.finish();
+    let n = body.stamps_ns.len();
+    let period = if n >= 2 {
+        (body.stamps_ns[n - 1] - body.stamps_ns[0]) as f64 * 1e-9 / (n - 1) as f64
+    } else {
+        0.0
+    };
+    let bound = bounds::hypervolume_bound(&body.mesh, &ga, period);
+    Some((body.stats.hypervolume_m3s, bound))
 }
 
 /// Checks every pair of bodies of a bag.
@@ -228,7 +250,7 @@ pub fn check_bag(
             let hv = if r.interfering() {
                 overlap_hypervolume(named[i].1, named[j].1, opts)
             } else {
-                Some(0.0)
+                Some((0.0, 0.0))
             };
             (r, hv)
         });
@@ -340,9 +362,12 @@ fn resolve_first(
                 }
             })
             .collect();
+        let snap = m.sigma.iter().map(|s| s * s).sum::<f64>().sqrt();
+        let period = m.sigma[3] * lat.per_step() as f64 / c;
         out.push(serde_json::json!({
             "body": a.id, "kind": "translate", "vector": v, "distance": t.distance_m,
             "verified_clear": t.verified_clear, "direction": t.direction,
+            "distance_error_bound_m": bounds::translation_bound(lat.resolution, period, c, snap),
         }));
     } else {
         tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
@@ -360,12 +385,13 @@ fn pair_report(
     a: &str,
     b: &str,
     r: &PairResult,
-    hv: Option<f64>,
+    hv: Option<(f64, f64)>,
     lat: &CommonLattice,
     origin: i64,
 ) -> PairReport {
     let (ca, cb) = r.counts();
     let first = r.first_contact();
+    let bound = |t: f64, speed: Option<f64>| bounds::contact_time_bound(lat.period_s(t), speed);
     PairReport {
         a: a.to_owned(),
         b: b.to_owned(),
@@ -376,9 +402,25 @@ fn pair_report(
             .map(|&(s, e)| [lat.time_s(s, origin), lat.time_s(e, origin)])
             .collect(),
         first_contact_s: first.map(|t| lat.time_s(t, origin)),
-        overlap_hypervolume_m3s: hv,
+        overlap_hypervolume_m3s: hv.map(|h| h.0),
         labels: PairLabels { a: ca, b: cb },
         frame_period_s: first.map(|t| lat.period_s(t)),
+        voxel_size_m: lat.resolution,
+        first_contact_error_bound_s: first
+            .and_then(|t| bound(t, r.interval_speeds.first().and_then(|s| s.0))),
+        closing_speed_mps: first.and_then(|t| {
+            r.interval_speeds
+                .first()
+                .and_then(|s| s.0)
+                .map(|v| v * lat.resolution / lat.period_s(t))
+        }),
+        interval_error_bounds_s: r
+            .intervals
+            .iter()
+            .zip(&r.interval_speeds)
+            .map(|(&(s, e), &(vs, ve))| [bound(s, vs), bound(e, ve)])
+            .collect(),
+        overlap_hypervolume_error_bound_m3s: hv.map(|h| h.1),
         candidate_pairs: r.candidate_pairs,
         crossing_pairs: r.interfering_pairs,
     }
