@@ -259,7 +259,7 @@ fn generalized_cross<T: Exact>(vs: &[V4<T>], d: usize) -> V4<T> {
 }
 
 /// `p` without coordinate `k` (the later ones move down; the last becomes 0).
-fn drop_coordinate<T: Exact>(p: &V4<T>, k: usize) -> V4<T> {
+pub(super) fn drop_coordinate<T: Exact>(p: &V4<T>, k: usize) -> V4<T> {
     let mut out = [T::ZERO; 4];
     let mut m = 0;
     for (i, &c) in p.iter().enumerate() {

@@ -2,7 +2,7 @@
 //!
 //! The rule, how it is decided and why, are in the [parent module notes](super).
 
-use super::separating_axis::{difference_contains_origin, separating_axes};
+use super::separating_axis::{difference_contains_origin, drop_coordinate, separating_axes};
 use super::{
     cross3, dot4, edge_index, rel_tet, sign, sub4, Exact, LatticeTet, TET_EDGES, TET_TRIANGLES, V4,
 };
@@ -303,17 +303,7 @@ fn meets_in_hyperplane<T: Exact>(
     sides: &[i8; 4],
 ) -> bool {
     let k = (0..4).find(|&k| n[k] != T::ZERO).unwrap_or(3);
-    let drop = |x: &V4<T>| {
-        let mut out = [T::ZERO; 4];
-        let mut m = 0;
-        for (i, &c) in x.iter().enumerate() {
-            if i != k {
-                out[m] = c;
-                m += 1;
-            }
-        }
-        out
-    };
+    let drop = |x: &V4<T>| drop_coordinate(x, k);
     let mut z = [[T::ZERO; 4]; 4];
     let mut count = 0;
     for (j, v) in other.iter().enumerate() {
@@ -325,7 +315,6 @@ fn meets_in_hyperplane<T: Exact>(
     if count == 0 {
         return false;
     }
-
     // Pad with the last point: a repeated vertex adds only zero axes, which never separate.
     for j in count..4 {
         z[j] = z[count - 1];
@@ -340,17 +329,7 @@ fn coplanar<T: Exact>(p: &Pair<T>) -> TetPairRelation {
     while k < 3 && p.na[k] == T::ZERO {
         k += 1;
     }
-    let drop = |x: &V4<T>| {
-        let mut out = [T::ZERO; 4];
-        let mut m = 0;
-        for (i, &c) in x.iter().enumerate() {
-            if i != k {
-                out[m] = c;
-                m += 1;
-            }
-        }
-        out
-    };
+    let drop = |x: &V4<T>| drop_coordinate(x, k);
     let a3 = p.a.map(|x| drop(&x));
     let b3 = p.b.map(|x| drop(&x));
     if !separating_axes(&a3, &b3, 3, false) {
