@@ -155,30 +155,6 @@ impl Prepared {
             stamps_ns: self.stamps_ns.clone(),
         })
     }
-
-    /// The same body with another mesh on the same tets (moved or re-timed): the tree is
-    /// rebuilt, the adjacency kept.
-    ///
-    /// # Errors
-    /// The tree cannot be built.
-    pub fn with_mesh(&self, mesh: TetMesh) -> Result<Prepared, CheckError> {
-        let mut bvh =
-            Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
-                id: self.id.clone(),
-                source,
-            })?;
-        bvh.shrink_scratch();
-        Ok(Prepared {
-            id: self.id.clone(),
-            normals: tet_normals(&mesh),
-            mesh,
-            bvh,
-            adjacency: self.adjacency.clone(),
-            factor: self.factor,
-            geometry: self.geometry,
-            stamps_ns: self.stamps_ns.clone(),
-        })
-    }
 }
 
 /// The common lattice of a set of bodies.
@@ -410,7 +386,7 @@ impl PairResult {
     }
 }
 
-fn tet_of(m: &TetMesh, i: u32) -> [LatticePoint; 4] {
+pub(crate) fn tet_of(m: &TetMesh, i: u32) -> [LatticePoint; 4] {
     m.tets[i as usize].map(|v| m.vertices[v as usize])
 }
 

@@ -21,7 +21,7 @@
 //! checker.
 
 use super::labels::Label;
-use super::{interferes, CommonLattice, PairResult, Prepared};
+use super::{interferes, tet_of, CommonLattice, PairResult, Prepared};
 use crate::kernel::bvh::TraverseWorkspace;
 use crate::kernel::LatticePoint;
 
@@ -78,10 +78,6 @@ pub struct TimeScaling {
 
 type V4 = [f64; 4];
 
-fn tet_pts(m: &crate::mesh::TetMesh, i: usize) -> [LatticePoint; 4] {
-    m.tets[i].map(|v| m.vertices[v as usize])
-}
-
 use crate::kernel::float::{det4, tet_normal as normal};
 
 fn centroid(t: &[LatticePoint; 4]) -> V4 {
@@ -123,7 +119,7 @@ fn ray_crossings(
     b.bvh.segment_candidates(start, end, ws, |i| hits.push(i));
     let mut out = Vec::new();
     for &i in hits.iter() {
-        let t = tet_pts(&b.mesh, i as usize);
+        let t = tet_of(&b.mesh, i);
         let n = normal(&t);
         let nd: f64 = (0..4).map(|k| n[k] * dir[k]).sum();
         if nd == 0.0 {
@@ -182,7 +178,7 @@ fn exit_distance(a: &Prepared, r: &PairResult, b: &Prepared, dir: &V4) -> Option
     let mut hits = Vec::new();
     let mut best: Option<(f64, V4)> = None;
     for &i in cand.iter().step_by(step) {
-        let p = centroid(&tet_pts(&a.mesh, i));
+        let p = centroid(&tet_of(&a.mesh, i as u32));
         let xs = ray_crossings(&p, dir, b, &mut ws, &mut hits);
         if xs.len() % 2 == 1 && best.is_none_or(|(d, _)| xs[0] > d) {
             best = Some((xs[0], p));
@@ -202,7 +198,7 @@ fn overlap_gradient(a: &Prepared, results: &[&PairResult]) -> V4 {
                 Label::Interference => 0.5 / 6.0,
                 Label::Outside => continue,
             };
-            let n = normal(&tet_pts(&a.mesh, i));
+            let n = normal(&tet_of(&a.mesh, i as u32));
             for k in 0..4 {
                 g[k] += w * n[k];
             }
@@ -217,12 +213,6 @@ fn interfering(results: &[&PairResult]) -> Option<Vec<usize>> {
         .filter(|&i| results[i].interfering())
         .collect();
     (!hits.is_empty()).then_some(hits)
-}
-
-/// A copy of `a` translated by an integer lattice vector (None if it leaves the lattice's
-/// range).
-pub fn translated(a: &Prepared, v: [i64; 4]) -> Option<Prepared> {
-    a.translated(v)
 }
 
 /// True if `a` interferes with none of `others`.
@@ -293,7 +283,7 @@ pub fn suggest_translation(
             let x = len * u[k] / m.sigma[k];
             (x.abs().ceil() * x.signum()) as i64
         });
-        let ok = translated(a, v).is_some_and(|moved| clears(&moved, others));
+        let ok = a.translated(v).is_some_and(|moved| clears(&moved, others));
         let dist = (0..4)
             .map(|k| (v[k] as f64 * m.sigma[k]).powi(2))
             .sum::<f64>()
