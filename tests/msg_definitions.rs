@@ -7,9 +7,11 @@ use std::fmt;
 use std::path::Path;
 
 use chronotope::msg::{
-    encode_cdr, parse_msg_fields, Header, MsgField, Point, RosMessage, Time, VoxelGrid,
+    encode_cdr, parse_msg_fields, try_ros2msg_schema, ColorRGBA, CompressedImage, Duration, Header,
+    Marker, MarkerArray, MeshFile, MsgField, Point, PointCloud2, PointField, Pose, PoseStamped,
+    Quaternion, RosMessage, Time, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
 };
-use serde::de::{Deserializer, IgnoredAny, MapAccess, Visitor};
+use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;
 
 fn read(path: &str) -> String {
@@ -27,7 +29,68 @@ fn definitions() -> HashMap<String, Vec<MsgField>> {
     for (name, text) in VoxelGrid::dependencies() {
         defs.insert(name.replace("/msg/", "/"), parse_msg_fields(text));
     }
+    for message in std_messages() {
+        defs.insert(
+            short_name(message.name),
+            parse_msg_fields(message.definition),
+        );
+        for (name, text) in message.dependencies {
+            defs.insert(short_name(name), parse_msg_fields(text));
+        }
+    }
     defs
+}
+
+/// `pkg/msg/Type` -> `pkg/Type`.
+fn short_name(name: &str) -> String {
+    name.replace("/msg/", "/")
+}
+
+/// What `RosMessage` says about one type.
+struct MessageInfo {
+    name: &'static str,
+    definition: &'static str,
+    dependencies: Vec<(&'static str, &'static str)>,
+}
+
+fn info<M: RosMessage>() -> MessageInfo {
+    MessageInfo {
+        name: M::TYPE_NAME,
+        definition: M::DEFINITION,
+        dependencies: M::dependencies(),
+    }
+}
+
+/// The standard types of `chronotope::msg` (besides those of `VoxelGrid`).
+fn std_messages() -> Vec<MessageInfo> {
+    vec![
+        info::<Duration>(),
+        info::<ColorRGBA>(),
+        info::<Quaternion>(),
+        info::<Vector3>(),
+        info::<Pose>(),
+        info::<PoseStamped>(),
+        info::<Wrench>(),
+        info::<WrenchStamped>(),
+        info::<PointField>(),
+        info::<PointCloud2>(),
+        info::<CompressedImage>(),
+        info::<UVCoordinate>(),
+        info::<MeshFile>(),
+        info::<Marker>(),
+        info::<MarkerArray>(),
+    ]
+}
+
+/// A field type with its package: `Point` in a `geometry_msgs` definition is
+/// `geometry_msgs/Point`, `UVCoordinate[]` in `visualization_msgs` is
+/// `visualization_msgs/UVCoordinate[]`; primitive and qualified types are unchanged.
+fn qualify(field: &MsgField, package: &str) -> String {
+    if field.is_primitive() || field.base_type().contains('/') {
+        field.ty.clone()
+    } else {
+        format!("{package}/{}", field.ty)
+    }
 }
 
 /// The top-level keys of a JSON object, in the order they appear (serde_json's `Value` would
@@ -130,7 +193,10 @@ fn voxel_grid_constants_match() {
 /// CDR little-endian body of a JSON value, laid out as the `.msg` definition `ty` says.
 ///
 /// An encoder driven by the definitions alone: if the Rust types disagree with the `.msg` files
-/// in any type, order or nesting, its bytes differ from `encode_cdr`'s.
+/// in any type, order or nesting, its bytes differ from `encode_cdr`'s. `ty` is a primitive
+/// type or a package-qualified message type (`pkg/Type`), with any array suffix: `T[]` and
+/// `T[<=N]` are sequences (a `u32` count, then the elements), `T[N]` a fixed array (the
+/// elements alone). Types named without a package inside a definition belong to its package.
 fn encode_from_definition(
     ty: &str,
     value: &Value,
@@ -142,19 +208,36 @@ fn encode_from_definition(
             out.push(0);
         }
     }
-    if let Some(element) = ty.strip_suffix("[]") {
+    if let Some((element, bound)) = ty.strip_suffix(']').and_then(|t| t.rsplit_once('[')) {
         let items = value.as_array().expect("array");
-        align(out, 4);
-        out.extend((items.len() as u32).to_le_bytes());
+        if let Ok(len) = bound.parse::<usize>() {
+            assert_eq!(items.len(), len, "fixed array {ty}");
+        } else {
+            assert!(
+                bound.is_empty() || bound.starts_with("<="),
+                "array bound {ty}"
+            );
+            align(out, 4);
+            out.extend((items.len() as u32).to_le_bytes());
+        }
         for item in items {
             encode_from_definition(element, item, defs, out);
         }
         return;
     }
-    match ty {
-        "float64" => {
-            align(out, 8);
-            out.extend(value.as_f64().unwrap().to_le_bytes());
+    // `string<=N` is a string.
+    let base = ty.split("<=").next().unwrap_or(ty);
+    match base {
+        "bool" => out.push(u8::from(value.as_bool().expect("bool"))),
+        "byte" | "char" | "uint8" => out.push(value.as_u64().unwrap() as u8),
+        "int8" => out.push(value.as_i64().unwrap() as i8 as u8),
+        "uint16" => {
+            align(out, 2);
+            out.extend((value.as_u64().unwrap() as u16).to_le_bytes());
+        }
+        "int16" => {
+            align(out, 2);
+            out.extend((value.as_i64().unwrap() as i16).to_le_bytes());
         }
         "uint32" => {
             align(out, 4);
@@ -164,7 +247,22 @@ fn encode_from_definition(
             align(out, 4);
             out.extend((value.as_i64().unwrap() as i32).to_le_bytes());
         }
-        "uint8" => out.push(value.as_u64().unwrap() as u8),
+        "uint64" => {
+            align(out, 8);
+            out.extend(value.as_u64().unwrap().to_le_bytes());
+        }
+        "int64" => {
+            align(out, 8);
+            out.extend(value.as_i64().unwrap().to_le_bytes());
+        }
+        "float32" => {
+            align(out, 4);
+            out.extend((value.as_f64().unwrap() as f32).to_le_bytes());
+        }
+        "float64" => {
+            align(out, 8);
+            out.extend(value.as_f64().unwrap().to_le_bytes());
+        }
         "string" => {
             let s = value.as_str().unwrap();
             align(out, 4);
@@ -176,8 +274,12 @@ fn encode_from_definition(
             let fields = defs
                 .get(nested)
                 .unwrap_or_else(|| panic!("no definition for {nested}"));
+            let (package, _) = nested.split_once('/').expect("pkg/Type");
             for field in fields.iter().filter(|f| !f.is_constant) {
-                encode_from_definition(&field.ty, &value[&field.name], defs, out);
+                let field_value = value
+                    .get(&field.name)
+                    .unwrap_or_else(|| panic!("{nested}.{} missing in {value}", field.name));
+                encode_from_definition(&qualify(field, package), field_value, defs, out);
             }
         }
     }
@@ -274,4 +376,475 @@ fn the_interface_package_declares_what_the_definition_uses() {
             "{pkg}"
         );
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The standard types (std_types.rs)
+
+/// A JSON value with object keys in the order they appear (serde_json's `Value` sorts them).
+#[derive(Debug)]
+enum Ordered {
+    Object(Vec<(String, Ordered)>),
+    Array(Vec<Ordered>),
+    Scalar,
+}
+
+impl<'de> Deserialize<'de> for Ordered {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct OrderedVisitor;
+        impl<'de> Visitor<'de> for OrderedVisitor {
+            type Value = Ordered;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("any JSON value")
+            }
+            fn visit_bool<E>(self, _: bool) -> Result<Ordered, E> {
+                Ok(Ordered::Scalar)
+            }
+            fn visit_i64<E>(self, _: i64) -> Result<Ordered, E> {
+                Ok(Ordered::Scalar)
+            }
+            fn visit_u64<E>(self, _: u64) -> Result<Ordered, E> {
+                Ok(Ordered::Scalar)
+            }
+            fn visit_f64<E>(self, _: f64) -> Result<Ordered, E> {
+                Ok(Ordered::Scalar)
+            }
+            fn visit_str<E>(self, _: &str) -> Result<Ordered, E> {
+                Ok(Ordered::Scalar)
+            }
+            fn visit_unit<E>(self) -> Result<Ordered, E> {
+                Ok(Ordered::Scalar)
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Ordered, A::Error> {
+                let mut items = Vec::new();
+                while let Some(item) = seq.next_element()? {
+                    items.push(item);
+                }
+                Ok(Ordered::Array(items))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<Ordered, A::Error> {
+                let mut entries = Vec::new();
+                while let Some((key, value)) = map.next_entry()? {
+                    entries.push((key, value));
+                }
+                Ok(Ordered::Object(entries))
+            }
+        }
+        deserializer.deserialize_any(OrderedVisitor)
+    }
+}
+
+/// Checks that `value` has the non-constant fields of definition `ty` (`pkg/Type`), in order,
+/// and so on down every nested message, array elements included. Returns the number of
+/// message values checked.
+fn check_field_order(
+    ty: &str,
+    value: &Ordered,
+    defs: &HashMap<String, Vec<MsgField>>,
+    path: &str,
+) -> usize {
+    let fields = defs
+        .get(ty)
+        .unwrap_or_else(|| panic!("no definition for {ty}"));
+    let Ordered::Object(entries) = value else {
+        panic!("{path}: {ty} is not serialised as an object: {value:?}");
+    };
+    let keys: Vec<&str> = entries.iter().map(|(k, _)| k.as_str()).collect();
+    assert_eq!(keys, field_names(fields), "{path}: fields of {ty}");
+    let (package, _) = ty.split_once('/').expect("pkg/Type");
+    let mut checked = 1;
+    for (field, (_, field_value)) in fields.iter().filter(|f| !f.is_constant).zip(entries) {
+        if field.is_primitive() {
+            continue;
+        }
+        let field_ty = qualify(field, package);
+        let base = field_ty.split('[').next().unwrap();
+        let field_path = format!("{path}.{}", field.name);
+        if field_ty.ends_with(']') {
+            let Ordered::Array(items) = field_value else {
+                panic!("{field_path}: {field_ty} is not serialised as an array");
+            };
+            for (i, item) in items.iter().enumerate() {
+                checked += check_field_order(base, item, defs, &format!("{field_path}[{i}]"));
+            }
+        } else {
+            checked += check_field_order(base, field_value, defs, &field_path);
+        }
+    }
+    checked
+}
+
+/// One value of a standard type, as JSON text and as `encode_cdr` bytes.
+struct Sample {
+    /// `pkg/Type`.
+    ty: String,
+    json: String,
+    cdr: Vec<u8>,
+}
+
+fn sample<M: RosMessage>(value: &M) -> Sample {
+    Sample {
+        ty: short_name(M::TYPE_NAME),
+        json: serde_json::to_string(value).unwrap(),
+        cdr: encode_cdr(value).unwrap(),
+    }
+}
+
+fn stamped(frame_id: &str) -> Header {
+    Header {
+        stamp: Time {
+            sec: -3,
+            nanosec: 999_999_999,
+        },
+        frame_id: frame_id.into(),
+    }
+}
+
+fn point(x: f64, y: f64, z: f64) -> Point {
+    Point { x, y, z }
+}
+
+/// A marker with every array non-empty, strings of odd lengths, and `frame_id` at the front to
+/// move everything after it across alignment boundaries.
+fn sample_marker(frame_id: &str) -> Marker {
+    Marker {
+        header: stamped(frame_id),
+        ns: "cell/robot".into(),
+        id: -42,
+        r#type: Marker::LINE_STRIP,
+        action: Marker::DELETEALL,
+        pose: Pose {
+            position: point(0.5, -1.25, 3.0),
+            orientation: Quaternion {
+                x: 0.5,
+                y: -0.5,
+                z: 0.5,
+                w: 0.5,
+            },
+        },
+        scale: Vector3::new(0.01, 0.02, 0.03),
+        color: ColorRGBA::new(0.1, 0.2, 0.3, 0.4),
+        lifetime: Duration {
+            sec: -2,
+            nanosec: 300_000_000,
+        },
+        frame_locked: true,
+        points: vec![
+            point(0.0, 0.0, 0.0),
+            point(1.0, 2.0, 3.0),
+            point(-1.5, 1e-9, 7.25),
+        ],
+        colors: vec![
+            ColorRGBA::new(1.0, 0.0, 0.0, 1.0),
+            ColorRGBA::new(0.0, 1.0, 0.0, 0.5),
+            ColorRGBA::new(0.0, 0.0, 1.0, 0.25),
+        ],
+        texture_resource: "embedded://t".into(),
+        texture: CompressedImage {
+            header: stamped("camera_optical"),
+            format: "jpeg".into(),
+            data: vec![0xff, 0xd8, 0xff, 0xe0, 0x00],
+        },
+        uv_coordinates: vec![
+            UVCoordinate { u: 0.0, v: 0.125 },
+            UVCoordinate { u: 1.0, v: 0.75 },
+            UVCoordinate { u: 0.5, v: 1.0 },
+        ],
+        text: "TCP".into(),
+        mesh_resource: "embedded://gripper".into(),
+        mesh_file: MeshFile {
+            filename: "gripper.stl".into(),
+            data: b"solid g\nendsolid g\n".to_vec(),
+        },
+        mesh_use_embedded_materials: true,
+    }
+}
+
+/// A cloud of 3 points with 2 fields (`x y z` as one float32[3] field, and a uint8 label).
+fn sample_cloud(frame_id: &str) -> PointCloud2 {
+    let data = [
+        ([1.0f32, 2.0, 3.0], 7u8),
+        ([-4.0, 5.5, 0.0], 9),
+        ([0.0, 0.0, -1.0], 255),
+    ]
+    .iter()
+    .flat_map(|(xyz, label)| {
+        let mut point: Vec<u8> = xyz.iter().flat_map(|v| v.to_le_bytes()).collect();
+        point.push(*label);
+        point
+    })
+    .collect();
+    PointCloud2 {
+        header: stamped(frame_id),
+        height: 1,
+        width: 3,
+        fields: vec![
+            PointField::new("xyz", 0, PointField::FLOAT32, 3),
+            PointField::new("label", 12, PointField::UINT8, 1),
+        ],
+        is_bigendian: false,
+        point_step: 13,
+        row_step: 39,
+        data,
+        is_dense: true,
+    }
+}
+
+/// A value of every standard type, non-trivial where the type allows it.
+fn samples(frame_id: &str) -> Vec<Sample> {
+    let wrench = Wrench {
+        force: Vector3::new(1.0, -2.0, 9.81),
+        torque: Vector3::new(0.0, 0.5, -0.25),
+    };
+    let pose = Pose {
+        position: point(1.0, 2.0, 3.0),
+        orientation: Quaternion::IDENTITY,
+    };
+    vec![
+        sample(&Duration {
+            sec: -2,
+            nanosec: 300_000_000,
+        }),
+        sample(&ColorRGBA::new(0.25, 0.5, 0.75, 1.0)),
+        sample(&Quaternion {
+            x: 0.0,
+            y: 0.6,
+            z: 0.0,
+            w: 0.8,
+        }),
+        sample(&Vector3::new(-1.0, 0.0, 1e300)),
+        sample(&pose),
+        sample(&PoseStamped {
+            header: stamped(frame_id),
+            pose,
+        }),
+        sample(&wrench),
+        sample(&WrenchStamped {
+            header: stamped(frame_id),
+            wrench,
+        }),
+        sample(&PointField::new("intensity", 16, PointField::FLOAT32, 1)),
+        sample(&sample_cloud(frame_id)),
+        sample(&CompressedImage {
+            header: stamped(frame_id),
+            format: "png".into(),
+            data: vec![0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a],
+        }),
+        sample(&UVCoordinate { u: 0.25, v: 0.5 }),
+        sample(&MeshFile {
+            filename: "part.obj".into(),
+            data: b"v 0 0 0\n".to_vec(),
+        }),
+        sample(&sample_marker(frame_id)),
+        sample(&MarkerArray {
+            markers: vec![
+                sample_marker(frame_id),
+                Marker::default(),
+                sample_marker("x"),
+            ],
+        }),
+    ]
+}
+
+#[test]
+fn std_types_fields_are_the_msg_fields_in_order_recursively() {
+    let defs = definitions();
+    let samples = samples("map");
+    assert_eq!(samples.len(), std_messages().len());
+    for sample in samples {
+        let value: Ordered = serde_json::from_str(&sample.json).unwrap();
+        let checked = check_field_order(&sample.ty, &value, &defs, &sample.ty);
+        assert!(checked >= 1, "{}", sample.ty);
+    }
+    // The marker check reached the nested arrays' elements.
+    let marker: Ordered =
+        serde_json::from_str(&serde_json::to_string(&sample_marker("map")).unwrap()).unwrap();
+    // The marker; header and stamp; pose, position, orientation; scale; color; lifetime;
+    // 3 points; 3 colours; texture, its header and stamp; 3 uv coordinates; mesh_file.
+    assert_eq!(
+        check_field_order("visualization_msgs/Marker", &marker, &defs, "marker"),
+        1 + 2 + 3 + 1 + 1 + 1 + 3 + 3 + 3 + 3 + 1
+    );
+}
+
+/// The `(type, name, value)` of each constant of a `.msg` text, in order.
+fn msg_constants(text: &str) -> Vec<(String, String, String)> {
+    parse_msg_fields(text)
+        .into_iter()
+        .filter(|f| f.is_constant)
+        .map(|f| (f.ty, f.name, f.value.unwrap()))
+        .collect()
+}
+
+/// `(ROS type, name, value)` of Rust associated constants.
+macro_rules! rust_constants {
+    ($ty:ty: $($name:ident),* $(,)?) => {
+        vec![$((
+            ros_type_of(&<$ty>::$name).to_owned(),
+            stringify!($name).to_owned(),
+            <$ty>::$name.to_string(),
+        )),*]
+    };
+}
+
+fn ros_type_of<T>(value: &T) -> &'static str {
+    match std::any::type_name_of_val(value) {
+        "i8" => "int8",
+        "u8" => "uint8",
+        "i16" => "int16",
+        "u16" => "uint16",
+        "i32" => "int32",
+        "u32" => "uint32",
+        "i64" => "int64",
+        "u64" => "uint64",
+        other => panic!("no ROS type for {other}"),
+    }
+}
+
+#[test]
+fn std_types_constants_match() {
+    let marker = rust_constants!(Marker:
+        ARROW, CUBE, SPHERE, CYLINDER, LINE_STRIP, LINE_LIST, CUBE_LIST, SPHERE_LIST, POINTS,
+        TEXT_VIEW_FACING, MESH_RESOURCE, TRIANGLE_LIST, ARROW_STRIP, ADD, MODIFY, DELETE,
+        DELETEALL,
+    );
+    assert_eq!(msg_constants(Marker::DEFINITION), marker);
+    let point_field = rust_constants!(PointField:
+        INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64,
+    );
+    assert_eq!(msg_constants(PointField::DEFINITION), point_field);
+    // The constants have the type of the field they are values of.
+    let field_type = |text: &str, name: &str| {
+        parse_msg_fields(text)
+            .into_iter()
+            .find(|f| !f.is_constant && f.name == name)
+            .unwrap()
+            .ty
+    };
+    assert_eq!(field_type(Marker::DEFINITION, "type"), "int32");
+    assert_eq!(field_type(Marker::DEFINITION, "action"), "int32");
+    assert_eq!(field_type(PointField::DEFINITION, "datatype"), "uint8");
+    // The other types have none.
+    for message in std_messages() {
+        if message.name != Marker::TYPE_NAME && message.name != PointField::TYPE_NAME {
+            assert_eq!(msg_constants(message.definition), [], "{}", message.name);
+        }
+    }
+}
+
+#[test]
+fn std_types_cdr_is_the_layout_the_msg_files_define() {
+    let defs = definitions();
+    for frame_id in ["", "m", "map", "world_frame"] {
+        for sample in samples(frame_id) {
+            let json: Value = serde_json::from_str(&sample.json).unwrap();
+            let mut body = Vec::new();
+            encode_from_definition(&sample.ty, &json, &defs, &mut body);
+            assert_eq!(sample.cdr[..4], [0, 1, 0, 0]);
+            assert_eq!(
+                sample.cdr[4..],
+                body[..],
+                "{} with frame_id {frame_id:?}",
+                sample.ty
+            );
+        }
+    }
+}
+
+/// The message types a definition refers to, `pkg/Type`, transitively.
+fn referenced_closure(name: &str, defs: &HashMap<String, Vec<MsgField>>) -> Vec<String> {
+    let mut found: Vec<String> = Vec::new();
+    let mut stack = vec![name.to_owned()];
+    while let Some(ty) = stack.pop() {
+        let (package, _) = ty.split_once('/').unwrap();
+        for field in defs[&ty]
+            .iter()
+            .filter(|f| !f.is_constant && !f.is_primitive())
+        {
+            let referenced = qualify(field, package);
+            let base = referenced.split('[').next().unwrap().to_owned();
+            if !found.contains(&base) {
+                found.push(base.clone());
+                stack.push(base);
+            }
+        }
+    }
+    found.sort_unstable();
+    found
+}
+
+#[test]
+fn std_types_name_their_files_and_all_their_dependencies() {
+    // Parsed from the files themselves, not from what the types claim.
+    let mut file_defs = HashMap::new();
+    for dir in std::fs::read_dir(Path::new(env!("CARGO_MANIFEST_DIR")).join("msgs/deps")).unwrap() {
+        let pkg_dir = dir.unwrap().path();
+        let pkg = pkg_dir.file_name().unwrap().to_str().unwrap().to_owned();
+        for file in std::fs::read_dir(pkg_dir.join("msg")).unwrap() {
+            let path = file.unwrap().path();
+            let ty = path.file_stem().unwrap().to_str().unwrap().to_owned();
+            let text = std::fs::read_to_string(&path).unwrap();
+            file_defs.insert(format!("{pkg}/{ty}"), parse_msg_fields(&text));
+        }
+    }
+    for message in std_messages() {
+        let (pkg, ty) = message.name.split_once("/msg/").expect("pkg/msg/Type");
+        assert_eq!(
+            message.definition,
+            read(&format!("msgs/deps/{pkg}/msg/{ty}.msg")),
+            "{}",
+            message.name
+        );
+        let mut names = Vec::new();
+        for (name, text) in &message.dependencies {
+            let (pkg, ty) = name.split_once("/msg/").expect("pkg/msg/Type");
+            assert_eq!(
+                *text,
+                read(&format!("msgs/deps/{pkg}/msg/{ty}.msg")),
+                "{name}"
+            );
+            names.push(short_name(name));
+        }
+        names.sort_unstable();
+        let count = names.len();
+        names.dedup();
+        assert_eq!(names.len(), count, "{}: listed twice", message.name);
+        assert_eq!(
+            names,
+            referenced_closure(&short_name(message.name), &file_defs),
+            "{}: dependencies() must be every type it refers to, transitively",
+            message.name
+        );
+    }
+}
+
+#[test]
+fn std_types_have_complete_ros2msg_schemas() {
+    fn check<M: RosMessage>() -> String {
+        try_ros2msg_schema::<M>().unwrap_or_else(|err| panic!("{}: {err}", M::TYPE_NAME))
+    }
+    for schema in [
+        check::<Marker>(),
+        check::<MarkerArray>(),
+        check::<PointCloud2>(),
+        check::<PoseStamped>(),
+        check::<WrenchStamped>(),
+    ] {
+        assert!(!schema.is_empty());
+    }
+    check::<Duration>();
+    check::<ColorRGBA>();
+    check::<Quaternion>();
+    check::<Vector3>();
+    check::<Pose>();
+    check::<Wrench>();
+    check::<PointField>();
+    check::<CompressedImage>();
+    check::<UVCoordinate>();
+    check::<MeshFile>();
+    // MarkerArray's schema names each of the 12 types it uses once, after its own text.
+    let schema = check::<MarkerArray>();
+    let msg_lines: Vec<&str> = schema.lines().filter(|l| l.starts_with("MSG: ")).collect();
+    assert_eq!(msg_lines.len(), 12, "{msg_lines:?}");
+    assert!(schema.starts_with(MarkerArray::DEFINITION));
 }

@@ -6,11 +6,16 @@
 
 mod cdr;
 mod schema;
+mod std_types;
 mod voxel_grid;
 
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, CdrEndianness, CdrError};
 pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
+};
+pub use std_types::{
+    ColorRGBA, CompressedImage, Duration, Marker, MarkerArray, MeshFile, PointCloud2, PointField,
+    Pose, PoseStamped, Quaternion, UVCoordinate, Vector3, Wrench, WrenchStamped,
 };
 pub use voxel_grid::{Header, Point, Time, VoxelEncoding, VoxelGrid};
 
