@@ -15,4 +15,6 @@ pub mod cli;
 pub mod kernel;
 pub mod mesh;
 pub mod msg;
+pub mod node;
+pub mod report;
 pub mod scene;

@@ -182,10 +182,34 @@ impl BagWriter {
             type_name: M::TYPE_NAME,
             source,
         })?;
+        self.add_topic_with_schema(topic, M::TYPE_NAME, &schema)
+    }
+
+    /// Adds a topic of type `type_name` (`pkg/msg/Type`) whose complete `ros2msg` schema text
+    /// is `schema` (for writers that know the type only at run time). Adding the same topic
+    /// with the same type again does nothing.
+    ///
+    /// # Errors
+    ///
+    /// [`BagError::TopicTypeConflict`] if the topic exists with another type,
+    /// [`BagError::Write`] if the records cannot be written.
+    pub fn add_topic_with_schema(
+        &mut self,
+        topic: &str,
+        type_name: &'static str,
+        schema: &str,
+    ) -> Result<(), BagError> {
+        if let Some(existing) = self.topics.get(topic) {
+            return if existing.type_name == type_name {
+                Ok(())
+            } else {
+                Err(self.conflict(topic, existing.type_name, type_name))
+            };
+        }
         // The mcap writer reuses the id of an identical schema already written.
         let schema_id = self
             .inner
-            .add_schema(M::TYPE_NAME, "ros2msg", schema.as_bytes())
+            .add_schema(type_name, "ros2msg", schema.as_bytes())
             .map_err(|source| self.write_error(source))?;
         let metadata = BTreeMap::from([(
             "offered_qos_profiles".to_owned(),
@@ -199,7 +223,7 @@ impl BagWriter {
             topic.to_owned(),
             Topic {
                 channel_id,
-                type_name: M::TYPE_NAME,
+                type_name,
                 next_sequence: 1,
             },
         );

@@ -46,7 +46,12 @@ pub fn face_adjacency(mesh: &TetMesh) -> Vec<[u32; 4]> {
     for v in 0..nv {
         let (lo, hi) = (start[v], start[v + 1]);
         bucket.clear();
-        bucket.extend(keys[lo..hi].iter().copied().zip(ids[lo..hi].iter().copied()));
+        bucket.extend(
+            keys[lo..hi]
+                .iter()
+                .copied()
+                .zip(ids[lo..hi].iter().copied()),
+        );
         bucket.sort_unstable();
         for run in bucket.chunk_by(|a, b| a.0 == b.0) {
             if let [(_, x), (_, y)] = run {

@@ -116,7 +116,12 @@ impl<'a> Inclusion<'a> {
     /// Whether `p` is inside, given a point `q` off the boundary whose answer is
     /// `q_inside`: each crossing of the segment p→q adds +1 leaving and −1 entering, so the
     /// sum is in(p) − in(q). `None` if a crossing is degenerate (or the sum is impossible).
-    pub fn contains_from(&mut self, p: &LatticePoint, q: &LatticePoint, q_inside: bool) -> Option<bool> {
+    pub fn contains_from(
+        &mut self,
+        p: &LatticePoint,
+        q: &LatticePoint,
+        q_inside: bool,
+    ) -> Option<bool> {
         let wide = |x: &LatticePoint| x.map(i64::from);
         self.hits.clear();
         let hits = &mut self.hits;

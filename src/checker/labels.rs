@@ -11,8 +11,8 @@
 
 use super::adjacency::NO_NEIGHBOUR;
 use crate::kernel::LatticePoint;
-use std::collections::{HashMap, VecDeque};
 use serde::Serialize;
+use std::collections::{HashMap, VecDeque};
 
 /// A tet's relation to the other body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
@@ -89,7 +89,12 @@ pub trait InsideTest {
     /// Whether tet `t` lies inside, from its first interior point and a point `q` off the
     /// other boundary whose answer `q_inside` is known (crossings along the short segment
     /// between them); with the point used. `None` if a crossing is degenerate.
-    fn from_known(&mut self, t: u32, q: &LatticePoint, q_inside: bool) -> Option<(bool, LatticePoint)>;
+    fn from_known(
+        &mut self,
+        t: u32,
+        q: &LatticePoint,
+        q_inside: bool,
+    ) -> Option<(bool, LatticePoint)>;
     /// An interior point of tet `t`.
     fn point(&self, t: u32) -> LatticePoint;
 }
@@ -101,7 +106,11 @@ pub trait InsideTest {
 /// between their interior points (far rays only where that is degenerate or no neighbour
 /// is decided): the neighbour's point is off the other boundary, so the signed crossing
 /// count along the segment is the difference of the two answers.
-pub fn label_regions(adjacency: &[[u32; 4]], touch: &[Touch], test: &mut impl InsideTest) -> Labeling {
+pub fn label_regions(
+    adjacency: &[[u32; 4]],
+    touch: &[Touch],
+    test: &mut impl InsideTest,
+) -> Labeling {
     let n = adjacency.len();
     let mut labels = vec![Label::Outside; n];
     // Tets whose label is decided and whose reference point is off the other boundary.
@@ -163,7 +172,11 @@ pub fn label_regions(adjacency: &[[u32; 4]], touch: &[Touch], test: &mut impl In
     let mut queue: VecDeque<u32> = contact
         .iter()
         .copied()
-        .filter(|&t| adjacency[t as usize].iter().any(|&u| u != NO_NEIGHBOUR && decided[u as usize]))
+        .filter(|&t| {
+            adjacency[t as usize]
+                .iter()
+                .any(|&u| u != NO_NEIGHBOUR && decided[u as usize])
+        })
         .collect();
     // Records a contact tet's verdict.
     let decide = |t: u32, verdict: Option<(bool, LatticePoint)>, st: &mut State| {
@@ -225,7 +238,9 @@ pub fn label_regions(adjacency: &[[u32; 4]], touch: &[Touch], test: &mut impl In
             decide(t, verdict, &mut st);
         }
     }
-    let State { labels, mut out, .. } = st;
+    let State {
+        labels, mut out, ..
+    } = st;
     out.labels = labels;
     out
 }

@@ -28,14 +28,14 @@ pub mod resolve;
 
 use crate::kernel::bvh::{overlapping_pairs_under, top_pairs, Bvh, BvhError, TraverseWorkspace};
 use crate::kernel::intersect::{classify_if, TetPairRelation};
-use std::ops::ControlFlow;
-use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use crate::kernel::LatticePoint;
 use crate::mesh::glue::BodyMesh;
 use crate::mesh::{GridGeometry, TetMesh};
 use adjacency::face_adjacency;
 use inclusion::Inclusion;
 use labels::{label_regions, LabelCounts, Labeling, Touch};
+use std::ops::ControlFlow;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
 /// Why two bodies cannot be checked against each other.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -112,9 +112,22 @@ pub struct Prepared {
     /// Frame stamps (ns) of the common time lattice: checker time `t` is at
     /// `stamps[t / (8·scale)]` plus the fraction within that frame period.
     pub stamps_ns: Vec<i64>,
+    /// For each tet (in the order of `mesh.tets`), its index in the body's mesh as given to
+    /// [`CommonLattice::prepare`].
+    pub original: std::sync::Arc<[u32]>,
 }
 
 impl Prepared {
+    /// Per-tet values in the order of the body's mesh as given to [`CommonLattice::prepare`]
+    /// (undoing the tree's leaf order).
+    pub fn in_original_order<T: Copy + Default>(&self, values: &[T]) -> Vec<T> {
+        let mut out = vec![T::default(); self.original.len()];
+        for (&o, &v) in self.original.iter().zip(values) {
+            out[o as usize] = v;
+        }
+        out
+    }
+
     /// The same body translated by a lattice vector (see [`Prepared::mapped`]).
     pub fn translated(&self, v: [i64; 4]) -> Option<Prepared> {
         self.mapped([1; 4], v)
@@ -153,6 +166,7 @@ impl Prepared {
             factor: self.factor,
             geometry: self.geometry,
             stamps_ns: self.stamps_ns.clone(),
+            original: self.original.clone(),
         })
     }
 }
@@ -285,10 +299,11 @@ impl CommonLattice {
                 p[k] = fit(i64::from(p[k]) * i64::from(factor) + shift[k])? as i32;
             }
         }
-        let mut bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
-            id: id.to_string(),
-            source,
-        })?;
+        let mut bvh =
+            Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
+                id: id.to_string(),
+                source,
+            })?;
         bvh.shrink_scratch();
         // Tets in leaf order: the walks read them in memory order.
         let order = bvh.renumber_in_leaf_order();
@@ -303,6 +318,7 @@ impl CommonLattice {
             factor,
             geometry: g,
             stamps_ns: self.stamps_ns.clone(),
+            original: order.into(),
         })
     }
 
@@ -376,6 +392,11 @@ impl PairResult {
         let (a, b) = (self.labels_a.counts(), self.labels_b.counts());
         a.interference + a.inside + b.interference + b.inside > 0
     }
+    /// The same result with the two bodies' roles exchanged.
+    pub fn swapped(mut self) -> Self {
+        std::mem::swap(&mut self.labels_a, &mut self.labels_b);
+        self
+    }
     /// Label counts of both bodies.
     pub fn counts(&self) -> (LabelCounts, LabelCounts) {
         (self.labels_a.counts(), self.labels_b.counts())
@@ -425,7 +446,10 @@ fn tet_normals(m: &TetMesh) -> Vec<[i32; 4]> {
                 return [a, b, c, d];
             }
             // Only the direction matters: divide by the gcd so that fine lattices fit too.
-            let g = n.iter().fold(0u128, |g, &c| gcd(g, c.unsigned_abs())).max(1) as i128;
+            let g = n
+                .iter()
+                .fold(0u128, |g, &c| gcd(g, c.unsigned_abs()))
+                .max(1) as i128;
             match n.map(|v| fit(v / g)) {
                 [Some(a), Some(b), Some(c), Some(d)] => [a, b, c, d],
                 _ => NO_NORMAL,
@@ -535,11 +559,8 @@ fn contact_speeds(
 ) -> (Option<f64>, Option<f64>) {
     let frame = (a.factor as f64) * f64::from(a.geometry.scale);
     let speed = |near: &dyn Fn(&(f64, f64, u32, u32)) -> bool| -> Option<f64> {
-        let (mut ta, mut tb): (Vec<u32>, Vec<u32>) = pairs
-            .iter()
-            .filter(|p| near(p))
-            .map(|p| (p.2, p.3))
-            .unzip();
+        let (mut ta, mut tb): (Vec<u32>, Vec<u32>) =
+            pairs.iter().filter(|p| near(p)).map(|p| (p.2, p.3)).unzip();
         if ta.is_empty() {
             return None;
         }
@@ -572,8 +593,14 @@ pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
     }
     std::thread::scope(|s| {
         let hb = &all.hit_b;
-        let other = s.spawn(move || label_against(b, a, hb).labels.contains(&labels::Label::Inside));
-        let a_inside = label_against(a, b, &all.hit_a).labels.contains(&labels::Label::Inside);
+        let other = s.spawn(move || {
+            label_against(b, a, hb)
+                .labels
+                .contains(&labels::Label::Inside)
+        });
+        let a_inside = label_against(a, b, &all.hit_a)
+            .labels
+            .contains(&labels::Label::Inside);
         let b_inside = other.join().expect("labelling worker panicked");
         a_inside || b_inside
     })
@@ -715,9 +742,16 @@ impl labels::InsideTest for TetInside<'_> {
             self.inc.contains(&c).map(|inside| (inside, c))
         })
     }
-    fn from_known(&mut self, t: u32, q: &LatticePoint, q_inside: bool) -> Option<(bool, LatticePoint)> {
+    fn from_known(
+        &mut self,
+        t: u32,
+        q: &LatticePoint,
+        q_inside: bool,
+    ) -> Option<(bool, LatticePoint)> {
         let c = self.interior(t, &INTERIOR_WEIGHTS[0]);
-        self.inc.contains_from(&c, q, q_inside).map(|inside| (inside, c))
+        self.inc
+            .contains_from(&c, q, q_inside)
+            .map(|inside| (inside, c))
     }
     fn point(&self, t: u32) -> LatticePoint {
         self.interior(t, &INTERIOR_WEIGHTS[0])

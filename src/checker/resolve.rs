@@ -419,5 +419,7 @@ fn scaled_clears(a: &Prepared, others: &[Option<Prepared>], t0: i64, p: i64, q: 
     let Some(sa) = refined(a, q, p, q * t0 - p * t0) else {
         return false;
     };
-    others.iter().all(|b| b.as_ref().is_some_and(|b| !interferes(&sa, b)))
+    others
+        .iter()
+        .all(|b| b.as_ref().is_some_and(|b| !interferes(&sa, b)))
 }

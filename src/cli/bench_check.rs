@@ -14,7 +14,6 @@
 //!
 //! A sweep over frame counts then shows what each misses on all three of A's pairs.
 
-use super::check::par_map;
 use super::{frame_ref, CliError, EncodingArg};
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{check_pair, CommonLattice, PairResult, Prepared};
@@ -22,6 +21,7 @@ use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::slice::{slice_mesh, PlaneValue, TriMesh as SliceMesh};
 use crate::mesh::MesherOptions;
 use crate::msg::VoxelGrid;
+use crate::report::par_map;
 use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions, FOUR_SPHERES};
 use parry3d::math::{Pose, Vector};
 use parry3d::query::intersection_test;
@@ -83,7 +83,14 @@ fn frame_slice(b: &BodyMesh, k: usize) -> SliceMesh {
         k if k == last => -1,
         _ => 0,
     };
-    slice_mesh(&[&b.mesh], 3, PlaneValue { num: k as i64 * s * 1024 + nudge, den: 1024 })
+    slice_mesh(
+        &[&b.mesh],
+        3,
+        PlaneValue {
+            num: k as i64 * s * 1024 + nudge,
+            den: 1024,
+        },
+    )
 }
 
 /// A slice as a parry3d mesh in metres.
@@ -96,7 +103,13 @@ fn to_parry(b: &BodyMesh, tri: SliceMesh) -> Option<ParryMesh> {
     let vertices: Vec<Vector> = tri
         .vertices
         .iter()
-        .map(|v| Vector::new((c[0] + v[0] * h) as f32, (c[1] + v[1] * h) as f32, (c[2] + v[2] * h) as f32))
+        .map(|v| {
+            Vector::new(
+                (c[0] + v[0] * h) as f32,
+                (c[1] + v[1] * h) as f32,
+                (c[2] + v[2] * h) as f32,
+            )
+        })
         .collect();
     ParryMesh::new(vertices, tri.triangles).ok()
 }
@@ -141,7 +154,12 @@ fn median(v: &mut [f64]) -> f64 {
 ///
 /// # Errors
 /// Bad scene options, or a body that cannot be checked.
-pub fn bench_check(grid: u32, encoding: EncodingArg, reps: usize, sweep: &[u32]) -> Result<(), CliError> {
+pub fn bench_check(
+    grid: u32,
+    encoding: EncodingArg,
+    reps: usize,
+    sweep: &[u32],
+) -> Result<(), CliError> {
     let frames = grid + 1;
     let t0 = Instant::now();
     let bodies = spheres(grid, frames, encoding, &[0, 1])?;
@@ -168,8 +186,13 @@ pub fn bench_check(grid: u32, encoding: EncodingArg, reps: usize, sweep: &[u32])
     let (lat, prepared, results) = run.expect("one run");
     let r = &results[0];
     let origin = lat.stamps_ns[0];
-    let first = r.first_contact().map_or(f64::NAN, |t| lat.time_s(t, origin));
-    let last = r.intervals.last().map_or(f64::NAN, |iv| lat.time_s(iv.1, origin));
+    let first = r
+        .first_contact()
+        .map_or(f64::NAN, |t| lat.time_s(t, origin));
+    let last = r
+        .intervals
+        .last()
+        .map_or(f64::NAN, |iv| lat.time_s(iv.1, origin));
     let (ca, cb) = r.counts();
     println!(
         "detection + labels: median {:.3} s over {} runs (prepare: lattice, trees, adjacency {:.3} s; traversal + exact predicate {:.3} s; labels {:.3} s)",
@@ -239,7 +262,9 @@ fn misses(grid: u32, encoding: EncodingArg, sweep: &[u32]) -> Result<(), CliErro
         let origin = lat.stamps_ns[0];
         let period = 1.0 / f64::from(f - 1);
         for (j, r) in results.iter().enumerate() {
-            let (x0, x1) = FOUR_SPHERES.overlap_interval(0, j + 1).expect("A meets all");
+            let (x0, x1) = FOUR_SPHERES
+                .overlap_interval(0, j + 1)
+                .expect("A meets all");
             let four_d = r.first_contact().map_or("missed".to_string(), |t| {
                 format!("yes / {:+.4}", lat.time_s(t, origin) - x0)
             });

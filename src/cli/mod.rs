@@ -7,6 +7,7 @@ pub mod bench;
 pub mod bench_check;
 pub mod check;
 pub mod mesh;
+pub mod replay;
 pub mod scene;
 
 use crate::mesh::FrameRef;
@@ -32,6 +33,8 @@ pub enum Command {
     Mesh(mesh::MeshArgs),
     /// Check every pair of bodies of a bag for interference over time; write the report.
     Check(check::CheckArgs),
+    /// Run the suite's nodes over a bag in one process; write the report and the output bag.
+    Replay(replay::ReplayArgs),
     /// Benchmarks that print the figures the README quotes.
     Bench(bench::BenchArgs),
 }
@@ -172,6 +175,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Scene(a) => scene::run(&a),
         Command::Mesh(a) => mesh::run(&a),
         Command::Check(a) => check::run(&a),
+        Command::Replay(a) => replay::run(&a),
         Command::Bench(a) => bench::run(&a),
     }
 }

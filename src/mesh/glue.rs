@@ -3,7 +3,7 @@
 
 use super::march::{CapSide, TetMesh, Welder};
 use super::mesher::{GridGeometry, Mesher, MesherOptions, Slab};
-use super::stats::{BodyStats, StatsAccumulator};
+use super::stats::{BodyStats, LateralRef, StatsAccumulator};
 use super::{FrameRef, MeshError, OccupancyGrid};
 
 /// One body's closed 4D mesh over all its frames.
@@ -23,15 +23,78 @@ pub struct BodyMesh {
     pub stats: BodyStats,
 }
 
+/// Welds the pieces of one body's mesh, as the mesher makes them (the first cap, the lateral
+/// slabs in order, the last cap), into a [`BodyMesh`], with its statistics. Used by
+/// [`BodyAssembler`] and by consumers that receive the pieces as messages.
+#[derive(Debug, Default)]
+pub struct BodyGluer {
+    body: BodyMesh,
+    welder: Welder,
+    acc: StatsAccumulator,
+    first_cap: Option<(TetMesh, u64)>,
+    last_cap: Option<(TetMesh, u64)>,
+}
+
+impl BodyGluer {
+    /// An empty body.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The cap closing the body at its first frame (with that frame's occupied voxel count).
+    /// Must come before the first lateral slab.
+    pub fn first_cap(&mut self, cap: &TetMesh, occupied: u64) {
+        self.welder.append(&mut self.body.mesh, cap);
+        self.first_cap = Some((cap.clone(), occupied));
+    }
+
+    /// The next lateral slab, and the time it took to mesh (ms), if known.
+    pub fn lateral(&mut self, slab: LateralRef<'_>, meshing_ms: Option<f64>) {
+        if let Some(ms) = meshing_ms {
+            self.acc.record_time(ms);
+        }
+        self.acc
+            .add_lateral(slab, self.first_cap.as_ref().map(|c| &c.0));
+        self.welder.append(&mut self.body.mesh, slab.mesh);
+    }
+
+    /// The cap closing the body at its last frame.
+    pub fn last_cap(&mut self, cap: &TetMesh, occupied: u64) {
+        self.welder.append(&mut self.body.mesh, cap);
+        self.last_cap = Some((cap.clone(), occupied));
+    }
+
+    /// Tets welded so far.
+    pub fn tets(&self) -> usize {
+        self.body.mesh.tets.len()
+    }
+
+    /// The body, with `frames` accepted frames at `stamps_ns` on `geometry`.
+    pub fn finish(
+        mut self,
+        frames: u64,
+        stamps_ns: Vec<i64>,
+        geometry: Option<GridGeometry>,
+    ) -> BodyMesh {
+        self.body.stats = self.acc.finish(
+            frames,
+            self.first_cap.as_ref().map(|(c, o)| (c, *o)),
+            self.last_cap.as_ref().map(|(c, o)| (c, *o)),
+        );
+        self.body.stamps_ns = stamps_ns;
+        self.body.geometry = geometry;
+        self.body
+    }
+}
+
 /// Builds a [`BodyMesh`] from a stream of frames.
 #[derive(Debug)]
 pub struct BodyAssembler {
     mesher: Mesher,
-    body: BodyMesh,
-    welder: Welder,
+    gluer: BodyGluer,
+    stamps_ns: Vec<i64>,
+    frames: Vec<OccupancyGrid>,
     keep_frames: bool,
-    acc: StatsAccumulator,
-    first_cap: Option<TetMesh>,
 }
 
 impl BodyAssembler {
@@ -42,11 +105,10 @@ impl BodyAssembler {
     pub fn new(opts: MesherOptions) -> Result<Self, MeshError> {
         Ok(Self {
             mesher: Mesher::new(opts)?,
-            body: BodyMesh::default(),
-            welder: Welder::default(),
+            gluer: BodyGluer::new(),
+            stamps_ns: Vec::new(),
+            frames: Vec::new(),
             keep_frames: false,
-            acc: StatsAccumulator::new(),
-            first_cap: None,
         })
     }
 
@@ -82,57 +144,50 @@ impl BodyAssembler {
     }
 
     fn after_accept(&mut self, stamp_ns: i64, slab: Option<Slab>) {
-        self.body.stamps_ns.push(stamp_ns);
+        self.stamps_ns.push(stamp_ns);
         if self.keep_frames {
             if let Some(k) = self.mesher.last_frame() {
-                self.body.frames.push(k.grid.clone());
+                self.frames.push(k.grid.clone());
             }
         }
         if let Some(slab) = slab {
             if slab.index == 0 {
-                self.first_cap = self
-                    .mesher
-                    .first_frame()
-                    .and_then(|k| self.mesher.cap(k, CapSide::Low));
-                if let Some(cap) = self.first_cap.take() {
-                    self.weld(&cap);
-                    self.first_cap = Some(cap);
+                if let Some(k) = self.mesher.first_frame() {
+                    if let Some(cap) = self.mesher.cap(k, CapSide::Low) {
+                        self.gluer.first_cap(&cap, k.grid.occupied);
+                    }
                 }
             }
-            self.acc.add_slab(&slab, self.first_cap.as_ref());
-            self.weld(&slab.mesh);
+            self.gluer.lateral(
+                LateralRef {
+                    index: slab.index,
+                    stamps_ns: (slab.stamp_lo_ns, slab.stamp_hi_ns),
+                    geometry: &slab.geometry,
+                    mesh: &slab.mesh,
+                    vanishes: slab.vanishes,
+                },
+                None,
+            );
         }
-    }
-
-    fn weld(&mut self, part: &TetMesh) {
-        self.welder.append(&mut self.body.mesh, part);
     }
 
     /// Closes the mesh with the last frame's cap and returns the body. With fewer than two
     /// frames the mesh is empty (a body needs a time extent).
     pub fn finish(mut self) -> BodyMesh {
-        let mut last_cap = None;
         if self.mesher.frames() >= 2 {
-            last_cap = self
-                .mesher
-                .last_frame()
-                .and_then(|k| self.mesher.cap(k, CapSide::High));
-            if let Some(cap) = &last_cap {
-                self.weld(cap);
+            if let Some(k) = self.mesher.last_frame() {
+                if let Some(cap) = self.mesher.cap(k, CapSide::High) {
+                    self.gluer.last_cap(&cap, k.grid.occupied);
+                }
             }
         }
-        let occ = |k: Option<&super::KeptFrame>| k.map_or(0, |k| k.grid.occupied);
-        let (occ_first, occ_last) = (
-            occ(self.mesher.first_frame()),
-            occ(self.mesher.last_frame()),
-        );
-        self.body.stats = self.acc.finish(
+        let mut body = self.gluer.finish(
             self.mesher.frames(),
-            self.first_cap.as_ref().map(|c| (c, occ_first)),
-            last_cap.as_ref().map(|c| (c, occ_last)),
+            self.stamps_ns,
+            self.mesher.geometry().copied(),
         );
-        self.body.geometry = self.mesher.geometry().copied();
-        self.body.skipped = self.mesher.skipped();
-        self.body
+        body.frames = self.frames;
+        body.skipped = self.mesher.skipped();
+        body
     }
 }

@@ -69,6 +69,10 @@ pub struct Slicer {
     on_plane_is_plus: bool,
     index: HashMap<Key, u32>,
     mesh: TriMesh,
+    /// With [`Slicer::with_sources`]: per triangle, the tet it came from (counted over every
+    /// `add`ed mesh in order).
+    sources: Option<Vec<u32>>,
+    tets_seen: u32,
 }
 
 impl Slicer {
@@ -89,6 +93,8 @@ impl Slicer {
             on_plane_is_plus: true,
             index: HashMap::new(),
             mesh: TriMesh::default(),
+            sources: None,
+            tets_seen: 0,
         }
     }
 
@@ -109,14 +115,36 @@ impl Slicer {
         }
     }
 
+    /// The same slicer, also recording which tet each triangle comes from (see
+    /// [`Slicer::finish_with_sources`]).
+    pub fn with_sources(mut self) -> Self {
+        self.sources = Some(Vec::new());
+        self
+    }
+
     /// Cuts every tet of `mesh`.
     pub fn add(&mut self, mesh: &TetMesh) {
         for t in &mesh.tets {
-            let p = t.map(|v| mesh.vertices[v as usize]);
+            let source = self.tets_seen;
+            self.tets_seen = self.tets_seen.wrapping_add(1);
+            self.cut(t.map(|v| mesh.vertices[v as usize]), source);
+        }
+    }
+
+    /// Cuts the tets `ids` of `mesh` (sources: the ids).
+    pub fn add_some(&mut self, mesh: &TetMesh, ids: &[u32]) {
+        for &i in ids {
+            let t = mesh.tets[i as usize];
+            self.cut(t.map(|v| mesh.vertices[v as usize]), i);
+        }
+    }
+
+    fn cut(&mut self, p: [LatticePoint; 4], source: u32) {
+        {
             let side = p.map(|q| self.plus(&q));
             let plus = side.iter().filter(|&&s| s).count();
             if plus == 0 || plus == 4 {
-                continue;
+                return;
             }
             // Slice points in cyclic order around the polygon.
             let pts: Vec<(usize, usize)> = if plus == 1 || plus == 3 {
@@ -153,6 +181,9 @@ impl Slicer {
                 let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
                 let ids = ordered.map(|i| self.vertex(keys[i]));
                 self.mesh.triangles.push(ids);
+                if let Some(src) = &mut self.sources {
+                    src.push(source);
+                }
             }
         }
     }
@@ -213,25 +244,39 @@ impl Slicer {
 
     /// The slice. Triangles that occur once in each orientation (a plane containing
     /// lateral triangles of the mesh cuts a zero-volume sheet there) cancel.
-    pub fn finish(mut self) -> TriMesh {
+    pub fn finish(self) -> TriMesh {
+        self.finish_with_sources().0
+    }
+
+    /// [`Slicer::finish`], with the source tet of each triangle (empty unless made
+    /// [`Slicer::with_sources`]).
+    pub fn finish_with_sources(mut self) -> (TriMesh, Vec<u32>) {
         let tris = std::mem::take(&mut self.mesh.triangles);
-        let mut keyed: Vec<([u32; 3], i8, [u32; 3])> = tris
+        let src = self.sources.take();
+        let mut keyed: Vec<([u32; 3], i8, [u32; 3], u32)> = tris
             .into_iter()
-            .map(|t| {
+            .enumerate()
+            .map(|(i, t)| {
                 let (k, s) = crate::mesh::validate::canonical_triangle(t);
-                (k, s, t)
+                (k, s, t, src.as_ref().map_or(0, |v| v[i]))
             })
             .collect();
-        keyed.sort_unstable_by_key(|x| (x.0, x.1));
+        keyed.sort_unstable_by_key(|x| (x.0, x.1, x.3));
         let mut out = Vec::with_capacity(keyed.len());
+        let mut out_src = Vec::new();
         for group in keyed.chunk_by(|a, b| a.0 == b.0) {
             let plus: Vec<_> = group.iter().filter(|x| x.1 > 0).collect();
             let minus: Vec<_> = group.iter().filter(|x| x.1 < 0).collect();
             let n = plus.len().min(minus.len());
-            out.extend(plus[n..].iter().chain(minus[n..].iter()).map(|x| x.2));
+            for x in plus[n..].iter().chain(minus[n..].iter()) {
+                out.push(x.2);
+                if src.is_some() {
+                    out_src.push(x.3);
+                }
+            }
         }
         self.mesh.triangles = out;
-        self.mesh
+        (self.mesh, out_src)
     }
 }
 

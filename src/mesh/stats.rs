@@ -79,6 +79,21 @@ pub fn percentile(samples: &[f64], q: f64) -> f64 {
     s[rank - 1]
 }
 
+/// A slab's lateral tets and placement, borrowed (see [`StatsAccumulator::add_lateral`]).
+#[derive(Debug, Clone, Copy)]
+pub struct LateralRef<'a> {
+    /// Index of the slab's first frame.
+    pub index: u64,
+    /// Stamps of its two frames (ns).
+    pub stamps_ns: (i64, i64),
+    /// The lattice.
+    pub geometry: &'a GridGeometry,
+    /// Lateral tets.
+    pub mesh: &'a TetMesh,
+    /// See [`Slab::vanishes`].
+    pub vanishes: bool,
+}
+
 /// Accumulates [`BodyStats`] slab by slab.
 #[derive(Debug, Default)]
 pub struct StatsAccumulator {
@@ -105,8 +120,23 @@ impl StatsAccumulator {
     /// Adds a slab. For the first slab, `first_cap` must be the cap of its first frame
     /// ([`super::CapSide::Low`]).
     pub fn add_slab(&mut self, slab: &Slab, first_cap: Option<&TetMesh>) {
-        let (t_lo, t_hi) = (slab.t_lo(), slab.t_hi());
-        let m = &slab.mesh;
+        self.add_lateral(
+            LateralRef {
+                index: slab.index,
+                stamps_ns: (slab.stamp_lo_ns, slab.stamp_hi_ns),
+                geometry: &slab.geometry,
+                mesh: &slab.mesh,
+                vanishes: slab.vanishes,
+            },
+            first_cap,
+        );
+    }
+
+    /// [`Self::add_slab`] for a slab given by its parts (e.g. received as a message).
+    pub fn add_lateral(&mut self, slab: LateralRef<'_>, first_cap: Option<&TetMesh>) {
+        let t_lo = slab.geometry.scale * slab.index as i32;
+        let t_hi = t_lo + slab.geometry.scale;
+        let m = slab.mesh;
         // Which time plane each vertex lies in: bit 0 lower, bit 1 upper.
         let plane: Vec<u8> = m
             .vertices
@@ -185,7 +215,7 @@ impl StatsAccumulator {
         self.stats.vanishing_slabs += u64::from(slab.vanishes);
         self.stats.tets += m.tets.len() as u64;
         self.stats.slabs += 1;
-        self.add_volume(vol24, &slab.geometry, slab.stamp_hi_ns - slab.stamp_lo_ns);
+        self.add_volume(vol24, slab.geometry, slab.stamps_ns.1 - slab.stamps_ns.0);
     }
 
     fn add_volume(&mut self, vol24: i128, g: &GridGeometry, dt_ns: i64) {

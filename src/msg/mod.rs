@@ -7,6 +7,7 @@
 mod cdr;
 mod schema;
 mod std_types;
+mod suite;
 mod voxel_grid;
 
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, CdrEndianness, CdrError};
@@ -16,6 +17,10 @@ pub use schema::{
 pub use std_types::{
     ColorRGBA, CompressedImage, Duration, Marker, MarkerArray, MeshFile, PointCloud2, PointField,
     Pose, PoseStamped, Quaternion, UVCoordinate, Vector3, Wrench, WrenchStamped,
+};
+pub use suite::{
+    BodySummary, InterferenceReport, MeshSlab, PairInterference, ResolveSuggestion,
+    ResolveSuggestions, TetLabels,
 };
 pub use voxel_grid::{Header, Point, Time, VoxelEncoding, VoxelGrid};
 

@@ -22,6 +22,7 @@ chronotope_msgs/msg/VoxelGrid must have the data length its sizes and encoding c
 
 from __future__ import annotations
 
+import math
 import sys
 from pathlib import Path
 
@@ -31,19 +32,20 @@ ENCODING_PERCENT = 1
 
 
 def plain(value):
-    """Turns a decoded message (either reader's objects) into comparable Python values."""
-    if isinstance(value, (bool, int, float, str)):
+    """Turns a decoded message (either reader's objects) into comparable Python values.
+
+    Byte strings and numeric arrays (numpy or lists) all become lists of numbers, and NaN
+    becomes the string "NaN" (NaN != NaN would fail every comparison of a report with no
+    contact)."""
+    if isinstance(value, float):
+        return "NaN" if math.isnan(value) else value
+    if isinstance(value, (bool, int, str)):
         return value
     if isinstance(value, (bytes, bytearray, memoryview)):
-        return bytes(value)
-    if hasattr(value, "tolist"):  # numpy arrays (rosbags)
-        items = value.tolist()
-        if getattr(value, "dtype", None) is not None and value.dtype.kind == "u" and value.dtype.itemsize == 1:
-            return bytes(items)
-        return [plain(v) for v in items]
+        return list(bytes(value))
+    if hasattr(value, "tolist"):  # numpy arrays and scalars (rosbags)
+        return plain(value.tolist())
     if isinstance(value, (list, tuple)):
-        if value and all(isinstance(v, int) for v in value) and all(0 <= v < 256 for v in value):
-            return bytes(value)
         return [plain(v) for v in value]
     fields = getattr(value, "__slots__", None) or getattr(value, "__dataclass_fields__", None)
     if fields is None:
@@ -54,6 +56,11 @@ def plain(value):
         for name in fields
         if not name.startswith("_") and not name.isupper()
     }
+
+
+def short(value, limit: int = 400) -> str:
+    text = repr(value)
+    return text if len(text) <= limit else text[:limit] + f"... ({len(text)} characters)"
 
 
 def check_voxel_grid(fields: dict, where: str) -> None:
@@ -89,7 +96,7 @@ def read_with_rosbags(path: Path) -> list[tuple[str, int, dict]]:
         for connection, timestamp, raw in reader.messages(reader.connections):
             message = typestore.deserialize_cdr(raw, connection.msgtype)
             out.append((connection.topic, timestamp, connection.msgtype, plain(message)))
-        return sorted(out, key=lambda m: (m[1], m[0]))
+        return sorted(out, key=lambda m: (m[1], m[0], repr(m[3])))
     finally:
         reader.close()
 
@@ -102,7 +109,7 @@ def read_with_mcap_ros2(path: Path) -> list[tuple[str, int, dict]]:
         out.append(
             (message.channel.topic, message.log_time_ns, message.schema.name, plain(message.ros_msg))
         )
-    return sorted(out, key=lambda m: (m[1], m[0]))
+    return sorted(out, key=lambda m: (m[1], m[0], repr(m[3])))
 
 
 def check_bag(path: Path) -> bool:
@@ -122,7 +129,7 @@ def check_bag(path: Path) -> bool:
             print(f"FAIL {where}: mcap_ros2 has {topic2} at {t2} ns of type {typ2} instead")
             return False
         if fields != fields2:
-            print(f"FAIL {where}: the readers disagree:\n  rosbags:    {fields}\n  mcap_ros2: {fields2}")
+            print(f"FAIL {where}: the readers disagree:\n  rosbags:    {short(fields)}\n  mcap_ros2: {short(fields2)}")
             return False
         if typ == VOXEL_GRID:
             try:

@@ -254,7 +254,11 @@ impl<'a, T: Exact> TriEdgeSigns<'a, T> {
     }
 }
 
-fn classify_in<T: Exact>(a: &LatticeTet, b: &LatticeTet, touching_matters: bool) -> TetPairRelation {
+fn classify_in<T: Exact>(
+    a: &LatticeTet,
+    b: &LatticeTet,
+    touching_matters: bool,
+) -> TetPairRelation {
     let p = Pair::<T>::new(a, b);
     let zero = [T::ZERO; 4];
     let touching_or_disjoint = |meet: &mut dyn FnMut() -> bool| {

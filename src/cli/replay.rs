@@ -1,0 +1,513 @@
+//! `chronotope replay BAG [--launch CFG] [--report FILE.json] [--out FILE.mcap]`: the nodes a
+//! launch config names, in one process on the in-process bus, fed every message of a bag as
+//! fast as they go; the report (CONTRACT.md) and an output bag of everything they published.
+//!
+//! Deterministic: the same bag and config give the same output bag, byte for byte, and the
+//! same report (apart from `timings_ms`). Output messages are logged at their own stamps.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::Args;
+use serde::Serialize;
+
+use super::CliError;
+use crate::bag::{BagReader, BagWriter};
+use crate::node::bus::Bus;
+use crate::node::carving::CarvingNode;
+use crate::node::checker::CheckerNode;
+use crate::node::launch::{LaunchConfig, LaunchError, NodeKind, NodeSpec, Params};
+use crate::node::mesher::MesherNode;
+use crate::node::{Message, Node, NodeStatus, Payload};
+use crate::report::Report;
+
+/// Options of `chronotope replay`.
+#[derive(Debug, Clone, Args)]
+pub struct ReplayArgs {
+    /// Input rosbag2 MCAP bag.
+    pub bag: PathBuf,
+    /// Launch config (default: mesh every body, check every pair, resolutions for the body
+    /// whose id sorts first).
+    #[arg(long)]
+    pub launch: Option<PathBuf>,
+    /// Write the report (CONTRACT.md, schema chronotope.report/1).
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write every topic the nodes published (or the recorder node's selection) to this bag.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+}
+
+/// What the replay read from the bag.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct InputCounts {
+    /// Messages read.
+    pub messages: u64,
+    /// Messages given to a node.
+    pub delivered: u64,
+    /// Messages on topics no node reads.
+    pub unused: u64,
+    /// Per topic: messages that did not decode as the subscribed type.
+    pub undecodable: BTreeMap<String, u64>,
+    /// Per topic: messages of another type than the node subscribed to expects.
+    pub wrong_type: BTreeMap<String, u64>,
+    /// Problems with the bag itself (a corrupt chunk, a truncated file), in reading order.
+    pub bag_errors: Vec<String>,
+}
+
+/// The replay's report: CONTRACT.md's fields, then the input counts and node statuses.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReplayReport {
+    /// The checker's report (empty bodies and pairs when the config has no checker).
+    #[serde(flatten)]
+    pub report: Report,
+    /// What was read (extra field).
+    pub input: InputCounts,
+    /// Per node: counters and problems (extra field).
+    pub nodes: BTreeMap<String, NodeStatus>,
+    /// The output bag: topics and messages written (extra field).
+    pub output: OutputCounts,
+}
+
+/// What went into the output bag.
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct OutputCounts {
+    /// Messages per topic.
+    pub topics: BTreeMap<String, u64>,
+}
+
+/// Which published topics go to the output bag.
+#[derive(Debug, Clone, Default)]
+struct Selection {
+    only: Option<BTreeSet<String>>,
+    exclude: BTreeSet<String>,
+}
+
+impl Selection {
+    fn from_spec(spec: &NodeSpec) -> Result<Self, LaunchError> {
+        let mut p = Params::of(spec);
+        let only = p.topics("topics")?.map(|v| v.into_iter().collect());
+        let exclude = p
+            .topics("exclude")?
+            .unwrap_or_default()
+            .into_iter()
+            .collect();
+        p.finish()?;
+        Ok(Self { only, exclude })
+    }
+
+    fn wants(&self, topic: &str) -> bool {
+        self.only.as_ref().is_none_or(|o| o.contains(topic)) && !self.exclude.contains(topic)
+    }
+}
+
+/// The default config: a mesher of every body and a checker of every pair.
+pub fn default_config() -> LaunchConfig {
+    LaunchConfig::parse(
+        "launch:\n- node: {pkg: chronotope, exec: mesher}\n- node: {pkg: chronotope, exec: checker}\n",
+        "default config",
+    )
+    .expect("the default config parses")
+}
+
+/// The suite's nodes for `config`, over a bag whose VoxelGrid topics are `bag_bodies`.
+///
+/// # Errors
+/// A bad parameter or an inconsistent config.
+fn build_nodes(
+    config: &LaunchConfig,
+    bag_bodies: &[String],
+    default_movable_first: bool,
+) -> Result<(Vec<Box<dyn Node>>, Selection), LaunchError> {
+    let mut nodes: Vec<Box<dyn Node>> = Vec::new();
+    let mut bodies: Vec<String> = bag_bodies.to_vec();
+    for spec in config.of_kind(NodeKind::Carving) {
+        let c = CarvingNode::from_spec(spec)?;
+        bodies.push(c.occupancy_topic().to_owned());
+        nodes.push(Box::new(c));
+    }
+    let mut meshers: Vec<MesherNode> = config
+        .of_kind(NodeKind::Mesher)
+        .map(|s| MesherNode::from_spec(s, &bodies))
+        .collect::<Result<_, _>>()?;
+    let meshed: Vec<String> = meshers
+        .iter()
+        .flat_map(|m| m.bodies().map(str::to_owned))
+        .collect();
+    let mut checkers = Vec::new();
+    for spec in config.of_kind(NodeKind::Checker) {
+        let mut spec = spec.clone();
+        if default_movable_first && !spec.params.contains_key("movable") {
+            let mut sorted = meshed.clone();
+            sorted.sort();
+            if let Some(first) = sorted.first() {
+                spec.params.insert(
+                    "movable".into(),
+                    crate::node::launch::ParamValue::StringArray(vec![first.clone()]),
+                );
+            }
+        }
+        checkers.push(CheckerNode::from_spec(&spec, &meshed)?);
+    }
+    if !checkers.is_empty() {
+        let used: BTreeSet<String> = checkers
+            .iter()
+            .flat_map(|c| c.bodies().map(str::to_owned))
+            .collect();
+        for c in &checkers {
+            if let Some(b) = c.bodies().find(|b| !meshed.iter().any(|m| m == b)) {
+                return Err(LaunchError::Param {
+                    node: c.name().to_owned(),
+                    param: "pairs".into(),
+                    reason: format!("{b} is meshed by no mesher"),
+                });
+            }
+            if !meshers.iter().any(|m| m.slab_topic() == c.mesh_topic()) {
+                return Err(LaunchError::Param {
+                    node: c.name().to_owned(),
+                    param: "mesh_topic".into(),
+                    reason: format!("no mesher publishes {}", c.mesh_topic()),
+                });
+            }
+        }
+        for m in &mut meshers {
+            let dropped: Vec<String> = m
+                .bodies()
+                .filter(|b| !used.contains(*b))
+                .map(str::to_owned)
+                .collect();
+            if !dropped.is_empty() {
+                tracing::info!(
+                    node = m.name(),
+                    "not meshed (in no checked pair): {}",
+                    dropped.join(", ")
+                );
+            }
+            m.retain_bodies(|b| used.contains(b));
+        }
+    }
+    nodes.extend(meshers.into_iter().map(|m| Box::new(m) as Box<dyn Node>));
+    nodes.extend(checkers.into_iter().map(|c| Box::new(c) as Box<dyn Node>));
+    let selection = match config.of_kind(NodeKind::Recorder).next() {
+        Some(spec) => Selection::from_spec(spec)?,
+        None => Selection::default(),
+    };
+    Ok((nodes, selection))
+}
+
+struct Output {
+    writer: BagWriter,
+    selection: Selection,
+    counts: OutputCounts,
+    error: Option<crate::bag::BagError>,
+}
+
+impl Output {
+    fn record(&mut self, m: &Message) {
+        if self.error.is_some() || !self.selection.wants(&m.topic) {
+            return;
+        }
+        let r = (|| {
+            let (ty, schema) = m.payload.schema();
+            self.writer.add_topic_with_schema(&m.topic, ty, &schema)?;
+            let bytes = m
+                .payload
+                .encode()
+                .map_err(|source| crate::bag::BagError::Cdr {
+                    path: self.writer.path().to_path_buf(),
+                    topic: m.topic.to_string(),
+                    source,
+                })?;
+            self.writer
+                .write_cdr(&m.topic, m.stamp_ns.max(0) as u64, &bytes)
+        })();
+        match r {
+            Ok(()) => *self.counts.topics.entry(m.topic.to_string()).or_default() += 1,
+            Err(e) => self.error = Some(e),
+        }
+    }
+}
+
+/// Replays `bag` through the nodes of `config` (the default config if `None`).
+///
+/// # Errors
+/// The bag cannot be opened, the config is invalid, or the output bag cannot be written.
+pub fn replay(
+    bag: &Path,
+    config: Option<&LaunchConfig>,
+    out: Option<&Path>,
+    progress: bool,
+) -> Result<ReplayReport, CliError> {
+    let start = Instant::now();
+    let bag_bodies = match crate::bag::voxel_topics(bag) {
+        Ok(t) => t,
+        Err(crate::bag::BagError::NoVoxelTopics { .. }) => Vec::new(),
+        Err(e) => return Err(e.into()),
+    };
+    let default = default_config();
+    let (nodes, selection) = build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none())
+        .map_err(|e| CliError::Usage(e.to_string()))?;
+    let mut bus = Bus::new(nodes);
+    let mut output = match out {
+        Some(p) => {
+            if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
+                    path: dir.to_path_buf(),
+                    source,
+                })?;
+            }
+            Some(Output {
+                writer: BagWriter::create(p)?,
+                selection,
+                counts: OutputCounts::default(),
+                error: None,
+            })
+        }
+        None => None,
+    };
+    let bar = if progress && std::io::stderr().is_terminal() {
+        let b = indicatif::ProgressBar::new_spinner();
+        b.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} {elapsed} {pos} messages {msg}")
+                .expect("a valid template"),
+        );
+        b
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let mut input = InputCounts::default();
+    let mut sink = |m: &Message| {
+        if let Some(o) = output.as_mut() {
+            o.record(m);
+        }
+    };
+    let mut misrouted = Vec::new();
+    for item in BagReader::open(bag)? {
+        let m = match item {
+            Ok(m) => m,
+            Err(e) => {
+                let fatal = e.is_fatal();
+                let then = if fatal {
+                    "; using what was read before it"
+                } else {
+                    "; reading on"
+                };
+                tracing::error!("{e}{then}");
+                input.bag_errors.push(e.to_string());
+                if fatal {
+                    break;
+                }
+                continue;
+            }
+        };
+        input.messages += 1;
+        bar.inc(1);
+        let Some(ty) = bus.expected_type(&m.topic) else {
+            input.unused += 1;
+            continue;
+        };
+        if m.schema_name != ty {
+            tracing::warn!(topic = %m.topic, "a {} where a {ty} is read; skipped", m.schema_name);
+            *input.wrong_type.entry(m.topic).or_default() += 1;
+            continue;
+        }
+        let payload = match Payload::decode(ty, &m.data) {
+            Ok(p) => p,
+            Err(e) => {
+                tracing::warn!(topic = %m.topic, log_time_ns = m.log_time_ns, "skipping message: does not decode: {e}");
+                *input.undecodable.entry(m.topic).or_default() += 1;
+                continue;
+            }
+        };
+        input.delivered += 1;
+        misrouted.extend(bus.deliver(
+            Message::new(&m.topic, m.log_time_ns.min(i64::MAX as u64) as i64, payload),
+            &mut sink,
+        ));
+    }
+    bar.set_message("checking");
+    misrouted.extend(bus.finish(&mut sink));
+    bar.finish_and_clear();
+    for m in misrouted {
+        tracing::warn!(topic = %m.topic, "a {} published where a {} is read; not delivered", m.got, m.expected);
+        *input.wrong_type.entry(m.topic).or_default() += 1;
+    }
+    let mut counts = OutputCounts::default();
+    if let Some(o) = output {
+        if let Some(e) = o.error {
+            return Err(e.into());
+        }
+        counts = o.counts;
+        o.writer.finish()?;
+    }
+    let mut report = bus
+        .nodes()
+        .iter()
+        .find_map(|n| n.as_any().downcast_ref::<CheckerNode>())
+        .and_then(|c| c.report().cloned())
+        .unwrap_or_else(|| Report {
+            schema: "chronotope.report/1",
+            time_origin_ns: 0,
+            time_scale_m_per_s: 0.0,
+            bodies: Vec::new(),
+            pairs: Vec::new(),
+            resolutions: Vec::new(),
+            timings_ms: Default::default(),
+            problems: Vec::new(),
+        });
+    for b in &mut report.bodies {
+        for n in bus.nodes() {
+            if let Some(m) = n.as_any().downcast_ref::<MesherNode>() {
+                b.skipped_frames += m.skipped(&b.id);
+            }
+        }
+        b.skipped_frames += input.undecodable.get(&b.id).copied().unwrap_or(0)
+            + input.wrong_type.get(&b.id).copied().unwrap_or(0);
+    }
+    let total = start.elapsed().as_secs_f64() * 1e3;
+    report.timings_ms.total = total;
+    report.timings_ms.mesh = (total - report.timings_ms.check - report.timings_ms.resolve).max(0.0);
+    let nodes = bus
+        .statuses()
+        .into_iter()
+        .map(|(n, s)| (n.to_owned(), s.clone()))
+        .collect();
+    Ok(ReplayReport {
+        report,
+        input,
+        nodes,
+        output: counts,
+    })
+}
+
+/// The short human summary: which bodies collide, when, how deep, what to do.
+pub fn summary(r: &ReplayReport, bag: &Path) -> String {
+    use std::fmt::Write;
+    let rep = &r.report;
+    let mut s = String::new();
+    let span = rep.bodies.iter().map(|b| b.frames).max().unwrap_or(0);
+    let _ = writeln!(
+        s,
+        "{}: {} messages, {} bodies, {} pairs checked in {:.2} s",
+        bag.display(),
+        r.input.messages,
+        rep.bodies.len(),
+        rep.pairs.len(),
+        rep.timings_ms.total / 1e3
+    );
+    let _ = span;
+    for p in &rep.pairs {
+        if !p.interfering {
+            let _ = writeln!(s, "  clear    {} x {}", p.a, p.b);
+            continue;
+        }
+        let when: Vec<String> = p
+            .intervals_s
+            .iter()
+            .map(|[a, b]| format!("{a:.3}-{b:.3} s"))
+            .collect();
+        let bound = p
+            .first_contact_error_bound_s
+            .map_or(String::new(), |e| format!(" (±{e:.3} s)"));
+        let _ = writeln!(
+            s,
+            "  COLLIDE  {} x {}: first contact at {:.3} s{bound}, overlapping during {}; overlap {:.3e} m³·s, {} + {} tets interfere",
+            p.a,
+            p.b,
+            p.first_contact_s.unwrap_or(f64::NAN),
+            when.join(", "),
+            p.overlap_hypervolume_m3s.unwrap_or(f64::NAN),
+            p.labels.a.interference,
+            p.labels.b.interference,
+        );
+    }
+    for res in &rep.resolutions {
+        let _ = match res {
+            crate::report::Resolution::Translate {
+                body,
+                vector,
+                distance,
+                verified_clear,
+                ..
+            } => writeln!(
+                s,
+                "  FIX      move {body} by ({:+.4}, {:+.4}, {:+.4}) m and {:+.3} s: {:.1} mm deep, {}",
+                vector[0],
+                vector[1],
+                vector[2],
+                vector[3],
+                distance * 1e3,
+                if *verified_clear { "verified clear" } else { "NOT clear when checked again" }
+            ),
+            crate::report::Resolution::TimeScale {
+                body,
+                t0_s,
+                scale,
+                verified_clear,
+            } => writeln!(
+                s,
+                "  FIX      or retime {body}: durations after {t0_s:.3} s ×{scale:.3}, {}",
+                if *verified_clear { "verified clear" } else { "NOT clear when checked again" }
+            ),
+        };
+    }
+    let problems: u64 = r.nodes.values().map(NodeStatus::problem_count).sum::<u64>()
+        + r.input.undecodable.values().sum::<u64>()
+        + r.input.wrong_type.values().sum::<u64>()
+        + r.input.bag_errors.len() as u64;
+    if problems > 0 {
+        let _ = writeln!(
+            s,
+            "  {problems} input problem(s): see the report's `input` and `nodes`"
+        );
+    }
+    s
+}
+
+/// Runs `chronotope replay`.
+///
+/// # Errors
+/// See [`replay`]; also a report that cannot be written.
+pub fn run(a: &ReplayArgs) -> Result<(), CliError> {
+    let config = a
+        .launch
+        .as_ref()
+        .map(|p| LaunchConfig::read(p))
+        .transpose()
+        .map_err(|e| CliError::Usage(e.to_string()))?;
+    let r = replay(&a.bag, config.as_ref(), a.out.as_deref(), true)?;
+    print!("{}", summary(&r, &a.bag));
+    if let Some(p) = &a.report {
+        write_json(p, &r)?;
+        println!("  report   {}", p.display());
+    }
+    if let Some(p) = &a.out {
+        let n: u64 = r.output.topics.values().sum();
+        println!(
+            "  bag      {} ({n} messages on {} topics)",
+            p.display(),
+            r.output.topics.len()
+        );
+    }
+    Ok(())
+}
+
+/// Writes `value` as pretty JSON, creating the directory.
+///
+/// # Errors
+/// The file cannot be written.
+pub fn write_json(p: &Path, value: &impl Serialize) -> Result<(), CliError> {
+    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+    }
+    let text = serde_json::to_string_pretty(value).expect("plain data serialises");
+    std::fs::write(p, text).map_err(|source| CliError::Io {
+        path: p.to_path_buf(),
+        source,
+    })
+}

@@ -1,0 +1,432 @@
+//! The suite's own output messages (`chronotope_msgs`): 4D mesh pieces, per-tet labels, the
+//! interference report and resolve suggestions. Their `.msg` files under `msgs/msg/` are the
+//! source of truth (units and meanings are documented there).
+
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+use super::{Header, Point, RosMessage, Time, Vector3};
+use crate::mesh::{GridGeometry, TetMesh};
+
+macro_rules! deps {
+    ($($name:literal => $path:literal),* $(,)?) => {
+        vec![$(($name, include_str!($path))),*]
+    };
+}
+
+/// `chronotope_msgs/msg/MeshSlab`: one piece of a body's closed 4D boundary mesh.
+///
+/// The mesh is held as the mesher made it (`[i32; 4]` vertices, `[u32; 4]` tets) and written
+/// as the flat `int32[] vertices` / `uint32[] tets` of the definition, so a piece passed in
+/// memory is never converted.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct MeshSlab {
+    /// Stamp of the later frame (a cap: its frame); frame of the lattice.
+    pub header: Header,
+    /// The body (its VoxelGrid topic).
+    pub body_id: String,
+    /// [`Self::KIND_LATERAL`], [`Self::KIND_CAP_START`] or [`Self::KIND_CAP_END`].
+    pub kind: u8,
+    /// Lateral: index of the earlier frame; cap: index of its frame.
+    pub index: u32,
+    /// Time of frame `index`.
+    pub stamp_lo: Time,
+    /// Time of frame `index + 1` (a cap: `stamp_lo`).
+    pub stamp_hi: Time,
+    /// Min corner of voxel (0,0,0) (m).
+    pub origin: Point,
+    /// Voxel edge (m).
+    pub resolution: f64,
+    /// Voxels along x.
+    pub size_x: u32,
+    /// Voxels along y.
+    pub size_y: u32,
+    /// Voxels along z.
+    pub size_z: u32,
+    /// VoxelGrid encoding of the frames.
+    pub encoding: u8,
+    /// Lattice steps per voxel edge and per frame period.
+    pub scale: i32,
+    /// Occupied voxels of the later frame (a cap: of its frame).
+    pub occupied_voxels: u64,
+    /// The body moves more than its thickness in this frame period.
+    pub vanishes: bool,
+    /// The tets (lattice coordinates).
+    pub mesh: TetMesh,
+}
+
+impl MeshSlab {
+    /// Lateral tets between frames `index` and `index + 1`.
+    pub const KIND_LATERAL: u8 = 0;
+    /// Cap closing the body at its first frame.
+    pub const KIND_CAP_START: u8 = 1;
+    /// Cap closing the body at its last frame.
+    pub const KIND_CAP_END: u8 = 2;
+
+    /// The lattice of the piece.
+    pub fn geometry(&self) -> GridGeometry {
+        GridGeometry {
+            origin: [self.origin.x, self.origin.y, self.origin.z],
+            resolution: self.resolution,
+            size: [self.size_x, self.size_y, self.size_z],
+            encoding: self.encoding,
+            scale: self.scale,
+        }
+    }
+
+    /// Sets the lattice fields from `g`.
+    pub fn set_geometry(&mut self, g: &GridGeometry) {
+        self.origin = Point {
+            x: g.origin[0],
+            y: g.origin[1],
+            z: g.origin[2],
+        };
+        self.resolution = g.resolution;
+        [self.size_x, self.size_y, self.size_z] = g.size;
+        self.encoding = g.encoding;
+        self.scale = g.scale;
+    }
+}
+
+/// Serialises `[T; 4]` items as one flat sequence of `4·n` elements.
+struct Flat4<'a, T>(&'a [[T; 4]]);
+
+impl<T: Serialize> Serialize for Flat4<'_, T> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeSeq;
+        let mut seq = s.serialize_seq(Some(self.0.len() * 4))?;
+        for item in self.0 {
+            for v in item {
+                seq.serialize_element(v)?;
+            }
+        }
+        seq.end()
+    }
+}
+
+/// Reads a flat sequence of `4·n` elements back into `[T; 4]` items.
+struct Unflat4<T>(Vec<[T; 4]>);
+
+impl<'de, T: Deserialize<'de> + Copy + Default> Deserialize<'de> for Unflat4<T> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V<T>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de> + Copy + Default> serde::de::Visitor<'de> for V<T> {
+            type Value = Unflat4<T>;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a sequence of 4·n numbers")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Self::Value, A::Error> {
+                // The decoder has checked the count against the bytes present; capacity is
+                // bounded all the same.
+                let hint = seq.size_hint().unwrap_or(0).min(1 << 20) / 4;
+                let mut out: Vec<[T; 4]> = Vec::with_capacity(hint);
+                let mut item = [T::default(); 4];
+                let mut k = 0;
+                while let Some(v) = seq.next_element::<T>()? {
+                    item[k] = v;
+                    k += 1;
+                    if k == 4 {
+                        out.push(item);
+                        k = 0;
+                    }
+                }
+                if k != 0 {
+                    return Err(serde::de::Error::custom(format!(
+                        "{} numbers, not a multiple of 4",
+                        out.len() * 4 + k
+                    )));
+                }
+                Ok(Unflat4(out))
+            }
+        }
+        d.deserialize_seq(V(std::marker::PhantomData))
+    }
+}
+
+#[derive(Serialize)]
+struct MeshSlabOut<'a> {
+    header: &'a Header,
+    body_id: &'a str,
+    kind: u8,
+    index: u32,
+    stamp_lo: Time,
+    stamp_hi: Time,
+    origin: Point,
+    resolution: f64,
+    size_x: u32,
+    size_y: u32,
+    size_z: u32,
+    encoding: u8,
+    scale: i32,
+    occupied_voxels: u64,
+    vanishes: bool,
+    vertices: Flat4<'a, i32>,
+    tets: Flat4<'a, u32>,
+}
+
+#[derive(Deserialize)]
+struct MeshSlabIn {
+    header: Header,
+    body_id: String,
+    kind: u8,
+    index: u32,
+    stamp_lo: Time,
+    stamp_hi: Time,
+    origin: Point,
+    resolution: f64,
+    size_x: u32,
+    size_y: u32,
+    size_z: u32,
+    encoding: u8,
+    scale: i32,
+    occupied_voxels: u64,
+    vanishes: bool,
+    vertices: Unflat4<i32>,
+    tets: Unflat4<u32>,
+}
+
+impl Serialize for MeshSlab {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        MeshSlabOut {
+            header: &self.header,
+            body_id: &self.body_id,
+            kind: self.kind,
+            index: self.index,
+            stamp_lo: self.stamp_lo,
+            stamp_hi: self.stamp_hi,
+            origin: self.origin,
+            resolution: self.resolution,
+            size_x: self.size_x,
+            size_y: self.size_y,
+            size_z: self.size_z,
+            encoding: self.encoding,
+            scale: self.scale,
+            occupied_voxels: self.occupied_voxels,
+            vanishes: self.vanishes,
+            vertices: Flat4(&self.mesh.vertices),
+            tets: Flat4(&self.mesh.tets),
+        }
+        .serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for MeshSlab {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let m = MeshSlabIn::deserialize(d)?;
+        Ok(MeshSlab {
+            header: m.header,
+            body_id: m.body_id,
+            kind: m.kind,
+            index: m.index,
+            stamp_lo: m.stamp_lo,
+            stamp_hi: m.stamp_hi,
+            origin: m.origin,
+            resolution: m.resolution,
+            size_x: m.size_x,
+            size_y: m.size_y,
+            size_z: m.size_z,
+            encoding: m.encoding,
+            scale: m.scale,
+            occupied_voxels: m.occupied_voxels,
+            vanishes: m.vanishes,
+            mesh: TetMesh {
+                vertices: m.vertices.0,
+                tets: m.tets.0,
+            },
+        })
+    }
+}
+
+impl RosMessage for MeshSlab {
+    const TYPE_NAME: &'static str = "chronotope_msgs/msg/MeshSlab";
+    const DEFINITION: &'static str = include_str!("../../msgs/msg/MeshSlab.msg");
+    fn dependencies() -> Vec<(&'static str, &'static str)> {
+        deps![
+            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "geometry_msgs/msg/Point" => "../../msgs/deps/geometry_msgs/msg/Point.msg",
+        ]
+    }
+}
+
+/// `chronotope_msgs/msg/TetLabels`: every tet of one body labelled against another.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct TetLabels {
+    /// Time of the last frame checked; frame of the lattice.
+    pub header: Header,
+    /// The labelled body.
+    pub body_id: String,
+    /// The body it is labelled against.
+    pub other_id: String,
+    /// One per tet, in the order of `body_id`'s MeshSlab pieces.
+    #[serde(with = "serde_bytes")]
+    pub labels: Vec<u8>,
+    /// INTERFERENCE count.
+    pub interference: u64,
+    /// INSIDE count.
+    pub inside: u64,
+    /// OUTSIDE count.
+    pub outside: u64,
+}
+
+impl TetLabels {
+    /// Outside the other body.
+    pub const OUTSIDE: u8 = 0;
+    /// Inside the other body.
+    pub const INSIDE: u8 = 1;
+    /// Crosses the other body's boundary.
+    pub const INTERFERENCE: u8 = 2;
+}
+
+impl RosMessage for TetLabels {
+    const TYPE_NAME: &'static str = "chronotope_msgs/msg/TetLabels";
+    const DEFINITION: &'static str = include_str!("../../msgs/msg/TetLabels.msg");
+    fn dependencies() -> Vec<(&'static str, &'static str)> {
+        deps![
+            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+        ]
+    }
+}
+
+/// `chronotope_msgs/msg/BodySummary`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct BodySummary {
+    /// The body's VoxelGrid topic.
+    pub body_id: String,
+    /// Frames meshed.
+    pub frames: u64,
+    /// Frames refused.
+    pub skipped_frames: u64,
+    /// Tets of the closed mesh.
+    pub tets: u64,
+    /// Vertices of the mesh.
+    pub vertices: u64,
+    /// Closed and consistently oriented.
+    pub closed: bool,
+    /// 4D measure (m³·s).
+    pub hypervolume_m3s: f64,
+    /// Frame periods in which the body moves more than its thickness.
+    pub vanishing_slabs: u64,
+}
+
+/// `chronotope_msgs/msg/PairInterference`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct PairInterference {
+    /// First body.
+    pub body_a: String,
+    /// Second body.
+    pub body_b: String,
+    /// The interiors overlap somewhere in space-time.
+    pub interfering: bool,
+    /// Interval starts (s since the report's time origin).
+    pub interval_start_s: Vec<f64>,
+    /// Interval ends (s).
+    pub interval_end_s: Vec<f64>,
+    /// First contact (s), NaN if none.
+    pub first_contact_s: f64,
+    /// Its error bound (s), NaN if unknown.
+    pub first_contact_error_bound_s: f64,
+    /// Closing speed at first contact (m/s), NaN if unknown.
+    pub closing_speed_mps: f64,
+    /// Overlap measure (m³·s), NaN if not measured.
+    pub overlap_hypervolume_m3s: f64,
+    /// Its error bound (m³·s), NaN if not measured.
+    pub overlap_hypervolume_error_bound_m3s: f64,
+    /// Label counts of body a.
+    pub a_interference: u64,
+    /// .
+    pub a_inside: u64,
+    /// .
+    pub a_outside: u64,
+    /// Label counts of body b.
+    pub b_interference: u64,
+    /// .
+    pub b_inside: u64,
+    /// .
+    pub b_outside: u64,
+}
+
+/// `chronotope_msgs/msg/InterferenceReport`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct InterferenceReport {
+    /// Time of the last frame checked; frame of the lattice.
+    pub header: Header,
+    /// Report times are seconds since this stamp.
+    pub time_origin: Time,
+    /// c of the 4D metric (m/s).
+    pub time_scale_m_per_s: f64,
+    /// Voxel edge of the common lattice (m).
+    pub voxel_size_m: f64,
+    /// The bodies.
+    pub bodies: Vec<BodySummary>,
+    /// The checked pairs.
+    pub pairs: Vec<PairInterference>,
+}
+
+impl RosMessage for InterferenceReport {
+    const TYPE_NAME: &'static str = "chronotope_msgs/msg/InterferenceReport";
+    const DEFINITION: &'static str = include_str!("../../msgs/msg/InterferenceReport.msg");
+    fn dependencies() -> Vec<(&'static str, &'static str)> {
+        deps![
+            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "chronotope_msgs/msg/BodySummary" => "../../msgs/msg/BodySummary.msg",
+            "chronotope_msgs/msg/PairInterference" => "../../msgs/msg/PairInterference.msg",
+        ]
+    }
+}
+
+/// `chronotope_msgs/msg/ResolveSuggestion`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ResolveSuggestion {
+    /// The body to move or retime.
+    pub body_id: String,
+    /// [`Self::KIND_TRANSLATE`] or [`Self::KIND_TIME_SCALE`].
+    pub kind: u8,
+    /// Shift in space (m).
+    pub translation: Vector3,
+    /// Shift in time (s).
+    pub time_shift_s: f64,
+    /// 4D length of the shift (m).
+    pub distance: f64,
+    /// Bound on the distance's excess over the shortest clearing shift (m).
+    pub distance_error_bound_m: f64,
+    /// Fixed time of the retiming (s since the time origin).
+    pub t0_s: f64,
+    /// Factor on durations after `t0_s`.
+    pub scale: f64,
+    /// Checked again against every other body: clear.
+    pub verified_clear: bool,
+}
+
+impl ResolveSuggestion {
+    /// Move the body.
+    pub const KIND_TRANSLATE: u8 = 0;
+    /// Retime the body.
+    pub const KIND_TIME_SCALE: u8 = 1;
+}
+
+/// `chronotope_msgs/msg/ResolveSuggestions`.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ResolveSuggestions {
+    /// Time of the last frame checked.
+    pub header: Header,
+    /// The suggestions.
+    pub suggestions: Vec<ResolveSuggestion>,
+}
+
+impl RosMessage for ResolveSuggestions {
+    const TYPE_NAME: &'static str = "chronotope_msgs/msg/ResolveSuggestions";
+    const DEFINITION: &'static str = include_str!("../../msgs/msg/ResolveSuggestions.msg");
+    fn dependencies() -> Vec<(&'static str, &'static str)> {
+        deps![
+            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "chronotope_msgs/msg/ResolveSuggestion" => "../../msgs/msg/ResolveSuggestion.msg",
+            "geometry_msgs/msg/Vector3" => "../../msgs/deps/geometry_msgs/msg/Vector3.msg",
+        ]
+    }
+}

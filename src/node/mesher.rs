@@ -1,0 +1,358 @@
+//! The mesher node: one VoxelGrid topic per body in, the pieces of each body's closed 4D mesh
+//! out (`~/mesh_slabs`, chronotope_msgs/MeshSlab) as frames arrive, and optionally a t-slice
+//! of each slab as a TRIANGLE_LIST marker (`~/slices`).
+//!
+//! Parameters: `bodies` (string array, the VoxelGrid topics to mesh; required unless the
+//! transport supplies the default), `iso_percent` (int, 1..=100), `unknown_occupied` (bool),
+//! `percent_scale` (int, power of two 2..=256), `max_slab_tets` (int), `slice_markers` (bool,
+//! default false).
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use super::launch::{LaunchError, NodeSpec, Params};
+use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
+use super::{Message, Node, NodeStatus, Payload, Subscription};
+use crate::cli::frame_ref;
+use crate::mesh::{CapSide, GridGeometry, KeptFrame, Mesher, MesherOptions, Slab, TetMesh};
+use crate::msg::{Header, MeshSlab, RosMessage, Time, VoxelGrid};
+
+/// A frame period longer than this many times the body's median period so far is reported
+/// as frames missing from the stream.
+const GAP_FACTOR: f64 = 1.5;
+
+struct Body {
+    mesher: Mesher,
+    frame_id: String,
+    periods_ns: Vec<i64>,
+    last_stamp: Option<i64>,
+}
+
+/// The mesher node.
+pub struct MesherNode {
+    fqn: String,
+    opts: MesherOptions,
+    bodies: BTreeMap<String, Body>,
+    slab_topic: String,
+    slice_topic: Option<String>,
+    status: NodeStatus,
+}
+
+impl MesherNode {
+    /// The node a launch config describes; `default_bodies` when it names none.
+    ///
+    /// # Errors
+    /// A bad parameter.
+    pub fn from_spec(spec: &NodeSpec, default_bodies: &[String]) -> Result<Self, LaunchError> {
+        let mut p = Params::of(spec);
+        let bodies = p.topics("bodies")?;
+        let opts = mesher_options(&mut p)?;
+        let slice_markers = p.bool("slice_markers", false)?;
+        let slab_topic = p.resolve("~/mesh_slabs", "~/mesh_slabs")?;
+        let slice_topic = if slice_markers {
+            Some(p.resolve("~/slices", "~/slices")?)
+        } else {
+            None
+        };
+        let node = p.node().to_owned();
+        p.finish()?;
+        let bodies = bodies.unwrap_or_else(|| default_bodies.to_vec());
+        if bodies.is_empty() {
+            return Err(LaunchError::Param {
+                node,
+                param: "bodies".into(),
+                reason: "no bodies to mesh: name their VoxelGrid topics".into(),
+            });
+        }
+        let mut map = BTreeMap::new();
+        for b in bodies {
+            let mesher = Mesher::new(opts).map_err(|e| LaunchError::Param {
+                node: node.clone(),
+                param: "iso_percent/percent_scale".into(),
+                reason: e.to_string(),
+            })?;
+            map.insert(
+                b,
+                Body {
+                    mesher,
+                    frame_id: String::new(),
+                    periods_ns: Vec::new(),
+                    last_stamp: None,
+                },
+            );
+        }
+        Ok(Self {
+            fqn: node,
+            opts,
+            bodies: map,
+            slab_topic,
+            slice_topic,
+            status: NodeStatus::default(),
+        })
+    }
+
+    /// The topic of the mesh pieces.
+    pub fn slab_topic(&self) -> &str {
+        &self.slab_topic
+    }
+
+    /// The bodies meshed.
+    pub fn bodies(&self) -> impl Iterator<Item = &str> {
+        self.bodies.keys().map(String::as_str)
+    }
+
+    /// Keeps only the bodies `keep` says (a body no checked pair uses is not meshed).
+    pub fn retain_bodies(&mut self, keep: impl Fn(&str) -> bool) {
+        self.bodies.retain(|k, _| keep(k));
+    }
+
+    /// Frames of `body` the mesher refused.
+    pub fn skipped(&self, body: &str) -> u64 {
+        self.bodies.get(body).map_or(0, |b| b.mesher.skipped())
+    }
+
+    /// The mesher options.
+    pub fn options(&self) -> MesherOptions {
+        self.opts
+    }
+
+    fn piece(
+        &self,
+        body: &str,
+        b: &Body,
+        kind: u8,
+        g: &GridGeometry,
+        index: u64,
+        stamps: (i64, i64),
+        occupied: u64,
+        vanishes: bool,
+        mesh: TetMesh,
+    ) -> Message {
+        let mut m = MeshSlab {
+            header: Header {
+                stamp: Time::from_nanos(stamps.1),
+                frame_id: b.frame_id.clone(),
+            },
+            body_id: body.to_owned(),
+            kind,
+            index: index as u32,
+            stamp_lo: Time::from_nanos(stamps.0),
+            stamp_hi: Time::from_nanos(stamps.1),
+            occupied_voxels: occupied,
+            vanishes,
+            mesh,
+            ..MeshSlab::default()
+        };
+        m.set_geometry(g);
+        Message::new(&self.slab_topic, stamps.1, Payload::MeshSlab(Arc::new(m)))
+    }
+
+    fn cap(&self, body: &str, b: &Body, k: &KeptFrame, side: CapSide) -> Option<Message> {
+        let g = *b.mesher.geometry()?;
+        let Some(cap) = b.mesher.cap(k, side) else {
+            // Over the tet budget: the body's mesh stays open there and says so.
+            return None;
+        };
+        let kind = match side {
+            CapSide::Low => MeshSlab::KIND_CAP_START,
+            CapSide::High => MeshSlab::KIND_CAP_END,
+        };
+        Some(self.piece(
+            body,
+            b,
+            kind,
+            &g,
+            k.index,
+            (k.stamp_ns, k.stamp_ns),
+            k.grid.occupied,
+            false,
+            cap,
+        ))
+    }
+
+    fn slice_marker(&self, body: &str, b: &Body, slab: &Slab) -> Option<Message> {
+        let topic = self.slice_topic.as_ref()?;
+        let (tri, _) = slice_with_sources(
+            &[&slab.mesh],
+            mid_slab_plane(slab.index, slab.geometry.scale),
+        );
+        let stamp = slab.stamp_lo_ns + (slab.stamp_hi_ns - slab.stamp_lo_ns) / 2;
+        let header = Header {
+            stamp: Time::from_nanos(stamp),
+            frame_id: b.frame_id.clone(),
+        };
+        let color = body_color(body);
+        let m = triangle_list(header, body, 0, &slab.geometry, &tri, |_| color);
+        Some(Message::new(topic, stamp, Payload::Marker(Arc::new(m))))
+    }
+
+    fn on_frame(&mut self, topic: &str, grid: &VoxelGrid, out: &mut Vec<Message>) {
+        let stamp = grid.header.stamp.as_nanos();
+        let Some(mut b) = self.bodies.remove(topic) else {
+            return;
+        };
+        match b.mesher.push(&frame_ref(grid)) {
+            Err(e) => self.status.problem(
+                &self.fqn,
+                "frame_refused",
+                format!("{topic}: frame at {stamp} ns skipped: {e}"),
+            ),
+            Ok(slab) => {
+                if b.frame_id.is_empty() {
+                    b.frame_id = grid.header.frame_id.clone();
+                }
+                if let Some(prev) = b.last_stamp {
+                    let dt = stamp - prev;
+                    if let Some(median) = median(&b.periods_ns) {
+                        if dt as f64 > GAP_FACTOR * median as f64 {
+                            let missing = (dt as f64 / median as f64).round() as i64 - 1;
+                            self.status.problem(
+                                &self.fqn,
+                                "frames_missing",
+                                format!(
+                                    "{topic}: {:.3} s between frames at {prev} and {stamp} ns, about {missing} \
+                                     frame(s) missing; the mesh spans the gap",
+                                    dt as f64 * 1e-9
+                                ),
+                            );
+                        }
+                    }
+                    b.periods_ns.push(dt);
+                }
+                b.last_stamp = Some(stamp);
+                if let Some(slab) = slab {
+                    if slab.index == 0 {
+                        if let Some(m) = b
+                            .mesher
+                            .first_frame()
+                            .and_then(|k| self.cap(topic, &b, k, CapSide::Low))
+                        {
+                            out.push(m);
+                        }
+                    }
+                    if let Some(m) = self.slice_marker(topic, &b, &slab) {
+                        out.push(m);
+                    }
+                    let occupied = b.mesher.last_frame().map_or(0, |k| k.grid.occupied);
+                    out.push(self.piece(
+                        topic,
+                        &b,
+                        MeshSlab::KIND_LATERAL,
+                        &slab.geometry,
+                        slab.index,
+                        (slab.stamp_lo_ns, slab.stamp_hi_ns),
+                        occupied,
+                        slab.vanishes,
+                        slab.mesh,
+                    ));
+                }
+            }
+        }
+        self.bodies.insert(topic.to_owned(), b);
+    }
+}
+
+fn median(v: &[i64]) -> Option<i64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mut s = v.to_vec();
+    s.sort_unstable();
+    Some(s[s.len() / 2])
+}
+
+/// The mesher options from a node's parameters (shared with the checker, which decodes the
+/// same frames to measure overlaps).
+///
+/// # Errors
+/// A bad parameter.
+pub fn mesher_options(p: &mut Params<'_>) -> Result<MesherOptions, LaunchError> {
+    let mut opts = MesherOptions::default();
+    opts.decode.iso_percent =
+        p.int("iso_percent", i64::from(opts.decode.iso_percent), 1..=100)? as u8;
+    opts.decode.unknown_occupied = p.bool("unknown_occupied", opts.decode.unknown_occupied)?;
+    let scale = p.int("percent_scale", i64::from(opts.percent_scale), 2..=256)?;
+    if (scale as u32).count_ones() != 1 {
+        return Err(LaunchError::Param {
+            node: p.node().to_owned(),
+            param: "percent_scale".into(),
+            reason: format!("{scale} is not a power of two"),
+        });
+    }
+    opts.percent_scale = scale as i32;
+    opts.max_slab_tets = p.int(
+        "max_slab_tets",
+        opts.max_slab_tets as i64,
+        1..=i64::from(u32::MAX),
+    )? as usize;
+    Ok(opts)
+}
+
+impl Node for MesherNode {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
+    fn name(&self) -> &str {
+        &self.fqn
+    }
+
+    fn subscriptions(&self) -> Vec<Subscription> {
+        self.bodies
+            .keys()
+            .map(|t| Subscription {
+                topic: t.clone(),
+                type_name: VoxelGrid::TYPE_NAME,
+            })
+            .collect()
+    }
+
+    fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
+        self.status.received += 1;
+        let before = out.len();
+        match &msg.payload {
+            Payload::VoxelGrid(g) => self.on_frame(&msg.topic, g, out),
+            other => self.status.problem(
+                &self.fqn,
+                "wrong_type",
+                format!(
+                    "{}: a {} where a {} was expected; ignored",
+                    msg.topic,
+                    other.type_name(),
+                    VoxelGrid::TYPE_NAME
+                ),
+            ),
+        }
+        self.status.published += (out.len() - before) as u64;
+    }
+
+    fn finish(&mut self, out: &mut Vec<Message>) {
+        let before = out.len();
+        for (topic, b) in &self.bodies {
+            if b.mesher.frames() >= 2 {
+                if let Some(m) = b
+                    .mesher
+                    .last_frame()
+                    .and_then(|k| self.cap(topic, b, k, CapSide::High))
+                {
+                    out.push(m);
+                }
+            } else {
+                let why = format!(
+                    "{topic}: {} frame(s): a body needs two for a 4D mesh",
+                    b.mesher.frames()
+                );
+                self.status.problem(&self.fqn, "too_few_frames", why);
+            }
+        }
+        self.status.published += (out.len() - before) as u64;
+    }
+
+    fn status(&self) -> &NodeStatus {
+        &self.status
+    }
+
+    fn rank(&self) -> u8 {
+        1
+    }
+}

@@ -1,0 +1,188 @@
+//! The suite's ROS 2 nodes as sans-I/O state machines.
+//!
+//! A node is given messages ([`Message`]: a topic, a stamp and a typed payload shared by
+//! reference count, so a big mesh is never copied between nodes) and pushes the messages it
+//! publishes into a vector. It never reads a clock, a file or a socket: the transports do that
+//! (the in-process [`bus::Bus`] for `chronotope replay` and the tests; DDS for live use). A
+//! message a node cannot use is a counted, logged problem in its [`NodeStatus`], never a panic.
+
+pub mod bus;
+pub mod carving;
+pub mod checker;
+pub mod launch;
+pub mod markers;
+pub mod mesher;
+pub mod names;
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+use crate::msg::{
+    decode_cdr, encode_cdr, CdrError, InterferenceReport, Marker, MarkerArray, MeshSlab,
+    PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
+};
+
+macro_rules! payloads {
+    ($($variant:ident($ty:ty)),* $(,)?) => {
+        /// A message of one of the types the suite speaks.
+        #[derive(Debug, Clone)]
+        pub enum Payload {
+            $(
+                #[doc = concat!("`", stringify!($ty), "`.")]
+                $variant(Arc<$ty>),
+            )*
+        }
+
+        impl Payload {
+            /// The type's `pkg/msg/Type` name.
+            pub fn type_name(&self) -> &'static str {
+                match self {
+                    $(Self::$variant(_) => <$ty as RosMessage>::TYPE_NAME,)*
+                }
+            }
+
+            /// CDR with the encapsulation header.
+            ///
+            /// # Errors
+            /// The message cannot be serialised (a field over CDR's `u32` limits).
+            pub fn encode(&self) -> Result<Vec<u8>, CdrError> {
+                match self {
+                    $(Self::$variant(m) => encode_cdr(m.as_ref()),)*
+                }
+            }
+
+            /// Decodes CDR bytes of the type named `type_name`.
+            ///
+            /// # Errors
+            /// [`DecodeError::UnknownType`] for a type the suite does not speak,
+            /// [`DecodeError::Cdr`] if the bytes do not decode as that type.
+            pub fn decode(type_name: &str, bytes: &[u8]) -> Result<Self, DecodeError> {
+                $(
+                    if type_name == <$ty as RosMessage>::TYPE_NAME {
+                        return decode_cdr::<$ty>(bytes)
+                            .map(|m| Self::$variant(Arc::new(m)))
+                            .map_err(DecodeError::Cdr);
+                    }
+                )*
+                Err(DecodeError::UnknownType(type_name.to_owned()))
+            }
+
+            /// `(pkg/msg/Type, ros2msg schema)` of the payload's type.
+            pub fn schema(&self) -> (&'static str, String) {
+                match self {
+                    $(Self::$variant(_) => (
+                        <$ty as RosMessage>::TYPE_NAME,
+                        crate::msg::ros2msg_schema::<$ty>(),
+                    ),)*
+                }
+            }
+        }
+    };
+}
+
+payloads! {
+    VoxelGrid(VoxelGrid),
+    MeshSlab(MeshSlab),
+    TetLabels(TetLabels),
+    Report(InterferenceReport),
+    Suggestions(ResolveSuggestions),
+    Marker(Marker),
+    MarkerArray(MarkerArray),
+    PoseStamped(PoseStamped),
+    WrenchStamped(WrenchStamped),
+    PointCloud2(PointCloud2),
+}
+
+/// Why a serialised message could not be turned into a [`Payload`].
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DecodeError {
+    /// The type is not one the suite speaks.
+    #[error("type {0} is not one the suite reads")]
+    UnknownType(String),
+    /// The bytes do not decode as the type.
+    #[error(transparent)]
+    Cdr(CdrError),
+}
+
+/// One message on a topic.
+#[derive(Debug, Clone)]
+pub struct Message {
+    /// Fully qualified topic name (`/ns/name`).
+    pub topic: Arc<str>,
+    /// Time of the message (ns since the epoch): the stamp of its header.
+    pub stamp_ns: i64,
+    /// The message.
+    pub payload: Payload,
+}
+
+impl Message {
+    /// A message on `topic`.
+    pub fn new(topic: &str, stamp_ns: i64, payload: Payload) -> Self {
+        Self {
+            topic: topic.into(),
+            stamp_ns,
+            payload,
+        }
+    }
+}
+
+/// A topic a node reads, with the type it expects there.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Subscription {
+    /// Fully qualified topic name.
+    pub topic: String,
+    /// `pkg/msg/Type`.
+    pub type_name: &'static str,
+}
+
+/// What a node has done and what went wrong, by kind (e.g. `undecodable`, `stamp_order`).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct NodeStatus {
+    /// Messages received.
+    pub received: u64,
+    /// Messages published.
+    pub published: u64,
+    /// Problems by kind: how many.
+    pub problems: BTreeMap<String, u64>,
+    /// The first problems' texts (at most [`NodeStatus::KEPT`]).
+    pub messages: Vec<String>,
+}
+
+impl NodeStatus {
+    /// Problem texts kept.
+    pub const KEPT: usize = 32;
+
+    /// Counts and logs a problem of `kind` in node `node`.
+    pub fn problem(&mut self, node: &str, kind: &str, text: String) {
+        tracing::warn!(node, kind, "{text}");
+        *self.problems.entry(kind.to_owned()).or_default() += 1;
+        if self.messages.len() < Self::KEPT {
+            self.messages.push(text);
+        }
+    }
+
+    /// All problems counted.
+    pub fn problem_count(&self) -> u64 {
+        self.problems.values().sum()
+    }
+}
+
+/// A node of the suite.
+pub trait Node: Send + std::any::Any {
+    /// For transports that need the concrete node (e.g. the replay reads the checker's report).
+    fn as_any(&self) -> &dyn std::any::Any;
+    /// Fully qualified node name (`/ns/name`).
+    fn name(&self) -> &str;
+    /// The topics it reads.
+    fn subscriptions(&self) -> Vec<Subscription>;
+    /// Handles one message on a subscribed topic; pushes what it publishes.
+    fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>);
+    /// The inputs have ended (a replay's bag is read, or the node shuts down): publishes
+    /// what it has left (the closing mesh caps, the final report).
+    fn finish(&mut self, out: &mut Vec<Message>);
+    /// Counters and problems.
+    fn status(&self) -> &NodeStatus;
+    /// Position in the pipeline: nodes finish in increasing rank, so what one publishes on
+    /// finishing reaches the nodes after it before they finish.
+    fn rank(&self) -> u8;
+}

@@ -1,0 +1,507 @@
+//! The check of a set of bodies and its report (CONTRACT.md, schema `chronotope.report/1`):
+//! every planned pair checked, overlap measured, resolutions suggested and verified. Shared by
+//! `chronotope check` and the checker node; knows nothing of ROS.
+
+use crate::checker::bounds;
+use crate::checker::labels::LabelCounts;
+use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
+use crate::checker::{check_pair, CheckError, CommonLattice, PairResult, Prepared};
+use crate::mesh::glue::{BodyAssembler, BodyMesh};
+use crate::mesh::MesherOptions;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+/// One body in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct BodyReport {
+    /// Topic.
+    pub id: String,
+    /// Frames accepted.
+    pub frames: u64,
+    /// Tets of the closed mesh.
+    pub tets: u64,
+    /// Vertices of the closed mesh.
+    pub vertices: u64,
+    /// Closed and consistently oriented.
+    pub closed: bool,
+    /// Hypervolume (m³·s).
+    pub hypervolume_m3s: f64,
+    /// Frames refused (extra field).
+    pub skipped_frames: u64,
+    /// Slabs in which the body vanishes between its frames: the frame rate is too low for
+    /// its motion and contacts there can be missed (extra field).
+    pub vanishing_slabs: u64,
+}
+
+/// Label counts of both bodies of a pair.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairLabels {
+    /// First body.
+    pub a: LabelCounts,
+    /// Second body.
+    pub b: LabelCounts,
+}
+
+/// One pair in the report.
+#[derive(Debug, Clone, Serialize)]
+pub struct PairReport {
+    /// First body.
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// The interiors overlap somewhere in space-time.
+    pub interfering: bool,
+    /// Time intervals of overlap (s since `time_origin_ns`).
+    pub intervals_s: Vec<[f64; 2]>,
+    /// Earliest time of overlap, or null.
+    pub first_contact_s: Option<f64>,
+    /// 4D measure of the overlap (m³·s), or null when the bodies' frames are not on one grid.
+    pub overlap_hypervolume_m3s: Option<f64>,
+    /// Label counts.
+    pub labels: PairLabels,
+    /// The frame period at the first contact (s), the time resolution of the input (extra
+    /// field).
+    pub frame_period_s: Option<f64>,
+    /// Voxel edge (m), the space resolution of the input (extra field).
+    pub voxel_size_m: f64,
+    /// Bound on the error of `first_contact_s` (s): Δt/2 + h/v at closing speed v; null
+    /// for a grazing contact or one not made by crossing boundaries (extra field; README,
+    /// "Error bounds").
+    pub first_contact_error_bound_s: Option<f64>,
+    /// The closing speed v of the two boundaries at the first contact (m/s, extra field).
+    pub closing_speed_mps: Option<f64>,
+    /// Bounds on the errors of each interval's start and end (s; null as above; extra
+    /// field).
+    pub interval_error_bounds_s: Vec<[Option<f64>; 2]>,
+    /// Bound on the error of `overlap_hypervolume_m3s` (m³·s, extra field).
+    pub overlap_hypervolume_error_bound_m3s: Option<f64>,
+    /// Candidate tet pairs from the trees (extra field).
+    pub candidate_pairs: u64,
+    /// Tet pairs whose boundaries cross (extra field).
+    pub crossing_pairs: u64,
+}
+
+/// Timings (ms).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Timings {
+    /// Reading and meshing.
+    pub mesh: f64,
+    /// Detection and labels (trees, exact tests, inclusion).
+    pub check: f64,
+    /// Resolution suggestions.
+    pub resolve: f64,
+    /// Everything.
+    pub total: f64,
+}
+
+/// The report (CONTRACT.md).
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    /// `chronotope.report/1`.
+    pub schema: &'static str,
+    /// Earliest frame stamp in the bag (ns); report times are seconds since it.
+    pub time_origin_ns: i64,
+    /// c (m/s) of the 4D metric.
+    pub time_scale_m_per_s: f64,
+    /// Bodies, sorted by id.
+    pub bodies: Vec<BodyReport>,
+    /// Every pair (a < b).
+    pub pairs: Vec<PairReport>,
+    /// Resolve suggestions for the movable bodies.
+    pub resolutions: Vec<Resolution>,
+    /// Timings.
+    pub timings_ms: Timings,
+    /// What went wrong with the input and was skipped (extra field; empty when nothing did).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub problems: Vec<String>,
+}
+
+/// A resolve suggestion (one entry of the report's `resolutions`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum Resolution {
+    /// Move the body in space and time.
+    Translate {
+        /// The body.
+        body: String,
+        /// (dx, dy, dz) in metres and dt in seconds.
+        vector: [f64; 4],
+        /// sqrt(dx² + dy² + dz² + (c·dt)²) (m).
+        distance: f64,
+        /// Checked again against every other body: clear.
+        verified_clear: bool,
+        /// How the direction was found (extra field).
+        direction: &'static str,
+        /// Bound on the distance's excess over the shortest clearing shift (m, extra field).
+        distance_error_bound_m: f64,
+    },
+    /// Retime the body: t -> t0 + scale·(t − t0).
+    TimeScale {
+        /// The body.
+        body: String,
+        /// Fixed time (s since the time origin).
+        t0_s: f64,
+        /// Factor on durations after t0.
+        scale: f64,
+        /// Checked again against every other body: clear.
+        verified_clear: bool,
+    },
+}
+
+/// What to check.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CheckPlan {
+    /// The pairs to check (body ids); `None`: every pair of bodies.
+    pub pairs: Option<Vec<(String, String)>>,
+    /// Bodies to suggest resolutions for, each against the bodies it is paired with.
+    pub movable: Vec<String>,
+    /// c (m/s) of the 4D metric; `None`: one voxel per frame period.
+    pub time_scale: Option<f64>,
+}
+
+impl CheckPlan {
+    /// Every pair, resolutions for the body whose id sorts first (CONTRACT.md's default).
+    pub fn all_pairs_first_movable(ids: &[&str], time_scale: Option<f64>) -> Self {
+        let mut sorted: Vec<&str> = ids.to_vec();
+        sorted.sort_unstable();
+        Self {
+            pairs: None,
+            movable: sorted.first().map(|s| s.to_string()).into_iter().collect(),
+            time_scale,
+        }
+    }
+}
+
+/// The report and what it was computed from (for publishing labels and markers).
+#[derive(Debug)]
+pub struct CheckOutcome {
+    /// The report (timings: `check` and `resolve` filled in).
+    pub report: Report,
+    /// The common lattice of the checked bodies, if any was checked.
+    pub lattice: Option<CommonLattice>,
+    /// Ids of the checked bodies, sorted.
+    pub ids: Vec<String>,
+    /// Their prepared meshes, in the order of `ids`.
+    pub prepared: Vec<Prepared>,
+    /// Each checked pair `(i, j)` (indices into `ids`, `i < j`) and its result.
+    pub results: Vec<(usize, usize, PairResult)>,
+}
+
+/// Checks the planned pairs of `bodies` (bodies with fewer than two frames have no 4D mesh
+/// and are left out, with a problem noted), measures the overlaps and suggests resolutions for
+/// the movable bodies.
+///
+/// # Errors
+/// The checked bodies are not on one lattice (or their coordinates overflow it).
+pub fn check_bodies(
+    bodies: &BTreeMap<String, BodyMesh>,
+    plan: &CheckPlan,
+    opts: MesherOptions,
+) -> Result<CheckOutcome, CheckError> {
+    let start = Instant::now();
+    let mut problems = Vec::new();
+    let meshed = |id: &str| bodies.get(id).is_some_and(|b| b.stamps_ns.len() >= 2);
+    for (id, b) in bodies {
+        if b.stamps_ns.len() < 2 {
+            let why = format!("{id}: fewer than two frames: no 4D mesh, not checked");
+            tracing::warn!("{why}");
+            problems.push(why);
+        }
+    }
+    let wanted: Vec<(String, String)> = match &plan.pairs {
+        Some(p) => p.clone(),
+        None => {
+            let ids: Vec<&String> = bodies.keys().collect();
+            (0..ids.len())
+                .flat_map(|i| (i + 1..ids.len()).map(move |j| (i, j)))
+                .map(|(i, j)| (ids[i].clone(), ids[j].clone()))
+                .collect()
+        }
+    };
+    let mut pair_ids = Vec::new();
+    for (a, b) in wanted {
+        let missing: Vec<&String> = [&a, &b].into_iter().filter(|x| !meshed(x)).collect();
+        if missing.is_empty() && a != b {
+            pair_ids.push(if a < b { (a, b) } else { (b, a) });
+        } else if plan.pairs.is_some() {
+            let why = if a == b {
+                format!("pair {a} x {b}: a body is not paired with itself; skipped")
+            } else {
+                format!("pair {a} x {b}: no 4D mesh of {}; not checked", missing[0])
+            };
+            tracing::warn!("{why}");
+            problems.push(why);
+        }
+    }
+    pair_ids.sort();
+    pair_ids.dedup();
+    let mut ids: Vec<String> = pair_ids
+        .iter()
+        .flat_map(|(a, b)| [a.clone(), b.clone()])
+        .collect();
+    ids.sort();
+    ids.dedup();
+    let index = |id: &str| ids.binary_search_by(|x| x.as_str().cmp(id)).ok();
+    let time_origin_ns = bodies
+        .values()
+        .filter_map(|b| b.stamps_ns.first().copied())
+        .min()
+        .unwrap_or(0);
+    let mut report = Report {
+        schema: "chronotope.report/1",
+        time_origin_ns,
+        time_scale_m_per_s: plan.time_scale.unwrap_or(0.0),
+        bodies: bodies
+            .iter()
+            .map(|(id, b)| BodyReport {
+                id: id.clone(),
+                frames: b.stats.frames,
+                tets: b.mesh.tets.len() as u64,
+                vertices: b.mesh.vertices.len() as u64,
+                closed: b.stats.closed.is_closed(),
+                hypervolume_m3s: b.stats.hypervolume_m3s,
+                skipped_frames: b.skipped,
+                vanishing_slabs: b.stats.vanishing_slabs,
+            })
+            .collect(),
+        pairs: Vec::new(),
+        resolutions: Vec::new(),
+        timings_ms: Timings::default(),
+        problems,
+    };
+    let mut outcome = CheckOutcome {
+        report: Report { ..report.clone() },
+        lattice: None,
+        ids: Vec::new(),
+        prepared: Vec::new(),
+        results: Vec::new(),
+    };
+    if ids.is_empty() {
+        outcome.report = report;
+        outcome.report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;
+        return Ok(outcome);
+    }
+    let named: Vec<(&str, &BodyMesh)> = ids.iter().map(|k| (k.as_str(), &bodies[k])).collect();
+    let lat = CommonLattice::of(&named)?;
+    let span = (lat.stamps_ns[lat.stamps_ns.len() - 1] - lat.stamps_ns[0]) as f64 * 1e-9;
+    let period = span / (lat.stamps_ns.len() - 1) as f64;
+    let c = plan.time_scale.unwrap_or(lat.resolution / period);
+    report.time_scale_m_per_s = c;
+    // Bodies are prepared, and pairs checked, on all cores: they are independent.
+    let prepared: Vec<Prepared> = par_map(named.len(), |i| lat.prepare(named[i].0, named[i].1))
+        .into_iter()
+        .collect::<Result<_, _>>()?;
+    let jobs: Vec<(usize, usize)> = pair_ids
+        .iter()
+        .filter_map(|(a, b)| Some((index(a)?, index(b)?)))
+        .collect();
+    let results = par_map(jobs.len(), |k| {
+        let (i, j) = jobs[k];
+        let r = check_pair(&prepared[i], &prepared[j]);
+        let hv = if r.interfering() {
+            overlap_hypervolume(named[i].1, named[j].1, opts)
+        } else {
+            Some((0.0, 0.0))
+        };
+        (r, hv)
+    });
+    let mut checked = Vec::new();
+    for (&(i, j), (r, hv)) in jobs.iter().zip(results) {
+        report
+            .pairs
+            .push(pair_report(&ids[i], &ids[j], &r, hv, &lat, time_origin_ns));
+        checked.push((i, j, r));
+    }
+    let t_check = start.elapsed();
+    for m in &plan.movable {
+        let Some(im) = index(m) else {
+            let why = format!("movable body {m}: in no checked pair; no resolution");
+            tracing::warn!("{why}");
+            report.problems.push(why);
+            continue;
+        };
+        let mut others = Vec::new();
+        let mut rs = Vec::new();
+        for (i, j, r) in &checked {
+            if *i == im {
+                others.push(&prepared[*j]);
+                rs.push(std::borrow::Cow::Borrowed(r));
+            } else if *j == im {
+                others.push(&prepared[*i]);
+                rs.push(std::borrow::Cow::Owned(r.clone().swapped()));
+            }
+        }
+        if rs.iter().any(|r| r.interfering()) {
+            let rs: Vec<&PairResult> = rs.iter().map(|r| r.as_ref()).collect();
+            report.resolutions.extend(resolve(
+                &prepared[im],
+                &others,
+                &rs,
+                &lat,
+                c,
+                time_origin_ns,
+            ));
+        }
+    }
+    report.timings_ms.check = t_check.as_secs_f64() * 1e3;
+    report.timings_ms.resolve = (start.elapsed() - t_check).as_secs_f64() * 1e3;
+    outcome.report = report;
+    outcome.lattice = Some(lat);
+    outcome.ids = ids;
+    outcome.prepared = prepared;
+    outcome.results = checked;
+    Ok(outcome)
+}
+
+/// Translation and time scaling of body `a` against `others`, each verified.
+fn resolve(
+    a: &Prepared,
+    others: &[&Prepared],
+    rs: &[&PairResult],
+    lat: &CommonLattice,
+    c: f64,
+    origin: i64,
+) -> Vec<Resolution> {
+    let m = Metric::new(lat, c);
+    let mut out = Vec::new();
+    if let Some(t) = suggest_translation(a, others, rs, &m) {
+        let v = [0, 1, 2, 3].map(|k| {
+            if k < 3 {
+                t.lattice[k] as f64 * m.sigma[k]
+            } else {
+                t.lattice[k] as f64 * m.sigma[3] / c
+            }
+        });
+        let snap = m.sigma.iter().map(|s| s * s).sum::<f64>().sqrt();
+        let period = m.sigma[3] * lat.per_step() as f64 / c;
+        out.push(Resolution::Translate {
+            body: a.id.clone(),
+            vector: v,
+            distance: t.distance_m,
+            verified_clear: t.verified_clear,
+            direction: t.direction,
+            distance_error_bound_m: bounds::translation_bound(lat.resolution, period, c, snap),
+        });
+    } else {
+        tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
+    }
+    if let Some(ts) = suggest_time_scaling(a, others, rs) {
+        out.push(Resolution::TimeScale {
+            body: a.id.clone(),
+            t0_s: lat.time_s(ts.t0 as f64, origin),
+            scale: ts.scale,
+            verified_clear: ts.verified_clear,
+        });
+    }
+    out
+}
+
+/// Overlap hypervolume (m³·s) from the intersection of the two bodies' frames, meshed
+/// like a body, with its error bound (see `checker::bounds`).
+pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<(f64, f64)> {
+    let (ga, gb) = (a.geometry?, b.geometry?);
+    if ga != gb {
+        return None;
+    }
+    let mut asm = BodyAssembler::new(opts).ok()?;
+    let mut j = 0;
+    for (i, &s) in a.stamps_ns.iter().enumerate() {
+        while j < b.stamps_ns.len() && b.stamps_ns[j] < s {
+            j += 1;
+        }
+        if j < b.stamps_ns.len() && b.stamps_ns[j] == s {
+            let both = a.frames.get(i)?.intersect(b.frames.get(j)?)?;
+            asm.push_decoded(s, ga, both).ok()?;
+        }
+    }
+    let body = asm.finish();
+    let n = body.stamps_ns.len();
+    let period = if n >= 2 {
+        (body.stamps_ns[n - 1] - body.stamps_ns[0]) as f64 * 1e-9 / (n - 1) as f64
+    } else {
+        0.0
+    };
+    let bound = bounds::hypervolume_bound(&body.mesh, &ga, period);
+    Some((body.stats.hypervolume_m3s, bound))
+}
+
+/// `f(0..n)` computed on all available cores, results in index order.
+pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(n.max(1));
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    let done: Vec<Vec<(usize, T)>> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if k >= n {
+                            break mine;
+                        }
+                        mine.push((k, f(k)));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().expect("worker panicked"))
+            .collect()
+    });
+    for (k, v) in done.into_iter().flatten() {
+        out[k] = Some(v);
+    }
+    out.into_iter()
+        .map(|v| v.expect("every index computed"))
+        .collect()
+}
+
+fn pair_report(
+    a: &str,
+    b: &str,
+    r: &PairResult,
+    hv: Option<(f64, f64)>,
+    lat: &CommonLattice,
+    origin: i64,
+) -> PairReport {
+    let (ca, cb) = r.counts();
+    let first = r.first_contact();
+    let bound = |t: f64, speed: Option<f64>| bounds::contact_time_bound(lat.period_s(t), speed);
+    PairReport {
+        a: a.to_owned(),
+        b: b.to_owned(),
+        interfering: r.interfering(),
+        intervals_s: r
+            .intervals
+            .iter()
+            .map(|&(s, e)| [lat.time_s(s, origin), lat.time_s(e, origin)])
+            .collect(),
+        first_contact_s: first.map(|t| lat.time_s(t, origin)),
+        overlap_hypervolume_m3s: hv.map(|h| h.0),
+        labels: PairLabels { a: ca, b: cb },
+        frame_period_s: first.map(|t| lat.period_s(t)),
+        voxel_size_m: lat.resolution,
+        first_contact_error_bound_s: first
+            .and_then(|t| bound(t, r.interval_speeds.first().and_then(|s| s.0))),
+        closing_speed_mps: first.and_then(|t| {
+            r.interval_speeds
+                .first()
+                .and_then(|s| s.0)
+                .map(|v| v * lat.resolution / lat.period_s(t))
+        }),
+        interval_error_bounds_s: r
+            .intervals
+            .iter()
+            .zip(&r.interval_speeds)
+            .map(|(&(s, e), &(vs, ve))| [bound(s, vs), bound(e, ve)])
+            .collect(),
+        overlap_hypervolume_error_bound_m3s: hv.map(|h| h.1),
+        candidate_pairs: r.candidate_pairs,
+        crossing_pairs: r.interfering_pairs,
+    }
+}
