@@ -11,3 +11,6 @@ for enc in bits percent; do
   $bin scene machine-tool --grid 32 --frames 16 --encoding $enc --out bags/machine-tool-32-$enc.mcap
   $bin scene four-spheres --grid 32 --frames 17 --encoding $enc --out bags/four-spheres-32-$enc.mcap
 done
+$bin scene carving-session --out bags/carving-session.mcap
+# The golden replay reports and output-bag digests follow the bags:
+#   CHRONOTOPE_BLESS=1 cargo test --test golden
