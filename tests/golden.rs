@@ -34,7 +34,12 @@ fn config_for(bag: &Path) -> PathBuf {
     root().join("launch_configs").join(format!("{name}.yaml"))
 }
 
-fn replay(bag: &Path, config: &Path, dir: &Path, tag: &str) -> (serde_json::Value, Vec<u8>, PathBuf) {
+fn replay(
+    bag: &Path,
+    config: &Path,
+    dir: &Path,
+    tag: &str,
+) -> (serde_json::Value, Vec<u8>, PathBuf) {
     let report = dir.join(format!("{tag}.json"));
     let out = dir.join(format!("{tag}.mcap"));
     let o = Command::new(env!("CARGO_BIN_EXE_chronotope"))
@@ -86,7 +91,10 @@ fn every_bag_replays_to_its_golden_report_and_bag() {
         let stem = bag.file_stem().unwrap().to_str().unwrap().to_owned();
         let (report, bytes, out) = replay(bag, &config_for(bag), dir.path(), &stem);
         let (_, again, _) = replay(bag, &config_for(bag), dir.path(), &format!("{stem}-again"));
-        assert!(bytes == again, "{stem}: two replays wrote different output bags");
+        assert!(
+            bytes == again,
+            "{stem}: two replays wrote different output bags"
+        );
         outputs.push(out);
         let report_path = golden.join(format!("{stem}.report.json"));
         let digest_path = golden.join(format!("{stem}.mcap.sha256"));

@@ -244,6 +244,25 @@ pub fn replay(
     let bag_bodies = match crate::bag::voxel_topics(bag) {
         Ok(t) => t,
         Err(crate::bag::BagError::NoVoxelTopics { .. }) => Vec::new(),
+        // A damaged bag: the bodies are the VoxelGrid topics of what can be read.
+        Err(e) if !matches!(e, crate::bag::BagError::EmptyBag { .. }) && bag.is_file() => {
+            tracing::error!("{e}; reading what can be read");
+            let mut topics = BTreeSet::new();
+            for m in BagReader::open(bag)? {
+                match m {
+                    Ok(m)
+                        if m.schema_name
+                            == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME =>
+                    {
+                        topics.insert(m.topic);
+                    }
+                    Ok(_) => {}
+                    Err(e) if e.is_fatal() => break,
+                    Err(_) => {}
+                }
+            }
+            topics.into_iter().collect()
+        }
         Err(e) => return Err(e.into()),
     };
     let default = default_config();

@@ -96,9 +96,17 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
         } else if s < 0.45 {
             [0.01 + 0.04 * (s - 0.1) / 0.35, 0.02, depth]
         } else if s < 0.55 {
-            [0.05 - 0.02 * (s - 0.45) / 0.1, 0.02 + 0.01 * (s - 0.45) / 0.1, 0.04]
+            [
+                0.05 - 0.02 * (s - 0.45) / 0.1,
+                0.02 + 0.01 * (s - 0.45) / 0.1,
+                0.04,
+            ]
         } else if s < 0.6 {
-            [0.03, 0.03, 0.04 - (0.04 - depth + 0.001) * (s - 0.55) / 0.05]
+            [
+                0.03,
+                0.03,
+                0.04 - (0.04 - depth + 0.001) * (s - 0.55) / 0.05,
+            ]
         } else {
             [0.03, 0.03 + 0.025 * (s - 0.6) / 0.4, depth - 0.001]
         }
@@ -119,7 +127,11 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
                     stamp: Time::from_nanos(stamp),
                     frame_id: "world".into(),
                 },
-                origin: Point { x: -0.010, y: 0.0, z: 0.0 },
+                origin: Point {
+                    x: -0.010,
+                    y: 0.0,
+                    z: 0.0,
+                },
                 resolution: 0.002,
                 size_x: size[0],
                 size_y: size[1],
@@ -141,26 +153,47 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
                 frame_id: "world".into(),
             },
             pose: Pose {
-                position: Point { x: p[0], y: p[1], z: p[2] },
+                position: Point {
+                    x: p[0],
+                    y: p[1],
+                    z: p[2],
+                },
                 orientation: Quaternion::IDENTITY,
             },
         };
         match k {
             200 => pose.pose.position.y = f64::NAN,
-            300 => pose.pose.orientation = Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 0.0 },
+            300 => {
+                pose.pose.orientation = Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 0.0,
+                }
+            }
             400 => {
                 stamp -= 10 * POSE_PERIOD_NS;
                 pose.header.stamp = Time::from_nanos(stamp);
             }
             500 => pose.header.frame_id = "tool0".into(),
-            600 => pose.pose.orientation = Quaternion { x: 0.0, y: 0.0, z: 0.0, w: 2.0 },
+            600 => {
+                pose.pose.orientation = Quaternion {
+                    x: 0.0,
+                    y: 0.0,
+                    z: 0.0,
+                    w: 2.0,
+                }
+            }
             _ => {}
         }
         fixture(&mut w, stamp)?;
         w.write("/haptic/pose", stamp as u64, &pose)?;
     }
     // The carving node publishes its last frame on the next period after the last pose.
-    fixture(&mut w, CARVING_T0_NS + n * POSE_PERIOD_NS + FIXTURE_PERIOD_NS - 1)?;
+    fixture(
+        &mut w,
+        CARVING_T0_NS + n * POSE_PERIOD_NS + FIXTURE_PERIOD_NS - 1,
+    )?;
     w.finish()?;
     tracing::info!("wrote {}", out.display());
     Ok(())

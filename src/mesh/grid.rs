@@ -179,6 +179,35 @@ impl OccupancyGrid {
         })
     }
 
+    /// The voxels occupied in either frame (same lattice): bits OR-ed, percent values the
+    /// maximum. `None` if the two grids have different sizes or encodings.
+    pub fn union(&self, other: &OccupancyGrid) -> Option<OccupancyGrid> {
+        if self.padded != other.padded
+            || self.words != other.words
+            || self.values.is_some() != other.values.is_some()
+        {
+            return None;
+        }
+        let bits: Vec<u64> = self
+            .bits
+            .iter()
+            .zip(&other.bits)
+            .map(|(a, b)| a | b)
+            .collect();
+        let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
+        let values = match (&self.values, &other.values) {
+            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| *x.max(y)).collect()),
+            _ => None,
+        };
+        Some(OccupancyGrid {
+            padded: self.padded,
+            words: self.words,
+            bits,
+            values,
+            occupied,
+        })
+    }
+
     /// The voxels occupied in both frames (same lattice): bits AND-ed, percent values the
     /// minimum (the occupied fraction of the intersection is at most either). `None` if
     /// the two grids have different sizes or encodings.

@@ -345,13 +345,14 @@ fn marker_frames(o: &CheckOutcome, frame_id: &str, topic: &str, out: &mut Vec<Me
                 }
                 let first = lo.div_euclid(per).max(0) as usize;
                 let last = ((hi - 1).div_euclid(per).max(0) as usize).min(slabs.saturating_sub(1));
-                for k in first..=last {
-                    b[k].push(ti as u32);
+                for bucket in &mut b[first..=last] {
+                    bucket.push(ti as u32);
                 }
             }
             b
         })
         .collect();
+    #[allow(clippy::needless_range_loop)] // k indexes the stamps and every body's buckets
     for k in 0..slabs {
         let stamp = lat.stamps_ns[k] + (lat.stamps_ns[k + 1] - lat.stamps_ns[k]) / 2;
         let header = Header {

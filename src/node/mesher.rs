@@ -116,6 +116,7 @@ impl MesherNode {
         self.opts
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn piece(
         &self,
         body: &str,
@@ -191,6 +192,12 @@ impl MesherNode {
         let Some(mut b) = self.bodies.remove(topic) else {
             return;
         };
+        if let (Some(prev), Some(median)) = (b.last_stamp, median(&b.periods_ns)) {
+            let dt = stamp - prev;
+            if dt as f64 > GAP_FACTOR * median as f64 {
+                self.fill_gap(topic, &mut b, grid, prev, dt, median, out);
+            }
+        }
         match b.mesher.push(&frame_ref(grid)) {
             Err(e) => self.status.problem(
                 &self.fqn,
@@ -201,54 +208,107 @@ impl MesherNode {
                 if b.frame_id.is_empty() {
                     b.frame_id = grid.header.frame_id.clone();
                 }
-                if let Some(prev) = b.last_stamp {
-                    let dt = stamp - prev;
-                    if let Some(median) = median(&b.periods_ns) {
-                        if dt as f64 > GAP_FACTOR * median as f64 {
-                            let missing = (dt as f64 / median as f64).round() as i64 - 1;
-                            self.status.problem(
-                                &self.fqn,
-                                "frames_missing",
-                                format!(
-                                    "{topic}: {:.3} s between frames at {prev} and {stamp} ns, about {missing} \
-                                     frame(s) missing; the mesh spans the gap",
-                                    dt as f64 * 1e-9
-                                ),
-                            );
-                        }
-                    }
-                    b.periods_ns.push(dt);
-                }
-                b.last_stamp = Some(stamp);
-                if let Some(slab) = slab {
-                    if slab.index == 0 {
-                        if let Some(m) = b
-                            .mesher
-                            .first_frame()
-                            .and_then(|k| self.cap(topic, &b, k, CapSide::Low))
-                        {
-                            out.push(m);
-                        }
-                    }
-                    if let Some(m) = self.slice_marker(topic, &b, &slab) {
-                        out.push(m);
-                    }
-                    let occupied = b.mesher.last_frame().map_or(0, |k| k.grid.occupied);
-                    out.push(self.piece(
-                        topic,
-                        &b,
-                        MeshSlab::KIND_LATERAL,
-                        &slab.geometry,
-                        slab.index,
-                        (slab.stamp_lo_ns, slab.stamp_hi_ns),
-                        occupied,
-                        slab.vanishes,
-                        slab.mesh,
-                    ));
-                }
+                self.accepted(topic, &mut b, stamp, slab, out);
             }
         }
         self.bodies.insert(topic.to_owned(), b);
+    }
+
+    /// Frames missing between `prev` and `grid`: counted, and when the gap is a whole number
+    /// of the body's usual periods, filled with the union of the two frames around it (where
+    /// the body may have been: the safe side for collision), so the body stays on the common
+    /// time lattice of the others.
+    #[allow(clippy::too_many_arguments)]
+    fn fill_gap(
+        &mut self,
+        topic: &str,
+        b: &mut Body,
+        grid: &VoxelGrid,
+        prev: i64,
+        dt: i64,
+        median: i64,
+        out: &mut Vec<Message>,
+    ) {
+        let stamp = grid.header.stamp.as_nanos();
+        let ratio = dt as f64 / median as f64;
+        let periods = ratio.round() as i64;
+        let whole = (ratio - periods as f64).abs() < 0.05 && (2..=1024).contains(&periods);
+        let filled = whole
+            && match (
+                crate::mesh::OccupancyGrid::decode(&frame_ref(grid), &self.opts.decode),
+                b.mesher.last_frame(),
+                b.mesher.geometry().copied(),
+            ) {
+                (Ok(next), Some(last), Some(g)) => match last.grid.union(&next) {
+                    Some(both) => {
+                        for j in 1..periods {
+                            let t = prev + dt * j / periods;
+                            match b.mesher.push_decoded(t, g, both.clone()) {
+                                Ok(slab) => self.accepted(topic, b, t, slab, out),
+                                Err(_) => return,
+                            }
+                        }
+                        true
+                    }
+                    None => false,
+                },
+                _ => false,
+            };
+        self.status.problem(
+            &self.fqn,
+            "frames_missing",
+            format!(
+                "{topic}: {:.3} s between frames at {prev} and {stamp} ns, about {} frame(s) missing; {}",
+                dt as f64 * 1e-9,
+                periods - 1,
+                if filled {
+                    "filled with the union of the frames around the gap"
+                } else {
+                    "the mesh spans the gap"
+                }
+            ),
+        );
+    }
+
+    fn accepted(
+        &mut self,
+        topic: &str,
+        b: &mut Body,
+        stamp: i64,
+        slab: Option<Slab>,
+        out: &mut Vec<Message>,
+    ) {
+        if let Some(prev) = b.last_stamp {
+            b.periods_ns.push(stamp - prev);
+        }
+        b.last_stamp = Some(stamp);
+        let Some(slab) = slab else {
+            return;
+        };
+        if slab.index == 0 {
+            if let Some(m) = b
+                .mesher
+                .first_frame()
+                .and_then(|k| self.cap(topic, b, k, CapSide::Low))
+            {
+                out.push(m);
+            }
+        }
+        if let Some(m) = self.slice_marker(topic, b, &slab) {
+            out.push(m);
+        }
+        let occupied = b.mesher.last_frame().map_or(0, |k| k.grid.occupied);
+        out.push(self.piece(
+            topic,
+            b,
+            MeshSlab::KIND_LATERAL,
+            &slab.geometry,
+            slab.index,
+            (slab.stamp_lo_ns, slab.stamp_hi_ns),
+            occupied,
+            slab.vanishes,
+            slab.mesh,
+        ));
     }
 }
 

@@ -1,0 +1,174 @@
+//! `chronotope replay` on bad input: every problem is counted in the report, nothing else is
+//! lost, nothing panics.
+
+use std::path::{Path, PathBuf};
+
+use chronotope::bag::{BagWriteOptions, BagWriter};
+use chronotope::cli::replay::replay;
+use chronotope::msg::{Header, Point, PoseStamped, Time, VoxelGrid};
+use chronotope::node::launch::LaunchConfig;
+
+/// A `n`-voxel-wide cube moving +x one voxel per frame, frames at 0.1 s.
+fn frame(topic_x0: u32, k: u32) -> VoxelGrid {
+    let size = 12u32;
+    let mut data = vec![0u8; (size * size * size).div_ceil(8) as usize];
+    for z in 4..8 {
+        for y in 4..8 {
+            for x in (topic_x0 + k)..(topic_x0 + k + 3) {
+                let i = (x + size * (y + size * z)) as usize;
+                data[i / 8] |= 1 << (i % 8);
+            }
+        }
+    }
+    VoxelGrid {
+        header: Header {
+            stamp: Time::from_nanos(1_000_000_000 + i64::from(k) * 100_000_000),
+            frame_id: "world".into(),
+        },
+        origin: Point::default(),
+        resolution: 0.01,
+        size_x: size,
+        size_y: size,
+        size_z: size,
+        encoding: VoxelGrid::ENCODING_BITS,
+        data,
+    }
+}
+
+/// Two bodies, /a (moving into /b's place) and /b (static), with the faults asked for.
+fn faulty_bag(dir: &Path) -> PathBuf {
+    let path = dir.join("faulty.mcap");
+    let mut w = BagWriter::create(&path).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    w.add_topic::<VoxelGrid>("/b/occupancy").unwrap();
+    w.add_topic::<PoseStamped>("/pose").unwrap();
+    for k in 0..6u32 {
+        let t = 1_000_000_000 + u64::from(k) * 100_000_000;
+        // /b: frame 3 missing from the middle of the stream.
+        if k != 3 {
+            let mut b = frame(6, 0);
+            b.header.stamp = Time::from_nanos(t as i64);
+            w.write("/b/occupancy", t, &b).unwrap();
+        }
+        if k == 2 {
+            // A truncated message on /a: does not decode.
+            let bytes = chronotope::msg::encode_cdr(&frame(0, k)).unwrap();
+            w.write_cdr("/a/occupancy", t, &bytes[..bytes.len() / 2])
+                .unwrap();
+        } else {
+            w.write("/a/occupancy", t, &frame(0, k)).unwrap();
+        }
+        w.write("/pose", t, &PoseStamped::default()).unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
+#[test]
+fn faults_are_counted_and_the_rest_is_checked() {
+    let d = tempfile::tempdir().unwrap();
+    let bag = faulty_bag(d.path());
+    // The mesher is (wrongly) told /pose is a body: a topic of the wrong type.
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy, /pose]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+        "test",
+    )
+    .unwrap();
+    let out = d.path().join("out.mcap");
+    let r = replay(&bag, Some(&cfg), Some(&out), false).unwrap();
+    assert_eq!(
+        r.input.undecodable.get("/a/occupancy"),
+        Some(&1),
+        "{:?}",
+        r.input
+    );
+    // /pose is read by nobody once the checker's pairs leave it out: it is not meshed.
+    assert_eq!(r.input.unused, 6, "{:?}", r.input);
+    let mesher = &r.nodes["/mesher"];
+    assert_eq!(
+        mesher.problems.get("frames_missing"),
+        Some(&2),
+        "{mesher:?}"
+    );
+    // Both bodies checked: /a moves into /b.
+    let p = &r.report.pairs[0];
+    assert!(p.interfering, "{p:?}");
+    let a = r
+        .report
+        .bodies
+        .iter()
+        .find(|b| b.id == "/a/occupancy")
+        .unwrap();
+    // 5 frames received, 1 undecodable, and the gap it leaves filled with one frame.
+    assert_eq!((a.frames, a.skipped_frames), (6, 1));
+    assert!(out.exists());
+}
+
+#[test]
+fn wrong_type_on_a_body_topic_is_counted() {
+    let d = tempfile::tempdir().unwrap();
+    let bag = faulty_bag(d.path());
+    let cfg = LaunchConfig::parse(
+        "launch:\n- node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /pose]}]}\n",
+        "test",
+    )
+    .unwrap();
+    let r = replay(&bag, Some(&cfg), None, false).unwrap();
+    assert_eq!(r.input.wrong_type.get("/pose"), Some(&6), "{:?}", r.input);
+    assert_eq!(r.nodes["/mesher"].problems.get("too_few_frames"), Some(&1));
+}
+
+#[test]
+fn a_truncated_bag_replays_what_it_can_and_says_what_was_lost() {
+    let d = tempfile::tempdir().unwrap();
+    let whole = d.path().join("whole.mcap");
+    let mut w = BagWriter::create_with(&whole, BagWriteOptions::new().chunk_size(1000)).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    w.add_topic::<VoxelGrid>("/b/occupancy").unwrap();
+    for k in 0..6u32 {
+        let t = 1_000_000_000 + u64::from(k) * 100_000_000;
+        let mut b = frame(6, 0);
+        b.header.stamp = Time::from_nanos(t as i64);
+        w.write("/a/occupancy", t, &frame(0, k)).unwrap();
+        w.write("/b/occupancy", t, &b).unwrap();
+    }
+    w.finish().unwrap();
+    let bytes = std::fs::read(&whole).unwrap();
+    let cut = d.path().join("cut.mcap");
+    std::fs::write(&cut, &bytes[..bytes.len() * 2 / 3]).unwrap();
+    let r = replay(&cut, None, None, false).unwrap();
+    assert!(!r.input.bag_errors.is_empty(), "{:?}", r.input);
+    assert!(
+        r.input.messages > 0 && r.input.messages <= 12,
+        "{:?}",
+        r.input
+    );
+    assert!(!r.report.bodies.is_empty());
+}
+
+#[test]
+fn bad_launch_configs_are_refused_with_the_reason() {
+    let d = tempfile::tempdir().unwrap();
+    let bag = faulty_bag(d.path());
+    for (cfg, what) in [
+        (
+            "launch:\n- node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+            "meshed by no mesher",
+        ),
+        (
+            "launch:\n- node: {pkg: chronotope, exec: mesher}\n- node: {pkg: chronotope, exec: checker, param: [{name: movable, value: [/c]}]}\n",
+            "in no checked pair",
+        ),
+        ("launch:\n- node: {pkg: chronotope, exec: carving}\n", "pose_topic"),
+        (
+            "launch:\n- node: {pkg: chronotope, exec: mesher, param: [{name: iso_percnt, value: 3}]}\n",
+            "iso_percnt",
+        ),
+    ] {
+        let c = LaunchConfig::parse(cfg, "t").unwrap();
+        let e = replay(&bag, Some(&c), None, false).unwrap_err().to_string();
+        assert!(e.contains(what), "{cfg}: {e}");
+    }
+}
