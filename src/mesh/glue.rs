@@ -158,16 +158,7 @@ impl BodyAssembler {
                     }
                 }
             }
-            self.gluer.lateral(
-                LateralRef {
-                    index: slab.index,
-                    stamps_ns: (slab.stamp_lo_ns, slab.stamp_hi_ns),
-                    geometry: &slab.geometry,
-                    mesh: &slab.mesh,
-                    vanishes: slab.vanishes,
-                },
-                None,
-            );
+            self.gluer.lateral(slab.lateral_ref(), None);
         }
     }
 

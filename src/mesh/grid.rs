@@ -182,36 +182,22 @@ impl OccupancyGrid {
     /// The voxels occupied in either frame (same lattice): bits OR-ed, percent values the
     /// maximum. `None` if the two grids have different sizes or encodings.
     pub fn union(&self, other: &OccupancyGrid) -> Option<OccupancyGrid> {
-        if self.padded != other.padded
-            || self.words != other.words
-            || self.values.is_some() != other.values.is_some()
-        {
-            return None;
-        }
-        let bits: Vec<u64> = self
-            .bits
-            .iter()
-            .zip(&other.bits)
-            .map(|(a, b)| a | b)
-            .collect();
-        let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
-        let values = match (&self.values, &other.values) {
-            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| *x.max(y)).collect()),
-            _ => None,
-        };
-        Some(OccupancyGrid {
-            padded: self.padded,
-            words: self.words,
-            bits,
-            values,
-            occupied,
-        })
+        self.combine(other, |a, b| a | b, u8::max)
     }
 
     /// The voxels occupied in both frames (same lattice): bits AND-ed, percent values the
     /// minimum (the occupied fraction of the intersection is at most either). `None` if
     /// the two grids have different sizes or encodings.
     pub fn intersect(&self, other: &OccupancyGrid) -> Option<OccupancyGrid> {
+        self.combine(other, |a, b| a & b, u8::min)
+    }
+
+    fn combine(
+        &self,
+        other: &OccupancyGrid,
+        bit: impl Fn(u64, u64) -> u64,
+        value: impl Fn(u8, u8) -> u8,
+    ) -> Option<OccupancyGrid> {
         if self.padded != other.padded
             || self.words != other.words
             || self.values.is_some() != other.values.is_some()
@@ -222,11 +208,11 @@ impl OccupancyGrid {
             .bits
             .iter()
             .zip(&other.bits)
-            .map(|(a, b)| a & b)
+            .map(|(a, b)| bit(*a, *b))
             .collect();
         let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
         let values = match (&self.values, &other.values) {
-            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| *x.min(y)).collect()),
+            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| value(*x, *y)).collect()),
             _ => None,
         };
         Some(OccupancyGrid {

@@ -120,16 +120,7 @@ impl StatsAccumulator {
     /// Adds a slab. For the first slab, `first_cap` must be the cap of its first frame
     /// ([`super::CapSide::Low`]).
     pub fn add_slab(&mut self, slab: &Slab, first_cap: Option<&TetMesh>) {
-        self.add_lateral(
-            LateralRef {
-                index: slab.index,
-                stamps_ns: (slab.stamp_lo_ns, slab.stamp_hi_ns),
-                geometry: &slab.geometry,
-                mesh: &slab.mesh,
-                vanishes: slab.vanishes,
-            },
-            first_cap,
-        );
+        self.add_lateral(slab.lateral_ref(), first_cap);
     }
 
     /// [`Self::add_slab`] for a slab given by its parts (e.g. received as a message).

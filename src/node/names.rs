@@ -91,6 +91,13 @@ pub fn resolve_topic(topic: &str, node_fqn: &str) -> Result<String, NameError> {
     let resolved = if topic == "~" {
         node_fqn.to_owned()
     } else if let Some(rest) = topic.strip_prefix("~/") {
+        if rest.is_empty() {
+            return Err(NameError {
+                what: "topic",
+                name: topic.to_owned(),
+                why: "nothing after '~/'",
+            });
+        }
         check_tokens("topic", topic, rest)?;
         join(node_fqn, rest)
     } else if let Some(rest) = topic.strip_prefix('/') {
