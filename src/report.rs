@@ -270,17 +270,15 @@ pub fn check_bodies(
         timings_ms: Timings::default(),
         problems,
     };
-    let mut outcome = CheckOutcome {
-        report: Report { ..report.clone() },
-        lattice: None,
-        ids: Vec::new(),
-        prepared: Vec::new(),
-        results: Vec::new(),
-    };
     if ids.is_empty() {
-        outcome.report = report;
-        outcome.report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;
-        return Ok(outcome);
+        report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;
+        return Ok(CheckOutcome {
+            report,
+            lattice: None,
+            ids,
+            prepared: Vec::new(),
+            results: Vec::new(),
+        });
     }
     let named: Vec<(&str, &BodyMesh)> = ids.iter().map(|k| (k.as_str(), &bodies[k])).collect();
     let lat = CommonLattice::of(&named)?;
@@ -346,12 +344,13 @@ pub fn check_bodies(
     }
     report.timings_ms.check = t_check.as_secs_f64() * 1e3;
     report.timings_ms.resolve = (start.elapsed() - t_check).as_secs_f64() * 1e3;
-    outcome.report = report;
-    outcome.lattice = Some(lat);
-    outcome.ids = ids;
-    outcome.prepared = prepared;
-    outcome.results = checked;
-    Ok(outcome)
+    Ok(CheckOutcome {
+        report,
+        lattice: Some(lat),
+        ids,
+        prepared,
+        results: checked,
+    })
 }
 
 /// Translation and time scaling of body `a` against `others`, each verified.

@@ -210,8 +210,11 @@ impl Output {
             return;
         }
         let r = (|| {
-            let (ty, schema) = m.payload.schema();
-            self.writer.add_topic_with_schema(&m.topic, ty, &schema)?;
+            // A topic is added (its schema text built) once, at its first message.
+            if !self.counts.topics.contains_key(&*m.topic) {
+                let (ty, schema) = m.payload.schema();
+                self.writer.add_topic_with_schema(&m.topic, ty, &schema)?;
+            }
             let bytes = m
                 .payload
                 .encode()
@@ -406,7 +409,6 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
     use std::fmt::Write;
     let rep = &r.report;
     let mut s = String::new();
-    let span = rep.bodies.iter().map(|b| b.frames).max().unwrap_or(0);
     let _ = writeln!(
         s,
         "{}: {} messages, {} bodies, {} pairs checked in {:.2} s",
@@ -416,7 +418,6 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
         rep.pairs.len(),
         rep.timings_ms.total / 1e3
     );
-    let _ = span;
     for p in &rep.pairs {
         if !p.interfering {
             let _ = writeln!(s, "  clear    {} x {}", p.a, p.b);

@@ -125,14 +125,8 @@ impl CarvingNode {
     }
 
     fn centre(&self, i: u32, j: u32, k: u32) -> [f64; 3] {
-        [i, j, k]
-            .map(|v| f64::from(v) + 0.5)
-            .iter()
-            .enumerate()
-            .fold([0.0; 3], |mut c, (a, v)| {
-                c[a] = self.origin[a] + v * self.res;
-                c
-            })
+        let v = [i, j, k];
+        [0, 1, 2].map(|a| self.origin[a] + (f64::from(v[a]) + 0.5) * self.res)
     }
 
     /// Occupied voxels left.

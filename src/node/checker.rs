@@ -266,7 +266,11 @@ impl CheckerNode {
         out.push(Message::new(
             &self.report_topic,
             last,
-            Payload::Report(Arc::new(report_message(&o.report, header.clone()))),
+            Payload::Report(Arc::new(report_message(
+                &o.report,
+                lat.resolution,
+                header.clone(),
+            ))),
         ));
         if let Some(topic) = &self.labels_topic {
             for (i, j, r) in &o.results {
@@ -390,13 +394,13 @@ fn nan_if_none(v: Option<f64>) -> f64 {
     v.unwrap_or(f64::NAN)
 }
 
-/// The report as a ROS message.
-pub fn report_message(r: &Report, header: Header) -> InterferenceReport {
+/// The report as a ROS message (`voxel_size_m`: the common lattice's voxel edge).
+pub fn report_message(r: &Report, voxel_size_m: f64, header: Header) -> InterferenceReport {
     InterferenceReport {
         header,
         time_origin: Time::from_nanos(r.time_origin_ns),
         time_scale_m_per_s: r.time_scale_m_per_s,
-        voxel_size_m: r.pairs.first().map_or(f64::NAN, |p| p.voxel_size_m),
+        voxel_size_m,
         bodies: r
             .bodies
             .iter()

@@ -20,6 +20,9 @@ use crate::msg::{Header, MeshSlab, RosMessage, Time, VoxelGrid};
 /// A frame period longer than this many times the body's median period so far is reported
 /// as frames missing from the stream.
 const GAP_FACTOR: f64 = 1.5;
+/// The median period is taken over this many latest periods (a long stream costs the same
+/// per frame as a short one).
+const PERIOD_WINDOW: usize = 64;
 
 struct Body {
     mesher: Mesher,
@@ -279,6 +282,9 @@ impl MesherNode {
         out: &mut Vec<Message>,
     ) {
         if let Some(prev) = b.last_stamp {
+            if b.periods_ns.len() == PERIOD_WINDOW {
+                b.periods_ns.remove(0);
+            }
             b.periods_ns.push(stamp - prev);
         }
         b.last_stamp = Some(stamp);
