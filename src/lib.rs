@@ -13,6 +13,7 @@ pub mod bag;
 pub mod checker;
 pub mod cli;
 pub mod kernel;
+pub mod live;
 pub mod mesh;
 pub mod msg;
 pub mod node;

@@ -7,7 +7,8 @@ use std::fmt;
 use std::path::Path;
 
 use chronotope::msg::{
-    encode_cdr, parse_msg_fields, try_ros2msg_schema, ColorRGBA, CompressedImage, Duration, Header,
+    encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage, DiagnosticArray,
+    DiagnosticStatus, Duration, Header, KeyValue,
     Marker, MarkerArray, MeshFile, MsgField, Point, PointCloud2, PointField, Pose, PoseStamped,
     Quaternion, RosMessage, Time, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
 };
@@ -72,6 +73,10 @@ fn std_messages() -> Vec<MessageInfo> {
         info::<PoseStamped>(),
         info::<Wrench>(),
         info::<WrenchStamped>(),
+        info::<KeyValue>(),
+        info::<DiagnosticStatus>(),
+        info::<DiagnosticArray>(),
+        info::<Clock>(),
         info::<PointField>(),
         info::<PointCloud2>(),
         info::<CompressedImage>(),
@@ -590,6 +595,19 @@ fn sample_cloud(frame_id: &str) -> PointCloud2 {
     }
 }
 
+fn diagnostic_status() -> DiagnosticStatus {
+    DiagnosticStatus {
+        level: DiagnosticStatus::WARN,
+        name: "/chronotope/mesher".into(),
+        message: "2 problems".into(),
+        hardware_id: String::new(),
+        values: vec![KeyValue {
+            key: "received".into(),
+            value: "12".into(),
+        }],
+    }
+}
+
 /// A value of every standard type, non-trivial where the type allows it.
 fn samples(frame_id: &str) -> Vec<Sample> {
     let wrench = Wrench {
@@ -622,6 +640,21 @@ fn samples(frame_id: &str) -> Vec<Sample> {
         sample(&WrenchStamped {
             header: stamped(frame_id),
             wrench,
+        }),
+        sample(&KeyValue {
+            key: "dropped".into(),
+            value: "3".into(),
+        }),
+        sample(&diagnostic_status()),
+        sample(&DiagnosticArray {
+            header: stamped(frame_id),
+            status: vec![diagnostic_status(), DiagnosticStatus::default()],
+        }),
+        sample(&Clock {
+            clock: Time {
+                sec: 17,
+                nanosec: 5,
+            },
         }),
         sample(&PointField::new("intensity", 16, PointField::FLOAT32, 1)),
         sample(&sample_cloud(frame_id)),

@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod bench_check;
 pub mod check;
+pub mod live;
 pub mod mesh;
 pub mod replay;
 pub mod scene;
@@ -35,6 +36,14 @@ pub enum Command {
     Check(check::CheckArgs),
     /// Run the suite's nodes over a bag in one process; write the report and the output bag.
     Replay(replay::ReplayArgs),
+    /// Run the nodes of a launch config on DDS, in this process (until Ctrl-C).
+    Launch(live::LaunchArgs),
+    /// Run one node of a launch config on DDS (the others may run elsewhere).
+    Node(live::NodeArgs),
+    /// Publish a bag's topics on DDS with their recorded timing (and /clock).
+    Play(live::PlayArgs),
+    /// Record live topics into a rosbag2 MCAP bag.
+    Record(live::RecordArgs),
     /// Benchmarks that print the figures the README quotes.
     Bench(bench::BenchArgs),
 }
@@ -176,6 +185,10 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Mesh(a) => mesh::run(&a),
         Command::Check(a) => check::run(&a),
         Command::Replay(a) => replay::run(&a),
+        Command::Launch(a) => live::launch(&a),
+        Command::Node(a) => live::node(&a),
+        Command::Play(a) => live::play(&a),
+        Command::Record(a) => live::record(&a),
         Command::Bench(a) => bench::run(&a),
     }
 }

@@ -80,7 +80,7 @@ pub struct OutputCounts {
 
 /// Which published topics go to the output bag.
 #[derive(Debug, Clone, Default)]
-struct Selection {
+pub(crate) struct Selection {
     only: Option<BTreeSet<String>>,
     exclude: BTreeSet<String>,
 }
@@ -98,7 +98,7 @@ impl Selection {
         Ok(Self { only, exclude })
     }
 
-    fn wants(&self, topic: &str) -> bool {
+    pub(crate) fn wants(&self, topic: &str) -> bool {
         self.only.as_ref().is_none_or(|o| o.contains(topic)) && !self.exclude.contains(topic)
     }
 }
@@ -116,7 +116,7 @@ pub fn default_config() -> LaunchConfig {
 ///
 /// # Errors
 /// A bad parameter or an inconsistent config.
-fn build_nodes(
+pub(crate) fn build_nodes(
     config: &LaunchConfig,
     bag_bodies: &[String],
     default_movable_first: bool,

@@ -15,7 +15,7 @@ pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
 };
 pub use std_types::{
-    ColorRGBA, CompressedImage, Duration, Marker, MarkerArray, MeshFile, PointCloud2, PointField,
+    Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus, Duration, KeyValue, Marker, MarkerArray, MeshFile, PointCloud2, PointField,
     Pose, PoseStamped, Quaternion, UVCoordinate, Vector3, Wrench, WrenchStamped,
 };
 pub use suite::{

@@ -92,6 +92,21 @@ impl Bus {
         misrouted
     }
 
+    /// Lets every node see the transport's clock (`now_ns`, monotonic), delivering what they
+    /// publish in response (a live mesher closes a stream that went idle).
+    pub fn tick(&mut self, now_ns: i64, sink: &mut impl FnMut(&Message)) -> Vec<Misrouted> {
+        let mut misrouted = Vec::new();
+        for i in 0..self.nodes.len() {
+            let mut out = Vec::new();
+            self.nodes[i].on_tick(now_ns, &mut out);
+            for m in out {
+                sink(&m);
+                misrouted.extend(self.deliver(m, sink));
+            }
+        }
+        misrouted
+    }
+
     /// Name and status of every node.
     pub fn statuses(&self) -> Vec<(&str, &NodeStatus)> {
         self.nodes.iter().map(|n| (n.name(), n.status())).collect()

@@ -17,7 +17,7 @@
 use std::sync::Arc;
 
 use super::launch::{LaunchError, NodeSpec, Params};
-use super::{Message, Node, NodeStatus, Payload, Subscription};
+use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::msg::{
     Header, Point, PointCloud2, PointField, PoseStamped, RosMessage, Time, Vector3, VoxelGrid,
     Wrench, WrenchStamped,
@@ -356,11 +356,28 @@ impl Node for CarvingNode {
         &self.fqn
     }
 
-    fn subscriptions(&self) -> Vec<Subscription> {
-        vec![Subscription {
+    fn subscriptions(&self) -> Vec<TopicRef> {
+        vec![TopicRef {
             topic: self.pose_topic.clone(),
             type_name: PoseStamped::TYPE_NAME,
         }]
+    }
+
+    fn publications(&self) -> Vec<TopicRef> {
+        vec![
+            TopicRef {
+                topic: self.wrench_topic.clone(),
+                type_name: WrenchStamped::TYPE_NAME,
+            },
+            TopicRef {
+                topic: self.occupancy_topic.clone(),
+                type_name: VoxelGrid::TYPE_NAME,
+            },
+            TopicRef {
+                topic: self.surfels_topic.clone(),
+                type_name: PointCloud2::TYPE_NAME,
+            },
+        ]
     }
 
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {

@@ -17,7 +17,7 @@ use std::sync::Arc;
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::mesher::mesher_options;
-use super::{Message, Node, NodeStatus, Payload, Subscription};
+use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
 use crate::cli::frame_ref;
 use crate::mesh::glue::{BodyGluer, BodyMesh};
@@ -57,6 +57,8 @@ pub struct CheckerNode {
     suggestions_topic: Option<String>,
     markers_topic: Option<String>,
     bodies: BTreeMap<String, Body>,
+    /// A piece came since the last check.
+    pending: bool,
     outcome: Option<CheckOutcome>,
     status: NodeStatus,
 }
@@ -140,6 +142,7 @@ impl CheckerNode {
             suggestions_topic,
             markers_topic,
             bodies,
+            pending: false,
             outcome: None,
             status: NodeStatus::default(),
         })
@@ -184,6 +187,22 @@ impl CheckerNode {
         b.geometry = Some(g);
         if b.frame_id.is_empty() {
             b.frame_id = s.header.frame_id.clone();
+        }
+        self.pending = true;
+        if s.kind == MeshSlab::KIND_CAP_START && b.started {
+            // The mesher started this body's mesh again: it was restarted, or the stream
+            // went idle and resumed. What came before of this body is dropped.
+            let why = format!(
+                "{}: the mesh starts again after {} piece(s){}; the earlier pieces are dropped",
+                s.body_id,
+                b.next_index,
+                if b.ended { "" } else { " without a closing cap (a restarted mesher?)" }
+            );
+            self.status.problem(&self.fqn, "stream_restarted", why);
+            *b = Body {
+                frames: std::mem::take(&mut b.frames),
+                ..Body::default()
+            };
         }
         match s.kind {
             MeshSlab::KIND_CAP_START if !b.started && b.next_index == 0 => {
@@ -232,9 +251,12 @@ impl CheckerNode {
         }
     }
 
+    /// The glued meshes of every body; the bodies start over, empty, for the next stream.
     fn body_meshes(&mut self) -> BTreeMap<String, BodyMesh> {
         let mut out = BTreeMap::new();
-        for (id, b) in std::mem::take(&mut self.bodies) {
+        let bodies = std::mem::take(&mut self.bodies);
+        self.bodies = bodies.keys().map(|k| (k.clone(), Body::default())).collect();
+        for (id, b) in bodies {
             let mut frames: Vec<OccupancyGrid> = Vec::with_capacity(b.stamps_ns.len());
             let mut frame_map = b.frames;
             for s in &b.stamps_ns {
@@ -490,22 +512,48 @@ impl Node for CheckerNode {
         &self.fqn
     }
 
-    fn subscriptions(&self) -> Vec<Subscription> {
-        let mut s = vec![Subscription {
+    fn subscriptions(&self) -> Vec<TopicRef> {
+        let mut s = vec![TopicRef {
             topic: self.mesh_topic.clone(),
             type_name: MeshSlab::TYPE_NAME,
         }];
-        s.extend(self.bodies.keys().map(|t| Subscription {
+        s.extend(self.bodies.keys().map(|t| TopicRef {
             topic: t.clone(),
             type_name: VoxelGrid::TYPE_NAME,
         }));
         s
     }
 
-    fn on_message(&mut self, msg: &Message, _out: &mut Vec<Message>) {
+    fn publications(&self) -> Vec<TopicRef> {
+        let mut p = vec![TopicRef {
+            topic: self.report_topic.clone(),
+            type_name: InterferenceReport::TYPE_NAME,
+        }];
+        let optional = [
+            (&self.labels_topic, TetLabels::TYPE_NAME),
+            (&self.suggestions_topic, ResolveSuggestions::TYPE_NAME),
+            (&self.markers_topic, MarkerArray::TYPE_NAME),
+        ];
+        for (topic, type_name) in optional {
+            p.extend(topic.iter().map(|t| TopicRef {
+                topic: t.clone(),
+                type_name,
+            }));
+        }
+        p
+    }
+
+    fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
         self.status.received += 1;
         match &msg.payload {
-            Payload::MeshSlab(s) if *msg.topic == *self.mesh_topic => self.on_piece(s),
+            Payload::MeshSlab(s) if *msg.topic == *self.mesh_topic => {
+                self.on_piece(s);
+                // Live, streams end at different times: the check runs as soon as every
+                // body's mesh is closed, not only when the node shuts down.
+                if self.pending && self.bodies.values().all(|b| b.ended) {
+                    self.check(out);
+                }
+            }
             Payload::VoxelGrid(g) if *msg.topic != *self.mesh_topic => self.on_frame(&msg.topic, g),
             other => self.status.problem(
                 &self.fqn,
@@ -520,6 +568,25 @@ impl Node for CheckerNode {
     }
 
     fn finish(&mut self, out: &mut Vec<Message>) {
+        if self.pending || self.outcome.is_none() {
+            self.check(out);
+        }
+    }
+
+    fn status(&self) -> &NodeStatus {
+        &self.status
+    }
+
+    fn rank(&self) -> u8 {
+        2
+    }
+}
+
+impl CheckerNode {
+    /// Checks the bodies received so far and publishes the results.
+    fn check(&mut self, out: &mut Vec<Message>) {
+        self.pending = false;
+        let ends = self.stream_ends();
         let frame_id = self
             .bodies
             .values()
@@ -528,7 +595,8 @@ impl Node for CheckerNode {
             .unwrap_or_default();
         let bodies = self.body_meshes();
         match check_bodies(&bodies, &self.plan, self.opts) {
-            Ok(o) => {
+            Ok(mut o) => {
+                o.report.problems.extend(ends);
                 let before = out.len();
                 self.publish(&o, &frame_id, out);
                 self.status.published += (out.len() - before) as u64;
@@ -545,11 +613,25 @@ impl Node for CheckerNode {
         }
     }
 
-    fn status(&self) -> &NodeStatus {
-        &self.status
-    }
-
-    fn rank(&self) -> u8 {
-        2
+    /// A line for each body whose mesh ends before the others' (its stream stopped early):
+    /// its pairs are checked only over the time it covers.
+    fn stream_ends(&self) -> Vec<String> {
+        let last = |b: &Body| b.stamps_ns.last().copied();
+        let Some(end) = self.bodies.values().filter_map(last).max() else {
+            return Vec::new();
+        };
+        self.bodies
+            .iter()
+            .filter_map(|(id, b)| {
+                let t = last(b)?;
+                (t < end).then(|| {
+                    format!(
+                        "{id}: its frames end {:.3} s before the others' (the stream stopped): \
+                         pairs with it are checked only up to its last frame",
+                        (end - t) as f64 * 1e-9
+                    )
+                })
+            })
+            .collect()
     }
 }

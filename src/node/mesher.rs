@@ -12,10 +12,10 @@ use std::sync::Arc;
 
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
-use super::{Message, Node, NodeStatus, Payload, Subscription};
+use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::cli::frame_ref;
 use crate::mesh::{CapSide, GridGeometry, KeptFrame, Mesher, MesherOptions, Slab, TetMesh};
-use crate::msg::{Header, MeshSlab, RosMessage, Time, VoxelGrid};
+use crate::msg::{Header, Marker, MeshSlab, RosMessage, Time, VoxelGrid};
 
 /// A frame period longer than this many times the body's median period so far is reported
 /// as frames missing from the stream.
@@ -29,6 +29,26 @@ struct Body {
     frame_id: String,
     periods_ns: Vec<i64>,
     last_stamp: Option<i64>,
+    /// A frame came since the last tick.
+    fresh: bool,
+    /// Transport time of the last tick that saw a fresh frame.
+    last_seen_ns: Option<i64>,
+    /// The stream went idle and its mesh was closed; the next frame starts a new one.
+    closed: bool,
+}
+
+impl Body {
+    fn new(opts: MesherOptions) -> Result<Self, crate::mesh::MeshError> {
+        Ok(Self {
+            mesher: Mesher::new(opts)?,
+            frame_id: String::new(),
+            periods_ns: Vec::new(),
+            last_stamp: None,
+            fresh: false,
+            last_seen_ns: None,
+            closed: false,
+        })
+    }
 }
 
 /// The mesher node.
@@ -38,6 +58,8 @@ pub struct MesherNode {
     bodies: BTreeMap<String, Body>,
     slab_topic: String,
     slice_topic: Option<String>,
+    /// Live use: a body whose frames stop for this long (transport time) is closed.
+    idle_timeout_ns: i64,
     status: NodeStatus,
 }
 
@@ -51,6 +73,7 @@ impl MesherNode {
         let bodies = p.topics("bodies")?;
         let opts = mesher_options(&mut p)?;
         let slice_markers = p.bool("slice_markers", false)?;
+        let idle_timeout_s = p.double("idle_timeout_s", 2.0, 1e-3..=1e6)?;
         let slab_topic = p.resolve("~/mesh_slabs", "~/mesh_slabs")?;
         let slice_topic = if slice_markers {
             Some(p.resolve("~/slices", "~/slices")?)
@@ -69,20 +92,12 @@ impl MesherNode {
         }
         let mut map = BTreeMap::new();
         for b in bodies {
-            let mesher = Mesher::new(opts).map_err(|e| LaunchError::Param {
+            let body = Body::new(opts).map_err(|e| LaunchError::Param {
                 node: node.clone(),
                 param: "iso_percent/percent_scale".into(),
                 reason: e.to_string(),
             })?;
-            map.insert(
-                b,
-                Body {
-                    mesher,
-                    frame_id: String::new(),
-                    periods_ns: Vec::new(),
-                    last_stamp: None,
-                },
-            );
+            map.insert(b, body);
         }
         Ok(Self {
             fqn: node,
@@ -90,6 +105,7 @@ impl MesherNode {
             bodies: map,
             slab_topic,
             slice_topic,
+            idle_timeout_ns: (idle_timeout_s * 1e9) as i64,
             status: NodeStatus::default(),
         })
     }
@@ -195,6 +211,18 @@ impl MesherNode {
         let Some(mut b) = self.bodies.remove(topic) else {
             return;
         };
+        if b.closed {
+            tracing::info!(node = self.fqn, "{topic}: frames again after going idle: a new stream");
+            match Body::new(self.opts) {
+                Ok(fresh) => b = fresh,
+                Err(e) => {
+                    self.status.problem(&self.fqn, "frame_refused", format!("{topic}: {e}"));
+                    self.bodies.insert(topic.to_owned(), b);
+                    return;
+                }
+            }
+        }
+        b.fresh = true;
         if let (Some(prev), Some(median)) = (b.last_stamp, median(&b.periods_ns)) {
             let dt = stamp - prev;
             if dt as f64 > GAP_FACTOR * median as f64 {
@@ -318,6 +346,28 @@ impl MesherNode {
     }
 }
 
+impl MesherNode {
+    /// Publishes the closing cap of `b`'s mesh (or says why there is none).
+    fn close(&mut self, topic: &str, b: &mut Body, out: &mut Vec<Message>) {
+        b.closed = true;
+        if b.mesher.frames() >= 2 {
+            if let Some(m) = b
+                .mesher
+                .last_frame()
+                .and_then(|k| self.cap(topic, b, k, CapSide::High))
+            {
+                out.push(m);
+            }
+        } else {
+            let why = format!(
+                "{topic}: {} frame(s): a body needs two for a 4D mesh",
+                b.mesher.frames()
+            );
+            self.status.problem(&self.fqn, "too_few_frames", why);
+        }
+    }
+}
+
 fn median(v: &[i64]) -> Option<i64> {
     if v.is_empty() {
         return None;
@@ -363,14 +413,26 @@ impl Node for MesherNode {
         &self.fqn
     }
 
-    fn subscriptions(&self) -> Vec<Subscription> {
+    fn subscriptions(&self) -> Vec<TopicRef> {
         self.bodies
             .keys()
-            .map(|t| Subscription {
+            .map(|t| TopicRef {
                 topic: t.clone(),
                 type_name: VoxelGrid::TYPE_NAME,
             })
             .collect()
+    }
+
+    fn publications(&self) -> Vec<TopicRef> {
+        let mut p = vec![TopicRef {
+            topic: self.slab_topic.clone(),
+            type_name: MeshSlab::TYPE_NAME,
+        }];
+        p.extend(self.slice_topic.iter().map(|t| TopicRef {
+            topic: t.clone(),
+            type_name: Marker::TYPE_NAME,
+        }));
+        p
     }
 
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
@@ -392,23 +454,73 @@ impl Node for MesherNode {
         self.status.published += (out.len() - before) as u64;
     }
 
-    fn finish(&mut self, out: &mut Vec<Message>) {
+    fn on_tick(&mut self, now_ns: i64, out: &mut Vec<Message>) {
         let before = out.len();
-        for (topic, b) in &self.bodies {
-            if b.mesher.frames() >= 2 {
-                if let Some(m) = b
-                    .mesher
-                    .last_frame()
-                    .and_then(|k| self.cap(topic, b, k, CapSide::High))
-                {
-                    out.push(m);
-                }
-            } else {
+        for b in self.bodies.values_mut() {
+            if std::mem::take(&mut b.fresh) {
+                b.last_seen_ns = Some(now_ns);
+            }
+        }
+        let idle = |b: &Body| {
+            !b.closed && b.last_seen_ns.is_some_and(|t| now_ns - t > self.idle_timeout_ns)
+        };
+        let stopped: Vec<String> = self
+            .bodies
+            .iter()
+            .filter(|(_, b)| idle(b))
+            .map(|(t, _)| t.clone())
+            .collect();
+        // Every stream going quiet is the end of a run; one going quiet while another still
+        // had frames well after it (half the timeout) is a stream that stopped, a problem.
+        let latest = |except: &str| {
+            self.bodies
+                .iter()
+                .filter(|(t, b)| t.as_str() != except && !b.closed)
+                .filter_map(|(_, b)| b.last_seen_ns)
+                .max()
+        };
+        let stopped: Vec<(String, bool)> = stopped
+            .into_iter()
+            .map(|t| {
+                let seen = self.bodies[&t].last_seen_ns.unwrap_or(now_ns);
+                let others_go_on =
+                    latest(&t).is_some_and(|l| l > seen + self.idle_timeout_ns / 2);
+                (t, others_go_on)
+            })
+            .collect();
+        for (topic, others_go_on) in stopped {
+            let Some(mut b) = self.bodies.remove(&topic) else {
+                continue;
+            };
+            let quiet = (now_ns - b.last_seen_ns.unwrap_or(now_ns)) as f64 * 1e-9;
+            if others_go_on {
                 let why = format!(
-                    "{topic}: {} frame(s): a body needs two for a 4D mesh",
+                    "{topic}: no frame for {quiet:.1} s after {} frame(s) while the other \
+                     bodies go on: the stream stopped; its mesh is closed at its last frame",
                     b.mesher.frames()
                 );
-                self.status.problem(&self.fqn, "too_few_frames", why);
+                self.status.problem(&self.fqn, "stream_stopped", why);
+            } else {
+                tracing::info!(
+                    node = self.fqn,
+                    "{topic}: no frame for {quiet:.1} s: the run ended; the mesh is closed"
+                );
+            }
+            self.close(&topic, &mut b, out);
+            self.bodies.insert(topic, b);
+        }
+        self.status.published += (out.len() - before) as u64;
+    }
+
+    fn finish(&mut self, out: &mut Vec<Message>) {
+        let before = out.len();
+        let topics: Vec<String> = self.bodies.keys().cloned().collect();
+        for topic in topics {
+            if let Some(mut b) = self.bodies.remove(&topic) {
+                if !b.closed {
+                    self.close(&topic, &mut b, out);
+                }
+                self.bodies.insert(topic, b);
             }
         }
         self.status.published += (out.len() - before) as u64;

@@ -18,7 +18,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::msg::{
-    decode_cdr, encode_cdr, CdrError, InterferenceReport, Marker, MarkerArray, MeshSlab,
+    decode_cdr, encode_cdr, CdrError, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab,
     PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
 };
 
@@ -67,6 +67,20 @@ macro_rules! payloads {
                 Err(DecodeError::UnknownType(type_name.to_owned()))
             }
 
+            /// `(pkg/msg/Type, ros2msg schema)` of the type named `type_name`, if the suite
+            /// speaks it.
+            pub fn schema_of(type_name: &str) -> Option<(&'static str, String)> {
+                $(
+                    if type_name == <$ty as RosMessage>::TYPE_NAME {
+                        return Some((
+                            <$ty as RosMessage>::TYPE_NAME,
+                            crate::msg::ros2msg_schema::<$ty>(),
+                        ));
+                    }
+                )*
+                None
+            }
+
             /// `(pkg/msg/Type, ros2msg schema)` of the payload's type.
             pub fn schema(&self) -> (&'static str, String) {
                 match self {
@@ -91,6 +105,7 @@ payloads! {
     PoseStamped(PoseStamped),
     WrenchStamped(WrenchStamped),
     PointCloud2(PointCloud2),
+    Diagnostics(DiagnosticArray),
 }
 
 /// Why a serialised message could not be turned into a [`Payload`].
@@ -126,9 +141,9 @@ impl Message {
     }
 }
 
-/// A topic a node reads, with the type it expects there.
+/// A topic a node reads or writes, with the type carried on it.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
-pub struct Subscription {
+pub struct TopicRef {
     /// Fully qualified topic name.
     pub topic: String,
     /// `pkg/msg/Type`.
@@ -174,12 +189,19 @@ pub trait Node: Send + std::any::Any {
     /// Fully qualified node name (`/ns/name`).
     fn name(&self) -> &str;
     /// The topics it reads.
-    fn subscriptions(&self) -> Vec<Subscription>;
+    fn subscriptions(&self) -> Vec<TopicRef>;
+    /// The topics it may publish on.
+    fn publications(&self) -> Vec<TopicRef>;
     /// Handles one message on a subscribed topic; pushes what it publishes.
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>);
     /// The inputs have ended (a replay's bag is read, or the node shuts down): publishes
     /// what it has left (the closing mesh caps, the final report).
     fn finish(&mut self, out: &mut Vec<Message>);
+    /// Time has passed on the transport's clock: `now_ns` is a monotonic time (ns) that
+    /// only a live transport has; a replay never calls this. The default does nothing.
+    fn on_tick(&mut self, now_ns: i64, out: &mut Vec<Message>) {
+        let _ = (now_ns, out);
+    }
     /// Counters and problems.
     fn status(&self) -> &NodeStatus;
     /// Position in the pipeline: nodes finish in increasing rank, so what one publishes on

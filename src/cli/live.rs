@@ -1,0 +1,427 @@
+//! The live commands: `launch` and `node` run the suite's nodes on DDS, `play` puts a bag on
+//! the wire with its recorded timing, `record` writes live topics to a rosbag2 MCAP.
+//!
+//! All four stop cleanly on Ctrl-C (SIGINT) or SIGTERM: the nodes finish what they have (a
+//! stream cut short is closed and checked), the last messages are sent, and the DDS
+//! participant says goodbye to its peers.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use clap::Args;
+use futures::StreamExt;
+
+use super::replay::{build_nodes, write_json};
+use super::CliError;
+use crate::bag::{BagReader, BagWriter};
+use crate::live::wire::{ros_topic_name, ros_type_name, RawCdr, TopicQos};
+use crate::live::{domain_id_from_env, run_nodes, LiveError, LiveOptions, Participant, RawWriter};
+use crate::msg::{Clock, RosMessage, Time};
+use crate::node::launch::{LaunchConfig, NodeKind};
+use crate::node::Payload;
+
+impl From<LiveError> for CliError {
+    fn from(e: LiveError) -> Self {
+        CliError::Usage(e.to_string())
+    }
+}
+
+/// Options shared by `launch` and `node`.
+#[derive(Debug, Clone, Args)]
+pub struct RunArgs {
+    /// Stop after this many seconds (default: run until Ctrl-C).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Received messages that may wait for the nodes; beyond it samples are dropped and
+    /// counted.
+    #[arg(long, default_value_t = 256)]
+    pub queue: usize,
+    /// At exit, write what the nodes and the transport counted (JSON).
+    #[arg(long)]
+    pub summary: Option<PathBuf>,
+}
+
+/// Options of `chronotope launch`.
+#[derive(Debug, Clone, Args)]
+pub struct LaunchArgs {
+    /// Launch config (ROS 2 launch YAML): the nodes to run, in this one process.
+    pub config: PathBuf,
+    /// How long to run, the queue, the summary.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// Options of `chronotope node`.
+#[derive(Debug, Clone, Args)]
+pub struct NodeArgs {
+    /// The node's name as the config gives it (`mesher`, or fully qualified `/ns/mesher`).
+    pub name: String,
+    /// The launch config that describes it (and the nodes it talks to).
+    #[arg(long)]
+    pub launch: PathBuf,
+    /// How long to run, the queue, the summary.
+    #[command(flatten)]
+    pub run: RunArgs,
+}
+
+/// Options of `chronotope play`.
+#[derive(Debug, Clone, Args)]
+pub struct PlayArgs {
+    /// rosbag2 MCAP bag to publish.
+    pub bag: PathBuf,
+    /// Speed factor (2 plays twice as fast).
+    #[arg(long, default_value_t = 1.0)]
+    pub rate: f64,
+    /// Start again from the beginning when the bag ends, until Ctrl-C.
+    #[arg(long = "loop")]
+    pub looped: bool,
+    /// Do not publish the bag's time on `/clock`.
+    #[arg(long)]
+    pub no_clock: bool,
+    /// Wait this many seconds for subscribers to match before the first message.
+    #[arg(long, default_value_t = 1.0)]
+    pub wait: f64,
+}
+
+/// Options of `chronotope record`.
+#[derive(Debug, Clone, Args)]
+pub struct RecordArgs {
+    /// Topics to record (their types are learnt from the publishers on the wire).
+    pub topics: Vec<String>,
+    /// Record what the nodes of this launch config publish (its recorder node's selection).
+    #[arg(long)]
+    pub launch: Option<PathBuf>,
+    /// Output bag.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Stop after this many seconds (default: until Ctrl-C).
+    #[arg(long)]
+    pub duration: Option<f64>,
+    /// Seconds to wait for the publishers of TOPICS to be discovered.
+    #[arg(long, default_value_t = 5.0)]
+    pub discovery: f64,
+}
+
+/// A flag set by Ctrl-C (SIGINT) or SIGTERM.
+fn stop_on_signal() -> Arc<AtomicBool> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let flag = stop.clone();
+    std::thread::spawn(move || {
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_all().build() else {
+            return;
+        };
+        rt.block_on(async {
+            let mut term =
+                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
+            let term = async {
+                match term.as_mut() {
+                    Some(t) => {
+                        t.recv().await;
+                    }
+                    None => std::future::pending::<()>().await,
+                }
+            };
+            tokio::select! {
+                _ = tokio::signal::ctrl_c() => {}
+                () = term => {}
+            }
+        });
+        tracing::info!("signal: stopping");
+        flag.store(true, Ordering::Relaxed);
+    });
+    stop
+}
+
+fn seconds(what: &str, s: Option<f64>) -> Result<Option<Duration>, CliError> {
+    match s {
+        None => Ok(None),
+        Some(v) if v.is_finite() && v > 0.0 && v < 1e9 => Ok(Some(Duration::from_secs_f64(v))),
+        Some(v) => Err(CliError::Usage(format!("--{what} {v}: not a positive number of seconds"))),
+    }
+}
+
+/// Runs the nodes of `config` named by `only` (all if `None`).
+fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<(), CliError> {
+    let (nodes, _) =
+        build_nodes(config, &[], false).map_err(|e| CliError::Usage(e.to_string()))?;
+    let wanted = |fqn: &str| {
+        only.is_none_or(|n| fqn == n || fqn.rsplit('/').next() == Some(n.trim_start_matches('/')))
+    };
+    let mut remote_subscribed = BTreeSet::new();
+    let mut local = Vec::new();
+    for n in nodes {
+        if wanted(n.name()) {
+            local.push(n);
+        } else {
+            remote_subscribed.extend(n.subscriptions().into_iter().map(|s| s.topic));
+        }
+    }
+    if local.is_empty() {
+        let names: Vec<String> = config.nodes.iter().map(|n| n.fqn.clone()).collect();
+        return Err(CliError::Usage(format!(
+            "no node {} in the config (it has {})",
+            only.unwrap_or("?"),
+            names.join(", ")
+        )));
+    }
+    let specs: Vec<_> = config
+        .nodes
+        .iter()
+        .filter(|s| s.kind != NodeKind::Recorder && local.iter().any(|n| n.name() == s.fqn))
+        .cloned()
+        .collect();
+    let opts = LiveOptions {
+        domain_id: domain_id_from_env()?,
+        queue_capacity: a.queue,
+        run_for: seconds("duration", a.duration)?,
+        remote_subscribed,
+        ..LiveOptions::default()
+    };
+    let summary = run_nodes(local, &specs, &opts, stop_on_signal())?;
+    for (name, s) in &summary.nodes {
+        eprintln!(
+            "{name}: received {}, published {}, problems {}",
+            s.received,
+            s.published,
+            s.problem_count()
+        );
+    }
+    let t = &summary.transport;
+    eprintln!(
+        "transport: received {}, sent {}, dropped {}, undecodable {}",
+        t.received.values().sum::<u64>(),
+        t.sent.values().sum::<u64>(),
+        t.dropped.values().sum::<u64>(),
+        t.undecodable.values().sum::<u64>()
+    );
+    if let Some(p) = &a.summary {
+        write_json(p, &summary)?;
+    }
+    Ok(())
+}
+
+fn read_config(p: &std::path::Path) -> Result<LaunchConfig, CliError> {
+    LaunchConfig::read(p).map_err(|e| CliError::Usage(e.to_string()))
+}
+
+/// `chronotope launch`.
+///
+/// # Errors
+/// A bad config, or DDS cannot start.
+pub fn launch(a: &LaunchArgs) -> Result<(), CliError> {
+    run_config(&read_config(&a.config)?, None, &a.run)
+}
+
+/// `chronotope node`.
+///
+/// # Errors
+/// A bad config, no such node, or DDS cannot start.
+pub fn node(a: &NodeArgs) -> Result<(), CliError> {
+    run_config(&read_config(&a.launch)?, Some(&a.name), &a.run)
+}
+
+/// `chronotope play`.
+///
+/// # Errors
+/// The bag cannot be opened, bad options, or DDS cannot start.
+pub fn play(a: &PlayArgs) -> Result<(), CliError> {
+    if !(a.rate.is_finite() && a.rate > 0.0) {
+        return Err(CliError::Usage(format!("--rate {}: not a positive factor", a.rate)));
+    }
+    let stop = stop_on_signal();
+    let participant = Participant::new(domain_id_from_env()?)?;
+    let mut writers: BTreeMap<String, Option<RawWriter>> = BTreeMap::new();
+    let clock = if a.no_clock {
+        None
+    } else {
+        Some(participant.writer("/clock", Clock::TYPE_NAME, TopicQos::for_type(Clock::TYPE_NAME))?)
+    };
+    // Writers are made from the bag's channels before the first message, so that readers
+    // can match during the wait.
+    let mut first_pass = BagReader::open(&a.bag)?;
+    for m in first_pass.by_ref().flatten() {
+        if !writers.contains_key(&m.topic) {
+            let w = make_writer(&participant, &m.topic, &m.schema_name, &m.message_encoding);
+            writers.insert(m.topic.clone(), w);
+        }
+    }
+    drop(first_pass);
+    std::thread::sleep(Duration::from_secs_f64(a.wait.clamp(0.0, 60.0)));
+    let (mut sent, mut failed) = (0u64, 0u64);
+    'plays: loop {
+        let start = Instant::now();
+        let mut t0 = None;
+        let mut last_clock = None;
+        for item in BagReader::open(&a.bag)? {
+            if stop.load(Ordering::Relaxed) {
+                break 'plays;
+            }
+            let m = match item {
+                Ok(m) => m,
+                Err(e) => {
+                    tracing::warn!("{e}");
+                    if e.is_fatal() {
+                        break;
+                    }
+                    continue;
+                }
+            };
+            let t = m.log_time_ns;
+            let first = *t0.get_or_insert(t);
+            let due = Duration::from_secs_f64(t.saturating_sub(first) as f64 * 1e-9 / a.rate);
+            if let Some(wait) = due.checked_sub(start.elapsed()) {
+                std::thread::sleep(wait);
+            }
+            if let Some(c) = &clock {
+                if last_clock.is_none_or(|l: u64| t >= l + 10_000_000) {
+                    last_clock = Some(t);
+                    let msg = Clock {
+                        clock: Time::from_nanos(t.min(i64::MAX as u64) as i64),
+                    };
+                    if let Ok(bytes) = crate::msg::encode_cdr(&msg) {
+                        let _ = c.write(RawCdr(bytes), None);
+                    }
+                }
+            }
+            let Some(Some(w)) = writers.get(&m.topic) else {
+                continue;
+            };
+            match w.write(RawCdr(m.data), None) {
+                Ok(()) => sent += 1,
+                Err(e) => {
+                    failed += 1;
+                    tracing::warn!(topic = m.topic, "not sent: {e}");
+                }
+            }
+        }
+        if !a.looped {
+            break;
+        }
+    }
+    for w in writers.values().flatten() {
+        let _ = w.wait_for_acknowledgments(Duration::from_secs(2));
+    }
+    eprintln!("play: {sent} message(s) sent, {failed} not sent");
+    Ok(())
+}
+
+fn make_writer(p: &Participant, topic: &str, ty: &str, encoding: &str) -> Option<RawWriter> {
+    if encoding != "cdr" || ty.is_empty() {
+        tracing::warn!(topic, "not played: encoding {encoding:?}, type {ty:?} (needs cdr with a type)");
+        return None;
+    }
+    match p.writer(topic, ty, TopicQos::for_type(ty)) {
+        Ok(w) => Some(w),
+        Err(e) => {
+            tracing::warn!(topic, "not played: {e}");
+            None
+        }
+    }
+}
+
+/// `chronotope record`.
+///
+/// # Errors
+/// Bad options, a topic of a type the suite has no definition for, DDS cannot start, or the
+/// bag cannot be written.
+pub fn record(a: &RecordArgs) -> Result<(), CliError> {
+    let stop = stop_on_signal();
+    let participant = Participant::new(domain_id_from_env()?)?;
+    let mut topics: BTreeMap<String, &'static str> = BTreeMap::new();
+    if let Some(cfg) = &a.launch {
+        let config = read_config(cfg)?;
+        let (nodes, selection) =
+            build_nodes(&config, &[], false).map_err(|e| CliError::Usage(e.to_string()))?;
+        for n in &nodes {
+            for p in n.publications() {
+                if selection.wants(&p.topic) {
+                    topics.insert(p.topic, p.type_name);
+                }
+            }
+        }
+    }
+    if !a.topics.is_empty() {
+        let deadline = Instant::now() + Duration::from_secs_f64(a.discovery.clamp(0.0, 600.0));
+        let mut missing: BTreeSet<String> = a.topics.iter().cloned().collect();
+        while !missing.is_empty() && Instant::now() < deadline {
+            for d in participant.discovered_topics() {
+                let Some(t) = ros_topic_name(&d.0) else { continue };
+                if !missing.contains(t) {
+                    continue;
+                }
+                let Some(ty) = ros_type_name(&d.1) else { continue };
+                let Some((known, _)) = Payload::schema_of(&ty) else {
+                    return Err(CliError::Usage(format!(
+                        "{t}: type {ty} is not one whose definition the suite has; cannot record it"
+                    )));
+                };
+                topics.insert(t.to_owned(), known);
+                missing.remove(&t.to_owned());
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        if !missing.is_empty() {
+            return Err(CliError::Usage(format!(
+                "no publisher seen for {} within {} s",
+                missing.into_iter().collect::<Vec<_>>().join(", "),
+                a.discovery
+            )));
+        }
+    }
+    if topics.is_empty() {
+        return Err(CliError::Usage("nothing to record: name topics or --launch".into()));
+    }
+    let mut writer = BagWriter::create(&a.out)?;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, u64, RawCdr)>(1024);
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()
+        .map_err(LiveError::Runtime)?;
+    let names: Vec<(String, &'static str)> = topics.into_iter().collect();
+    for (i, (topic, ty)) in names.iter().enumerate() {
+        let (_, schema) = Payload::schema_of(ty).expect("only known types are recorded");
+        writer.add_topic_with_schema(topic, ty, &schema)?;
+        let reader = participant.reader(topic, ty, TopicQos::for_type(ty))?;
+        let tx = tx.clone();
+        runtime.spawn(async move {
+            let mut stream = std::pin::pin!(reader.as_async_stream());
+            while let Some(r) = stream.next().await {
+                if let Ok(c) = r {
+                    let now = std::time::SystemTime::now()
+                        .duration_since(std::time::UNIX_EPOCH)
+                        .map_or(0, |d| d.as_nanos() as u64);
+                    if tx.send((i, now, c.sample)).is_err() {
+                        return;
+                    }
+                }
+            }
+        });
+        tracing::info!(topic, ty, "recording");
+    }
+    drop(tx);
+    let start = Instant::now();
+    let limit = seconds("duration", a.duration)?;
+    let mut counts: BTreeMap<&str, u64> = BTreeMap::new();
+    while !stop.load(Ordering::Relaxed) && limit.is_none_or(|l| start.elapsed() < l) {
+        match rx.recv_timeout(Duration::from_millis(100)) {
+            Ok((i, t, bytes)) => {
+                let topic = &names[i].0;
+                writer.write_cdr(topic, t, &bytes.0)?;
+                *counts.entry(topic).or_default() += 1;
+            }
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        }
+    }
+    writer.finish()?;
+    runtime.shutdown_timeout(Duration::from_millis(200));
+    for (t, n) in &counts {
+        eprintln!("record: {t}: {n} message(s)");
+    }
+    eprintln!("record: wrote {}", a.out.display());
+    Ok(())
+}

@@ -1,0 +1,663 @@
+//! The live transport: the suite's sans-I/O nodes on a real DDS wire (RustDDS, with
+//! ros2-client for the ROS side of a node: its presence in the graph, its parameters, rosout).
+//!
+//! Nodes in one process pass messages in memory, on the same [`Bus`] a replay uses; a topic
+//! goes on the wire when something outside may want it. Mesh pieces, the one big message,
+//! cross the wire only when a node that reads them runs in another process.
+//!
+//! Threads: RustDDS runs its own event loop; a small tokio runtime drives the readers and
+//! the ros2-client spinners; the nodes run on one thread of their own, fed through one
+//! bounded queue. When the queue is full a new sample is dropped and counted on its topic
+//! (a publisher faster than the checker costs messages, never unbounded memory). Every
+//! second the transport publishes a `diagnostic_msgs/DiagnosticArray` on `/diagnostics`
+//! with each node's counters and problems and its own.
+
+pub mod wire;
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant, SystemTime};
+
+use futures::StreamExt;
+use rustdds::no_key::{DataWriter, SimpleDataReader};
+use rustdds::{DomainParticipant, DomainParticipantBuilder, TopicKind};
+use serde::Serialize;
+
+use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, Time};
+use crate::node::bus::Bus;
+use crate::node::launch::{NodeSpec, ParamValue};
+use crate::node::{Message, Node, NodeStatus, Payload, TopicRef};
+use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
+
+/// A writer of serialised messages.
+pub type RawWriter = DataWriter<RawCdr, RawCdrAdapter>;
+/// A reader of serialised messages.
+pub type RawReader = SimpleDataReader<RawCdr, RawCdrAdapter>;
+
+/// What stopped the live transport from starting or running.
+#[derive(Debug, thiserror::Error)]
+pub enum LiveError {
+    /// `ROS_DOMAIN_ID` is not a domain id.
+    #[error("ROS_DOMAIN_ID={0:?} is not a domain id (an integer 0..=232)")]
+    DomainId(String),
+    /// RustDDS or ros2-client refused to create something.
+    #[error("DDS: cannot create {what}: {reason}")]
+    Dds {
+        /// What.
+        what: String,
+        /// Why.
+        reason: String,
+    },
+    /// The async runtime could not start.
+    #[error("cannot start the runtime: {0}")]
+    Runtime(#[from] std::io::Error),
+    /// Nothing to run.
+    #[error("{0}")]
+    Nothing(String),
+}
+
+fn dds_err(what: impl Into<String>) -> impl FnOnce(String) -> LiveError {
+    let what = what.into();
+    move |reason| LiveError::Dds { what, reason }
+}
+
+/// The DDS domain: `ROS_DOMAIN_ID` if set (and not empty), else 0, as ROS 2 does.
+///
+/// # Errors
+/// It is set to something that is not a domain id.
+pub fn domain_id_from_env() -> Result<u16, LiveError> {
+    match std::env::var("ROS_DOMAIN_ID") {
+        Ok(v) if v.trim().is_empty() => Ok(0),
+        Ok(v) => v
+            .trim()
+            .parse::<u16>()
+            .ok()
+            .filter(|d| *d <= 232)
+            .ok_or(LiveError::DomainId(v)),
+        Err(_) => Ok(0),
+    }
+}
+
+/// One DDS participant: the process's presence on the wire.
+pub struct Participant {
+    ctx: ros2_client::Context,
+    dp: DomainParticipant,
+    publisher: rustdds::Publisher,
+    subscriber: rustdds::Subscriber,
+    topics: Mutex<HashMap<String, rustdds::Topic>>,
+    /// The participant's GUID (its prefix is shared by all its writers).
+    guid: rustdds::GUID,
+}
+
+impl Participant {
+    /// Joins `domain_id`, asking the OS for large socket buffers (big reliable samples
+    /// arrive as hundreds of fragments at once; the OS may clamp the request).
+    ///
+    /// # Errors
+    /// RustDDS cannot open its sockets.
+    pub fn new(domain_id: u16) -> Result<Self, LiveError> {
+        let dp = DomainParticipantBuilder::new(domain_id)
+            .socket_receive_buffer_size(32 << 20)
+            .socket_send_buffer_size(32 << 20)
+            .build()
+            .map_err(|e| e.to_string())
+            .map_err(dds_err("the domain participant"))?;
+        let ctx = ros2_client::Context::from_domain_participant(dp.clone())
+            .map_err(|e| e.to_string())
+            .map_err(dds_err("the ROS context"))?;
+        let qos = rustdds::QosPolicyBuilder::new().build();
+        let publisher = dp
+            .create_publisher(&qos)
+            .map_err(|e| e.to_string())
+            .map_err(dds_err("a publisher"))?;
+        let subscriber = dp
+            .create_subscriber(&qos)
+            .map_err(|e| e.to_string())
+            .map_err(dds_err("a subscriber"))?;
+        let guid = rustdds::RTPSEntity::guid(&dp);
+        Ok(Self {
+            guid,
+            ctx,
+            dp,
+            publisher,
+            subscriber,
+            topics: Mutex::new(HashMap::new()),
+        })
+    }
+
+    /// The domain joined.
+    pub fn domain_id(&self) -> u16 {
+        self.dp.domain_id()
+    }
+
+    fn topic(&self, ros_topic: &str, ros_type: &str, qos: TopicQos) -> Result<rustdds::Topic, LiveError> {
+        let name = dds_topic_name(ros_topic);
+        let mut topics = self.topics.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(t) = topics.get(&name) {
+            return Ok(t.clone());
+        }
+        let t = self
+            .dp
+            .create_topic(name.clone(), dds_type_name(ros_type), &qos.policies(), TopicKind::NoKey)
+            .map_err(|e| e.to_string())
+            .map_err(dds_err(format!("topic {ros_topic}")))?;
+        topics.insert(name, t.clone());
+        Ok(t)
+    }
+
+    /// A writer of `ros_type` messages on `ros_topic`.
+    ///
+    /// # Errors
+    /// RustDDS refuses (e.g. the topic exists with another type).
+    pub fn writer(&self, ros_topic: &str, ros_type: &str, qos: TopicQos) -> Result<RawWriter, LiveError> {
+        let t = self.topic(ros_topic, ros_type, qos)?;
+        self.publisher
+            .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&t, Some(qos.policies()))
+            .map_err(|e| e.to_string())
+            .map_err(dds_err(format!("a writer on {ros_topic}")))
+    }
+
+    /// A reader of `ros_type` messages on `ros_topic`.
+    ///
+    /// # Errors
+    /// RustDDS refuses.
+    pub fn reader(&self, ros_topic: &str, ros_type: &str, qos: TopicQos) -> Result<RawReader, LiveError> {
+        let t = self.topic(ros_topic, ros_type, qos)?;
+        self.subscriber
+            .create_simple_datareader_no_key::<RawCdr, RawCdrAdapter>(&t, Some(qos.policies()))
+            .map_err(|e| e.to_string())
+            .map_err(dds_err(format!("a reader on {ros_topic}")))
+    }
+
+    /// The topics discovered on the wire so far, as `(DDS topic, DDS type)`.
+    pub fn discovered_topics(&self) -> Vec<(String, String)> {
+        self.ctx
+            .discovered_topics_raw()
+            .into_iter()
+            .map(|d| (d.topic_name().clone(), d.type_name().clone()))
+            .collect()
+    }
+
+    /// Whether a sample was written by this participant.
+    pub fn is_own(&self, writer: rustdds::GUID) -> bool {
+        writer.prefix == self.guid.prefix
+    }
+
+    /// The ROS node `fqn` (`/ns/name`) with `params` declared: visible to `ros2 node list`,
+    /// its parameters listed and read by `ros2 param`. Setting one is refused with the reason:
+    /// the suite's nodes take their parameters at start.
+    ///
+    /// # Errors
+    /// The name is not a valid ROS node name, or ros2-client refuses.
+    pub fn ros_node(
+        &self,
+        fqn: &str,
+        params: &BTreeMap<String, ParamValue>,
+    ) -> Result<ros2_client::Node, LiveError> {
+        let (ns, name) = match fqn.rsplit_once('/') {
+            Some(("", n)) => ("/", n),
+            Some((ns, n)) => (ns, n),
+            None => ("/", fqn),
+        };
+        let node_name = ros2_client::NodeName::new(ns, name)
+            .map_err(|e| format!("{e:?}"))
+            .map_err(dds_err(format!("ROS node {fqn}")))?;
+        let mut opts = ros2_client::NodeOptions::new().enable_rosout(true);
+        for (k, v) in params {
+            opts = opts.declare_parameter(k, ros_param(v));
+        }
+        // The validator also sees the declarations; it refuses only once the node runs.
+        let running = Arc::new(AtomicBool::new(false));
+        let flag = running.clone();
+        let opts = opts.parameter_validator(Box::new(move |name: &str, _value: &_| {
+            if flag.load(Ordering::Relaxed) {
+                Err(format!(
+                    "{name}: the suite's nodes take their parameters at start; relaunch with \
+                     the new value"
+                ))
+            } else {
+                Ok(())
+            }
+        }));
+        let node = self
+            .ctx
+            .new_node(node_name, opts)
+            .map_err(|e| e.to_string())
+            .map_err(dds_err(format!("ROS node {fqn}")))?;
+        running.store(true, Ordering::Relaxed);
+        Ok(node)
+    }
+}
+
+fn ros_param(v: &ParamValue) -> ros2_client::ParameterValue {
+    use ros2_client::ParameterValue as P;
+    match v.clone() {
+        ParamValue::Bool(b) => P::Boolean(b),
+        ParamValue::Integer(i) => P::Integer(i),
+        ParamValue::Double(d) => P::Double(d),
+        ParamValue::String(s) => P::String(s),
+        ParamValue::BoolArray(v) => P::BooleanArray(v),
+        ParamValue::IntegerArray(v) => P::IntegerArray(v),
+        ParamValue::DoubleArray(v) => P::DoubleArray(v),
+        ParamValue::StringArray(v) => P::StringArray(v),
+    }
+}
+
+/// How the live transport runs.
+#[derive(Debug, Clone)]
+pub struct LiveOptions {
+    /// DDS domain.
+    pub domain_id: u16,
+    /// Received messages waiting for the nodes, all topics together; beyond it new samples
+    /// are dropped and counted.
+    pub queue_capacity: usize,
+    /// How often the nodes see the clock (idle streams are closed on a tick).
+    pub tick: Duration,
+    /// How often `/diagnostics` is published.
+    pub diagnostics_period: Duration,
+    /// Stop after this long (tests, benchmarks); `None` runs until Ctrl-C.
+    pub run_for: Option<Duration>,
+    /// Topics read by nodes in other processes: mesh pieces on them go on the wire.
+    pub remote_subscribed: BTreeSet<String>,
+}
+
+impl Default for LiveOptions {
+    fn default() -> Self {
+        Self {
+            domain_id: 0,
+            queue_capacity: 256,
+            tick: Duration::from_millis(100),
+            diagnostics_period: Duration::from_secs(1),
+            run_for: None,
+            remote_subscribed: BTreeSet::new(),
+        }
+    }
+}
+
+/// What the transport itself saw, per topic.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct TransportStatus {
+    /// Samples received from the wire.
+    pub received: BTreeMap<String, u64>,
+    /// Samples dropped because the nodes' queue was full.
+    pub dropped: BTreeMap<String, u64>,
+    /// Samples that did not decode as the topic's type.
+    pub undecodable: BTreeMap<String, u64>,
+    /// Messages written to the wire.
+    pub sent: BTreeMap<String, u64>,
+    /// Messages that could not be written (and why, the first few).
+    pub send_errors: BTreeMap<String, u64>,
+    /// The first problems' texts.
+    pub messages: Vec<String>,
+}
+
+impl TransportStatus {
+    fn problem(&mut self, kind: &str, topic: &str, text: String) {
+        tracing::warn!(kind, topic, "{text}");
+        let map = match kind {
+            "dropped" => &mut self.dropped,
+            "undecodable" => &mut self.undecodable,
+            _ => &mut self.send_errors,
+        };
+        *map.entry(topic.to_owned()).or_default() += 1;
+        if self.messages.len() < NodeStatus::KEPT {
+            self.messages.push(text);
+        }
+    }
+}
+
+/// What a live run did, when it ends.
+#[derive(Debug, Clone, Serialize)]
+pub struct LiveSummary {
+    /// Each node's counters and problems.
+    pub nodes: BTreeMap<String, NodeStatus>,
+    /// The transport's.
+    pub transport: TransportStatus,
+}
+
+struct Sample {
+    topic: usize,
+    bytes: RawCdr,
+}
+
+/// Runs `nodes` on the wire until `stop` is set (Ctrl-C) or `opts.run_for` has passed, then
+/// finishes them (closing meshes, a last check) and publishes what that gives.
+///
+/// `specs` are the nodes' launch specs (for their ROS names and parameters).
+///
+/// # Errors
+/// The participant, a reader or a writer cannot be created.
+pub fn run_nodes(
+    nodes: Vec<Box<dyn Node>>,
+    specs: &[NodeSpec],
+    opts: &LiveOptions,
+    stop: Arc<AtomicBool>,
+) -> Result<LiveSummary, LiveError> {
+    if nodes.is_empty() {
+        return Err(LiveError::Nothing("no node to run".into()));
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()?;
+    let participant = Arc::new(Participant::new(opts.domain_id)?);
+    tracing::info!(domain = participant.domain_id(), "joined the DDS domain");
+
+    let mut ros_nodes = Vec::new();
+    for spec in specs {
+        let mut n = participant.ros_node(&spec.fqn, &spec.params)?;
+        let spinner = n
+            .spinner()
+            .map_err(|e| e.to_string())
+            .map_err(dds_err(format!("the spinner of {}", spec.fqn)))?;
+        runtime.spawn(async move {
+            if let Err(e) = spinner.spin().await {
+                tracing::warn!("a ROS node's spinner stopped: {e:?}");
+            }
+        });
+        ros_nodes.push(n);
+    }
+
+    let (inputs, outputs) = wire_topics(&nodes, &opts.remote_subscribed);
+    let status = Arc::new(Mutex::new(TransportStatus::default()));
+    let (tx, rx) = sync_channel::<Sample>(opts.queue_capacity.max(1));
+    for (i, t) in inputs.iter().enumerate() {
+        let reader = participant.reader(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+        tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
+        runtime.spawn(read_topic(
+            reader,
+            i,
+            t.topic.clone(),
+            participant.clone(),
+            tx.clone(),
+            status.clone(),
+        ));
+    }
+    drop(tx);
+    let mut writers = BTreeMap::new();
+    for t in &outputs {
+        let w = participant.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+        tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
+        writers.insert(t.topic.clone(), w);
+    }
+    let diagnostics = participant.writer(
+        "/diagnostics",
+        DiagnosticArray::TYPE_NAME,
+        TopicQos::for_type(DiagnosticArray::TYPE_NAME),
+    )?;
+
+    let mut pump = Pump {
+        bus: Bus::new(nodes),
+        inputs,
+        writers,
+        diagnostics,
+        status,
+    };
+    pump.run(rx, opts, &stop);
+    let summary = pump.summary();
+    drop(pump);
+    drop(ros_nodes);
+    runtime.shutdown_timeout(Duration::from_millis(500));
+    Ok(summary)
+}
+
+/// Topics to read from the wire (what local nodes read and no local node writes) and to
+/// write to it (everything local nodes write, but mesh pieces no remote node reads).
+fn wire_topics(
+    nodes: &[Box<dyn Node>],
+    remote_subscribed: &BTreeSet<String>,
+) -> (Vec<TopicRef>, Vec<TopicRef>) {
+    let publications: BTreeSet<TopicRef> = nodes.iter().flat_map(|n| n.publications()).collect();
+    let published: BTreeSet<&str> = publications.iter().map(|p| p.topic.as_str()).collect();
+    let inputs: BTreeSet<TopicRef> = nodes
+        .iter()
+        .flat_map(|n| n.subscriptions())
+        .filter(|s| !published.contains(s.topic.as_str()))
+        .collect();
+    let outputs = publications
+        .into_iter()
+        .filter(|p| {
+            p.type_name != crate::msg::MeshSlab::TYPE_NAME || remote_subscribed.contains(&p.topic)
+        })
+        .collect();
+    (inputs.into_iter().collect(), outputs)
+}
+
+async fn read_topic(
+    reader: RawReader,
+    index: usize,
+    topic: String,
+    participant: Arc<Participant>,
+    tx: SyncSender<Sample>,
+    status: Arc<Mutex<TransportStatus>>,
+) {
+    let mut stream = std::pin::pin!(reader.as_async_stream());
+    while let Some(r) = stream.next().await {
+        let change = match r {
+            Ok(c) => c,
+            Err(e) => {
+                let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
+                s.problem("undecodable", &topic, format!("{topic}: a sample could not be read: {e}"));
+                continue;
+            }
+        };
+        if participant.is_own(change.writer_guid) {
+            continue;
+        }
+        let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
+        *s.received.entry(topic.clone()).or_default() += 1;
+        match tx.try_send(Sample {
+            topic: index,
+            bytes: change.sample,
+        }) {
+            Ok(()) => {}
+            Err(TrySendError::Full(_)) => s.problem(
+                "dropped",
+                &topic,
+                format!("{topic}: the nodes are behind (queue full): a sample was dropped"),
+            ),
+            Err(TrySendError::Disconnected(_)) => return,
+        }
+    }
+}
+
+/// The nodes' thread: takes samples, runs the nodes, writes what they publish.
+struct Pump {
+    bus: Bus,
+    inputs: Vec<TopicRef>,
+    writers: BTreeMap<String, RawWriter>,
+    diagnostics: RawWriter,
+    status: Arc<Mutex<TransportStatus>>,
+}
+
+impl Pump {
+    fn run(&mut self, rx: Receiver<Sample>, opts: &LiveOptions, stop: &AtomicBool) {
+        let start = Instant::now();
+        let mut last_tick = start;
+        let mut last_diag = start;
+        loop {
+            if stop.load(Ordering::Relaxed) || opts.run_for.is_some_and(|d| start.elapsed() >= d) {
+                break;
+            }
+            match rx.recv_timeout(opts.tick) {
+                Ok(s) => self.take(s),
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => std::thread::sleep(opts.tick),
+            }
+            if last_tick.elapsed() >= opts.tick {
+                last_tick = Instant::now();
+                let now_ns = start.elapsed().as_nanos() as i64;
+                let mut out = Vec::new();
+                self.bus.tick(now_ns, &mut |m| out.push(m.clone()));
+                for m in &out {
+                    self.send(m);
+                }
+            }
+            if last_diag.elapsed() >= opts.diagnostics_period {
+                last_diag = Instant::now();
+                self.publish_diagnostics();
+            }
+        }
+        tracing::info!("stopping: the nodes finish what they have");
+        let mut out = Vec::new();
+        self.bus.finish(&mut |m| out.push(m.clone()));
+        for m in &out {
+            self.send(m);
+        }
+        self.publish_diagnostics();
+        for w in self.writers.values() {
+            // Reliable samples are resent until acknowledged; give readers a moment.
+            let _ = w.wait_for_acknowledgments(Duration::from_secs(2));
+        }
+    }
+
+    fn take(&mut self, s: Sample) {
+        let Some(t) = self.inputs.get(s.topic) else {
+            return;
+        };
+        match Payload::decode(t.type_name, &s.bytes.0) {
+            Ok(payload) => {
+                let msg = Message::new(&t.topic, wall_clock_ns(), payload);
+                let mut out = Vec::new();
+                self.bus.deliver(msg, &mut |m| out.push(m.clone()));
+                for m in &out {
+                    self.send(m);
+                }
+            }
+            Err(e) => {
+                let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
+                st.problem(
+                    "undecodable",
+                    &t.topic,
+                    format!("{}: a sample does not decode as {}: {e}", t.topic, t.type_name),
+                );
+            }
+        }
+    }
+
+    fn send(&self, m: &Message) {
+        let Some(w) = self.writers.get(&*m.topic) else {
+            return;
+        };
+        let r = m
+            .payload
+            .encode()
+            .map_err(|e| e.to_string())
+            .and_then(|bytes| w.write(RawCdr(bytes), None).map_err(|e| e.to_string()));
+        let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
+        match r {
+            Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
+            Err(e) => st.problem("send", &m.topic, format!("{}: not sent: {e}", m.topic)),
+        }
+    }
+
+    fn publish_diagnostics(&self) {
+        let now = wall_clock_ns();
+        let mut status: Vec<DiagnosticStatus> = self
+            .bus
+            .statuses()
+            .into_iter()
+            .map(|(name, s)| node_diagnostic(name, s))
+            .collect();
+        let t = self.status.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        status.push(transport_diagnostic(&t));
+        let msg = DiagnosticArray {
+            header: Header {
+                stamp: Time::from_nanos(now),
+                frame_id: String::new(),
+            },
+            status,
+        };
+        match crate::msg::encode_cdr(&msg) {
+            Ok(bytes) => {
+                if let Err(e) = self.diagnostics.write(RawCdr(bytes), None) {
+                    tracing::warn!("/diagnostics not sent: {e}");
+                }
+            }
+            Err(e) => tracing::warn!("/diagnostics not encoded: {e}"),
+        }
+    }
+
+    fn summary(&self) -> LiveSummary {
+        LiveSummary {
+            nodes: self
+                .bus
+                .statuses()
+                .into_iter()
+                .map(|(n, s)| (n.to_owned(), s.clone()))
+                .collect(),
+            transport: self.status.lock().unwrap_or_else(|p| p.into_inner()).clone(),
+        }
+    }
+}
+
+fn wall_clock_ns() -> i64 {
+    SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i64)
+}
+
+fn kv(key: impl Into<String>, value: impl ToString) -> KeyValue {
+    KeyValue {
+        key: key.into(),
+        value: value.to_string(),
+    }
+}
+
+/// A node's status as ROS diagnostics: WARN once it has counted a problem.
+pub fn node_diagnostic(name: &str, s: &NodeStatus) -> DiagnosticStatus {
+    let problems = s.problem_count();
+    let mut values = vec![kv("received", s.received), kv("published", s.published)];
+    values.extend(s.problems.iter().map(|(k, n)| kv(format!("problem.{k}"), n)));
+    values.extend(s.messages.last().map(|m| kv("last_problem", m)));
+    DiagnosticStatus {
+        level: if problems == 0 {
+            DiagnosticStatus::OK
+        } else {
+            DiagnosticStatus::WARN
+        },
+        name: name.to_owned(),
+        message: if problems == 0 {
+            "ok".into()
+        } else {
+            format!("{problems} problem(s), counted and skipped")
+        },
+        hardware_id: String::new(),
+        values,
+    }
+}
+
+fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
+    let mut values = Vec::new();
+    for (kind, map) in [
+        ("received", &t.received),
+        ("dropped", &t.dropped),
+        ("undecodable", &t.undecodable),
+        ("sent", &t.sent),
+        ("send_errors", &t.send_errors),
+    ] {
+        values.extend(map.iter().map(|(topic, n)| kv(format!("{kind}.{topic}"), n)));
+    }
+    let problems: u64 = [&t.dropped, &t.undecodable, &t.send_errors]
+        .iter()
+        .flat_map(|m| m.values())
+        .sum();
+    values.extend(t.messages.last().map(|m| kv("last_problem", m)));
+    DiagnosticStatus {
+        level: if problems == 0 {
+            DiagnosticStatus::OK
+        } else {
+            DiagnosticStatus::WARN
+        },
+        name: "chronotope/transport".into(),
+        message: if problems == 0 {
+            "ok".into()
+        } else {
+            format!("{problems} sample(s) dropped, undecodable or not sent")
+        },
+        hardware_id: String::new(),
+        values,
+    }
+}

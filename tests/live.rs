@@ -1,0 +1,217 @@
+//! The suite live on DDS: `chronotope launch`, `play` and `record` as separate processes on a
+//! private ROS domain, talking over RustDDS the way they would on a robot's network.
+//!
+//! Each test has its own domain id, so tests running at once do not hear each other.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::Duration;
+
+use chronotope::bag::{BagReader, BagWriter};
+use chronotope::cli::replay::replay;
+use chronotope::msg::VoxelGrid;
+use chronotope::node::launch::LaunchConfig;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A domain id for test `k`, different from other test processes' most of the time.
+fn domain(k: u32) -> String {
+    (20 + (std::process::id() % 40) * 4 + k).to_string()
+}
+
+/// A child process killed if the test fails before it ends.
+struct Proc(Option<Child>, &'static str);
+
+impl Proc {
+    fn start(what: &'static str, domain: &str, args: &[&str], log: &Path) -> Self {
+        let err = std::fs::File::create(log).unwrap();
+        let child = Command::new(env!("CARGO_BIN_EXE_chronotope"))
+            .args(args)
+            .env("ROS_DOMAIN_ID", domain)
+            .env("RUST_LOG", "info")
+            .stdin(Stdio::null())
+            .stdout(Stdio::null())
+            .stderr(err)
+            .spawn()
+            .unwrap();
+        Self(Some(child), what)
+    }
+
+    fn wait(mut self, log: &Path) {
+        let status = self.0.take().unwrap().wait().unwrap();
+        let text = std::fs::read_to_string(log).unwrap_or_default();
+        assert!(status.success(), "{} failed ({status}):\n{text}", self.1);
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Some(c) = &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+/// Every message of `topic` in `bag`, serialised.
+fn messages(bag: &Path, topic: &str) -> Vec<Vec<u8>> {
+    BagReader::open(bag)
+        .unwrap()
+        .map(Result::unwrap)
+        .filter(|m| m.topic == topic)
+        .map(|m| m.data)
+        .collect()
+}
+
+/// Whether two serialised messages are the same but for the up to 3 zero bytes RTPS pads a
+/// payload with (a received sample keeps them; the decoder accepts them).
+fn same_but_padding(live: &[u8], offline: &[u8]) -> bool {
+    live.len() >= offline.len()
+        && live.len() - offline.len() <= 3
+        && live[..offline.len()] == *offline
+        && live[offline.len()..].iter().all(|&b| b == 0)
+}
+
+#[test]
+fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
+    let d = tempfile::tempdir().unwrap();
+    let dom = domain(0);
+    let cfg_path = root().join("launch_configs/four_spheres.yaml");
+    let cfg = cfg_path.to_str().unwrap();
+    let bag = root().join("bags/four-spheres-32-bits.mcap");
+    let rec = d.path().join("recorded.mcap");
+    let summary = d.path().join("summary.json");
+    let (l_log, r_log, p_log) = (
+        d.path().join("launch.log"),
+        d.path().join("record.log"),
+        d.path().join("play.log"),
+    );
+    let launch = Proc::start(
+        "launch",
+        &dom,
+        &["launch", cfg, "--duration", "12", "--summary", summary.to_str().unwrap()],
+        &l_log,
+    );
+    let record = Proc::start(
+        "record",
+        &dom,
+        &["record", "--launch", cfg, "--out", rec.to_str().unwrap(), "--duration", "13"],
+        &r_log,
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    let play = Proc::start("play", &dom, &["play", bag.to_str().unwrap(), "--wait", "2"], &p_log);
+    play.wait(&p_log);
+    launch.wait(&l_log);
+    record.wait(&r_log);
+
+    // The same nodes offline, on the same frames.
+    let config = LaunchConfig::read(&cfg_path).unwrap();
+    let offline = d.path().join("offline.mcap");
+    replay(&bag, Some(&config), Some(&offline), false).unwrap();
+
+    let live_summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let received = &live_summary["transport"]["received"];
+    for body in ["a", "b", "c", "d"] {
+        assert_eq!(
+            received[format!("/sphere_{body}/occupancy")],
+            17,
+            "{live_summary}"
+        );
+    }
+    // All streams ending together is the end of the run, not a stopped stream.
+    let mesher = &live_summary["nodes"]["/mesher"];
+    assert!(mesher["problems"].get("stream_stopped").is_none(), "{live_summary}");
+    // Results published live are byte for byte those of the replay.
+    for topic in ["/checker/report", "/checker/labels", "/checker/suggestions", "/checker/markers"] {
+        let live = messages(&rec, topic);
+        let off = messages(&offline, topic);
+        assert!(!off.is_empty(), "{topic}: nothing offline");
+        assert_eq!(live.len(), off.len(), "{topic}: message count");
+        for (i, (l, o)) in live.iter().zip(&off).enumerate() {
+            assert!(same_but_padding(l, o), "{topic}: message {i} differs");
+        }
+    }
+}
+
+/// The four-spheres bag with faults: /sphere_d stops after 8 of its 17 frames, and one
+/// /sphere_a message is truncated.
+fn faulty_bag(dir: &Path) -> PathBuf {
+    let path = dir.join("faulty.mcap");
+    let mut w = BagWriter::create(&path).unwrap();
+    let mut seen: BTreeMap<String, u32> = BTreeMap::new();
+    let src = root().join("bags/four-spheres-32-bits.mcap");
+    for m in BagReader::open(&src).unwrap().map(Result::unwrap) {
+        if !seen.contains_key(&m.topic) {
+            w.add_topic::<VoxelGrid>(&m.topic).unwrap();
+        }
+        let k = seen.entry(m.topic.clone()).or_default();
+        *k += 1;
+        if m.topic == "/sphere_d/occupancy" && *k > 8 {
+            continue;
+        }
+        let data = if m.topic == "/sphere_a/occupancy" && *k == 12 {
+            m.data[..m.data.len() / 2].to_vec()
+        } else {
+            m.data
+        };
+        w.write_cdr(&m.topic, m.log_time_ns, &data).unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
+#[test]
+fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_checked() {
+    let d = tempfile::tempdir().unwrap();
+    let dom = domain(1);
+    let bag = faulty_bag(d.path());
+    let cfg = d.path().join("cfg.yaml");
+    std::fs::write(
+        &cfg,
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: idle_timeout_s, value: 1.0}, \
+           {name: bodies, value: [/sphere_a/occupancy, /sphere_b/occupancy, /sphere_c/occupancy, /sphere_d/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: \
+           ['/sphere_a/occupancy /sphere_b/occupancy', '/sphere_a/occupancy /sphere_d/occupancy']}]}\n",
+    )
+    .unwrap();
+    let summary = d.path().join("summary.json");
+    let (l_log, p_log) = (d.path().join("launch.log"), d.path().join("play.log"));
+    let launch = Proc::start(
+        "launch",
+        &dom,
+        &[
+            "launch",
+            cfg.to_str().unwrap(),
+            "--duration",
+            "14",
+            "--summary",
+            summary.to_str().unwrap(),
+        ],
+        &l_log,
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    // A fifth of real time: frames about 0.3 s apart, so /sphere_d goes quiet for more than
+    // the 1 s timeout while the others go on.
+    let play = Proc::start(
+        "play",
+        &dom,
+        &["play", bag.to_str().unwrap(), "--wait", "2", "--rate", "0.2"],
+        &p_log,
+    );
+    play.wait(&p_log);
+    launch.wait(&l_log);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["transport"]["undecodable"]["/sphere_a/occupancy"], 1, "{s}");
+    let mesher = &s["nodes"]["/mesher"];
+    assert_eq!(mesher["problems"]["stream_stopped"], 1, "{s}");
+    let checker = &s["nodes"]["/checker"];
+    assert!(checker["published"].as_u64().unwrap() >= 1, "{s}");
+    let said = checker["messages"].to_string();
+    assert!(said.contains("/sphere_d/occupancy: its frames end"), "{s}");
+}
