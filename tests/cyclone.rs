@@ -1,0 +1,503 @@
+//! The live nodes against a DDS implementation nobody here wrote: Cyclone DDS (PyPI
+//! `cyclonedds`, tests/py/cyclone_peer.py) plays the frames of a bag onto the wire to
+//! `chronotope launch`, and what the checker sends back over DDS must equal what the
+//! offline replay of the same bag computes: the report field by field (floats bit for bit),
+//! every label array (length, counts, sha256) and the markers (ids, points, sha256 of the
+//! points).
+//!
+//! Needs `pip install -r tests/py/requirements.txt`. Without `cyclonedds` the test is
+//! skipped with a message, unless `CI` is set: then it fails.
+//!
+//! Markers (16 MarkerArray of ~1.1 MB, thousands of fragments each) are the slow part: lost
+//! fragments are repaired in bursts several seconds apart, so the last one arrives
+//! after the last frame (measured: 5-23 s; the peer waits 30 s). `CHRONOTOPE_CYCLONE_NO_MARKERS=1`
+//! leaves them out (the test then takes ~10 s).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use chronotope::bag::BagReader;
+use chronotope::msg::{decode_cdr, InterferenceReport, MarkerArray, TetLabels};
+use serde_json::Value;
+use sha2::{Digest, Sha256};
+
+const BAG: &str = "bags/four-spheres-32-bits.mcap";
+const LAUNCH: &str = "launch_configs/four_spheres.yaml";
+
+/// Kills (and reaps) a child process when dropped, so a failing assertion leaves nothing
+/// running on the domain.
+struct KillOnDrop(Option<Child>, &'static str);
+
+impl KillOnDrop {
+    /// Stops the child now; returns whether it was still running.
+    fn stop(&mut self) -> bool {
+        match self.0.take() {
+            Some(mut c) => {
+                let running = matches!(c.try_wait(), Ok(None));
+                let _ = c.kill();
+                let _ = c.wait();
+                running
+            }
+            None => false,
+        }
+    }
+}
+
+impl Drop for KillOnDrop {
+    fn drop(&mut self) {
+        if self.stop() {
+            eprintln!("cyclone test: killed {}", self.1);
+        }
+    }
+}
+
+fn cyclonedds_available() -> bool {
+    Command::new("python3")
+        .args(["-c", "import cyclonedds"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// A float the peer wrote as the hex of its bits.
+fn f(v: &Value) -> f64 {
+    let s = v
+        .as_str()
+        .unwrap_or_else(|| panic!("float as hex bits, got {v}"));
+    f64::from_bits(u64::from_str_radix(s, 16).unwrap_or_else(|e| panic!("{s:?}: {e}")))
+}
+
+fn u(v: &Value) -> u64 {
+    v.as_u64()
+        .unwrap_or_else(|| panic!("unsigned integer, got {v}"))
+}
+
+fn s(v: &Value) -> &str {
+    v.as_str().unwrap_or_else(|| panic!("string, got {v}"))
+}
+
+/// Exactly equal, NaN equal to NaN.
+fn same(a: f64, b: f64) -> bool {
+    a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
+}
+
+#[track_caller]
+fn eq_f(what: &str, live: f64, offline: f64) {
+    assert!(
+        same(live, offline),
+        "{what}: over Cyclone {live:e} ({:#018x}), offline {offline:e} ({:#018x})",
+        live.to_bits(),
+        offline.to_bits()
+    );
+}
+
+#[track_caller]
+fn eq_fs(what: &str, live: &Value, offline: &[f64]) {
+    let live: Vec<f64> = live.as_array().expect("array").iter().map(f).collect();
+    assert_eq!(
+        live.len(),
+        offline.len(),
+        "{what}: lengths {live:?} vs {offline:?}"
+    );
+    for (i, (a, b)) in live.iter().zip(offline).enumerate() {
+        eq_f(&format!("{what}[{i}]"), *a, *b);
+    }
+}
+
+/// What the offline replay published on the checker's result topics.
+struct Offline {
+    reports: Vec<InterferenceReport>,
+    labels: Vec<TetLabels>,
+    markers: Vec<MarkerArray>,
+}
+
+fn offline(out: &Path) -> Offline {
+    let mut o = Offline {
+        reports: Vec::new(),
+        labels: Vec::new(),
+        markers: Vec::new(),
+    };
+    for m in BagReader::open(out).expect("the replay's output bag opens") {
+        let m = m.expect("the replay's output bag reads");
+        match m.topic.as_str() {
+            "/checker/report" => o.reports.push(decode_cdr(&m.data).expect("a report")),
+            "/checker/labels" => o.labels.push(decode_cdr(&m.data).expect("labels")),
+            "/checker/markers" => o.markers.push(decode_cdr(&m.data).expect("markers")),
+            _ => {}
+        }
+    }
+    o
+}
+
+fn compare_report(live: &Value, r: &InterferenceReport) {
+    let stamp = &live["header"]["stamp"];
+    assert_eq!(
+        (u(&stamp["sec"]) as i64, u(&stamp["nanosec"]) as i64),
+        (
+            i64::from(r.header.stamp.sec),
+            i64::from(r.header.stamp.nanosec)
+        ),
+        "report header.stamp"
+    );
+    assert_eq!(
+        s(&live["header"]["frame_id"]),
+        r.header.frame_id,
+        "report header.frame_id"
+    );
+    let origin = &live["time_origin"];
+    assert_eq!(
+        (u(&origin["sec"]) as i64, u(&origin["nanosec"]) as i64),
+        (
+            i64::from(r.time_origin.sec),
+            i64::from(r.time_origin.nanosec)
+        ),
+        "report time_origin"
+    );
+    eq_f(
+        "time_scale_m_per_s",
+        f(&live["time_scale_m_per_s"]),
+        r.time_scale_m_per_s,
+    );
+    eq_f("voxel_size_m", f(&live["voxel_size_m"]), r.voxel_size_m);
+
+    let bodies = live["bodies"].as_array().expect("bodies");
+    let ids: Vec<&str> = bodies.iter().map(|b| s(&b["body_id"])).collect();
+    let off_ids: Vec<&str> = r.bodies.iter().map(|b| b.body_id.as_str()).collect();
+    assert_eq!(ids, off_ids, "report bodies");
+    for (l, b) in bodies.iter().zip(&r.bodies) {
+        let w = |field: &str| format!("bodies[{}].{field}", b.body_id);
+        assert_eq!(u(&l["frames"]), b.frames, "{}", w("frames"));
+        assert_eq!(
+            u(&l["skipped_frames"]),
+            b.skipped_frames,
+            "{}",
+            w("skipped_frames")
+        );
+        assert_eq!(u(&l["tets"]), b.tets, "{}", w("tets"));
+        assert_eq!(u(&l["vertices"]), b.vertices, "{}", w("vertices"));
+        assert_eq!(l["closed"].as_bool(), Some(b.closed), "{}", w("closed"));
+        eq_f(
+            &w("hypervolume_m3s"),
+            f(&l["hypervolume_m3s"]),
+            b.hypervolume_m3s,
+        );
+        assert_eq!(
+            u(&l["vanishing_slabs"]),
+            b.vanishing_slabs,
+            "{}",
+            w("vanishing_slabs")
+        );
+    }
+
+    let pairs = live["pairs"].as_array().expect("pairs");
+    let names: Vec<(&str, &str)> = pairs
+        .iter()
+        .map(|p| (s(&p["body_a"]), s(&p["body_b"])))
+        .collect();
+    let off_names: Vec<(&str, &str)> = r
+        .pairs
+        .iter()
+        .map(|p| (p.body_a.as_str(), p.body_b.as_str()))
+        .collect();
+    assert_eq!(names, off_names, "report pairs");
+    for (l, p) in pairs.iter().zip(&r.pairs) {
+        let w = |field: &str| format!("pairs[{} x {}].{field}", p.body_a, p.body_b);
+        assert_eq!(
+            l["interfering"].as_bool(),
+            Some(p.interfering),
+            "{}",
+            w("interfering")
+        );
+        eq_fs(
+            &w("interval_start_s"),
+            &l["interval_start_s"],
+            &p.interval_start_s,
+        );
+        eq_fs(
+            &w("interval_end_s"),
+            &l["interval_end_s"],
+            &p.interval_end_s,
+        );
+        eq_f(
+            &w("first_contact_s"),
+            f(&l["first_contact_s"]),
+            p.first_contact_s,
+        );
+        eq_f(
+            &w("first_contact_error_bound_s"),
+            f(&l["first_contact_error_bound_s"]),
+            p.first_contact_error_bound_s,
+        );
+        eq_f(
+            &w("closing_speed_mps"),
+            f(&l["closing_speed_mps"]),
+            p.closing_speed_mps,
+        );
+        eq_f(
+            &w("overlap_hypervolume_m3s"),
+            f(&l["overlap_hypervolume_m3s"]),
+            p.overlap_hypervolume_m3s,
+        );
+        eq_f(
+            &w("overlap_hypervolume_error_bound_m3s"),
+            f(&l["overlap_hypervolume_error_bound_m3s"]),
+            p.overlap_hypervolume_error_bound_m3s,
+        );
+        assert_eq!(
+            u(&l["a_interference"]),
+            p.a_interference,
+            "{}",
+            w("a_interference")
+        );
+        assert_eq!(u(&l["a_inside"]), p.a_inside, "{}", w("a_inside"));
+        assert_eq!(u(&l["a_outside"]), p.a_outside, "{}", w("a_outside"));
+        assert_eq!(
+            u(&l["b_interference"]),
+            p.b_interference,
+            "{}",
+            w("b_interference")
+        );
+        assert_eq!(u(&l["b_inside"]), p.b_inside, "{}", w("b_inside"));
+        assert_eq!(u(&l["b_outside"]), p.b_outside, "{}", w("b_outside"));
+    }
+}
+
+fn compare_labels(live: &Value, offline: &[TetLabels]) {
+    // Keyed by (body, other): the live order is the order of arrival.
+    let live: BTreeMap<(String, String), &Value> = live
+        .as_array()
+        .expect("labels")
+        .iter()
+        .map(|l| {
+            (
+                (s(&l["body_id"]).to_owned(), s(&l["other_id"]).to_owned()),
+                l,
+            )
+        })
+        .collect();
+    let off: BTreeMap<(String, String), &TetLabels> = offline
+        .iter()
+        .map(|l| ((l.body_id.clone(), l.other_id.clone()), l))
+        .collect();
+    assert_eq!(
+        live.keys().collect::<Vec<_>>(),
+        off.keys().collect::<Vec<_>>(),
+        "labels: (body_id, other_id) received over Cyclone vs offline"
+    );
+    for (k, l) in &live {
+        let o = off[k];
+        let w = format!("labels {} vs {}", k.0, k.1);
+        assert_eq!(u(&l["len"]), o.labels.len() as u64, "{w}: number of labels");
+        assert_eq!(u(&l["interference"]), o.interference, "{w}: interference");
+        assert_eq!(u(&l["inside"]), o.inside, "{w}: inside");
+        assert_eq!(u(&l["outside"]), o.outside, "{w}: outside");
+        assert_eq!(
+            s(&l["sha256"]),
+            hex(&Sha256::digest(&o.labels)),
+            "{w}: sha256 of the labels"
+        );
+        let stamp = &l["header"]["stamp"];
+        assert_eq!(
+            (u(&stamp["sec"]) as i64, u(&stamp["nanosec"]) as i64),
+            (
+                i64::from(o.header.stamp.sec),
+                i64::from(o.header.stamp.nanosec)
+            ),
+            "{w}: header.stamp"
+        );
+    }
+}
+
+fn compare_markers(live: &Value, offline: &[MarkerArray]) {
+    let live = live.as_array().expect("markers");
+    assert_eq!(live.len(), offline.len(), "number of MarkerArray messages");
+    for (i, (l, o)) in live.iter().zip(offline).enumerate() {
+        assert_eq!(
+            u(&l["markers"]),
+            o.markers.len() as u64,
+            "markers[{i}]: markers"
+        );
+        let ids: Vec<(String, i64, i64, i64)> = l["ids"]
+            .as_array()
+            .expect("ids")
+            .iter()
+            .map(|k| {
+                (
+                    s(&k[0]).to_owned(),
+                    k[1].as_i64().expect("id"),
+                    k[2].as_i64().expect("type"),
+                    k[3].as_i64().expect("action"),
+                )
+            })
+            .collect();
+        let off_ids: Vec<(String, i64, i64, i64)> = o
+            .markers
+            .iter()
+            .map(|k| (k.ns.clone(), k.id.into(), k.r#type.into(), k.action.into()))
+            .collect();
+        assert_eq!(ids, off_ids, "markers[{i}]: ns, id, type, action");
+        let mut h = Sha256::new();
+        let mut points = 0u64;
+        for k in &o.markers {
+            for p in &k.points {
+                h.update(p.x.to_le_bytes());
+                h.update(p.y.to_le_bytes());
+                h.update(p.z.to_le_bytes());
+                points += 1;
+            }
+        }
+        assert_eq!(u(&l["points"]), points, "markers[{i}]: points");
+        assert_eq!(
+            s(&l["points_sha256"]),
+            hex(&h.finalize()),
+            "markers[{i}]: sha256 of the points"
+        );
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+#[test]
+fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
+    if !cyclonedds_available() {
+        let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
+        assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
+        eprintln!("SKIPPED live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does: {why}");
+        return;
+    }
+    let root = env!("CARGO_MANIFEST_DIR");
+    let exe = env!("CARGO_BIN_EXE_chronotope");
+    let bag = Path::new(root).join(BAG);
+    let launch = Path::new(root).join(LAUNCH);
+    let dir = tempfile::tempdir().unwrap();
+    let t = Instant::now();
+
+    // Offline first: the reference.
+    let offline_bag = dir.path().join("offline.mcap");
+    let out = Command::new(exe)
+        .arg("replay")
+        .arg(&bag)
+        .arg("--launch")
+        .arg(&launch)
+        .arg("--out")
+        .arg(&offline_bag)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "chronotope replay failed\n{}\n{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let off = offline(&offline_bag);
+    assert_eq!(
+        off.reports.len(),
+        1,
+        "the offline replay publishes one report"
+    );
+    assert!(
+        !off.labels.is_empty(),
+        "the offline replay publishes labels"
+    );
+    let t_offline = t.elapsed();
+
+    // A domain of our own, so that parallel runs and other tests do not meet.
+    let domain = (150 + std::process::id() % 50).to_string();
+    let mut launch_child = KillOnDrop(
+        Some(
+            Command::new(exe)
+                .arg("launch")
+                .arg(&launch)
+                .args(["--duration", "45"])
+                .env("ROS_DOMAIN_ID", &domain)
+                .env("RUST_LOG", "warn")
+                .stdout(Stdio::null())
+                .stderr(Stdio::inherit())
+                .spawn()
+                .expect("chronotope launch starts"),
+        ),
+        "chronotope launch",
+    );
+
+    let json = dir.path().join("cyclone.json");
+    let markers = std::env::var_os("CHRONOTOPE_CYCLONE_NO_MARKERS").is_none();
+    let mut peer = Command::new("python3");
+    peer.arg(Path::new(root).join("tests/py/cyclone_peer.py"))
+        .arg("--bag")
+        .arg(&bag)
+        .arg("--out")
+        .arg(&json)
+        .args([
+            "--domain",
+            &domain,
+            "--match-timeout",
+            "15",
+            "--timeout",
+            "30",
+        ])
+        .env("ROS_DOMAIN_ID", &domain)
+        .stdout(Stdio::inherit())
+        .stderr(Stdio::inherit());
+    if markers {
+        // Markers (~1.1 MB each, hundreds of fragments) come last: wait for all of them.
+        peer.args([
+            "--markers",
+            "--expect-markers",
+            &off.markers.len().to_string(),
+        ]);
+    }
+    let mut peer = KillOnDrop(Some(peer.spawn().expect("python3 runs")), "cyclone_peer.py");
+    let deadline = Instant::now() + Duration::from_secs(60);
+    let status = loop {
+        let c = peer.0.as_mut().unwrap();
+        if let Some(st) = c.try_wait().unwrap() {
+            break st;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "cyclone_peer.py still running after 60 s"
+        );
+        if let Some(st) = launch_child.0.as_mut().unwrap().try_wait().unwrap() {
+            panic!("chronotope launch exited early ({st}) while the peer was running");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    peer.0 = None;
+    let t_live = t.elapsed() - t_offline;
+    // The nodes have answered (or not): no need to wait for --duration.
+    launch_child.stop();
+    assert!(
+        status.success(),
+        "cyclone_peer.py failed ({status}); see its message above"
+    );
+
+    let live: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(
+        live["reports"].as_array().map(Vec::len),
+        Some(1),
+        "one report over Cyclone"
+    );
+    compare_report(&live["report"], &off.reports[0]);
+    compare_labels(&live["labels"], &off.labels);
+    if markers {
+        compare_markers(&live["markers"], &off.markers);
+    }
+    eprintln!(
+        "cyclone test: domain {domain}; offline replay {:.1} s, live run {:.1} s (peer timing {}); \
+         report, {} labels{} equal",
+        t_offline.as_secs_f64(),
+        t_live.as_secs_f64(),
+        live["timing_s"],
+        off.labels.len(),
+        if markers {
+            format!(", {} marker arrays", off.markers.len())
+        } else {
+            String::new()
+        }
+    );
+}

@@ -1,0 +1,512 @@
+#!/usr/bin/env python3
+"""An independent DDS peer for the live nodes: Cyclone DDS (PyPI `cyclonedds`), no ROS.
+
+Plays the VoxelGrid frames of a rosbag2 MCAP bag onto the wire with their recorded timing
+and collects what the checker publishes (report, labels, optionally markers), then writes
+it as JSON.  Used by tests/cyclone.rs; DESIGN.md §9-§11.
+
+    python3 tests/py/cyclone_peer.py --bag BAG --out OUT.json [--domain N] [--rate R]
+                                     [--match-timeout S] [--timeout S]
+                                     [--markers [--expect-markers N | --markers-quiet S]]
+
+Domain: --domain, else ROS_DOMAIN_ID, else 0.  Discovery is loopback only (CYCLONEDDS_URI
+set here unless the environment already sets it; see CYCLONE_XML).
+
+Floats in the JSON are written as the hex of their IEEE-754 bit pattern (16 hex digits,
+big-endian, as `struct.pack(">d")`), so that a reader can compare them exactly; NaN stays
+NaN.  Exit status: 0 when the report, every label (two per reported pair) and, with
+--expect-markers N, N marker arrays arrived;
+1 (with the reason on stderr, and what did arrive still written) on timeout; 2 on bad use.
+"""
+
+
+import argparse
+import hashlib
+import json
+import os
+import struct
+import sys
+import time
+from dataclasses import dataclass
+
+# Loopback-only discovery.  RustDDS sends its SPDP announcements to the multicast group and
+# to the unicast discovery ports of participant indices on 127.0.0.1; Cyclone, with
+# multicast off, listens on the unicast discovery port of its own (auto) participant index
+# and sends its announcements to the ports of indices 0..MaxAutoParticipantIndex on each
+# peer.  Bigger receive buffers: markers arrive as hundreds of fragments (DESIGN.md §9).
+CYCLONE_XML = """<CycloneDDS><Domain id="any">
+  <General>
+    <Interfaces><NetworkInterface name="lo"/></Interfaces>
+    <AllowMulticast>false</AllowMulticast>
+  </General>
+  <Discovery>
+    <Peers><Peer address="127.0.0.1"/></Peers>
+    <ParticipantIndex>auto</ParticipantIndex>
+    <MaxAutoParticipantIndex>20</MaxAutoParticipantIndex>
+  </Discovery>
+  <Internal>
+    <SocketReceiveBufferSize min="default" max="8MB"/>
+  </Internal>
+</Domain></CycloneDDS>"""
+
+if "CYCLONEDDS_URI" not in os.environ:
+    os.environ["CYCLONEDDS_URI"] = CYCLONE_XML
+
+try:
+    from cyclonedds.core import Qos, Policy
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.idl import IdlStruct
+    from cyclonedds.idl.types import float32, float64, int32, sequence, uint8, uint32, uint64
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+except ImportError as e:  # pragma: no cover
+    print(f"cyclone_peer: cannot import cyclonedds ({e}); pip install -r tests/py/requirements.txt",
+          file=sys.stderr)
+    sys.exit(3)
+
+from mcap.reader import make_reader
+from mcap_ros2.decoder import DecoderFactory
+
+
+# ---- the types, field for field as the .msg files (msgs/msg, msgs/deps) ----------------
+# Default (final) IdlStruct: plain CDR (XCDR1), which RustDDS reads and writes.
+
+@dataclass
+class Time(IdlStruct, typename="builtin_interfaces::msg::dds_::Time_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+class Duration(IdlStruct, typename="builtin_interfaces::msg::dds_::Duration_"):
+    sec: int32
+    nanosec: uint32
+
+
+@dataclass
+class Header(IdlStruct, typename="std_msgs::msg::dds_::Header_"):
+    stamp: Time
+    frame_id: str
+
+
+@dataclass
+class ColorRGBA(IdlStruct, typename="std_msgs::msg::dds_::ColorRGBA_"):
+    r: float32
+    g: float32
+    b: float32
+    a: float32
+
+
+@dataclass
+class Point(IdlStruct, typename="geometry_msgs::msg::dds_::Point_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+class Vector3(IdlStruct, typename="geometry_msgs::msg::dds_::Vector3_"):
+    x: float64
+    y: float64
+    z: float64
+
+
+@dataclass
+class Quaternion(IdlStruct, typename="geometry_msgs::msg::dds_::Quaternion_"):
+    x: float64
+    y: float64
+    z: float64
+    w: float64
+
+
+@dataclass
+class Pose(IdlStruct, typename="geometry_msgs::msg::dds_::Pose_"):
+    position: Point
+    orientation: Quaternion
+
+
+@dataclass
+class CompressedImage(IdlStruct, typename="sensor_msgs::msg::dds_::CompressedImage_"):
+    header: Header
+    format: str
+    data: sequence[uint8]
+
+
+@dataclass
+class UVCoordinate(IdlStruct, typename="visualization_msgs::msg::dds_::UVCoordinate_"):
+    u: float32
+    v: float32
+
+
+@dataclass
+class MeshFile(IdlStruct, typename="visualization_msgs::msg::dds_::MeshFile_"):
+    filename: str
+    data: sequence[uint8]
+
+
+@dataclass
+class Marker(IdlStruct, typename="visualization_msgs::msg::dds_::Marker_"):
+    header: Header
+    ns: str
+    id: int32
+    type: int32
+    action: int32
+    pose: Pose
+    scale: Vector3
+    color: ColorRGBA
+    lifetime: Duration
+    frame_locked: bool
+    points: sequence[Point]
+    colors: sequence[ColorRGBA]
+    texture_resource: str
+    texture: CompressedImage
+    uv_coordinates: sequence[UVCoordinate]
+    text: str
+    mesh_resource: str
+    mesh_file: MeshFile
+    mesh_use_embedded_materials: bool
+
+
+@dataclass
+class MarkerArray(IdlStruct, typename="visualization_msgs::msg::dds_::MarkerArray_"):
+    markers: sequence[Marker]
+
+
+@dataclass
+class VoxelGrid(IdlStruct, typename="chronotope_msgs::msg::dds_::VoxelGrid_"):
+    header: Header
+    origin: Point
+    resolution: float64
+    size_x: uint32
+    size_y: uint32
+    size_z: uint32
+    encoding: uint8
+    data: sequence[uint8]
+
+
+@dataclass
+class BodySummary(IdlStruct, typename="chronotope_msgs::msg::dds_::BodySummary_"):
+    body_id: str
+    frames: uint64
+    skipped_frames: uint64
+    tets: uint64
+    vertices: uint64
+    closed: bool
+    hypervolume_m3s: float64
+    vanishing_slabs: uint64
+
+
+@dataclass
+class PairInterference(IdlStruct, typename="chronotope_msgs::msg::dds_::PairInterference_"):
+    body_a: str
+    body_b: str
+    interfering: bool
+    interval_start_s: sequence[float64]
+    interval_end_s: sequence[float64]
+    first_contact_s: float64
+    first_contact_error_bound_s: float64
+    closing_speed_mps: float64
+    overlap_hypervolume_m3s: float64
+    overlap_hypervolume_error_bound_m3s: float64
+    a_interference: uint64
+    a_inside: uint64
+    a_outside: uint64
+    b_interference: uint64
+    b_inside: uint64
+    b_outside: uint64
+
+
+@dataclass
+class InterferenceReport(IdlStruct, typename="chronotope_msgs::msg::dds_::InterferenceReport_"):
+    header: Header
+    time_origin: Time
+    time_scale_m_per_s: float64
+    voxel_size_m: float64
+    bodies: sequence[BodySummary]
+    pairs: sequence[PairInterference]
+
+
+@dataclass
+class TetLabels(IdlStruct, typename="chronotope_msgs::msg::dds_::TetLabels_"):
+    header: Header
+    body_id: str
+    other_id: str
+    labels: sequence[uint8]
+    interference: uint64
+    inside: uint64
+    outside: uint64
+
+
+# ---- helpers ----------------------------------------------------------------------------
+
+def log(msg: str) -> None:
+    print(f"cyclone_peer: {msg}", file=sys.stderr, flush=True)
+
+
+def fbits(x: float) -> str:
+    return struct.pack(">d", x).hex()
+
+
+def time_json(t) -> dict:
+    return {"sec": int(t.sec), "nanosec": int(t.nanosec)}
+
+
+def report_json(r: InterferenceReport) -> dict:
+    return {
+        "header": {"stamp": time_json(r.header.stamp), "frame_id": r.header.frame_id},
+        "time_origin": time_json(r.time_origin),
+        "time_scale_m_per_s": fbits(r.time_scale_m_per_s),
+        "voxel_size_m": fbits(r.voxel_size_m),
+        "bodies": [
+            {
+                "body_id": b.body_id,
+                "frames": int(b.frames),
+                "skipped_frames": int(b.skipped_frames),
+                "tets": int(b.tets),
+                "vertices": int(b.vertices),
+                "closed": bool(b.closed),
+                "hypervolume_m3s": fbits(b.hypervolume_m3s),
+                "vanishing_slabs": int(b.vanishing_slabs),
+            }
+            for b in r.bodies
+        ],
+        "pairs": [
+            {
+                "body_a": p.body_a,
+                "body_b": p.body_b,
+                "interfering": bool(p.interfering),
+                "interval_start_s": [fbits(x) for x in p.interval_start_s],
+                "interval_end_s": [fbits(x) for x in p.interval_end_s],
+                "first_contact_s": fbits(p.first_contact_s),
+                "first_contact_error_bound_s": fbits(p.first_contact_error_bound_s),
+                "closing_speed_mps": fbits(p.closing_speed_mps),
+                "overlap_hypervolume_m3s": fbits(p.overlap_hypervolume_m3s),
+                "overlap_hypervolume_error_bound_m3s": fbits(p.overlap_hypervolume_error_bound_m3s),
+                "a_interference": int(p.a_interference),
+                "a_inside": int(p.a_inside),
+                "a_outside": int(p.a_outside),
+                "b_interference": int(p.b_interference),
+                "b_inside": int(p.b_inside),
+                "b_outside": int(p.b_outside),
+            }
+            for p in r.pairs
+        ],
+    }
+
+
+def labels_json(l: TetLabels) -> dict:
+    data = bytes(l.labels)
+    return {
+        "header": {"stamp": time_json(l.header.stamp), "frame_id": l.header.frame_id},
+        "body_id": l.body_id,
+        "other_id": l.other_id,
+        "len": len(data),
+        "sha256": hashlib.sha256(data).hexdigest(),
+        "interference": int(l.interference),
+        "inside": int(l.inside),
+        "outside": int(l.outside),
+    }
+
+
+def markers_json(m: MarkerArray) -> dict:
+    """Marker count, [ns, id, type, action] of each, the points and a sha256 over every
+    point's x, y, z as little-endian float64, all markers in order."""
+    h = hashlib.sha256()
+    for k in m.markers:
+        for p in k.points:
+            h.update(struct.pack("<3d", p.x, p.y, p.z))
+    return {
+        "markers": len(m.markers),
+        "ids": [[k.ns, int(k.id), int(k.type), int(k.action)] for k in m.markers],
+        "points": sum(len(k.points) for k in m.markers),
+        "points_sha256": h.hexdigest(),
+    }
+
+
+def read_frames(bag: str) -> list[tuple[int, str, VoxelGrid]]:
+    """(log time ns, ROS topic, frame) of every VoxelGrid message, in log-time order."""
+    out = []
+    with open(bag, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for schema, channel, message, m in reader.iter_decoded_messages(log_time_order=True):
+            if schema is None or schema.name != "chronotope_msgs/msg/VoxelGrid":
+                continue
+            out.append((
+                message.log_time,
+                channel.topic,
+                VoxelGrid(
+                    header=Header(stamp=Time(sec=m.header.stamp.sec, nanosec=m.header.stamp.nanosec),
+                                  frame_id=m.header.frame_id),
+                    origin=Point(x=m.origin.x, y=m.origin.y, z=m.origin.z),
+                    resolution=m.resolution,
+                    size_x=m.size_x,
+                    size_y=m.size_y,
+                    size_z=m.size_z,
+                    encoding=m.encoding,
+                    data=list(bytes(m.data)),
+                ),
+            ))
+    return out
+
+
+def dds_topic(ros_topic: str) -> str:
+    return "rt/" + ros_topic.lstrip("/")
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bag", required=True, help="rosbag2 MCAP with VoxelGrid topics")
+    ap.add_argument("--out", required=True, help="JSON file to write what was received")
+    ap.add_argument("--domain", type=int, default=None, help="DDS domain (default ROS_DOMAIN_ID or 0)")
+    ap.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default 1)")
+    ap.add_argument("--match-timeout", type=float, default=15.0,
+                    help="seconds to wait for the nodes' readers and writers to match")
+    ap.add_argument("--timeout", type=float, default=30.0,
+                    help="seconds to wait, after the last frame, for the report and labels")
+    ap.add_argument("--markers", action="store_true",
+                    help="also subscribe to /checker/markers (MarkerArray, ~1 MB each: slow in Python)")
+    ap.add_argument("--markers-quiet", type=float, default=3.0,
+                    help="with --markers: after the results, take markers until none came for this long")
+    ap.add_argument("--expect-markers", type=int, default=None,
+                    help="with --markers: wait (within --timeout) for this many MarkerArray messages")
+    a = ap.parse_args()
+    if a.rate <= 0:
+        ap.error("--rate must be > 0")
+    domain = a.domain if a.domain is not None else int(os.environ.get("ROS_DOMAIN_ID") or 0)
+    t_start = time.monotonic()
+
+    frames = read_frames(a.bag)
+    if not frames:
+        log(f"no VoxelGrid messages in {a.bag}")
+        return 2
+    in_topics = sorted({t for _, t, _ in frames})
+    log(f"domain {domain}; {len(frames)} frames on {len(in_topics)} topics from {a.bag}")
+
+    dp = DomainParticipant(domain)
+    frame_qos = Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
+                    Policy.Durability.Volatile,
+                    Policy.History.KeepLast(16))
+    writers = {t: DataWriter(dp, Topic(dp, dds_topic(t), VoxelGrid), qos=frame_qos) for t in in_topics}
+
+    def latched_reader(topic: str, cls, depth: int) -> DataReader:
+        # The writers offer reliable + transient local; ask for the same (a late joiner
+        # still gets their last sample) with a reader history deep enough not to lose any.
+        qos = Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
+                  Policy.Durability.TransientLocal,
+                  Policy.History.KeepLast(depth))
+        return DataReader(dp, Topic(dp, topic, cls), qos=qos)
+
+    readers = {
+        "report": latched_reader("rt/checker/report", InterferenceReport, 8),
+        "labels": latched_reader("rt/checker/labels", TetLabels, 64),
+    }
+    if a.markers:
+        readers["markers"] = latched_reader("rt/checker/markers", MarkerArray, 256)
+
+    # Wait for the nodes: every frame writer has a matched reader and every result reader a
+    # matched writer (so that no frame and no result is published before the other side
+    # listens; the results are latched with depth 1, a late labels reader would see one).
+    deadline = time.monotonic() + a.match_timeout
+    while True:
+        missing = [f"reader of {t}" for t, w in writers.items() if not w.get_matched_subscriptions()]
+        missing += [f"writer of {n}" for n, r in readers.items() if not r.get_matched_publications()]
+        if not missing:
+            break
+        if time.monotonic() > deadline:
+            log(f"TIMEOUT after {a.match_timeout:.0f} s waiting for discovery/matching in domain "
+                f"{domain}: no {', '.join(missing)} (is `chronotope launch` running on this domain?)")
+            return 1
+        time.sleep(0.05)
+    t_matched = time.monotonic()
+    log(f"matched after {t_matched - t_start:.2f} s")
+
+    got_report: list = []
+    got_labels: list = []
+    got_markers: list = []
+
+    def drain() -> None:
+        for r in readers["report"].take(N=64):
+            got_report.append(r)
+        for l in readers["labels"].take(N=64):
+            got_labels.append(l)
+        if "markers" in readers:
+            for m in readers["markers"].take(N=64):
+                got_markers.append(markers_json(m))
+                got_markers[-1]["taken_s"] = round(time.monotonic() - t0, 3)
+
+    # Play with the recorded timing (log times), scaled by --rate.
+    t0_log = frames[0][0]
+    t0 = time.monotonic()
+    for log_ns, topic, msg in frames:
+        due = t0 + (log_ns - t0_log) / 1e9 / a.rate
+        while True:
+            now = time.monotonic()
+            if now >= due:
+                break
+            time.sleep(min(due - now, 0.01))
+        writers[topic].write(msg)
+        if "markers" in readers:
+            drain()
+    t_played = time.monotonic()
+    log(f"published {len(frames)} frames in {t_played - t0:.2f} s")
+
+    def complete() -> bool:
+        if not got_report:
+            return False
+        want = {(p.body_a, p.body_b) for p in got_report[-1].pairs}
+        want |= {(b, a_) for a_, b in want}
+        have = {(l.body_id, l.other_id) for l in got_labels}
+        if a.expect_markers is not None and len(got_markers) < a.expect_markers:
+            return False
+        return want <= have
+
+    deadline = time.monotonic() + a.timeout
+    while not complete() and time.monotonic() < deadline:
+        drain()
+        time.sleep(0.02)
+    ok = complete()
+    t_done = time.monotonic()
+    if ok and "markers" in readers and a.expect_markers is None:
+        # Markers precede the report; take what is still queued.
+        quiet = time.monotonic()
+        while time.monotonic() - quiet < a.markers_quiet:
+            n = len(got_markers)
+            drain()
+            if len(got_markers) != n:
+                quiet = time.monotonic()
+            time.sleep(0.02)
+
+    out = {
+        "domain": domain,
+        "float_encoding": "hex of IEEE-754 binary64 bits, big-endian",
+        "frames_published": len(frames),
+        "timing_s": {
+            "matched": round(t_matched - t_start, 3),
+            "played": round(t_played - t0, 3),
+            "results_after_last_frame": round(t_done - t_played, 3),
+        },
+        "reports": [report_json(r) for r in got_report],
+        "report": report_json(got_report[-1]) if got_report else None,
+        "labels": [labels_json(l) for l in got_labels],
+    }
+    if "markers" in readers:
+        out["markers"] = got_markers
+    with open(a.out, "w") as f:
+        json.dump(out, f, indent=1)
+        f.write("\n")
+    if not ok:
+        have = sorted({(l.body_id, l.other_id) for l in got_labels})
+        log(f"TIMEOUT after {a.timeout:.0f} s waiting for the results: "
+            f"{len(got_report)} report(s), labels for {have}"
+            + (f", {len(got_markers)} marker arrays" if "markers" in readers else "")
+            + f"; wrote what arrived to {a.out}")
+        return 1
+    log(f"got {len(got_report)} report(s), {len(got_labels)} labels"
+        + (f", {len(got_markers)} marker arrays" if "markers" in readers else "")
+        + f" {t_done - t_played:.2f} s after the last frame; wrote {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
