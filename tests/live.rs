@@ -92,17 +92,37 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
     let launch = Proc::start(
         "launch",
         &dom,
-        &["launch", cfg, "--duration", "12", "--summary", summary.to_str().unwrap()],
+        &[
+            "launch",
+            cfg,
+            "--duration",
+            "12",
+            "--summary",
+            summary.to_str().unwrap(),
+        ],
         &l_log,
     );
     let record = Proc::start(
         "record",
         &dom,
-        &["record", "--launch", cfg, "--out", rec.to_str().unwrap(), "--duration", "13"],
+        &[
+            "record",
+            "--launch",
+            cfg,
+            "--out",
+            rec.to_str().unwrap(),
+            "--duration",
+            "13",
+        ],
         &r_log,
     );
     std::thread::sleep(Duration::from_secs(2));
-    let play = Proc::start("play", &dom, &["play", bag.to_str().unwrap(), "--wait", "2"], &p_log);
+    let play = Proc::start(
+        "play",
+        &dom,
+        &["play", bag.to_str().unwrap(), "--wait", "2"],
+        &p_log,
+    );
     play.wait(&p_log);
     launch.wait(&l_log);
     record.wait(&r_log);
@@ -124,9 +144,17 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
     }
     // All streams ending together is the end of the run, not a stopped stream.
     let mesher = &live_summary["nodes"]["/mesher"];
-    assert!(mesher["problems"].get("stream_stopped").is_none(), "{live_summary}");
+    assert!(
+        mesher["problems"].get("stream_stopped").is_none(),
+        "{live_summary}"
+    );
     // Results published live are byte for byte those of the replay.
-    for topic in ["/checker/report", "/checker/labels", "/checker/suggestions", "/checker/markers"] {
+    for topic in [
+        "/checker/report",
+        "/checker/labels",
+        "/checker/suggestions",
+        "/checker/markers",
+    ] {
         let live = messages(&rec, topic);
         let off = messages(&offline, topic);
         assert!(!off.is_empty(), "{topic}: nothing offline");
@@ -200,14 +228,24 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
     let play = Proc::start(
         "play",
         &dom,
-        &["play", bag.to_str().unwrap(), "--wait", "2", "--rate", "0.2"],
+        &[
+            "play",
+            bag.to_str().unwrap(),
+            "--wait",
+            "2",
+            "--rate",
+            "0.2",
+        ],
         &p_log,
     );
     play.wait(&p_log);
     launch.wait(&l_log);
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    assert_eq!(s["transport"]["undecodable"]["/sphere_a/occupancy"], 1, "{s}");
+    assert_eq!(
+        s["transport"]["undecodable"]["/sphere_a/occupancy"], 1,
+        "{s}"
+    );
     let mesher = &s["nodes"]["/mesher"];
     assert_eq!(mesher["problems"]["stream_stopped"], 1, "{s}");
     let checker = &s["nodes"]["/checker"];

@@ -7,10 +7,10 @@ use std::fmt;
 use std::path::Path;
 
 use chronotope::msg::{
-    encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage, DiagnosticArray,
-    DiagnosticStatus, Duration, Header, KeyValue,
-    Marker, MarkerArray, MeshFile, MsgField, Point, PointCloud2, PointField, Pose, PoseStamped,
-    Quaternion, RosMessage, Time, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
+    encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage,
+    DiagnosticArray, DiagnosticStatus, Duration, Header, KeyValue, Marker, MarkerArray, MeshFile,
+    MsgField, Point, PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage, Time,
+    UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
 };
 use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;

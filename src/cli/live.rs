@@ -110,7 +110,10 @@ fn stop_on_signal() -> Arc<AtomicBool> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     std::thread::spawn(move || {
-        let Ok(rt) = tokio::runtime::Builder::new_current_thread().enable_all().build() else {
+        let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+        else {
             return;
         };
         rt.block_on(async {
@@ -139,14 +142,15 @@ fn seconds(what: &str, s: Option<f64>) -> Result<Option<Duration>, CliError> {
     match s {
         None => Ok(None),
         Some(v) if v.is_finite() && v > 0.0 && v < 1e9 => Ok(Some(Duration::from_secs_f64(v))),
-        Some(v) => Err(CliError::Usage(format!("--{what} {v}: not a positive number of seconds"))),
+        Some(v) => Err(CliError::Usage(format!(
+            "--{what} {v}: not a positive number of seconds"
+        ))),
     }
 }
 
 /// Runs the nodes of `config` named by `only` (all if `None`).
 fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<(), CliError> {
-    let (nodes, _) =
-        build_nodes(config, &[], false).map_err(|e| CliError::Usage(e.to_string()))?;
+    let (nodes, _) = build_nodes(config, &[], false).map_err(|e| CliError::Usage(e.to_string()))?;
     let wanted = |fqn: &str| {
         only.is_none_or(|n| fqn == n || fqn.rsplit('/').next() == Some(n.trim_start_matches('/')))
     };
@@ -229,7 +233,10 @@ pub fn node(a: &NodeArgs) -> Result<(), CliError> {
 /// The bag cannot be opened, bad options, or DDS cannot start.
 pub fn play(a: &PlayArgs) -> Result<(), CliError> {
     if !(a.rate.is_finite() && a.rate > 0.0) {
-        return Err(CliError::Usage(format!("--rate {}: not a positive factor", a.rate)));
+        return Err(CliError::Usage(format!(
+            "--rate {}: not a positive factor",
+            a.rate
+        )));
     }
     let stop = stop_on_signal();
     let participant = Participant::new(domain_id_from_env()?)?;
@@ -237,7 +244,11 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
     let clock = if a.no_clock {
         None
     } else {
-        Some(participant.writer("/clock", Clock::TYPE_NAME, TopicQos::for_type(Clock::TYPE_NAME))?)
+        Some(participant.writer(
+            "/clock",
+            Clock::TYPE_NAME,
+            TopicQos::for_type(Clock::TYPE_NAME),
+        )?)
     };
     // Writers are made from the bag's channels before the first message, so that readers
     // can match during the wait.
@@ -310,7 +321,10 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
 
 fn make_writer(p: &Participant, topic: &str, ty: &str, encoding: &str) -> Option<RawWriter> {
     if encoding != "cdr" || ty.is_empty() {
-        tracing::warn!(topic, "not played: encoding {encoding:?}, type {ty:?} (needs cdr with a type)");
+        tracing::warn!(
+            topic,
+            "not played: encoding {encoding:?}, type {ty:?} (needs cdr with a type)"
+        );
         return None;
     }
     match p.writer(topic, ty, TopicQos::for_type(ty)) {
@@ -348,11 +362,15 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
         let mut missing: BTreeSet<String> = a.topics.iter().cloned().collect();
         while !missing.is_empty() && Instant::now() < deadline {
             for d in participant.discovered_topics() {
-                let Some(t) = ros_topic_name(&d.0) else { continue };
+                let Some(t) = ros_topic_name(&d.0) else {
+                    continue;
+                };
                 if !missing.contains(t) {
                     continue;
                 }
-                let Some(ty) = ros_type_name(&d.1) else { continue };
+                let Some(ty) = ros_type_name(&d.1) else {
+                    continue;
+                };
                 let Some((known, _)) = Payload::schema_of(&ty) else {
                     return Err(CliError::Usage(format!(
                         "{t}: type {ty} is not one whose definition the suite has; cannot record it"
@@ -372,7 +390,9 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
         }
     }
     if topics.is_empty() {
-        return Err(CliError::Usage("nothing to record: name topics or --launch".into()));
+        return Err(CliError::Usage(
+            "nothing to record: name topics or --launch".into(),
+        ));
     }
     let mut writer = BagWriter::create(&a.out)?;
     let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, u64, RawCdr)>(1024);

@@ -132,7 +132,12 @@ impl Participant {
         self.dp.domain_id()
     }
 
-    fn topic(&self, ros_topic: &str, ros_type: &str, qos: TopicQos) -> Result<rustdds::Topic, LiveError> {
+    fn topic(
+        &self,
+        ros_topic: &str,
+        ros_type: &str,
+        qos: TopicQos,
+    ) -> Result<rustdds::Topic, LiveError> {
         let name = dds_topic_name(ros_topic);
         let mut topics = self.topics.lock().unwrap_or_else(|p| p.into_inner());
         if let Some(t) = topics.get(&name) {
@@ -140,7 +145,12 @@ impl Participant {
         }
         let t = self
             .dp
-            .create_topic(name.clone(), dds_type_name(ros_type), &qos.policies(), TopicKind::NoKey)
+            .create_topic(
+                name.clone(),
+                dds_type_name(ros_type),
+                &qos.policies(),
+                TopicKind::NoKey,
+            )
             .map_err(|e| e.to_string())
             .map_err(dds_err(format!("topic {ros_topic}")))?;
         topics.insert(name, t.clone());
@@ -151,7 +161,12 @@ impl Participant {
     ///
     /// # Errors
     /// RustDDS refuses (e.g. the topic exists with another type).
-    pub fn writer(&self, ros_topic: &str, ros_type: &str, qos: TopicQos) -> Result<RawWriter, LiveError> {
+    pub fn writer(
+        &self,
+        ros_topic: &str,
+        ros_type: &str,
+        qos: TopicQos,
+    ) -> Result<RawWriter, LiveError> {
         let t = self.topic(ros_topic, ros_type, qos)?;
         self.publisher
             .create_datawriter_no_key::<RawCdr, RawCdrAdapter>(&t, Some(qos.policies()))
@@ -163,7 +178,12 @@ impl Participant {
     ///
     /// # Errors
     /// RustDDS refuses.
-    pub fn reader(&self, ros_topic: &str, ros_type: &str, qos: TopicQos) -> Result<RawReader, LiveError> {
+    pub fn reader(
+        &self,
+        ros_topic: &str,
+        ros_type: &str,
+        qos: TopicQos,
+    ) -> Result<RawReader, LiveError> {
         let t = self.topic(ros_topic, ros_type, qos)?;
         self.subscriber
             .create_simple_datareader_no_key::<RawCdr, RawCdrAdapter>(&t, Some(qos.policies()))
@@ -293,13 +313,21 @@ pub struct TransportStatus {
     pub messages: Vec<String>,
 }
 
+/// What went wrong with a sample, for [`TransportStatus`].
+#[derive(Debug, Clone, Copy)]
+enum Fault {
+    Dropped,
+    Undecodable,
+    NotSent,
+}
+
 impl TransportStatus {
-    fn problem(&mut self, kind: &str, topic: &str, text: String) {
-        tracing::warn!(kind, topic, "{text}");
+    fn problem(&mut self, kind: Fault, topic: &str, text: String) {
+        tracing::warn!(?kind, topic, "{text}");
         let map = match kind {
-            "dropped" => &mut self.dropped,
-            "undecodable" => &mut self.undecodable,
-            _ => &mut self.send_errors,
+            Fault::Dropped => &mut self.dropped,
+            Fault::Undecodable => &mut self.undecodable,
+            Fault::NotSent => &mut self.send_errors,
         };
         *map.entry(topic.to_owned()).or_default() += 1;
         if self.messages.len() < NodeStatus::KEPT {
@@ -439,7 +467,11 @@ async fn read_topic(
             Ok(c) => c,
             Err(e) => {
                 let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
-                s.problem("undecodable", &topic, format!("{topic}: a sample could not be read: {e}"));
+                s.problem(
+                    Fault::Undecodable,
+                    &topic,
+                    format!("{topic}: a sample could not be read: {e}"),
+                );
                 continue;
             }
         };
@@ -454,7 +486,7 @@ async fn read_topic(
         }) {
             Ok(()) => {}
             Err(TrySendError::Full(_)) => s.problem(
-                "dropped",
+                Fault::Dropped,
                 &topic,
                 format!("{topic}: the nodes are behind (queue full): a sample was dropped"),
             ),
@@ -529,9 +561,12 @@ impl Pump {
             Err(e) => {
                 let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
                 st.problem(
-                    "undecodable",
+                    Fault::Undecodable,
                     &t.topic,
-                    format!("{}: a sample does not decode as {}: {e}", t.topic, t.type_name),
+                    format!(
+                        "{}: a sample does not decode as {}: {e}",
+                        t.topic, t.type_name
+                    ),
                 );
             }
         }
@@ -549,7 +584,11 @@ impl Pump {
         let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
         match r {
             Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
-            Err(e) => st.problem("send", &m.topic, format!("{}: not sent: {e}", m.topic)),
+            Err(e) => st.problem(
+                Fault::NotSent,
+                &m.topic,
+                format!("{}: not sent: {e}", m.topic),
+            ),
         }
     }
 
@@ -561,7 +600,11 @@ impl Pump {
             .into_iter()
             .map(|(name, s)| node_diagnostic(name, s))
             .collect();
-        let t = self.status.lock().unwrap_or_else(|p| p.into_inner()).clone();
+        let t = self
+            .status
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone();
         status.push(transport_diagnostic(&t));
         let msg = DiagnosticArray {
             header: Header {
@@ -588,7 +631,11 @@ impl Pump {
                 .into_iter()
                 .map(|(n, s)| (n.to_owned(), s.clone()))
                 .collect(),
-            transport: self.status.lock().unwrap_or_else(|p| p.into_inner()).clone(),
+            transport: self
+                .status
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .clone(),
         }
     }
 }
@@ -606,27 +653,37 @@ fn kv(key: impl Into<String>, value: impl ToString) -> KeyValue {
     }
 }
 
-/// A node's status as ROS diagnostics: WARN once it has counted a problem.
-pub fn node_diagnostic(name: &str, s: &NodeStatus) -> DiagnosticStatus {
-    let problems = s.problem_count();
-    let mut values = vec![kv("received", s.received), kv("published", s.published)];
-    values.extend(s.problems.iter().map(|(k, n)| kv(format!("problem.{k}"), n)));
-    values.extend(s.messages.last().map(|m| kv("last_problem", m)));
+/// A diagnostic status: OK, or WARN with `summary` once `problems` were counted.
+fn diagnostic(name: &str, problems: u64, summary: &str, values: Vec<KeyValue>) -> DiagnosticStatus {
+    let (level, message) = if problems == 0 {
+        (DiagnosticStatus::OK, "ok".to_owned())
+    } else {
+        (DiagnosticStatus::WARN, format!("{problems} {summary}"))
+    };
     DiagnosticStatus {
-        level: if problems == 0 {
-            DiagnosticStatus::OK
-        } else {
-            DiagnosticStatus::WARN
-        },
+        level,
         name: name.to_owned(),
-        message: if problems == 0 {
-            "ok".into()
-        } else {
-            format!("{problems} problem(s), counted and skipped")
-        },
+        message,
         hardware_id: String::new(),
         values,
     }
+}
+
+/// A node's status as ROS diagnostics: WARN once it has counted a problem.
+pub fn node_diagnostic(name: &str, s: &NodeStatus) -> DiagnosticStatus {
+    let mut values = vec![kv("received", s.received), kv("published", s.published)];
+    values.extend(
+        s.problems
+            .iter()
+            .map(|(k, n)| kv(format!("problem.{k}"), n)),
+    );
+    values.extend(s.messages.last().map(|m| kv("last_problem", m)));
+    diagnostic(
+        name,
+        s.problem_count(),
+        "problem(s), counted and skipped",
+        values,
+    )
 }
 
 fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
@@ -638,26 +695,20 @@ fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
         ("sent", &t.sent),
         ("send_errors", &t.send_errors),
     ] {
-        values.extend(map.iter().map(|(topic, n)| kv(format!("{kind}.{topic}"), n)));
+        values.extend(
+            map.iter()
+                .map(|(topic, n)| kv(format!("{kind}.{topic}"), n)),
+        );
     }
     let problems: u64 = [&t.dropped, &t.undecodable, &t.send_errors]
         .iter()
         .flat_map(|m| m.values())
         .sum();
     values.extend(t.messages.last().map(|m| kv("last_problem", m)));
-    DiagnosticStatus {
-        level: if problems == 0 {
-            DiagnosticStatus::OK
-        } else {
-            DiagnosticStatus::WARN
-        },
-        name: "chronotope/transport".into(),
-        message: if problems == 0 {
-            "ok".into()
-        } else {
-            format!("{problems} sample(s) dropped, undecodable or not sent")
-        },
-        hardware_id: String::new(),
+    diagnostic(
+        "chronotope/transport",
+        problems,
+        "sample(s) dropped, undecodable or not sent",
         values,
-    }
+    )
 }

@@ -15,8 +15,9 @@ pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
 };
 pub use std_types::{
-    Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus, Duration, KeyValue, Marker, MarkerArray, MeshFile, PointCloud2, PointField,
-    Pose, PoseStamped, Quaternion, UVCoordinate, Vector3, Wrench, WrenchStamped,
+    Clock, ColorRGBA, CompressedImage, DiagnosticArray, DiagnosticStatus, Duration, KeyValue,
+    Marker, MarkerArray, MeshFile, PointCloud2, PointField, Pose, PoseStamped, Quaternion,
+    UVCoordinate, Vector3, Wrench, WrenchStamped,
 };
 pub use suite::{
     BodySummary, InterferenceReport, MeshSlab, PairInterference, ResolveSuggestion,

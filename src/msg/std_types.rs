@@ -631,11 +631,7 @@ impl DiagnosticStatus {
     pub const STALE: u8 = 3;
 }
 
-ros_message!(
-    DiagnosticStatus,
-    defs::DIAGNOSTIC_STATUS,
-    [defs::KEY_VALUE]
-);
+ros_message!(DiagnosticStatus, defs::DIAGNOSTIC_STATUS, [defs::KEY_VALUE]);
 
 /// `diagnostic_msgs/msg/DiagnosticArray`: the statuses of several components at one time,
 /// published on `/diagnostics` by convention.

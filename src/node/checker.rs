@@ -196,7 +196,11 @@ impl CheckerNode {
                 "{}: the mesh starts again after {} piece(s){}; the earlier pieces are dropped",
                 s.body_id,
                 b.next_index,
-                if b.ended { "" } else { " without a closing cap (a restarted mesher?)" }
+                if b.ended {
+                    ""
+                } else {
+                    " without a closing cap (a restarted mesher?)"
+                }
             );
             self.status.problem(&self.fqn, "stream_restarted", why);
             *b = Body {
@@ -255,7 +259,10 @@ impl CheckerNode {
     fn body_meshes(&mut self) -> BTreeMap<String, BodyMesh> {
         let mut out = BTreeMap::new();
         let bodies = std::mem::take(&mut self.bodies);
-        self.bodies = bodies.keys().map(|k| (k.clone(), Body::default())).collect();
+        self.bodies = bodies
+            .keys()
+            .map(|k| (k.clone(), Body::default()))
+            .collect();
         for (id, b) in bodies {
             let mut frames: Vec<OccupancyGrid> = Vec::with_capacity(b.stamps_ns.len());
             let mut frame_map = b.frames;

@@ -212,11 +212,15 @@ impl MesherNode {
             return;
         };
         if b.closed {
-            tracing::info!(node = self.fqn, "{topic}: frames again after going idle: a new stream");
+            tracing::info!(
+                node = self.fqn,
+                "{topic}: frames again after going idle: a new stream"
+            );
             match Body::new(self.opts) {
                 Ok(fresh) => b = fresh,
                 Err(e) => {
-                    self.status.problem(&self.fqn, "frame_refused", format!("{topic}: {e}"));
+                    self.status
+                        .problem(&self.fqn, "frame_refused", format!("{topic}: {e}"));
                     self.bodies.insert(topic.to_owned(), b);
                     return;
                 }
@@ -462,7 +466,9 @@ impl Node for MesherNode {
             }
         }
         let idle = |b: &Body| {
-            !b.closed && b.last_seen_ns.is_some_and(|t| now_ns - t > self.idle_timeout_ns)
+            !b.closed
+                && b.last_seen_ns
+                    .is_some_and(|t| now_ns - t > self.idle_timeout_ns)
         };
         let stopped: Vec<String> = self
             .bodies
@@ -483,8 +489,7 @@ impl Node for MesherNode {
             .into_iter()
             .map(|t| {
                 let seen = self.bodies[&t].last_seen_ns.unwrap_or(now_ns);
-                let others_go_on =
-                    latest(&t).is_some_and(|l| l > seen + self.idle_timeout_ns / 2);
+                let others_go_on = latest(&t).is_some_and(|l| l > seen + self.idle_timeout_ns / 2);
                 (t, others_go_on)
             })
             .collect();
