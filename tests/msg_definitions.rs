@@ -757,9 +757,23 @@ fn std_types_constants_match() {
     assert_eq!(field_type(Marker::DEFINITION, "type"), "int32");
     assert_eq!(field_type(Marker::DEFINITION, "action"), "int32");
     assert_eq!(field_type(PointField::DEFINITION, "datatype"), "uint8");
+    // `byte` in the .msg is a `u8` in Rust.
+    let levels: Vec<(String, String, String)> = rust_constants!(DiagnosticStatus:
+        OK, WARN, ERROR, STALE,
+    )
+    .into_iter()
+    .map(|(ty, name, value)| (ty.replace("uint8", "byte"), name, value))
+    .collect();
+    assert_eq!(msg_constants(DiagnosticStatus::DEFINITION), levels);
+    assert_eq!(field_type(DiagnosticStatus::DEFINITION, "level"), "byte");
     // The other types have none.
+    let with_constants = [
+        Marker::TYPE_NAME,
+        PointField::TYPE_NAME,
+        DiagnosticStatus::TYPE_NAME,
+    ];
     for message in std_messages() {
-        if message.name != Marker::TYPE_NAME && message.name != PointField::TYPE_NAME {
+        if !with_constants.contains(&message.name) {
             assert_eq!(msg_constants(message.definition), [], "{}", message.name);
         }
     }
