@@ -559,17 +559,29 @@ fn map_normals(normals: &[[i32; 4]], mul: [i64; 4], out: &mut Vec<[i32; 4]>) {
 
 /// `n` as `i32`, divided by the gcd of its components if it does not fit as it is (only
 /// the direction matters), or [`NO_NORMAL`].
+#[inline]
 fn normal_in_i32(n: [i128; 4]) -> [i32; 4] {
-    let fit = |v: i128| i32::try_from(v).ok().filter(|&v| v != i32::MIN);
-    if let [Some(a), Some(b), Some(c), Some(d)] = n.map(fit) {
+    if let [Some(a), Some(b), Some(c), Some(d)] = n.map(fit_i32) {
         return [a, b, c, d];
     }
+    reduced_normal(n)
+}
+
+/// `v` as `i32` unless it is out of range or `i32::MIN` (the [`NO_NORMAL`] marker).
+#[inline]
+fn fit_i32(v: i128) -> Option<i32> {
+    i32::try_from(v).ok().filter(|&v| v != i32::MIN)
+}
+
+/// [`normal_in_i32`] for a normal that does not fit as it is (fine lattices).
+#[cold]
+fn reduced_normal(n: [i128; 4]) -> [i32; 4] {
     // Only the direction matters: divide by the gcd so that fine lattices fit too.
     let g = n
         .iter()
         .fold(0u128, |g, &c| gcd(g, c.unsigned_abs()))
         .max(1) as i128;
-    match n.map(|v| fit(v / g)) {
+    match n.map(|v| fit_i32(v / g)) {
         [Some(a), Some(b), Some(c), Some(d)] => [a, b, c, d],
         _ => NO_NORMAL,
     }
@@ -600,10 +612,11 @@ fn strictly_beyond(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -
     if *n == NO_NORMAL {
         return false;
     }
+    // Checker coordinates lie within ±2^30, so each term n_k·(x_k − p_k) is below 2^62
+    // and a sum of two below 2^63: i64 products, one i128 addition.
     let side = |x: &LatticePoint| -> i128 {
-        (0..4)
-            .map(|k| i128::from(n[k]) * (i128::from(x[k]) - i128::from(p[0][k])))
-            .sum()
+        let term = |k: usize| i64::from(n[k]) * (i64::from(x[k]) - i64::from(p[0][k]));
+        i128::from(term(0) + term(1)) + i128::from(term(2) + term(3))
     };
     let s = q.map(|x| side(&x).signum());
     s[0] != 0 && s.iter().all(|&v| v == s[0])
