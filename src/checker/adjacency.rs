@@ -57,13 +57,12 @@ pub fn face_adjacency(mesh: &TetMesh) -> Vec<[u32; 4]> {
                 if key == SEEN {
                     continue;
                 }
-                let mut partner = None;
-                let mut count = 1;
-                for j in i + 1..keys.len() {
-                    if keys[j] == key {
+                let (mut partner, mut count) = (None, 1);
+                for (j, other) in keys.iter_mut().enumerate().skip(i + 1) {
+                    if *other == key {
                         partner = Some(j);
                         count += 1;
-                        keys[j] = SEEN;
+                        *other = SEEN;
                     }
                 }
                 if let (Some(j), 2) = (partner, count) {

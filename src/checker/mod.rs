@@ -605,21 +605,31 @@ fn gcd64(mut a: u64, mut b: u64) -> u64 {
     a
 }
 
-/// True if tet `q` lies strictly on one side of the hyperplane of tet `p` (normal `n`):
-/// the closed tets are disjoint. Exact (i128); false when `n` is unknown or zero.
+/// The sides (signs −1, 0, 1) of the vertices of tet `q` with respect to the hyperplane
+/// of tet `p` (normal `n`), exactly; `None` when `n` is [`NO_NORMAL`]. All zero for a
+/// flat `p` (zero normal).
 #[inline]
-fn strictly_beyond(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -> bool {
+fn sides(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -> Option<[i8; 4]> {
     if *n == NO_NORMAL {
-        return false;
+        return None;
     }
     // Checker coordinates lie within ±2^30, so each term n_k·(x_k − p_k) is below 2^62
     // and a sum of two below 2^63: i64 products, one i128 addition.
-    let side = |x: &LatticePoint| -> i128 {
+    let side = |x: &LatticePoint| {
         let term = |k: usize| i64::from(n[k]) * (i64::from(x[k]) - i64::from(p[0][k]));
-        i128::from(term(0) + term(1)) + i128::from(term(2) + term(3))
+        (i128::from(term(0) + term(1)) + i128::from(term(2) + term(3))).signum() as i8
     };
-    let s = q.map(|x| side(&x).signum());
+    Some(q.map(|x| side(&x)))
+}
+
+/// All vertices strictly on one side: the closed tets are disjoint.
+fn strictly_one_side(s: &[i8; 4]) -> bool {
     s[0] != 0 && s.iter().all(|&v| v == s[0])
+}
+
+/// Vertices strictly on both sides.
+fn straddles(s: &[i8; 4]) -> bool {
+    s.contains(&1) && s.contains(&-1)
 }
 
 /// One worker's share of a pair check.
@@ -803,14 +813,25 @@ fn visit(a: &Prepared, b: &Prepared, i: u32, j: u32, part: &mut Part) {
     part.candidate_pairs += 1;
     let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
     // Most candidates lie strictly on one side of the other's hyperplane.
-    if strictly_beyond(&a.normals[i as usize], &ta, &tb)
-        || strictly_beyond(&b.normals[j as usize], &tb, &ta)
-    {
+    let sides_of_b = sides(&a.normals[i as usize], &ta, &tb);
+    if sides_of_b.is_some_and(|s| strictly_one_side(&s)) {
+        return;
+    }
+    let sides_of_a = sides(&b.normals[j as usize], &tb, &ta);
+    if sides_of_a.is_some_and(|s| strictly_one_side(&s)) {
         return;
     }
     let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
     // Whether the pair merely touches matters only to a tet not yet known to touch.
     let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
+    // Unless both straddle the other's hyperplane (they may cross) or B lies in A's
+    // hyperplane (coplanar, or A flat), the pair can at most touch: what classify_if
+    // would call Disjoint when touching does not matter.
+    if let (false, Some(sb), Some(sa)) = (touching_matters, sides_of_b, sides_of_a) {
+        if sb != [0; 4] && !(straddles(&sb) && straddles(&sa)) {
+            return;
+        }
+    }
     // Where the two tets meet in time: their section polygon for a crossing; for a
     // coplanar overlap, within both time ranges.
     let (range, touch) = match classify_if(&ta, &tb, touching_matters) {
