@@ -179,7 +179,7 @@ impl<'a> Placement<'a> {
 
     /// The source mapped by x_k → mul_k·x_k + add_k on each axis (every `mul_k > 0`): the
     /// tree's boxes are mapped, not rebuilt (an increasing map keeps every containment),
-    /// and the normals follow the cofactor rule (see [`map_normals`]). `None` if some
+    /// and the normals follow the cofactor rule (N'_k = N_k · Π_{j≠k} mul_j). `None` if some
     /// `mul_k` is not positive or a coordinate would leave ±2^30 (the exact predicates'
     /// far points must fit), never clamped; the copy is then unusable until the next
     /// successful placement.
@@ -532,7 +532,7 @@ where
 /// The normals of tets mapped by x_k → mul_k·x_k + add_k (every `mul_k > 0`), written to
 /// `out`. The edge vectors scale by diag(mul), so each minor without coordinate k scales by
 /// the product of the other three: N'_k = N_k · Π_{j≠k} mul_j (the cofactor rule). Only
-/// the direction matters to [`strictly_beyond`], so the weights are divided by their gcd;
+/// the direction matters to the side tests of the walk, so the weights are divided by their gcd;
 /// the signs are exact, with no minors recomputed.
 fn map_normals(normals: &[[i32; 4]], mul: [i64; 4], out: &mut Vec<[i32; 4]>) {
     let others = |k: usize| {

@@ -18,7 +18,11 @@
 //!   fraction p/64 (rounded away from 1) and verified exactly on a lattice refined 64 times.
 //!
 //! Ray distances are measurements in floating point; every verdict comes from the exact
-//! checker.
+//! checker. Speed: each search places one copy of the body again and again
+//! ([`Placement`]: no allocation after the first), and a candidate that does not clear is
+//! usually refuted by a witness, a sample tet that was inside the other body and whose
+//! moved interior point still is (one exact ray, [`mapped_tet_inside`]); a clear verdict
+//! always comes from the full check.
 
 use super::inclusion::Inclusion;
 use super::labels::Label;
