@@ -4,6 +4,7 @@
 
 use crate::checker::bounds;
 use crate::checker::labels::LabelCounts;
+pub use crate::checker::par_map;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{check_pair, CheckError, CommonLattice, PairResult, Prepared};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
@@ -423,41 +424,6 @@ pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> O
     };
     let bound = bounds::hypervolume_bound(&body.mesh, &ga, period);
     Some((body.stats.hypervolume_m3s, bound))
-}
-
-/// `f(0..n)` computed on all available cores, results in index order.
-pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |t| t.get())
-        .min(n.max(1));
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
-    let done: Vec<Vec<(usize, T)>> = std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut mine = Vec::new();
-                    loop {
-                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if k >= n {
-                            break mine;
-                        }
-                        mine.push((k, f(k)));
-                    }
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .map(|w| w.join().expect("worker panicked"))
-            .collect()
-    });
-    for (k, v) in done.into_iter().flatten() {
-        out[k] = Some(v);
-    }
-    out.into_iter()
-        .map(|v| v.expect("every index computed"))
-        .collect()
 }
 
 fn pair_report(

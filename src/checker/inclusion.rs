@@ -5,7 +5,7 @@
 //! another far point or another point.
 
 use crate::kernel::bvh::{Bvh, TraverseWorkspace};
-use crate::kernel::{orient4_i128, LatticePoint};
+use crate::kernel::{orient4_i128, tets_intersect, LatticePoint};
 use crate::mesh::TetMesh;
 
 /// Far points are the mesh box's max corner plus one of these (distinct, skew directions).
@@ -87,6 +87,42 @@ fn touch_or_no(p: &LatticePoint, q: &LatticePoint, t: &[LatticePoint; 4]) -> Cro
     }
 }
 
+/// Whether `p`, on the hyperplane of `t`, lies in the closed tet. Dropping a coordinate
+/// in which the hyperplane's normal is non-zero (a non-zero 3D orientation of the dropped
+/// tet) maps the hyperplane onto R^3 one to one, where p lies in the tet iff it is on the
+/// inner side of, or on, each face: exact in `i128`. A flat tet takes the general test.
+fn in_tet_on_hyperplane(p: &LatticePoint, t: &[LatticePoint; 4]) -> bool {
+    for k in 0..4 {
+        let drop = |x: &LatticePoint| {
+            let mut out = [0i128; 3];
+            for (o, j) in out.iter_mut().zip((0..4).filter(|&j| j != k)) {
+                *o = i128::from(x[j]);
+            }
+            out
+        };
+        let q = t.map(|v| drop(&v));
+        let o = orient3(&q).signum();
+        if o == 0 {
+            continue;
+        }
+        let pk = drop(p);
+        return (0..4).all(|i| {
+            let mut r = q;
+            r[i] = pk;
+            orient3(&r).signum() * o >= 0
+        });
+    }
+    tets_intersect(&[*p; 4], t)
+}
+
+/// det[b − a, c − a, d − a] of a 3D tet with `i32` coordinates (below 2^99: exact).
+fn orient3(t: &[[i128; 3]; 4]) -> i128 {
+    let e = [1, 2, 3].map(|i| [0, 1, 2].map(|k| t[i][k] - t[0][k]));
+    e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1])
+        - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0])
+        + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0])
+}
+
 impl<'a> Inclusion<'a> {
     /// Queries against `mesh`, whose BVH over its tets is `bvh`.
     pub fn new(mesh: &'a TetMesh, bvh: &'a Bvh) -> Self {
@@ -103,8 +139,29 @@ impl<'a> Inclusion<'a> {
 
     /// `Some(true)` if `p` is inside, `Some(false)` outside, `None` if every far point met a
     /// degenerate configuration (p on or very near-aligned with the boundary).
+    ///
+    /// A point on the boundary is answered `None` at once: a segment from it crosses the
+    /// hyperplane of a tet holding it at that very point, inside the closed tet, which is
+    /// degenerate towards every far point (contact tets face to face with the other body
+    /// have many such points, and each would otherwise cost six long segments).
     pub fn contains(&mut self, p: &LatticePoint) -> Option<bool> {
+        if self.on_boundary(p) {
+            return None;
+        }
         (0..FAR_POINTS).find_map(|k| self.contains_towards(p, k))
+    }
+
+    /// Whether `p` lies in a closed tet of the mesh (exact).
+    fn on_boundary(&mut self, p: &LatticePoint) -> bool {
+        let wide = p.map(i64::from);
+        self.hits.clear();
+        let hits = &mut self.hits;
+        self.bvh
+            .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
+        self.hits.iter().any(|&i| {
+            let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
+            orient4_i128([&t[0], &t[1], &t[2], &t[3], p]) == 0 && in_tet_on_hyperplane(p, &t)
+        })
     }
 
     /// The signed count towards far point `k`, or `None` if degenerate.

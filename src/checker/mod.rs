@@ -100,8 +100,8 @@ pub struct Prepared {
     pub mesh: TetMesh,
     /// Tree over the tets.
     pub bvh: Bvh,
-    /// Face adjacency.
-    pub adjacency: Vec<[u32; 4]>,
+    /// Face adjacency (shared by the body's placed copies, see [`Placement`]).
+    pub adjacency: std::sync::Arc<[[u32; 4]]>,
     /// A normal of each tet's hyperplane ([`NO_NORMAL`] if it does not fit `i32`): a cheap
     /// exact first test of candidate pairs.
     pub normals: Vec<[i32; 4]>,
@@ -128,47 +128,113 @@ impl Prepared {
         out
     }
 
-    /// The same body translated by a lattice vector (see [`Prepared::mapped`]).
-    pub fn translated(&self, v: [i64; 4]) -> Option<Prepared> {
-        self.mapped([1; 4], v)
+    /// The same body mapped by x_k → mul_k·x_k + add_k on each axis (`mul_k > 0`: a
+    /// translation, a refinement of the lattice, a time scaling); see [`Placement::place`].
+    /// `None` if a coordinate would leave ±2^30, never clamped.
+    pub fn mapped(&self, mul: [i64; 4], add: [i64; 4]) -> Option<Prepared> {
+        let mut placement = Placement::new(self);
+        placement.place(mul, add)?;
+        Some(placement.body)
+    }
+}
+
+/// A prepared body and one copy of it that is placed again and again by axis maps (the
+/// candidate moves of a resolution search): each placement rewrites the copy's
+/// coordinates, tree boxes and normals from the source in the copy's own buffers, so after
+/// the first one nothing is allocated (fresh allocations of this size cost more in page
+/// faults than the mapping itself). Tets, adjacency and leaf order are the source's.
+#[derive(Debug)]
+pub struct Placement<'a> {
+    source: &'a Prepared,
+    body: Prepared,
+}
+
+impl<'a> Placement<'a> {
+    /// A copy of `source` to place: its topology now, its coordinates, boxes and normals
+    /// at the first placement.
+    pub fn new(source: &'a Prepared) -> Self {
+        Self {
+            source,
+            body: Prepared {
+                id: source.id.clone(),
+                mesh: TetMesh {
+                    vertices: Vec::new(),
+                    tets: source.mesh.tets.clone(),
+                },
+                bvh: Bvh::new(),
+                adjacency: source.adjacency.clone(),
+                normals: Vec::new(),
+                factor: source.factor,
+                geometry: source.geometry,
+                stamps_ns: source.stamps_ns.clone(),
+                original: source.original.clone(),
+            },
+        }
     }
 
-    /// The same body mapped by x_k → mul_k·x_k + add_k on each axis (`mul_k > 0`: a
-    /// translation, a refinement of the lattice, a time scaling): the tree's boxes are
-    /// mapped, not rebuilt; adjacency is kept, normals recomputed. `None` if a coordinate
-    /// would leave ±2^30 (the exact predicates' far points must fit), never clamped.
-    pub fn mapped(&self, mul: [i64; 4], add: [i64; 4]) -> Option<Prepared> {
-        let mut mesh = self.mesh.clone();
-        for p in &mut mesh.vertices {
-            for k in 0..4 {
-                let c = i64::from(p[k]).checked_mul(mul[k])?.checked_add(add[k])?;
-                if c.abs() >= 1 << 30 {
-                    return None;
-                }
-                p[k] = c as i32;
-            }
-        }
-        let mut bvh = self.bvh.clone();
-        if !bvh.map_axes(mul, add) {
+    /// The body as prepared, before any placement.
+    pub fn source(&self) -> &'a Prepared {
+        self.source
+    }
+
+    /// The source mapped by x_k → mul_k·x_k + add_k on each axis (every `mul_k > 0`): the
+    /// tree's boxes are mapped, not rebuilt (an increasing map keeps every containment),
+    /// and the normals follow the cofactor rule (N'_k = N_k · Π_{j≠k} mul_j). `None` if some
+    /// `mul_k` is not positive or a coordinate would leave ±2^30 (the exact predicates'
+    /// far points must fit), never clamped; the copy is then unusable until the next
+    /// successful placement.
+    pub fn place(&mut self, mul: [i64; 4], add: [i64; 4]) -> Option<&Prepared> {
+        if mul.iter().any(|&m| m <= 0) {
             return None;
         }
-        let normals = if mul == [1; 4] {
-            self.normals.clone()
-        } else {
-            tet_normals(&mesh)
-        };
-        Some(Prepared {
-            id: self.id.clone(),
-            mesh,
-            bvh,
-            adjacency: self.adjacency.clone(),
-            normals,
-            factor: self.factor,
-            geometry: self.geometry,
-            stamps_ns: self.stamps_ns.clone(),
-            original: self.original.clone(),
-        })
+        let (src, body) = (self.source, &mut self.body);
+        body.mesh.vertices.clear();
+        for p in &src.mesh.vertices {
+            body.mesh.vertices.push(map_point(p, mul, add)?);
+        }
+        if !body.bvh.map_axes_from(&src.bvh, mul, add) {
+            return None;
+        }
+        map_normals(&src.normals, mul, &mut body.normals);
+        Some(&self.body)
     }
+}
+
+/// `p` mapped by x_k → mul_k·x_k + add_k, or `None` if a coordinate would leave ±2^30.
+fn map_point(p: &LatticePoint, mul: [i64; 4], add: [i64; 4]) -> Option<LatticePoint> {
+    let mut out = [0; 4];
+    for k in 0..4 {
+        let c = i64::from(p[k]).checked_mul(mul[k])?.checked_add(add[k])?;
+        if c.abs() >= 1 << 30 {
+            return None;
+        }
+        out[k] = c as i32;
+    }
+    Some(out)
+}
+
+/// Whether tet `t` of `a`, mapped by x_k → mul_k·x_k + add_k, has its first interior
+/// point strictly inside the body that `other` tests against (a decided crossing count,
+/// exact). Then `a` so mapped interferes with that body: a boundary point of one body in
+/// the other's interior makes their interiors overlap, and [`interferes`] finds it (that
+/// tet is labelled INSIDE or INTERFERENCE; should every point of its region be undecided
+/// there, the witness is the truer of the two). A cheap exact proof that a candidate move
+/// fails, needing neither the moved body's tree nor a walk.
+pub fn mapped_tet_inside(
+    a: &Prepared,
+    t: u32,
+    mul: [i64; 4],
+    add: [i64; 4],
+    other: &mut Inclusion,
+) -> bool {
+    let mut tet = tet_of(&a.mesh, t);
+    for p in &mut tet {
+        match map_point(p, mul, add) {
+            Some(q) => *p = q,
+            None => return false,
+        }
+    }
+    other.contains(&interior_point(&tet, &INTERIOR_WEIGHTS[0])) == Some(true)
 }
 
 /// The common lattice of a set of bodies.
@@ -308,7 +374,7 @@ impl CommonLattice {
         // Tets in leaf order: the walks read them in memory order.
         let order = bvh.renumber_in_leaf_order();
         mesh.tets = order.iter().map(|&t| mesh.tets[t as usize]).collect();
-        let adjacency = face_adjacency(&mesh);
+        let adjacency = face_adjacency(&mesh).into();
         Ok(Prepared {
             id: id.to_string(),
             normals: tet_normals(&mesh),
@@ -428,34 +494,97 @@ fn tet_normals(m: &TetMesh) -> Vec<[i32; 4]> {
     m.tets
         .iter()
         .map(|t| {
-            let p = t.map(|v| m.vertices[v as usize].map(i128::from));
+            let p = t.map(|v| m.vertices[v as usize].map(i64::from));
             let e = [1, 2, 3].map(|i| [0, 1, 2, 3].map(|k| p[i][k] - p[0][k]));
-            let minor = |c: [usize; 3]| {
-                e[0][c[0]] * (e[1][c[1]] * e[2][c[2]] - e[1][c[2]] * e[2][c[1]])
-                    - e[0][c[1]] * (e[1][c[0]] * e[2][c[2]] - e[1][c[2]] * e[2][c[0]])
-                    + e[0][c[2]] * (e[1][c[0]] * e[2][c[1]] - e[1][c[1]] * e[2][c[0]])
-            };
-            let n = [
-                minor([1, 2, 3]),
-                -minor([0, 2, 3]),
-                minor([0, 1, 3]),
-                -minor([0, 1, 2]),
-            ];
-            let fit = |v: i128| i32::try_from(v).ok().filter(|&v| v != i32::MIN);
-            if let [Some(a), Some(b), Some(c), Some(d)] = n.map(fit) {
-                return [a, b, c, d];
-            }
-            // Only the direction matters: divide by the gcd so that fine lattices fit too.
-            let g = n
-                .iter()
-                .fold(0u128, |g, &c| gcd(g, c.unsigned_abs()))
-                .max(1) as i128;
-            match n.map(|v| fit(v / g)) {
-                [Some(a), Some(b), Some(c), Some(d)] => [a, b, c, d],
-                _ => NO_NORMAL,
+            // Edges below 2^20 keep the minors' six triple products below 2^63: i64 is
+            // exact there (every voxel-sized tet); longer ones take i128.
+            if e.iter().flatten().all(|c| c.abs() < 1 << 20) {
+                normal_in_i32(edge_minors(e).map(i128::from))
+            } else {
+                normal_in_i32(edge_minors(e.map(|r| r.map(i128::from))))
             }
         })
         .collect()
+}
+
+/// The signed 3×3 minors (−1)^k det(edges without coordinate k) of three edge vectors.
+fn edge_minors<T>(e: [[T; 4]; 3]) -> [T; 4]
+where
+    T: Copy
+        + std::ops::Mul<Output = T>
+        + std::ops::Sub<Output = T>
+        + std::ops::Add<Output = T>
+        + std::ops::Neg<Output = T>,
+{
+    let minor = |c: [usize; 3]| {
+        e[0][c[0]] * (e[1][c[1]] * e[2][c[2]] - e[1][c[2]] * e[2][c[1]])
+            - e[0][c[1]] * (e[1][c[0]] * e[2][c[2]] - e[1][c[2]] * e[2][c[0]])
+            + e[0][c[2]] * (e[1][c[0]] * e[2][c[1]] - e[1][c[1]] * e[2][c[0]])
+    };
+    [
+        minor([1, 2, 3]),
+        -minor([0, 2, 3]),
+        minor([0, 1, 3]),
+        -minor([0, 1, 2]),
+    ]
+}
+
+/// The normals of tets mapped by x_k → mul_k·x_k + add_k (every `mul_k > 0`), written to
+/// `out`. The edge vectors scale by diag(mul), so each minor without coordinate k scales by
+/// the product of the other three: N'_k = N_k · Π_{j≠k} mul_j (the cofactor rule). Only
+/// the direction matters to the side tests of the walk, so the weights are divided by their gcd;
+/// the signs are exact, with no minors recomputed.
+fn map_normals(normals: &[[i32; 4]], mul: [i64; 4], out: &mut Vec<[i32; 4]>) {
+    let others = |k: usize| {
+        (0..4)
+            .filter(|&j| j != k)
+            .map(|j| i128::from(mul[j]))
+            .product::<i128>()
+    };
+    let weight = [0, 1, 2, 3].map(others);
+    let g = weight
+        .iter()
+        .fold(0u128, |g, &w| gcd(g, w.unsigned_abs()))
+        .max(1) as i128;
+    let weight = weight.map(|w| w / g);
+    out.clear();
+    out.extend(normals.iter().map(|n| {
+        if *n == NO_NORMAL {
+            NO_NORMAL
+        } else {
+            normal_in_i32([0, 1, 2, 3].map(|k| i128::from(n[k]) * weight[k]))
+        }
+    }));
+}
+
+/// `n` as `i32`, divided by the gcd of its components if it does not fit as it is (only
+/// the direction matters), or [`NO_NORMAL`].
+#[inline]
+fn normal_in_i32(n: [i128; 4]) -> [i32; 4] {
+    if let [Some(a), Some(b), Some(c), Some(d)] = n.map(fit_i32) {
+        return [a, b, c, d];
+    }
+    reduced_normal(n)
+}
+
+/// `v` as `i32` unless it is out of range or `i32::MIN` (the [`NO_NORMAL`] marker).
+#[inline]
+fn fit_i32(v: i128) -> Option<i32> {
+    i32::try_from(v).ok().filter(|&v| v != i32::MIN)
+}
+
+/// [`normal_in_i32`] for a normal that does not fit as it is (fine lattices).
+#[cold]
+fn reduced_normal(n: [i128; 4]) -> [i32; 4] {
+    // Only the direction matters: divide by the gcd so that fine lattices fit too.
+    let g = n
+        .iter()
+        .fold(0u128, |g, &c| gcd(g, c.unsigned_abs()))
+        .max(1) as i128;
+    match n.map(|v| fit_i32(v / g)) {
+        [Some(a), Some(b), Some(c), Some(d)] => [a, b, c, d],
+        _ => NO_NORMAL,
+    }
 }
 
 fn gcd(mut a: u128, mut b: u128) -> u128 {
@@ -476,20 +605,31 @@ fn gcd64(mut a: u64, mut b: u64) -> u64 {
     a
 }
 
-/// True if tet `q` lies strictly on one side of the hyperplane of tet `p` (normal `n`):
-/// the closed tets are disjoint. Exact (i128); false when `n` is unknown or zero.
+/// The sides (signs −1, 0, 1) of the vertices of tet `q` with respect to the hyperplane
+/// of tet `p` (normal `n`), exactly; `None` when `n` is [`NO_NORMAL`]. All zero for a
+/// flat `p` (zero normal).
 #[inline]
-fn strictly_beyond(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -> bool {
+fn sides(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) -> Option<[i8; 4]> {
     if *n == NO_NORMAL {
-        return false;
+        return None;
     }
-    let side = |x: &LatticePoint| -> i128 {
-        (0..4)
-            .map(|k| i128::from(n[k]) * (i128::from(x[k]) - i128::from(p[0][k])))
-            .sum()
+    // Checker coordinates lie within ±2^30, so each term n_k·(x_k − p_k) is below 2^62
+    // and a sum of two below 2^63: i64 products, one i128 addition.
+    let side = |x: &LatticePoint| {
+        let term = |k: usize| i64::from(n[k]) * (i64::from(x[k]) - i64::from(p[0][k]));
+        (i128::from(term(0) + term(1)) + i128::from(term(2) + term(3))).signum() as i8
     };
-    let s = q.map(|x| side(&x).signum());
+    Some(q.map(|x| side(&x)))
+}
+
+/// All vertices strictly on one side: the closed tets are disjoint.
+fn strictly_one_side(s: &[i8; 4]) -> bool {
     s[0] != 0 && s.iter().all(|&v| v == s[0])
+}
+
+/// Vertices strictly on both sides.
+fn straddles(s: &[i8; 4]) -> bool {
+    s.contains(&1) && s.contains(&-1)
 }
 
 /// One worker's share of a pair check.
@@ -673,14 +813,25 @@ fn visit(a: &Prepared, b: &Prepared, i: u32, j: u32, part: &mut Part) {
     part.candidate_pairs += 1;
     let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
     // Most candidates lie strictly on one side of the other's hyperplane.
-    if strictly_beyond(&a.normals[i as usize], &ta, &tb)
-        || strictly_beyond(&b.normals[j as usize], &tb, &ta)
-    {
+    let sides_of_b = sides(&a.normals[i as usize], &ta, &tb);
+    if sides_of_b.is_some_and(|s| strictly_one_side(&s)) {
+        return;
+    }
+    let sides_of_a = sides(&b.normals[j as usize], &tb, &ta);
+    if sides_of_a.is_some_and(|s| strictly_one_side(&s)) {
         return;
     }
     let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
     // Whether the pair merely touches matters only to a tet not yet known to touch.
     let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
+    // Unless both straddle the other's hyperplane (they may cross) or B lies in A's
+    // hyperplane (coplanar, or A flat), the pair can at most touch: what classify_if
+    // would call Disjoint when touching does not matter.
+    if let (false, Some(sb), Some(sa)) = (touching_matters, sides_of_b, sides_of_a) {
+        if sb != [0; 4] && !(straddles(&sb) && straddles(&sa)) {
+            return;
+        }
+    }
     // Where the two tets meet in time: their section polygon for a crossing; for a
     // coplanar overlap, within both time ranges.
     let (range, touch) = match classify_if(&ta, &tb, touching_matters) {
@@ -721,6 +872,12 @@ fn label_against(p: &Prepared, other: &Prepared, hit: &[Touch]) -> Labeling {
     label_regions(&p.adjacency, hit, &mut test)
 }
 
+/// Interior point (w·tet)/8 of a tet for weights `w` of [`INTERIOR_WEIGHTS`]: checker
+/// coordinates are ×8 (and stay so under positive axis maps), so it is a lattice point.
+fn interior_point(tet: &[LatticePoint; 4], w: &[i64; 4]) -> LatticePoint {
+    [0, 1, 2, 3].map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32)
+}
+
 /// Inclusion tests of one body's tets against the other body.
 struct TetInside<'a> {
     mesh: &'a TetMesh,
@@ -728,10 +885,8 @@ struct TetInside<'a> {
 }
 
 impl TetInside<'_> {
-    /// Interior point `w` of tet `t`: coordinates are ×8, so (w·tet)/8 is a lattice point.
     fn interior(&self, t: u32, w: &[i64; 4]) -> LatticePoint {
-        let tet = tet_of(self.mesh, t);
-        [0, 1, 2, 3].map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32)
+        interior_point(&tet_of(self.mesh, t), w)
     }
 }
 
@@ -756,6 +911,41 @@ impl labels::InsideTest for TetInside<'_> {
     fn point(&self, t: u32) -> LatticePoint {
         self.interior(t, &INTERIOR_WEIGHTS[0])
     }
+}
+
+/// `f(0..n)` computed on all available cores, results in index order.
+pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(n.max(1));
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
+    let done: Vec<Vec<(usize, T)>> = std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let mut mine = Vec::new();
+                    loop {
+                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        if k >= n {
+                            break mine;
+                        }
+                        mine.push((k, f(k)));
+                    }
+                })
+            })
+            .collect();
+        workers
+            .into_iter()
+            .map(|w| w.join().expect("worker panicked"))
+            .collect()
+    });
+    for (k, v) in done.into_iter().flatten() {
+        out[k] = Some(v);
+    }
+    out.into_iter()
+        .map(|v| v.expect("every index computed"))
+        .collect()
 }
 
 /// Sorts closed ranges and merges those that overlap or touch.

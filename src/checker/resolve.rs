@@ -18,10 +18,17 @@
 //!   fraction p/64 (rounded away from 1) and verified exactly on a lattice refined 64 times.
 //!
 //! Ray distances are measurements in floating point; every verdict comes from the exact
-//! checker.
+//! checker. Speed: each search places one copy of the body again and again
+//! ([`Placement`]: no allocation after the first), and a candidate that does not clear is
+//! usually refuted by a witness, a sample tet that was inside the other body and whose
+//! moved interior point still is (one exact ray, [`mapped_tet_inside`]); a clear verdict
+//! always comes from the full check.
 
+use super::inclusion::Inclusion;
 use super::labels::Label;
-use super::{interferes, tet_of, CommonLattice, PairResult, Prepared};
+use super::{
+    interferes, mapped_tet_inside, par_map, tet_of, CommonLattice, PairResult, Placement, Prepared,
+};
 use crate::kernel::bvh::TraverseWorkspace;
 use crate::kernel::LatticePoint;
 
@@ -159,9 +166,21 @@ fn inside_tet(t: &[LatticePoint; 4], n: &V4, x: &V4) -> bool {
     })
 }
 
-/// Sample points of `a` that lie inside `b` (odd crossing count along `dir`), with the
-/// distance (in units of `dir`) to where each ray first leaves `b`: the largest of these.
-fn exit_distance(a: &Prepared, r: &PairResult, b: &Prepared, dir: &V4) -> Option<(f64, V4)> {
+/// A sample point of `a` (the centroid of one of its tets) that lies inside another body
+/// (odd crossing count along a ray), and how far along the ray it first leaves that body.
+#[derive(Debug, Clone, Copy)]
+struct Exit {
+    /// The tet of `a`.
+    tet: u32,
+    /// Its centroid (checker coordinates).
+    point: V4,
+    /// Distance to the exit, in units of the ray's direction.
+    distance: f64,
+}
+
+/// The sample points of `a` inside `b` (up to [`MAX_SAMPLES`] of its INSIDE and
+/// INTERFERENCE tets) with their exits along `dir`, in sample order.
+fn exits(a: &Prepared, r: &PairResult, b: &Prepared, dir: &V4) -> Vec<Exit> {
     let cand: Vec<usize> = r
         .labels_a
         .labels
@@ -170,21 +189,65 @@ fn exit_distance(a: &Prepared, r: &PairResult, b: &Prepared, dir: &V4) -> Option
         .filter(|(_, l)| **l != Label::Outside)
         .map(|(i, _)| i)
         .collect();
-    if cand.is_empty() {
-        return None;
-    }
     let step = (cand.len() / MAX_SAMPLES).max(1);
     let mut ws = TraverseWorkspace::new();
     let mut hits = Vec::new();
-    let mut best: Option<(f64, V4)> = None;
+    let mut out = Vec::new();
     for &i in cand.iter().step_by(step) {
-        let p = centroid(&tet_of(&a.mesh, i as u32));
-        let xs = ray_crossings(&p, dir, b, &mut ws, &mut hits);
-        if xs.len() % 2 == 1 && best.is_none_or(|(d, _)| xs[0] > d) {
-            best = Some((xs[0], p));
+        let point = centroid(&tet_of(&a.mesh, i as u32));
+        let xs = ray_crossings(&point, dir, b, &mut ws, &mut hits);
+        if xs.len() % 2 == 1 {
+            out.push(Exit {
+                tet: i as u32,
+                point,
+                distance: xs[0],
+            });
         }
     }
-    best
+    out
+}
+
+/// The farthest exit (the first one among equals).
+fn farthest(exits: &[Exit]) -> Option<Exit> {
+    exits
+        .iter()
+        .copied()
+        .fold(None, |best: Option<Exit>, e| match best {
+            Some(b) if e.distance <= b.distance => Some(b),
+            _ => Some(e),
+        })
+}
+
+/// How many sample tets are tried as witnesses before a candidate move is verified in full.
+const WITNESSES: usize = 8;
+
+/// Whether a candidate move of `a` (x_k → mul_k·x_k + add_k) clears every body of
+/// `others`, exactly. Before the full check ([`clears`]), up to [`WITNESSES`] of `likely`
+/// (sample tets with the body they were inside, most likely still inside first) are tested
+/// with [`mapped_tet_inside`]: one inside proves the move fails at the cost of a ray, with
+/// neither a walk nor labels. A clear verdict always comes from the full check.
+fn verified_clear(
+    placement: &mut Placement,
+    others: &[&Prepared],
+    likely: &[(u32, usize)],
+    mul: [i64; 4],
+    add: [i64; 4],
+) -> bool {
+    let a = placement.source();
+    let mut tests: Vec<Inclusion> = others
+        .iter()
+        .map(|b| Inclusion::new(&b.mesh, &b.bvh))
+        .collect();
+    if likely
+        .iter()
+        .take(WITNESSES)
+        .any(|&(t, i)| mapped_tet_inside(a, t, mul, add, &mut tests[i]))
+    {
+        return false;
+    }
+    placement
+        .place(mul, add)
+        .is_some_and(|moved| clears(moved, others))
 }
 
 /// The gradient of the overlap hypervolume with respect to translating `a`, in the
@@ -261,29 +324,47 @@ pub fn suggest_translation(
     } else {
         axes("axis fallback", &mut directions);
     }
-    let mut best: Option<(f64, V4, &'static str)> = None;
-    for (u, how) in directions {
+    // Exits along each direction, on all cores (independent ray casts).
+    let per_direction = par_map(directions.len(), |n| {
         // Move λ along dir_lattice = u/σ: the metric displacement is λ·u, |u| = 1.
-        let dir: V4 = [0, 1, 2, 3].map(|k| u[k] / m.sigma[k]);
-        let mut d = 0.0f64;
-        for &i in &hits {
-            if let Some((e, _)) = exit_distance(a, results[i], others[i], &dir) {
-                d = d.max(e);
-            }
-        }
-        if d > 0.0 && best.is_none_or(|(bd, _, _)| d < bd) {
-            best = Some((d, u, how));
+        let dir: V4 = [0, 1, 2, 3].map(|k| directions[n].0[k] / m.sigma[k]);
+        hits.iter()
+            .map(|&i| (i, exits(a, results[i], others[i], &dir)))
+            .collect::<Vec<_>>()
+    });
+    let mut best: Option<(f64, usize)> = None;
+    for (n, per_pair) in per_direction.iter().enumerate() {
+        let d = per_pair
+            .iter()
+            .filter_map(|(_, e)| farthest(e))
+            .fold(0.0f64, |d, e| d.max(e.distance));
+        if d > 0.0 && best.is_none_or(|(bd, _)| d < bd) {
+            best = Some((d, n));
         }
     }
-    let (d, u, how) = best?;
+    let (d, n) = best?;
+    let (u, how) = directions[n];
+    // Witnesses for a move of length `len`: the samples whose exit lies beyond `len`,
+    // farthest first (they stay inside longest).
+    let mut likely: Vec<(f64, u32, usize)> = per_direction[n]
+        .iter()
+        .flat_map(|(i, e)| e.iter().map(move |e| (e.distance, e.tet, *i)))
+        .collect();
+    likely.sort_by(|x, y| y.0.total_cmp(&x.0));
+    let mut placement = Placement::new(a);
     // Place the body at metric length `len` along u (snapped to the lattice, each component
     // rounded away from zero) and verify exactly.
-    let place = |len: f64| {
+    let mut place = |len: f64| {
         let v: [i64; 4] = [0, 1, 2, 3].map(|k| {
             let x = len * u[k] / m.sigma[k];
             (x.abs().ceil() * x.signum()) as i64
         });
-        let ok = a.translated(v).is_some_and(|moved| clears(&moved, others));
+        let witnesses: Vec<(u32, usize)> = likely
+            .iter()
+            .take_while(|w| w.0 > len)
+            .map(|w| (w.1, w.2))
+            .collect();
+        let ok = verified_clear(&mut placement, others, &witnesses, [1; 4], v);
         let dist = (0..4)
             .map(|k| (v[k] as f64 * m.sigma[k]).powi(2))
             .sum::<f64>()
@@ -346,12 +427,14 @@ pub fn suggest_time_scaling(
     let g = overlap_gradient(a, results);
     let sign = if g[3] > 0.0 { -1.0 } else { 1.0 };
     let dir = [0.0, 0.0, 0.0, sign];
+    let per_pair: Vec<(usize, Vec<Exit>)> = hits
+        .iter()
+        .map(|&i| (i, exits(a, results[i], others[i], &dir)))
+        .collect();
     let mut far: Option<(f64, V4)> = None;
-    for &i in &hits {
-        if let Some((e, p)) = exit_distance(a, results[i], others[i], &dir) {
-            if far.is_none_or(|(d, _)| e > d) {
-                far = Some((e, p));
-            }
+    for e in per_pair.iter().filter_map(|(_, e)| farthest(e)) {
+        if far.is_none_or(|(d, _)| e.distance > d) {
+            far = Some((e.distance, e.point));
         }
     }
     let (d, p) = far?;
@@ -380,10 +463,24 @@ pub fn suggest_time_scaling(
     if !(s.is_finite() && s > 0.0) {
         return None;
     }
+    // Witnesses for a scale s: the samples that eqs. (1)-(2) would clear only with a
+    // scale above s (the ray's exit reached at that scale), largest first.
+    let mut likely: Vec<(f64, u32, usize)> = per_pair
+        .iter()
+        .flat_map(|(i, e)| {
+            e.iter().map(move |e| {
+                let (ta, tb) = (e.point[3], e.point[3] + sign * e.distance);
+                ((tb - t0 as f64) / (ta - t0 as f64), e.tet, *i)
+            })
+        })
+        .collect();
+    likely.sort_by(|x, y| y.0.total_cmp(&x.0));
     // s = p/Q with Q = 64, rounded away from 1; the others are refined once.
     const Q: i64 = 64;
-    let refined_others: Vec<Option<Prepared>> =
-        others.iter().map(|b| refined(b, Q, Q, 0)).collect();
+    let refined_others: Option<Vec<Prepared>> =
+        others.iter().map(|b| b.mapped([Q; 4], [0; 4])).collect();
+    let refined_refs: Option<Vec<&Prepared>> = refined_others.as_ref().map(|r| r.iter().collect());
+    let mut placement = Placement::new(a);
     let mut out = None;
     for _ in 0..=GROWTH_STEPS {
         let p = if s >= 1.0 {
@@ -392,7 +489,21 @@ pub fn suggest_time_scaling(
             (s * Q as f64).floor()
         }
         .max(1.0) as i64;
-        let ok = scaled_clears(a, &refined_others, t0, p, Q);
+        let witnesses: Vec<(u32, usize)> = likely
+            .iter()
+            .take_while(|w| w.0 > p as f64 / Q as f64)
+            .map(|w| (w.1, w.2))
+            .collect();
+        // Times become Q·t0 + p·(t − t0) on the lattice refined Q times: t_s = t0 + s (t − t0).
+        let ok = refined_refs.as_ref().is_some_and(|others| {
+            verified_clear(
+                &mut placement,
+                others,
+                &witnesses,
+                [Q, Q, Q, p],
+                [0, 0, 0, Q * t0 - p * t0],
+            )
+        });
         out = Some(TimeScaling {
             t0,
             scale: p as f64 / Q as f64,
@@ -404,22 +515,4 @@ pub fn suggest_time_scaling(
         s = if s >= 1.0 { s * 1.1 } else { s / 1.1 };
     }
     out
-}
-
-/// `m` on a lattice refined `q` times, its times t mapped to `tmul`·t + `tadd` (None if
-/// a coordinate would not fit).
-fn refined(m: &Prepared, q: i64, tmul: i64, tadd: i64) -> Option<Prepared> {
-    m.mapped([q, q, q, tmul], [0, 0, 0, tadd])
-}
-
-/// Checks `a` with time scaled by p/q about t0 against `others` (already refined `q`
-/// times), exactly: a's coordinates are multiplied by q, and its times become
-/// q·t0 + p·(t − t0).
-fn scaled_clears(a: &Prepared, others: &[Option<Prepared>], t0: i64, p: i64, q: i64) -> bool {
-    let Some(sa) = refined(a, q, p, q * t0 - p * t0) else {
-        return false;
-    };
-    others
-        .iter()
-        .all(|b| b.as_ref().is_some_and(|b| !interferes(&sa, b)))
 }

@@ -260,31 +260,30 @@ impl Bvh {
     ) -> Result<(), BvhError> {
         self.clear();
         check_count(tets.len())?;
+        // Indices are checked in one pass first, so that the box loop has no error path.
+        let bad = tets.iter().enumerate().find_map(|(t, tet)| {
+            tet.iter()
+                .find(|&&v| v as usize >= vertices.len())
+                .map(|&v| (t, v))
+        });
+        if let Some((tet, vertex)) = bad {
+            return Err(BvhError::VertexOutOfRange {
+                tet,
+                vertex,
+                vertices: vertices.len(),
+            });
+        }
         let mut boxes = std::mem::take(&mut self.scratch.tet_boxes);
         boxes.clear();
-        let mut bad = None;
-        let mut centres = CentreBounds::EMPTY;
-        boxes.extend(tets.iter().enumerate().map(|(t, tet)| {
-            let mut b = Aabb4::EMPTY;
-            for &v in tet {
-                match vertices.get(v as usize) {
-                    Some(p) => b.grow(p),
-                    None => {
-                        bad.get_or_insert(BvhError::VertexOutOfRange {
-                            tet: t,
-                            vertex: v,
-                            vertices: vertices.len(),
-                        });
-                    }
-                }
+        boxes.extend(tets.iter().map(|tet| {
+            let mut b = Aabb4::from_point(vertices[tet[0] as usize]);
+            for &v in &tet[1..] {
+                b.grow(&vertices[v as usize]);
             }
-            centres.add(&b);
             b
         }));
-        let result = match bad {
-            Some(e) => Err(e),
-            None => self.build_with(&boxes, centres),
-        };
+        let centres = CentreBounds::of(boxes.iter());
+        let result = self.build_with(&boxes, centres);
         self.scratch.tet_boxes = boxes;
         result
     }

@@ -184,12 +184,13 @@ impl Bvh {
         old
     }
 
-    /// Maps every box by x_k → mul_k·x_k + add_k on each axis, as the tree of the same items
-    /// mapped alike (with every `mul_k > 0` the map is increasing on each axis, so it maps
-    /// each box onto the box of the mapped items and keeps every containment: the tree
-    /// stays valid). Empty boxes stay empty. `false`, with the tree unchanged, if some `mul_k`
-    /// is not positive or a coordinate would leave the `i32` range.
-    pub fn map_axes(&mut self, mul: [i64; 4], add: [i64; 4]) -> bool {
+    /// Becomes the tree of `src`'s items mapped by x_k → mul_k·x_k + add_k on each axis,
+    /// reusing this tree's buffers (placing a body again and again allocates nothing).
+    /// With every `mul_k > 0` the map is increasing on each axis, so it maps each box onto
+    /// the box of the mapped items and keeps every containment: the mapped tree is valid
+    /// without a rebuild. Empty boxes stay empty. `false`, with this tree unchanged, if
+    /// some `mul_k` is not positive or a coordinate would leave the `i32` range.
+    pub fn map_axes_from(&mut self, src: &Bvh, mul: [i64; 4], add: [i64; 4]) -> bool {
         if mul.iter().any(|&m| m <= 0) {
             return false;
         }
@@ -198,20 +199,28 @@ impl Bvh {
             b.is_empty() || (0..4).all(|k| map(k, b.min[k]).is_some() && map(k, b.max[k]).is_some())
         };
         // The root box bounds every other box: checking it checks them all.
-        if !self.nodes.first().is_none_or(|n| fits(&n.aabb)) {
+        if !src.nodes.first().is_none_or(|n| fits(&n.aabb)) {
             return false;
         }
-        let apply = |b: &mut Aabb4| {
+        let apply = |b: &Aabb4| {
             if b.is_empty() {
-                return;
+                return *b;
             }
+            let mut m = *b;
             for k in 0..4 {
-                b.min[k] = map(k, b.min[k]).unwrap_or(b.min[k]);
-                b.max[k] = map(k, b.max[k]).unwrap_or(b.max[k]);
+                m.min[k] = map(k, b.min[k]).unwrap_or(b.min[k]);
+                m.max[k] = map(k, b.max[k]).unwrap_or(b.max[k]);
             }
+            m
         };
-        self.nodes.iter_mut().for_each(|n| apply(&mut n.aabb));
-        self.leaf_boxes.iter_mut().for_each(apply);
+        self.nodes.clear();
+        self.nodes.extend(src.nodes.iter().map(|n| Node {
+            aabb: apply(&n.aabb),
+            ..*n
+        }));
+        self.leaf_boxes.clear();
+        self.leaf_boxes.extend(src.leaf_boxes.iter().map(apply));
+        self.order.clone_from(&src.order);
         true
     }
 

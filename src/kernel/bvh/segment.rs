@@ -24,6 +24,28 @@ pub(crate) struct LineQuery {
     hi: [i64; 4],
     /// Ray (`s` in `[0, ∞)`) rather than segment (`s` in `[0, 1]`).
     ray: bool,
+    /// `p` and 1/d in floating point for the filter of [`LineQuery::hits`], if every
+    /// coordinate of `p` and `d` is below 2^50 in magnitude (then each box distance
+    /// `min − p` and each `d` is exact in `f64`).
+    float: Option<([f64; 4], [f64; 4])>,
+}
+
+/// Below this magnitude the filter's inputs are exact in `f64`.
+const FLOAT_EXACT: i128 = 1 << 50;
+
+/// Relative margin of the filter: each slab parameter (min − p)·(1/d) carries two
+/// roundings, within 2.2e-16 each, so 1e-12 leaves room to spare.
+const FLOAT_MARGIN: f64 = 1e-12;
+
+/// `p` and 1/d as `f64` for the filter, if all are below [`FLOAT_EXACT`] in magnitude.
+fn float_parts(p: &[i64; 4], d: &[i128; 4]) -> Option<([f64; 4], [f64; 4])> {
+    let small = (0..4).all(|k| i128::from(p[k]).abs() < FLOAT_EXACT && d[k].abs() < FLOAT_EXACT);
+    small.then(|| {
+        (
+            p.map(|c| c as f64),
+            d.map(|c| if c == 0 { 0.0 } else { 1.0 / c as f64 }),
+        )
+    })
 }
 
 /// `a/b` compared to `c/e`, for `b, e > 0` and `|a|, |c|, b, e < 2^64`.
@@ -46,12 +68,14 @@ impl LineQuery {
             lo: [0; 4],
             hi: [0; 4],
             ray: false,
+            float: None,
         };
         for k in 0..4 {
             s.d[k] = i128::from(q[k]) - i128::from(p[k]);
             s.lo[k] = p[k].min(q[k]);
             s.hi[k] = p[k].max(q[k]);
         }
+        s.float = float_parts(&p, &s.d);
         s
     }
 
@@ -59,12 +83,14 @@ impl LineQuery {
     pub(crate) fn ray(p: [i64; 4], d: [i64; 4]) -> Self {
         let bound =
             |k: usize, inf: i64, dir: Ordering| if d[k].cmp(&0) == dir { inf } else { p[k] };
+        let d = d.map(i128::from);
         Self {
             p,
-            d: d.map(i128::from),
+            d,
             lo: [0, 1, 2, 3].map(|k| bound(k, i64::MIN, Ordering::Less)),
             hi: [0, 1, 2, 3].map(|k| bound(k, i64::MAX, Ordering::Greater)),
             ray: true,
+            float: float_parts(&p, &d),
         }
     }
 
@@ -78,6 +104,42 @@ impl LineQuery {
         if !inside {
             return false;
         }
+        if let Some(verdict) = self.float_verdict(b) {
+            return verdict;
+        }
+        self.exact_hits(b)
+    }
+
+    /// The slab test in floating point, or `None` where it is too close to call. Each
+    /// computed parameter is within a relative [`FLOAT_MARGIN`] of the exact one and the
+    /// clamp to 0 is exact, so the running lower end `l` (≥ 0) and upper end `h` are too
+    /// (a negative `h` has the exact sign): `h < 0` or `l > h·(1 + margin)` is a miss,
+    /// `l·(1 + margin) < h` a hit, anything else goes to the exact test.
+    #[inline]
+    fn float_verdict(&self, b: &Aabb4) -> Option<bool> {
+        let (p, inv) = self.float?;
+        let (mut l, mut h) = (0.0f64, if self.ray { f64::INFINITY } else { 1.0 });
+        for k in 0..4 {
+            if self.d[k] == 0 {
+                continue;
+            }
+            let s0 = (f64::from(b.min[k]) - p[k]) * inv[k];
+            let s1 = (f64::from(b.max[k]) - p[k]) * inv[k];
+            let (near, far) = if inv[k] > 0.0 { (s0, s1) } else { (s1, s0) };
+            l = l.max(near);
+            h = h.min(far);
+        }
+        if h < 0.0 || l > h * (1.0 + FLOAT_MARGIN) {
+            Some(false)
+        } else if l * (1.0 + FLOAT_MARGIN) < h {
+            Some(true)
+        } else {
+            None
+        }
+    }
+
+    /// The slab test in exact arithmetic.
+    fn exact_hits(&self, b: &Aabb4) -> bool {
         // Running max of the lower ends and min of the upper ends, as fractions.
         let (mut ln, mut ld) = (0i128, 1u128);
         let (mut hn, mut hd, mut h_inf) = (1i128, 1u128, self.ray);

@@ -319,11 +319,51 @@ fn meets_in_hyperplane<T: Exact>(
     if count == 0 {
         return false;
     }
+    let t3 = t.map(|x| drop(&x));
+    // Most such pairs are told apart by their boxes in the hyperplane (exact, closed).
+    let apart = (0..3).any(|k| {
+        let (tlo, thi) = (t3.iter().map(|p| p[k]).min(), t3.iter().map(|p| p[k]).max());
+        let (zlo, zhi) = (
+            z[..count].iter().map(|p| p[k]).min(),
+            z[..count].iter().map(|p| p[k]).max(),
+        );
+        thi < zlo || zhi < tlo
+    });
+    if apart {
+        return false;
+    }
+    if count == 1 {
+        if let Some(inside) = point_in_tet_3d(&z[0], &t3) {
+            return inside;
+        }
+    }
     // Pad with the last point: a repeated vertex adds only zero axes, which never separate.
     for j in count..4 {
         z[j] = z[count - 1];
     }
-    separating_axes(&t.map(|x| drop(&x)), &z, 3, false)
+    separating_axes(&t3, &z, 3, false)
+}
+
+/// Whether `p` lies in the closed 3D tet `t` (first three coordinates): on the inner
+/// side of, or on, each face, as the sign of the tet's orientation with that face's
+/// opposite vertex replaced by `p`. `None` for a flat `t`.
+fn point_in_tet_3d<T: Exact>(p: &V4<T>, t: &[V4<T>; 4]) -> Option<bool> {
+    let orient = |q: &[V4<T>; 4]| {
+        let e = [1, 2, 3].map(|i| sub4(&q[i], &q[0]));
+        sign(
+            e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1])
+                - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0])
+                + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0]),
+        )
+    };
+    let o = orient(t);
+    (o != 0).then(|| {
+        (0..4).all(|i| {
+            let mut q = *t;
+            q[i] = *p;
+            orient(&q) * o >= 0
+        })
+    })
 }
 
 /// Non-flat tets in one hyperplane: an exact 3D test after dropping a coordinate in which
