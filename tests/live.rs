@@ -116,6 +116,25 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
         ],
         &r_log,
     );
+    // The session's input too: the frames as they were on the wire.
+    let rec_in = d.path().join("recorded-frames.mcap");
+    let ri_log = d.path().join("record-frames.log");
+    let record_frames = Proc::start(
+        "record (frames)",
+        &dom,
+        &[
+            "record",
+            "/sphere_a/occupancy",
+            "/sphere_b/occupancy",
+            "/sphere_c/occupancy",
+            "/sphere_d/occupancy",
+            "--out",
+            rec_in.to_str().unwrap(),
+            "--duration",
+            "13",
+        ],
+        &ri_log,
+    );
     std::thread::sleep(Duration::from_secs(2));
     let play = Proc::start(
         "play",
@@ -126,11 +145,30 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
     play.wait(&p_log);
     launch.wait(&l_log);
     record.wait(&r_log);
+    record_frames.wait(&ri_log);
 
     // The same nodes offline, on the same frames.
     let config = LaunchConfig::read(&cfg_path).unwrap();
     let offline = d.path().join("offline.mcap");
     replay(&bag, Some(&config), Some(&offline), false).unwrap();
+
+    // The recorded session, replayed offline, gives the same report as the original bag.
+    let again = d.path().join("replayed-recording.mcap");
+    replay(&rec_in, Some(&config), Some(&again), false).unwrap();
+    for topic in ["/sphere_a/occupancy", "/sphere_d/occupancy"] {
+        assert_eq!(
+            messages(&rec_in, topic),
+            messages(&bag, topic),
+            "{topic}: recorded frames"
+        );
+    }
+    for topic in ["/checker/report", "/checker/labels", "/checker/suggestions"] {
+        assert_eq!(
+            messages(&again, topic),
+            messages(&offline, topic),
+            "{topic}: the recording replayed offline differs from the bag replayed offline"
+        );
+    }
 
     let live_summary: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();

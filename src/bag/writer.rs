@@ -268,6 +268,22 @@ impl BagWriter {
         log_time_ns: u64,
         bytes: &[u8],
     ) -> Result<(), BagError> {
+        self.write_cdr_published(topic, log_time_ns, log_time_ns, bytes)
+    }
+
+    /// As [`BagWriter::write_cdr`], with the time the message was published (its DDS source
+    /// timestamp, as rosbag2 records it) apart from the time it was received and logged.
+    ///
+    /// # Errors
+    ///
+    /// As [`BagWriter::write_cdr`].
+    pub fn write_cdr_published(
+        &mut self,
+        topic: &str,
+        log_time_ns: u64,
+        publish_time_ns: u64,
+        bytes: &[u8],
+    ) -> Result<(), BagError> {
         if let Err(source) = encapsulation(bytes) {
             return Err(BagError::Cdr {
                 path: self.path.clone(),
@@ -287,7 +303,7 @@ impl BagWriter {
             channel_id: entry.channel_id,
             sequence: entry.next_sequence,
             log_time: log_time_ns,
-            publish_time: log_time_ns,
+            publish_time: publish_time_ns,
         };
         entry.next_sequence = entry.next_sequence.wrapping_add(1);
         self.inner

@@ -18,7 +18,9 @@ use super::replay::{build_nodes, write_json};
 use super::CliError;
 use crate::bag::{BagReader, BagWriter};
 use crate::live::wire::{ros_topic_name, ros_type_name, RawCdr, TopicQos};
-use crate::live::{domain_id_from_env, run_nodes, LiveError, LiveOptions, Participant, RawWriter};
+use crate::live::{
+    domain_id_from_env, run_nodes, write_stamped, LiveError, LiveOptions, Participant, RawWriter,
+};
 use crate::msg::{Clock, RosMessage, Time};
 use crate::node::launch::{LaunchConfig, NodeKind};
 use crate::node::Payload;
@@ -293,14 +295,14 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
                         clock: Time::from_nanos(t.min(i64::MAX as u64) as i64),
                     };
                     if let Ok(bytes) = crate::msg::encode_cdr(&msg) {
-                        let _ = c.write(RawCdr(bytes), None);
+                        let _ = write_stamped(c, bytes);
                     }
                 }
             }
             let Some(Some(w)) = writers.get(&m.topic) else {
                 continue;
             };
-            match w.write(RawCdr(m.data), None) {
+            match write_stamped(w, m.data) {
                 Ok(()) => sent += 1,
                 Err(e) => {
                     failed += 1;
@@ -317,6 +319,17 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
     }
     eprintln!("play: {sent} message(s) sent, {failed} not sent");
     Ok(())
+}
+
+/// A DDS timestamp (seconds and 2^-32 fractions since the Unix epoch) in nanoseconds; `None`
+/// for the invalid and infinite markers.
+fn timestamp_ns(t: rustdds::Timestamp) -> Option<u64> {
+    let ticks = t.to_ticks();
+    let seconds = ticks >> 32;
+    if seconds == 0xFFFF_FFFF {
+        return None;
+    }
+    Some(seconds * 1_000_000_000 + (((ticks & 0xFFFF_FFFF) * 1_000_000_000) >> 32))
 }
 
 fn make_writer(p: &Participant, topic: &str, ty: &str, encoding: &str) -> Option<RawWriter> {
@@ -395,7 +408,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
         ));
     }
     let mut writer = BagWriter::create(&a.out)?;
-    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, u64, RawCdr)>(1024);
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, u64, u64, RawCdr)>(1024);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)
         .enable_all()
@@ -414,7 +427,12 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                     let now = std::time::SystemTime::now()
                         .duration_since(std::time::UNIX_EPOCH)
                         .map_or(0, |d| d.as_nanos() as u64);
-                    if tx.send((i, now, c.sample)).is_err() {
+                    let published = c
+                        .write_options
+                        .source_timestamp()
+                        .and_then(timestamp_ns)
+                        .unwrap_or(now);
+                    if tx.send((i, now, published, c.sample)).is_err() {
                         return;
                     }
                 }
@@ -428,9 +446,9 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
     let mut counts: BTreeMap<&str, u64> = BTreeMap::new();
     while !stop.load(Ordering::Relaxed) && limit.is_none_or(|l| start.elapsed() < l) {
         match rx.recv_timeout(Duration::from_millis(100)) {
-            Ok((i, t, bytes)) => {
+            Ok((i, t, published, bytes)) => {
                 let topic = &names[i].0;
-                writer.write_cdr(topic, t, &bytes.0)?;
+                writer.write_cdr_published(topic, t, published, &bytes.0)?;
                 *counts.entry(topic).or_default() += 1;
             }
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => {}

@@ -311,6 +311,77 @@ pub struct TransportStatus {
     pub send_errors: BTreeMap<String, u64>,
     /// The first problems' texts.
     pub messages: Vec<String>,
+    /// Per input topic: how long a sample took from the reader to the end of its handling
+    /// (queue wait, decoding, the nodes' work, writing what they published).
+    pub lag: BTreeMap<String, LagStats>,
+}
+
+/// Lag figures of one input topic, over its last [`LagStats::WINDOW`] samples (max over all).
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct LagStats {
+    /// Samples handled.
+    pub handled: u64,
+    /// Median lag [ms] over the window.
+    pub p50_ms: f64,
+    /// 99th percentile lag [ms] over the window.
+    pub p99_ms: f64,
+    /// Largest lag [ms] of the run.
+    pub max_ms: f64,
+    /// Median time the nodes spent on one sample [ms] over the window (the rest is queueing).
+    pub busy_p50_ms: f64,
+    /// Time the nodes spent on samples of this topic [s], in all.
+    pub busy_total_s: f64,
+}
+
+impl LagStats {
+    /// Samples the percentiles are taken over (the latest ones).
+    pub const WINDOW: usize = 1024;
+}
+
+/// The recent lags of one topic (a bounded ring), from which [`LagStats`] are computed.
+#[derive(Debug, Default)]
+struct LagWindow {
+    handled: u64,
+    lag: Vec<f64>,
+    busy: Vec<f64>,
+    next: usize,
+    max: f64,
+    busy_total: f64,
+}
+
+impl LagWindow {
+    fn add(&mut self, lag_s: f64, busy_s: f64) {
+        self.handled += 1;
+        self.max = self.max.max(lag_s);
+        self.busy_total += busy_s;
+        if self.lag.len() < LagStats::WINDOW {
+            self.lag.push(lag_s);
+            self.busy.push(busy_s);
+        } else {
+            self.lag[self.next] = lag_s;
+            self.busy[self.next] = busy_s;
+            self.next = (self.next + 1) % LagStats::WINDOW;
+        }
+    }
+
+    fn stats(&self) -> LagStats {
+        let pct = |v: &[f64], q: f64| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+                .copied()
+                .unwrap_or(0.0)
+                * 1e3
+        };
+        LagStats {
+            handled: self.handled,
+            p50_ms: pct(&self.lag, 0.5),
+            p99_ms: pct(&self.lag, 0.99),
+            max_ms: self.max * 1e3,
+            busy_p50_ms: pct(&self.busy, 0.5),
+            busy_total_s: self.busy_total,
+        }
+    }
 }
 
 /// What went wrong with a sample, for [`TransportStatus`].
@@ -348,6 +419,8 @@ pub struct LiveSummary {
 struct Sample {
     topic: usize,
     bytes: RawCdr,
+    /// When the reader took it from DDS.
+    at: Instant,
 }
 
 /// Runs `nodes` on the wire until `stop` is set (Ctrl-C) or `opts.run_for` has passed, then
@@ -418,6 +491,7 @@ pub fn run_nodes(
 
     let mut pump = Pump {
         bus: Bus::new(nodes),
+        lag: inputs.iter().map(|_| LagWindow::default()).collect(),
         inputs,
         writers,
         diagnostics,
@@ -483,6 +557,7 @@ async fn read_topic(
         match tx.try_send(Sample {
             topic: index,
             bytes: change.sample,
+            at: Instant::now(),
         }) {
             Ok(()) => {}
             Err(TrySendError::Full(_)) => s.problem(
@@ -502,6 +577,7 @@ struct Pump {
     writers: BTreeMap<String, RawWriter>,
     diagnostics: RawWriter,
     status: Arc<Mutex<TransportStatus>>,
+    lag: Vec<LagWindow>,
 }
 
 impl Pump {
@@ -549,6 +625,7 @@ impl Pump {
         let Some(t) = self.inputs.get(s.topic) else {
             return;
         };
+        let busy = Instant::now();
         match Payload::decode(t.type_name, &s.bytes.0) {
             Ok(payload) => {
                 let msg = Message::new(&t.topic, wall_clock_ns(), payload);
@@ -556,6 +633,9 @@ impl Pump {
                 self.bus.deliver(msg, &mut |m| out.push(m.clone()));
                 for m in &out {
                     self.send(m);
+                }
+                if let Some(w) = self.lag.get_mut(s.topic) {
+                    w.add(s.at.elapsed().as_secs_f64(), busy.elapsed().as_secs_f64());
                 }
             }
             Err(e) => {
@@ -580,7 +660,7 @@ impl Pump {
             .payload
             .encode()
             .map_err(|e| e.to_string())
-            .and_then(|bytes| w.write(RawCdr(bytes), None).map_err(|e| e.to_string()));
+            .and_then(|bytes| write_stamped(w, bytes));
         let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
         match r {
             Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
@@ -600,12 +680,7 @@ impl Pump {
             .into_iter()
             .map(|(name, s)| node_diagnostic(name, s))
             .collect();
-        let t = self
-            .status
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .clone();
-        status.push(transport_diagnostic(&t));
+        status.push(transport_diagnostic(&self.transport()));
         let msg = DiagnosticArray {
             header: Header {
                 stamp: Time::from_nanos(now),
@@ -615,12 +690,29 @@ impl Pump {
         };
         match crate::msg::encode_cdr(&msg) {
             Ok(bytes) => {
-                if let Err(e) = self.diagnostics.write(RawCdr(bytes), None) {
+                if let Err(e) = write_stamped(&self.diagnostics, bytes) {
                     tracing::warn!("/diagnostics not sent: {e}");
                 }
             }
             Err(e) => tracing::warn!("/diagnostics not encoded: {e}"),
         }
+    }
+
+    /// The transport's counters, with the lag figures so far.
+    fn transport(&self) -> TransportStatus {
+        let mut transport = self
+            .status
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone();
+        transport.lag = self
+            .inputs
+            .iter()
+            .zip(&self.lag)
+            .filter(|(_, w)| w.handled > 0)
+            .map(|(t, w)| (t.topic.clone(), w.stats()))
+            .collect();
+        transport
     }
 
     fn summary(&self) -> LiveSummary {
@@ -631,13 +723,19 @@ impl Pump {
                 .into_iter()
                 .map(|(n, s)| (n.to_owned(), s.clone()))
                 .collect(),
-            transport: self
-                .status
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .clone(),
+            transport: self.transport(),
         }
     }
+}
+
+/// Writes one sample with its source timestamp (now), as ROS 2's middleware does: readers
+/// (`ros2 topic delay`, a peer's `SampleInfo`) see when it was published.
+///
+/// # Errors
+/// The writer's error, as text.
+pub fn write_stamped(w: &RawWriter, bytes: Vec<u8>) -> Result<(), String> {
+    w.write(RawCdr(bytes), Some(rustdds::Timestamp::now()))
+        .map_err(|e| e.to_string())
 }
 
 fn wall_clock_ns() -> i64 {
@@ -699,6 +797,16 @@ fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
             map.iter()
                 .map(|(topic, n)| kv(format!("{kind}.{topic}"), n)),
         );
+    }
+    for (topic, l) in &t.lag {
+        values.push(kv(
+            format!("lag_p99_ms.{topic}"),
+            format!("{:.3}", l.p99_ms),
+        ));
+        values.push(kv(
+            format!("lag_max_ms.{topic}"),
+            format!("{:.3}", l.max_ms),
+        ));
     }
     let problems: u64 = [&t.dropped, &t.undecodable, &t.send_errors]
         .iter()

@@ -180,12 +180,12 @@ impl TopicQos {
         match ros_type {
             t if t == VoxelGrid::TYPE_NAME => Self::reliable(16),
             t if t == MeshSlab::TYPE_NAME => Self::reliable(64),
-            t if t == InterferenceReport::TYPE_NAME
-                || t == ResolveSuggestions::TYPE_NAME
-                || t == TetLabels::TYPE_NAME =>
-            {
+            t if t == InterferenceReport::TYPE_NAME || t == ResolveSuggestions::TYPE_NAME => {
                 Self::latched(1)
             }
+            // Two per checked pair, published together: a depth of one would let a slow
+            // reader lose all but the last of them.
+            t if t == TetLabels::TYPE_NAME => Self::latched(32),
             t if t == MarkerArray::TYPE_NAME => Self::latched(256),
             t if t == Marker::TYPE_NAME => Self::best_effort(16),
             t if t == PointCloud2::TYPE_NAME => Self::latched(1),
