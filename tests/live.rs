@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use chronotope::bag::{BagReader, BagWriter};
 use chronotope::cli::replay::replay;
-use chronotope::msg::VoxelGrid;
+use chronotope::msg::{Clock, Time, VoxelGrid};
 use chronotope::node::launch::LaunchConfig;
 
 fn root() -> PathBuf {
@@ -204,7 +204,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
 }
 
 /// The four-spheres bag with faults: /sphere_d stops after 8 of its 17 frames, and one
-/// /sphere_a message is truncated.
+/// /sphere_a message is truncated. (The test also plays a wrong-type publisher beside it.)
 fn faulty_bag(dir: &Path) -> PathBuf {
     let path = dir.join("faulty.mcap");
     let mut w = BagWriter::create(&path).unwrap();
@@ -260,6 +260,25 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
         ],
         &l_log,
     );
+    // A peer publishing the wrong type on one of the nodes' topics.
+    let wrong = d.path().join("wrong-type.mcap");
+    let mut w = BagWriter::create(&wrong).unwrap();
+    w.add_topic::<Clock>("/sphere_b/occupancy").unwrap();
+    for k in 0..20u64 {
+        let t = 1_000_000_000 + k * 50_000_000;
+        let clock = Clock {
+            clock: Time::from_nanos(t as i64),
+        };
+        w.write("/sphere_b/occupancy", t, &clock).unwrap();
+    }
+    w.finish().unwrap();
+    let w_log = d.path().join("play-wrong.log");
+    let play_wrong = Proc::start(
+        "play (wrong type)",
+        &dom,
+        &["play", wrong.to_str().unwrap(), "--wait", "3", "--no-clock"],
+        &w_log,
+    );
     std::thread::sleep(Duration::from_secs(2));
     // A fifth of real time: frames about 0.3 s apart, so /sphere_d goes quiet for more than
     // the 1 s timeout while the others go on.
@@ -277,6 +296,7 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
         &p_log,
     );
     play.wait(&p_log);
+    play_wrong.wait(&w_log);
     launch.wait(&l_log);
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
@@ -284,6 +304,15 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
         s["transport"]["undecodable"]["/sphere_a/occupancy"], 1,
         "{s}"
     );
+    assert_eq!(s["transport"]["wrong_type"]["/sphere_b/occupancy"], 1, "{s}");
+    assert!(
+        s["transport"]["messages"]
+            .to_string()
+            .contains("/sphere_b/occupancy: a publisher writes rosgraph_msgs/msg/Clock"),
+        "{s}"
+    );
+    // The right publisher of that topic is still read.
+    assert_eq!(s["transport"]["received"]["/sphere_b/occupancy"], 17, "{s}");
     let mesher = &s["nodes"]["/mesher"];
     assert_eq!(mesher["problems"]["stream_stopped"], 1, "{s}");
     let checker = &s["nodes"]["/checker"];

@@ -200,6 +200,18 @@ impl Participant {
             .collect()
     }
 
+    /// Writers of other participants on the wire, as `(DDS topic, DDS type, writer GUID)`.
+    pub fn foreign_writers(&self) -> Vec<(String, String, rustdds::GUID)> {
+        self.ctx
+            .domain_participant()
+            .discovered_writers()
+            .into_iter()
+            .map(|w| w.publication_topic_data)
+            .filter(|p| p.key.prefix != self.guid.prefix)
+            .map(|p| (p.topic_name, p.type_name, p.key))
+            .collect()
+    }
+
     /// Whether a sample was written by this participant.
     pub fn is_own(&self, writer: rustdds::GUID) -> bool {
         writer.prefix == self.guid.prefix
@@ -309,6 +321,9 @@ pub struct TransportStatus {
     pub sent: BTreeMap<String, u64>,
     /// Messages that could not be written (and why, the first few).
     pub send_errors: BTreeMap<String, u64>,
+    /// Publishers seen on an input topic with another type (DDS does not match them, so
+    /// nothing of theirs is read).
+    pub wrong_type: BTreeMap<String, u64>,
     /// The first problems' texts.
     pub messages: Vec<String>,
     /// Per input topic: how long a sample took from the reader to the end of its handling
@@ -390,6 +405,7 @@ enum Fault {
     Dropped,
     Undecodable,
     NotSent,
+    WrongType,
 }
 
 impl TransportStatus {
@@ -399,6 +415,7 @@ impl TransportStatus {
             Fault::Dropped => &mut self.dropped,
             Fault::Undecodable => &mut self.undecodable,
             Fault::NotSent => &mut self.send_errors,
+            Fault::WrongType => &mut self.wrong_type,
         };
         *map.entry(topic.to_owned()).or_default() += 1;
         if self.messages.len() < NodeStatus::KEPT {
@@ -492,6 +509,8 @@ pub fn run_nodes(
     let mut pump = Pump {
         bus: Bus::new(nodes),
         lag: inputs.iter().map(|_| LagWindow::default()).collect(),
+        participant: participant.clone(),
+        wrong_writers: BTreeSet::new(),
         inputs,
         writers,
         diagnostics,
@@ -578,6 +597,9 @@ struct Pump {
     diagnostics: RawWriter,
     status: Arc<Mutex<TransportStatus>>,
     lag: Vec<LagWindow>,
+    participant: Arc<Participant>,
+    /// Writers already counted as publishing a wrong type.
+    wrong_writers: BTreeSet<rustdds::GUID>,
 }
 
 impl Pump {
@@ -605,9 +627,11 @@ impl Pump {
             }
             if last_diag.elapsed() >= opts.diagnostics_period {
                 last_diag = Instant::now();
+                self.check_foreign_types();
                 self.publish_diagnostics();
             }
         }
+        self.check_foreign_types();
         tracing::info!("stopping: the nodes finish what they have");
         let mut out = Vec::new();
         self.bus.finish(&mut |m| out.push(m.clone()));
@@ -648,6 +672,30 @@ impl Pump {
                         t.topic, t.type_name
                     ),
                 );
+            }
+        }
+    }
+
+    /// Counts, once per writer, publishers on an input topic whose type is not the one the
+    /// nodes read: DDS never matches them, so without this their data would vanish silently.
+    fn check_foreign_types(&mut self) {
+        let writers = self.participant.foreign_writers();
+        for t in &self.inputs {
+            let (topic, want) = (dds_topic_name(&t.topic), dds_type_name(t.type_name));
+            for (_, ty, guid) in writers.iter().filter(|(n, ty, _)| *n == topic && *ty != want) {
+                if self.wrong_writers.insert(*guid) {
+                    let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
+                    st.problem(
+                        Fault::WrongType,
+                        &t.topic,
+                        format!(
+                            "{}: a publisher writes {}, not {}: its samples are not read",
+                            t.topic,
+                            wire::ros_type_name(ty).unwrap_or_else(|| ty.clone()),
+                            t.type_name
+                        ),
+                    );
+                }
             }
         }
     }
@@ -792,6 +840,7 @@ fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
         ("undecodable", &t.undecodable),
         ("sent", &t.sent),
         ("send_errors", &t.send_errors),
+        ("wrong_type", &t.wrong_type),
     ] {
         values.extend(
             map.iter()
@@ -808,7 +857,7 @@ fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
             format!("{:.3}", l.max_ms),
         ));
     }
-    let problems: u64 = [&t.dropped, &t.undecodable, &t.send_errors]
+    let problems: u64 = [&t.dropped, &t.undecodable, &t.send_errors, &t.wrong_type]
         .iter()
         .flat_map(|m| m.values())
         .sum();
@@ -816,7 +865,7 @@ fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
     diagnostic(
         "chronotope/transport",
         problems,
-        "sample(s) dropped, undecodable or not sent",
+        "sample(s) dropped, undecodable or not sent, or publisher(s) of a wrong type",
         values,
     )
 }
