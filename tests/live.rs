@@ -304,7 +304,10 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
         s["transport"]["undecodable"]["/sphere_a/occupancy"], 1,
         "{s}"
     );
-    assert_eq!(s["transport"]["wrong_type"]["/sphere_b/occupancy"], 1, "{s}");
+    assert_eq!(
+        s["transport"]["wrong_type"]["/sphere_b/occupancy"], 1,
+        "{s}"
+    );
     assert!(
         s["transport"]["messages"]
             .to_string()

@@ -107,6 +107,55 @@ fn faults_are_counted_and_the_rest_is_checked() {
 }
 
 #[test]
+fn a_frame_older_than_the_last_one_is_refused_counted_and_the_stream_goes_on() {
+    let d = tempfile::tempdir().unwrap();
+    let path = d.path().join("late.mcap");
+    let mut w = BagWriter::create(&path).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    w.add_topic::<VoxelGrid>("/b/occupancy").unwrap();
+    for k in 0..6u32 {
+        let t = 1_000_000_000 + u64::from(k) * 100_000_000;
+        w.write("/a/occupancy", t, &frame(0, k)).unwrap();
+        let mut b = frame(6, 0);
+        b.header.stamp = Time::from_nanos(t as i64);
+        w.write("/b/occupancy", t, &b).unwrap();
+        if k == 3 {
+            // Frame 1 of /a again, arriving late (after frame 3).
+            w.write("/a/occupancy", t + 1, &frame(0, 1)).unwrap();
+        }
+    }
+    w.finish().unwrap();
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+        "test",
+    )
+    .unwrap();
+    let r = replay(&path, Some(&cfg), None, false).unwrap();
+    let mesher = &r.nodes["/mesher"];
+    assert_eq!(mesher.problems.get("frame_refused"), Some(&1), "{mesher:?}");
+    assert!(
+        mesher
+            .messages
+            .iter()
+            .any(|m| m.contains("/a/occupancy: frame at 1100000000 ns skipped")),
+        "{mesher:?}"
+    );
+    assert_eq!(mesher.problems.get("frames_missing"), None, "{mesher:?}");
+    let a = r
+        .report
+        .bodies
+        .iter()
+        .find(|b| b.id == "/a/occupancy")
+        .unwrap();
+    // Every frame in order is meshed; the late one is not.
+    assert_eq!(a.frames, 6, "{a:?}");
+    assert!(a.closed, "{a:?}");
+    assert!(r.report.pairs[0].interfering);
+}
+
+#[test]
 fn wrong_type_on_a_body_topic_is_counted() {
     let d = tempfile::tempdir().unwrap();
     let bag = faulty_bag(d.path());
@@ -171,4 +220,77 @@ fn bad_launch_configs_are_refused_with_the_reason() {
         let e = replay(&bag, Some(&c), None, false).unwrap_err().to_string();
         assert!(e.contains(what), "{cfg}: {e}");
     }
+}
+
+/// A checker (re)started while the bodies' streams are under way: it says once per body that
+/// it joined mid-stream, skips that stream, and checks the next one in full.
+#[test]
+fn a_checker_started_mid_stream_says_so_and_checks_the_next_stream() {
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use std::sync::Arc;
+
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: idle_timeout_s, value: 1.0}, {name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+        "test",
+    )
+    .unwrap();
+    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+    let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+    let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    // One stream of six frames per body, starting at `t0_ns`; returns what the mesher says.
+    let stream = |mesher: &mut MesherNode, t0_ns: i64| {
+        let mut out = Vec::new();
+        for k in 0..6u32 {
+            let t = t0_ns + i64::from(k) * 100_000_000;
+            let mut a = frame(0, k);
+            a.header.stamp = Time::from_nanos(t);
+            let mut b = frame(6, 0);
+            b.header.stamp = Time::from_nanos(t);
+            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
+                mesher.on_message(
+                    &Message::new(topic, t, Payload::VoxelGrid(Arc::new(g))),
+                    &mut out,
+                );
+            }
+            mesher.on_tick(i64::from(k) * 100_000_000, &mut out);
+        }
+        // Quiet for longer than the idle timeout: both streams close.
+        mesher.on_tick(5 * 100_000_000 + 1_500_000_000, &mut out);
+        out
+    };
+    let mut results = Vec::new();
+    // The checker starts after the first stream's caps and first pieces went by.
+    let first = stream(&mut mesher, 1_000_000_000);
+    let slabs_a = |m: &Message| matches!(&m.payload, Payload::MeshSlab(_));
+    let first: Vec<Message> = first.into_iter().filter(slabs_a).collect();
+    assert!(first.len() > 8, "{}", first.len());
+    for m in &first[5..] {
+        checker.on_message(m, &mut results);
+    }
+    let st = checker.status();
+    assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
+    assert_eq!(st.problems.get("piece_out_of_order"), None, "{st:?}");
+    assert!(results.is_empty(), "nothing checked from half a stream");
+    // The next stream is checked in full.
+    let second = stream(&mut mesher, 10_000_000_000);
+    for m in second.iter().filter(|m| slabs_a(m)) {
+        checker.on_message(m, &mut results);
+    }
+    let reports: Vec<_> = results
+        .iter()
+        .filter_map(|m| match &m.payload {
+            Payload::Report(r) => Some(r.clone()),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(reports.len(), 1, "one report, for the second stream");
+    assert!(reports[0].pairs[0].interfering);
+    assert!(reports[0].bodies.iter().all(|b| b.closed && b.frames == 6));
+    let st = checker.status();
+    assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
+    assert_eq!(st.problems.get("check_failed"), None, "{st:?}");
 }

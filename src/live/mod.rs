@@ -682,7 +682,10 @@ impl Pump {
         let writers = self.participant.foreign_writers();
         for t in &self.inputs {
             let (topic, want) = (dds_topic_name(&t.topic), dds_type_name(t.type_name));
-            for (_, ty, guid) in writers.iter().filter(|(n, ty, _)| *n == topic && *ty != want) {
+            for (_, ty, guid) in writers
+                .iter()
+                .filter(|(n, ty, _)| *n == topic && *ty != want)
+            {
                 if self.wrong_writers.insert(*guid) {
                     let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
                     st.problem(

@@ -44,6 +44,9 @@ struct Body {
     ended: bool,
     next_index: u32,
     frames: BTreeMap<i64, OccupancyGrid>,
+    /// Pieces came without the opening cap (this node started after the body's stream did):
+    /// said once; the body's pieces are skipped until its next stream starts.
+    joined_late: bool,
 }
 
 /// The checker node.
@@ -211,6 +214,7 @@ impl CheckerNode {
         match s.kind {
             MeshSlab::KIND_CAP_START if !b.started && b.next_index == 0 => {
                 b.started = true;
+                b.joined_late = false;
                 b.gluer.first_cap(&s.mesh, s.occupied_voxels);
             }
             MeshSlab::KIND_LATERAL if s.index == b.next_index => {
@@ -233,6 +237,17 @@ impl CheckerNode {
             MeshSlab::KIND_CAP_END if b.next_index > 0 => {
                 b.ended = true;
                 b.gluer.last_cap(&s.mesh, s.occupied_voxels);
+            }
+            _ if !b.started && b.joined_late => {}
+            MeshSlab::KIND_LATERAL | MeshSlab::KIND_CAP_END if !b.started => {
+                b.joined_late = true;
+                let why = format!(
+                    "{}: the first piece seen is index {} (this node started after the body's \
+                     stream did, or missed its start): the pieces before are gone, so this \
+                     stream of the body is skipped; it is checked from its next stream",
+                    s.body_id, s.index
+                );
+                self.status.problem(&self.fqn, "joined_mid_stream", why);
             }
             kind => {
                 let why = format!(
@@ -575,7 +590,9 @@ impl Node for CheckerNode {
     }
 
     fn finish(&mut self, out: &mut Vec<Message>) {
-        if self.pending || self.outcome.is_none() {
+        // A body this node joined mid-stream has no mesh to check (that was said once).
+        let joined_late = self.bodies.values().any(|b| b.joined_late && !b.started);
+        if (self.pending || self.outcome.is_none()) && !joined_late {
             self.check(out);
         }
     }
