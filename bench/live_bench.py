@@ -205,6 +205,7 @@ def bench_cyclone(a, exe, domain, tmp):
         lat = [(r - s) / 1e6 for r, s in v]
         rows.append({
             "topic": t, "sent": sent.get(t, 0), "delivered": len(v),
+            "distinct_source_timestamps": len({st for _, st in v}),
             "latency_ms_p50": pct(lat, 0.5), "latency_ms_p99": pct(lat, 0.99),
             "latency_ms_max": max(lat) if lat else float("nan"),
             "peer_decode_ms_p50": pct([x * 1e3 for x in take_s[t]], 0.5),

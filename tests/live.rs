@@ -323,3 +323,52 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
     let said = checker["messages"].to_string();
     assert!(said.contains("/sphere_d/occupancy: its frames end"), "{s}");
 }
+
+/// `chronotope param` against a running launch: the ROS parameter services read the launch's
+/// parameters; the mesher's `idle_timeout_s` changes while it runs; an out-of-range value and
+/// a parameter taken at start are refused with the node's reason.
+#[test]
+fn parameters_are_read_and_set_over_the_ros_parameter_services() {
+    let d = tempfile::tempdir().unwrap();
+    let dom = domain(2);
+    let cfg = root().join("launch_configs/four_spheres.yaml");
+    let l_log = d.path().join("launch.log");
+    let launch = Proc::start(
+        "launch",
+        &dom,
+        &["launch", cfg.to_str().unwrap(), "--duration", "10"],
+        &l_log,
+    );
+    let param = |args: &[&str]| {
+        let out = Command::new(env!("CARGO_BIN_EXE_chronotope"))
+            .arg("param")
+            .args(args)
+            .args(["--timeout", "8"])
+            .env("ROS_DOMAIN_ID", &dom)
+            .env("RUST_LOG", "warn")
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        (out.status.success(), text)
+    };
+    let (ok, text) = param(&["get", "/mesher", "idle_timeout_s", "bodies"]);
+    assert!(ok, "{text}");
+    assert!(text.contains("idle_timeout_s: Double(2.0)"), "{text}");
+    assert!(text.contains("/sphere_d/occupancy"), "{text}");
+    let (ok, text) = param(&["set", "/mesher", "idle_timeout_s", "0.5"]);
+    assert!(ok, "{text}");
+    let (ok, text) = param(&["get", "/mesher", "idle_timeout_s"]);
+    assert!(ok && text.contains("idle_timeout_s: Double(0.5)"), "{text}");
+    let (ok, text) = param(&["set", "/mesher", "idle_timeout_s", "-1"]);
+    assert!(
+        !ok && text.contains("not a number of seconds in [0.001, 1e6]"),
+        "{text}"
+    );
+    let (ok, text) = param(&["set", "/checker", "pairs", "[a b]"]);
+    assert!(!ok && text.contains("takes it at start only"), "{text}");
+    launch.wait(&l_log);
+}

@@ -294,3 +294,54 @@ fn a_checker_started_mid_stream_says_so_and_checks_the_next_stream() {
     assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
     assert_eq!(st.problems.get("check_failed"), None, "{st:?}");
 }
+
+/// The mesher's idle timeout changed while it runs takes effect at the next tick; other
+/// parameters and bad values are refused with the reason.
+#[test]
+fn the_mesher_idle_timeout_changes_while_it_runs() {
+    use chronotope::node::launch::ParamValue;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use std::sync::Arc;
+
+    let cfg = LaunchConfig::parse(
+        "launch:\n- node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy]}]}\n",
+        "test",
+    )
+    .unwrap();
+    let mut m = MesherNode::from_spec(&cfg.nodes[0], &["/a/occupancy".to_owned()]).unwrap();
+    assert_eq!(
+        m.runtime_parameters(),
+        vec![("idle_timeout_s".to_owned(), ParamValue::Double(2.0))]
+    );
+    let mut out = Vec::new();
+    for k in 0..3u32 {
+        let g = frame(0, k);
+        let t = g.header.stamp.as_nanos();
+        m.on_message(
+            &Message::new("/a/occupancy", t, Payload::VoxelGrid(Arc::new(g))),
+            &mut out,
+        );
+        m.on_tick(i64::from(k) * 100_000_000, &mut out);
+    }
+    let caps = |out: &[Message]| {
+        out.iter()
+            .filter(|m| matches!(&m.payload, Payload::MeshSlab(s) if s.kind == chronotope::msg::MeshSlab::KIND_CAP_END))
+            .count()
+    };
+    m.on_tick(1_000_000_000, &mut out);
+    assert_eq!(caps(&out), 0, "0.8 s quiet < 2 s");
+    assert!(m
+        .set_parameter("idle_timeout_s", &ParamValue::Double(0.5))
+        .is_ok());
+    m.on_tick(1_100_000_000, &mut out);
+    assert_eq!(caps(&out), 1, "0.9 s quiet > 0.5 s: closed");
+    let e = m
+        .set_parameter("idle_timeout_s", &ParamValue::Double(-1.0))
+        .unwrap_err();
+    assert!(e.contains("[0.001, 1e6]"), "{e}");
+    let e = m
+        .set_parameter("bodies", &ParamValue::StringArray(vec![]))
+        .unwrap_err();
+    assert!(e.contains("at start only"), "{e}");
+}

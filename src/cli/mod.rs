@@ -8,6 +8,7 @@ pub mod bench_check;
 pub mod check;
 pub mod live;
 pub mod mesh;
+pub mod param;
 pub mod replay;
 pub mod scene;
 
@@ -44,6 +45,8 @@ pub enum Command {
     Play(live::PlayArgs),
     /// Record live topics into a rosbag2 MCAP bag.
     Record(live::RecordArgs),
+    /// Read or set a running node's parameters (the ROS parameter services).
+    Param(param::ParamArgs),
     /// Benchmarks that print the figures the README quotes.
     Bench(bench::BenchArgs),
 }
@@ -189,6 +192,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Node(a) => live::node(&a),
         Command::Play(a) => live::play(&a),
         Command::Record(a) => live::record(&a),
+        Command::Param(a) => param::run(&a),
         Command::Bench(a) => bench::run(&a),
     }
 }

@@ -218,8 +218,9 @@ impl Participant {
     }
 
     /// The ROS node `fqn` (`/ns/name`) with `params` declared: visible to `ros2 node list`,
-    /// its parameters listed and read by `ros2 param`. Setting one is refused with the reason:
-    /// the suite's nodes take their parameters at start.
+    /// its parameters listed and read by `ros2 param`. Once it runs, a `set_parameters`
+    /// request goes to the node itself through `setter` (applied, or refused with the node's
+    /// reason); without a setter every change is refused.
     ///
     /// # Errors
     /// The name is not a valid ROS node name, or ros2-client refuses.
@@ -227,6 +228,7 @@ impl Participant {
         &self,
         fqn: &str,
         params: &BTreeMap<String, ParamValue>,
+        setter: Option<SyncSender<ParamRequest>>,
     ) -> Result<ros2_client::Node, LiveError> {
         let (ns, name) = match fqn.rsplit_once('/') {
             Some(("", n)) => ("/", n),
@@ -240,18 +242,43 @@ impl Participant {
         for (k, v) in params {
             opts = opts.declare_parameter(k, ros_param(v));
         }
-        // The validator also sees the declarations; it refuses only once the node runs.
+        // The validator also sees the declarations; it asks the node only once it runs.
         let running = Arc::new(AtomicBool::new(false));
         let flag = running.clone();
-        let opts = opts.parameter_validator(Box::new(move |name: &str, _value: &_| {
-            if flag.load(Ordering::Relaxed) {
-                Err(format!(
-                    "{name}: the suite's nodes take their parameters at start; relaunch with \
-                     the new value"
-                ))
-            } else {
-                Ok(())
+        let node = fqn.to_owned();
+        let opts = opts.parameter_validator(Box::new(move |name: &str, value: &_| {
+            if !flag.load(Ordering::Relaxed) {
+                return Ok(());
             }
+            let Some(setter) = &setter else {
+                return Err(format!("{name}: {node} takes its parameters at start"));
+            };
+            let value = from_ros_param(value).ok_or_else(|| {
+                format!("{name}: {value:?} is not a type the suite's parameters take")
+            })?;
+            let (reply, answer) = sync_channel(1);
+            setter
+                .try_send(ParamRequest {
+                    node: node.clone(),
+                    name: name.to_owned(),
+                    value,
+                    reply,
+                })
+                .map_err(|_| format!("{name}: {node} is busy or stopping; try again"))?;
+            let wait = || answer.recv_timeout(Duration::from_secs(5));
+            // The spinner runs on the transport's runtime: let its other tasks (the readers)
+            // go on while this waits for the nodes' thread.
+            let answer = match tokio::runtime::Handle::try_current() {
+                Ok(h) if h.runtime_flavor() == tokio::runtime::RuntimeFlavor::MultiThread => {
+                    tokio::task::block_in_place(wait)
+                }
+                _ => wait(),
+            };
+            answer.unwrap_or_else(|_| {
+                Err(format!(
+                    "{name}: {node} did not answer within 5 s (busy checking?); try again"
+                ))
+            })
         }));
         let node = self
             .ctx
@@ -263,7 +290,36 @@ impl Participant {
     }
 }
 
-fn ros_param(v: &ParamValue) -> ros2_client::ParameterValue {
+/// A parameter change asked for over ROS, on its way to the node (the nodes' thread
+/// answers on `reply`).
+pub struct ParamRequest {
+    /// The node's fully qualified name.
+    pub node: String,
+    /// The parameter.
+    pub name: String,
+    /// The new value.
+    pub value: ParamValue,
+    /// Where the node's answer goes.
+    pub reply: SyncSender<Result<(), String>>,
+}
+
+fn from_ros_param(v: &ros2_client::ParameterValue) -> Option<ParamValue> {
+    use ros2_client::ParameterValue as P;
+    Some(match v.clone() {
+        P::Boolean(b) => ParamValue::Bool(b),
+        P::Integer(i) => ParamValue::Integer(i),
+        P::Double(d) => ParamValue::Double(d),
+        P::String(s) => ParamValue::String(s),
+        P::BooleanArray(v) => ParamValue::BoolArray(v),
+        P::IntegerArray(v) => ParamValue::IntegerArray(v),
+        P::DoubleArray(v) => ParamValue::DoubleArray(v),
+        P::StringArray(v) => ParamValue::StringArray(v),
+        P::NotSet | P::ByteArray(_) => return None,
+    })
+}
+
+/// A launch parameter value as ros2-client's.
+pub fn ros_param(v: &ParamValue) -> ros2_client::ParameterValue {
     use ros2_client::ParameterValue as P;
     match v.clone() {
         ParamValue::Bool(b) => P::Boolean(b),
@@ -464,8 +520,16 @@ pub fn run_nodes(
     tracing::info!(domain = participant.domain_id(), "joined the DDS domain");
 
     let mut ros_nodes = Vec::new();
+    let (param_tx, param_rx) = sync_channel::<ParamRequest>(16);
     for spec in specs {
-        let mut n = participant.ros_node(&spec.fqn, &spec.params)?;
+        // The launch's parameters, and those the node can change while it runs.
+        let mut params = spec.params.clone();
+        if let Some(node) = nodes.iter().find(|n| n.name() == spec.fqn) {
+            for (k, v) in node.runtime_parameters() {
+                params.entry(k).or_insert(v);
+            }
+        }
+        let mut n = participant.ros_node(&spec.fqn, &params, Some(param_tx.clone()))?;
         let spinner = n
             .spinner()
             .map_err(|e| e.to_string())
@@ -511,6 +575,7 @@ pub fn run_nodes(
         lag: inputs.iter().map(|_| LagWindow::default()).collect(),
         participant: participant.clone(),
         wrong_writers: BTreeSet::new(),
+        param_rx,
         inputs,
         writers,
         diagnostics,
@@ -600,6 +665,8 @@ struct Pump {
     participant: Arc<Participant>,
     /// Writers already counted as publishing a wrong type.
     wrong_writers: BTreeSet<rustdds::GUID>,
+    /// Parameter changes asked for over ROS.
+    param_rx: Receiver<ParamRequest>,
 }
 
 impl Pump {
@@ -615,6 +682,14 @@ impl Pump {
                 Ok(s) => self.take(s),
                 Err(RecvTimeoutError::Timeout) => {}
                 Err(RecvTimeoutError::Disconnected) => std::thread::sleep(opts.tick),
+            }
+            while let Ok(req) = self.param_rx.try_recv() {
+                let r = self.bus.set_parameter(&req.node, &req.name, &req.value);
+                match &r {
+                    Ok(()) => tracing::info!(node = req.node, "parameter {} set", req.name),
+                    Err(e) => tracing::warn!(node = req.node, "parameter refused: {e}"),
+                }
+                let _ = req.reply.send(r);
             }
             if last_tick.elapsed() >= opts.tick {
                 last_tick = Instant::now();

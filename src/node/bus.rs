@@ -112,6 +112,22 @@ impl Bus {
         self.nodes.iter().map(|n| (n.name(), n.status())).collect()
     }
 
+    /// Sets parameter `name` of the node named `node` while it runs.
+    ///
+    /// # Errors
+    /// No such node, or the node's reason for refusing.
+    pub fn set_parameter(
+        &mut self,
+        node: &str,
+        name: &str,
+        value: &super::launch::ParamValue,
+    ) -> Result<(), String> {
+        match self.nodes.iter_mut().find(|n| n.name() == node) {
+            Some(n) => n.set_parameter(name, value),
+            None => Err(format!("no node {node} here")),
+        }
+    }
+
     /// The nodes.
     pub fn nodes(&self) -> &[Box<dyn Node>] {
         &self.nodes

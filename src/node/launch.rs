@@ -60,7 +60,8 @@ impl ParamValue {
         }
     }
 
-    fn from_yaml(v: &serde_yaml_ng::Value) -> Option<Self> {
+    /// A YAML value as a parameter value (`None` for a mixed list, a map or null).
+    pub fn from_yaml(v: &serde_yaml_ng::Value) -> Option<Self> {
         use serde_yaml_ng::Value as Y;
         Some(match v {
             Y::Bool(b) => Self::Bool(*b),

@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use super::launch::{LaunchError, NodeSpec, Params};
+use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
 use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::cli::frame_ref;
@@ -456,6 +456,38 @@ impl Node for MesherNode {
             ),
         }
         self.status.published += (out.len() - before) as u64;
+    }
+
+    fn runtime_parameters(&self) -> Vec<(String, ParamValue)> {
+        vec![(
+            "idle_timeout_s".into(),
+            ParamValue::Double(self.idle_timeout_ns as f64 * 1e-9),
+        )]
+    }
+
+    /// `idle_timeout_s` can change while the node runs (1 ms to 10^6 s); the rest is taken at
+    /// start.
+    fn set_parameter(&mut self, name: &str, value: &ParamValue) -> Result<(), String> {
+        let seconds = match value {
+            ParamValue::Double(v) => Some(*v),
+            ParamValue::Integer(i) => Some(*i as f64),
+            _ => None,
+        };
+        match (name, seconds) {
+            ("idle_timeout_s", Some(v)) if (1e-3..=1e6).contains(&v) => {
+                self.idle_timeout_ns = (v * 1e9) as i64;
+                tracing::info!(node = self.fqn, "idle_timeout_s set to {v}");
+                Ok(())
+            }
+            ("idle_timeout_s", _) => Err(format!(
+                "idle_timeout_s: {value:?} is not a number of seconds in [0.001, 1e6]"
+            )),
+            (other, _) => Err(format!(
+                "{other}: {} takes it at start only (idle_timeout_s can change while it runs); \
+                 relaunch with the new value",
+                self.fqn
+            )),
+        }
     }
 
     fn on_tick(&mut self, now_ns: i64, out: &mut Vec<Message>) {

@@ -203,6 +203,24 @@ pub trait Node: Send + std::any::Any {
     fn on_tick(&mut self, now_ns: i64, out: &mut Vec<Message>) {
         let _ = (now_ns, out);
     }
+    /// The parameters [`Node::set_parameter`] accepts, with their current values (declared
+    /// to ROS even when the launch config does not set them). The default: none.
+    fn runtime_parameters(&self) -> Vec<(String, launch::ParamValue)> {
+        Vec::new()
+    }
+    /// Changes parameter `name` while the node runs (the ROS `set_parameters` service):
+    /// applied, or refused with the reason. The default refuses: most parameters shape what
+    /// was already built and are taken at start only.
+    ///
+    /// # Errors
+    /// The reason the value is refused.
+    fn set_parameter(&mut self, name: &str, value: &launch::ParamValue) -> Result<(), String> {
+        let _ = value;
+        Err(format!(
+            "{name}: {} takes it at start only; relaunch with the new value",
+            self.name()
+        ))
+    }
     /// Counters and problems.
     fn status(&self) -> &NodeStatus;
     /// Position in the pipeline: nodes finish in increasing rank, so what one publishes on
