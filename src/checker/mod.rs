@@ -784,7 +784,7 @@ fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Part {
         vec![work()]
     } else {
         std::thread::scope(|s| {
-            let handles: Vec<_> = (0..threads).map(|_| s.spawn(&work)).collect();
+            let handles: Vec<_> = (0..threads).map(|_| s.spawn(work)).collect();
             handles
                 .into_iter()
                 .map(|h| h.join().expect("checker worker panicked"))

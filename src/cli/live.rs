@@ -390,7 +390,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
                     )));
                 };
                 topics.insert(t.to_owned(), known);
-                missing.remove(&t.to_owned());
+                missing.remove(t);
             }
             std::thread::sleep(Duration::from_millis(100));
         }
