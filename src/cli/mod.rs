@@ -9,6 +9,7 @@ pub mod check;
 pub mod live;
 pub mod mesh;
 pub mod replay;
+pub mod sample;
 pub mod scene;
 
 use crate::mesh::FrameRef;
@@ -46,6 +47,8 @@ pub enum Command {
     Record(live::RecordArgs),
     /// Benchmarks that print the figures the README quotes.
     Bench(bench::BenchArgs),
+    /// Sample points uniformly on an implicit scene (seed 001); write a PointCloud2 bag.
+    Sample(sample::SampleArgs),
 }
 
 /// A failure that ends a command (per-frame problems are counted, not fatal).
@@ -74,6 +77,9 @@ pub enum CliError {
     /// A command-line value is malformed.
     #[error("{0}")]
     Usage(String),
+    /// An implicit scene cannot be sampled.
+    #[error(transparent)]
+    Sample(#[from] crate::sampler::scene_file::SceneFileError),
 }
 
 /// The VoxelGrid frames of a bag with its problems handled once for every command: an
@@ -190,6 +196,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Play(a) => live::play(&a),
         Command::Record(a) => live::record(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Sample(a) => sample::run(&a),
     }
 }
 
