@@ -5,6 +5,7 @@
 
 pub mod bench;
 pub mod bench_check;
+pub mod bench_sampler;
 pub mod check;
 pub mod live;
 pub mod mesh;

@@ -95,7 +95,8 @@ impl PassingSpheres {
         let mut acc = vec![0.0; steps / 2 + 1];
         for k in 0..steps / 2 {
             let a = t0 + 2.0 * k as f64 * h;
-            let s = h / 3.0 * (self.density(a) + 4.0 * self.density(a + h) + self.density(a + 2.0 * h));
+            let s =
+                h / 3.0 * (self.density(a) + 4.0 * self.density(a + h) + self.density(a + 2.0 * h));
             acc[k + 1] = acc[k] + s;
         }
         let total = acc[steps / 2];
@@ -130,7 +131,10 @@ mod tests {
 
     #[test]
     fn torus_cdf_spans_zero_to_one() {
-        let t = TorusTheta { major: 1.0, minor: 0.4 };
+        let t = TorusTheta {
+            major: 1.0,
+            minor: 0.4,
+        };
         assert!(t.cdf(-std::f64::consts::PI).abs() < 1e-15);
         assert!((t.cdf(std::f64::consts::PI) - 1.0).abs() < 1e-15);
     }
@@ -138,7 +142,11 @@ mod tests {
     #[test]
     fn passing_spheres_density_matches_a_direct_quadrature() {
         // Direct: integrate 1/|∇_S t| over the circle numerically from the gradients.
-        let p = PassingSpheres { ra: 1.0, rb: 0.5, speed: 1.3 };
+        let p = PassingSpheres {
+            ra: 1.0,
+            rb: 0.5,
+            speed: 1.3,
+        };
         let t = 0.8;
         let c = p.speed * t;
         let x0 = (1.0 + c * c - 0.25) / (2.0 * c);

@@ -154,7 +154,9 @@ impl Shape {
         match *self {
             Self::Sphere { centre, radius } => {
                 if !finite(&centre) || !(radius > 0.0 && radius.is_finite()) {
-                    return Some(format!("sphere: centre must be finite and radius > 0 (got {radius})"));
+                    return Some(format!(
+                        "sphere: centre must be finite and radius > 0 (got {radius})"
+                    ));
                 }
             }
             Self::Box {
@@ -191,7 +193,8 @@ impl Shape {
             Self::Cone {
                 apex, half_angle, ..
             } => {
-                if !finite(&apex) || !(half_angle > 0.0 && half_angle < std::f64::consts::FRAC_PI_2) {
+                if !finite(&apex) || !(half_angle > 0.0 && half_angle < std::f64::consts::FRAC_PI_2)
+                {
                     return Some(format!("cone: half_angle {half_angle} must be in (0, π/2)"));
                 }
             }
@@ -287,8 +290,8 @@ impl Shape {
             }
             Self::SeedHoles { centre } => {
                 let [x, y, z] = sub(p, centre);
-                let f = 4.5 * x.sin().powi(2) + 9.0 * y.cos() * z.cos() + x * x + y * y + z * z
-                    - 6.0;
+                let f =
+                    4.5 * x.sin().powi(2) + 9.0 * y.cos() * z.cos() + x * x + y * y + z * z - 6.0;
                 let g = [
                     9.0 * x.sin() * x.cos() + 2.0 * x,
                     -9.0 * y.sin() * z.cos() + 2.0 * y,
@@ -302,7 +305,8 @@ impl Shape {
     /// A box that holds the shape's zero set (for seeding walkers), or `None` for the
     /// unbounded ones (cone, seed saddle).
     pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
-        let around = |c: [f64; 3], r: [f64; 3]| Some((sub(c, r), [c[0] + r[0], c[1] + r[1], c[2] + r[2]]));
+        let around =
+            |c: [f64; 3], r: [f64; 3]| Some((sub(c, r), [c[0] + r[0], c[1] + r[1], c[2] + r[2]]));
         match *self {
             Self::Sphere { centre, radius } => around(centre, [radius; 3]),
             Self::Box { centre, half, .. } => around(centre, half),
@@ -405,25 +409,55 @@ mod tests {
             a[i] += h;
             c[i] -= h;
             let fd = (b.eval(&a).0 - b.eval(&c).0) / (2.0 * h);
-            assert!((fd - g[i]).abs() < 1e-5 * (1.0 + g[i].abs()), "{b:?} at {q:?}: d{i} {fd} vs {}", g[i]);
+            assert!(
+                (fd - g[i]).abs() < 1e-5 * (1.0 + g[i].abs()),
+                "{b:?} at {q:?}: d{i} {fd} vs {}",
+                g[i]
+            );
         }
     }
 
     #[test]
     fn analytic_gradients_match_differences() {
         let shapes = [
-            Shape::Sphere { centre: [0.1, 0.2, 0.3], radius: 0.7 },
-            Shape::Box { centre: [0.0; 3], half: [0.5, 0.4, 0.3], rounding: Some(0.1) },
-            Shape::Torus { centre: [0.0; 3], axis: ShapeAxis::X, major: 1.0, minor: 0.3 },
-            Shape::Capsule { a: [0.0; 3], b: [1.0, 0.5, 0.0], radius: 0.2 },
-            Shape::Cone { apex: [0.0; 3], axis: ShapeAxis::Y, half_angle: 0.5 },
+            Shape::Sphere {
+                centre: [0.1, 0.2, 0.3],
+                radius: 0.7,
+            },
+            Shape::Box {
+                centre: [0.0; 3],
+                half: [0.5, 0.4, 0.3],
+                rounding: Some(0.1),
+            },
+            Shape::Torus {
+                centre: [0.0; 3],
+                axis: ShapeAxis::X,
+                major: 1.0,
+                minor: 0.3,
+            },
+            Shape::Capsule {
+                a: [0.0; 3],
+                b: [1.0, 0.5, 0.0],
+                radius: 0.2,
+            },
+            Shape::Cone {
+                apex: [0.0; 3],
+                axis: ShapeAxis::Y,
+                half_angle: 0.5,
+            },
             Shape::SeedSaddle { centre: [0.0; 3] },
             Shape::SeedHoles { centre: [0.0; 3] },
         ];
-        let pts = [[0.31, -0.47, 0.83, 0.2], [0.9, 0.12, -0.23, -0.4], [-0.2, 0.61, 0.05, 0.7]];
+        let pts = [
+            [0.31, -0.47, 0.83, 0.2],
+            [0.9, 0.12, -0.23, -0.4],
+            [-0.2, 0.61, 0.05, 0.7],
+        ];
         for s in shapes {
             assert!(s.problem().is_none(), "{s:?}");
-            let b = Body::fixed(s).moving([0.3, -0.2, 0.5], 0.1).warped([0.4, 0.0, -0.3]);
+            let b = Body::fixed(s)
+                .moving([0.3, -0.2, 0.5], 0.1)
+                .warped([0.4, 0.0, -0.3]);
             for q in pts {
                 check_gradient(&b, q);
             }
@@ -432,11 +466,27 @@ mod tests {
 
     #[test]
     fn bad_parameters_are_named() {
-        assert!(Shape::Torus { centre: [0.0; 3], axis: ShapeAxis::Z, major: 0.2, minor: 0.3 }
-            .problem()
-            .unwrap()
-            .contains("minor"));
-        assert!(Shape::Sphere { centre: [f64::NAN, 0.0, 0.0], radius: 1.0 }.problem().is_some());
-        assert!(Shape::Box { centre: [0.0; 3], half: [1.0; 3], rounding: Some(1.0) }.problem().is_some());
+        assert!(Shape::Torus {
+            centre: [0.0; 3],
+            axis: ShapeAxis::Z,
+            major: 0.2,
+            minor: 0.3
+        }
+        .problem()
+        .unwrap()
+        .contains("minor"));
+        assert!(Shape::Sphere {
+            centre: [f64::NAN, 0.0, 0.0],
+            radius: 1.0
+        }
+        .problem()
+        .is_some());
+        assert!(Shape::Box {
+            centre: [0.0; 3],
+            half: [1.0; 3],
+            rounding: Some(1.0)
+        }
+        .problem()
+        .is_some());
     }
 }

@@ -85,7 +85,9 @@ impl Wall {
         match self {
             Self::Box { min, max } => (0..n)
                 .any(|i| !(min[i].is_finite() && max[i].is_finite() && min[i] < max[i]))
-                .then(|| format!("box wall: need finite min < max on every axis (got {min:?}, {max:?})")),
+                .then(|| {
+                    format!("box wall: need finite min < max on every axis (got {min:?}, {max:?})")
+                }),
             Self::Shell {
                 centre,
                 inner,
@@ -136,8 +138,10 @@ impl Local {
     pub fn residual(&self) -> f64 {
         (0..self.m)
             .map(|a| {
-                let n = dot(&self.g[a], &self.g[a]).sqrt();
-                if self.f[a] == 0.0 {
+                let n = norm(&self.g[a]);
+                if !self.f[a].is_finite() || !n.is_finite() {
+                    f64::INFINITY
+                } else if self.f[a] == 0.0 {
                     0.0
                 } else if n > 0.0 {
                     self.f[a].abs() / n
@@ -153,15 +157,18 @@ impl Local {
     pub fn normals(&self) -> Option<[Q; MAX_CONSTRAINTS]> {
         let mut out = [[0.0; 4]; MAX_CONSTRAINTS];
         for a in 0..self.m {
-            let mut v = self.g[a];
-            let len0 = dot(&v, &v).sqrt();
+            let len0 = norm(&self.g[a]);
+            if !(len0 > 0.0 && len0.is_finite()) {
+                return None;
+            }
+            let mut v = self.g[a].map(|x| x / len0);
             for b in 0..a {
                 let c = dot(&v, &out[b]);
                 axpy(&mut v, -c, &out[b]);
             }
             let len = dot(&v, &v).sqrt();
             // 1e-9: below this the normal direction is noise and D^{-1} meaningless.
-            if !(len > 1e-9 * len0.max(f64::MIN_POSITIVE)) || !len.is_finite() || len0 == 0.0 {
+            if !(len > 1e-9) || !len.is_finite() {
                 return None;
             }
             out[a] = v.map(|x| x / len);
@@ -169,18 +176,45 @@ impl Local {
         Some(out)
     }
 
-    /// `D^{-1} b` with `D^{ab} = ∇F^a · ∇F^b` (Cholesky), or `None` if D is singular to
-    /// working precision.
-    pub fn solve_d(&self, b: [f64; MAX_CONSTRAINTS]) -> Option<[f64; MAX_CONSTRAINTS]> {
+    /// The minimum-norm correction `∇F^T D^{-1} b` (`D^{ab} = ∇F^a · ∇F^b`), computed with
+    /// unit gradients so that neither huge nor tiny `|∇F|` over- or underflows:
+    /// `∇F^T D^{-1} b = Σ_a c_a ĝ_a` with `ĝ_a = ∇F^a/|∇F^a|` and
+    /// `c = D̂^{-1} (b_a/|∇F^a|)`. `None` if D is singular to working precision (a vanishing
+    /// gradient, tangent constraints) or anything is not finite.
+    pub fn correction(&self, b: [f64; MAX_CONSTRAINTS]) -> Option<Q> {
         let m = self.m;
+        let mut u = [[0.0; 4]; MAX_CONSTRAINTS];
+        let mut sb = [0.0; MAX_CONSTRAINTS];
+        for a in 0..m {
+            let n = norm(&self.g[a]);
+            if !(n > 0.0 && n.is_finite()) {
+                return None;
+            }
+            u[a] = self.g[a].map(|x| x / n);
+            sb[a] = b[a] / n;
+        }
         let mut d = [[0.0; MAX_CONSTRAINTS]; MAX_CONSTRAINTS];
         for a in 0..m {
             for c in 0..m {
-                d[a][c] = dot(&self.g[a], &self.g[c]);
+                d[a][c] = dot(&u[a], &u[c]);
             }
         }
-        solve_spd(&d, m, b)
+        let c = solve_spd(&d, m, sb)?;
+        let mut out = [0.0; 4];
+        for a in 0..m {
+            axpy(&mut out, c[a], &u[a]);
+        }
+        out.iter().all(|x| x.is_finite()).then_some(out)
     }
+}
+
+/// `|v|` without overflow or underflow of the squares.
+pub(crate) fn norm(v: &Q) -> f64 {
+    let s = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if !(s > 0.0) || !s.is_finite() {
+        return s;
+    }
+    s * v.iter().map(|x| (x / s) * (x / s)).sum::<f64>().sqrt()
 }
 
 /// Solves `A x = b` for a symmetric positive definite `m × m` matrix (m ≤ 3) by Cholesky;
@@ -347,7 +381,12 @@ impl Figure {
     /// A length scale for guards: the diagonal of the start box, or 1.
     pub fn scale(&self) -> f64 {
         self.start_box()
-            .map(|(a, b)| (0..self.dim).map(|i| (b[i] - a[i]).powi(2)).sum::<f64>().sqrt())
+            .map(|(a, b)| {
+                (0..self.dim)
+                    .map(|i| (b[i] - a[i]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
             .unwrap_or(1.0)
     }
 
@@ -457,11 +496,7 @@ impl Figure {
             if l.residual() <= tol {
                 return Some(q);
             }
-            let x = l.solve_d(l.f)?;
-            let mut step = [0.0; 4];
-            for a in 0..l.m {
-                axpy(&mut step, -x[a], &l.g[a]);
-            }
+            let step = l.correction(l.f)?.map(|x| -x);
             let len = dot(&step, &step).sqrt();
             let s = if len > max_step { max_step / len } else { 1.0 };
             axpy(&mut q, s, &step);

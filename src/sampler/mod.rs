@@ -113,7 +113,9 @@ impl std::str::FromStr for Scheme {
             "explicit" => Ok(Self::Explicit),
             "projected" => Ok(Self::Projected),
             "metropolis" => Ok(Self::Metropolis),
-            _ => Err(format!("unknown scheme `{s}`: expected explicit, projected or metropolis")),
+            _ => Err(format!(
+                "unknown scheme `{s}`: expected explicit, projected or metropolis"
+            )),
         }
     }
 }
@@ -231,7 +233,13 @@ impl SamplerOptions {
     /// # Errors
     /// [`SamplerError::BadParameter`] naming the first parameter out of range.
     pub fn validate(&self) -> Result<(), SamplerError> {
-        let bad = |name, value: f64, expected| Err(SamplerError::BadParameter { name, value, expected });
+        let bad = |name, value: f64, expected| {
+            Err(SamplerError::BadParameter {
+                name,
+                value,
+                expected,
+            })
+        };
         if !(self.dt > 0.0 && self.dt <= 1e3) {
             return bad("dt", self.dt, "0 < dt ≤ 1e3");
         }
@@ -349,8 +357,7 @@ pub fn surface_points(
     let dt = step * step / 4.0;
     let opts = SamplerOptions::default().dt(dt).samples(n).seed(seed);
     let s = sample(&fig, &opts)?;
-    Ok(s
-        .points
+    Ok(s.points
         .iter()
         .map(|q| {
             let (_, g) = fig.eval(q);

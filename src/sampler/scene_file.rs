@@ -197,10 +197,16 @@ impl SceneFile {
     pub fn build(&self) -> Result<ImplicitScene, SceneFileError> {
         let bad = |s: String| Err(SceneFileError::Invalid(s));
         if !(self.dim == 3 || self.dim == 4) {
-            return bad(format!("dim {}: expected 3 (space) or 4 (space-time)", self.dim));
+            return bad(format!(
+                "dim {}: expected 3 (space) or 4 (space-time)",
+                self.dim
+            ));
         }
         if self.bodies.len() > MAX_BODIES {
-            return bad(format!("{} bodies: at most {MAX_BODIES}", self.bodies.len()));
+            return bad(format!(
+                "{} bodies: at most {MAX_BODIES}",
+                self.bodies.len()
+            ));
         }
         for (i, b) in self.bodies.iter().enumerate() {
             if self.bodies[..i].iter().any(|o| o.name == b.name) {
@@ -209,12 +215,19 @@ impl SceneFile {
             if let Some(p) = b.shape.problem() {
                 return bad(format!("body `{}`: {p}", b.name));
             }
-            let finite = b.velocity.iter().chain(&b.warp).all(|x| x.is_finite()) && b.t_ref.is_finite();
+            let finite =
+                b.velocity.iter().chain(&b.warp).all(|x| x.is_finite()) && b.t_ref.is_finite();
             if !finite {
-                return bad(format!("body `{}`: velocity, warp and t_ref must be finite", b.name));
+                return bad(format!(
+                    "body `{}`: velocity, warp and t_ref must be finite",
+                    b.name
+                ));
             }
             if self.dim == 3 && b.velocity != [0.0; 3] {
-                tracing::warn!("body `{}`: velocity is ignored in a dim 3 scene (its pose at t = 0 is used)", b.name);
+                tracing::warn!(
+                    "body `{}`: velocity is ignored in a dim 3 scene (its pose at t = 0 is used)",
+                    b.name
+                );
             }
         }
         let mut bodies = Vec::new();
@@ -245,8 +258,10 @@ impl SceneFile {
             (_, Some(_)) => return bad("`time` is only for dim 4".into()),
             _ => None,
         };
-        let fields: Vec<Arc<dyn super::Field>> =
-            bodies.iter().map(|(_, b)| Arc::new(*b) as Arc<dyn super::Field>).collect();
+        let fields: Vec<Arc<dyn super::Field>> = bodies
+            .iter()
+            .map(|(_, b)| Arc::new(*b) as Arc<dyn super::Field>)
+            .collect();
         let mut fig = Figure::new(self.dim, fields)?;
         let mut have_box = false;
         for w in &self.walls {
@@ -281,7 +296,9 @@ impl SceneFile {
                 };
                 for i in 0..3 {
                     let shift = time.map_or(0.0, |[t0, t1]| {
-                        (b.velocity[i] * (t0 - b.t_ref)).abs().max((b.velocity[i] * (t1 - b.t_ref)).abs())
+                        (b.velocity[i] * (t0 - b.t_ref))
+                            .abs()
+                            .max((b.velocity[i] * (t1 - b.t_ref)).abs())
                     });
                     lo[i] = lo[i].min(a[i] - shift);
                     hi[i] = hi[i].max(c[i] + shift);
@@ -396,14 +413,20 @@ mod tests {
 
     #[test]
     fn bad_scenes_say_what_is_wrong() {
-        let e = SceneFile::parse("dim: 3\nbodies: []\nsample: [x]\n").unwrap().build().unwrap_err();
+        let e = SceneFile::parse("dim: 3\nbodies: []\nsample: [x]\n")
+            .unwrap()
+            .build()
+            .unwrap_err();
         assert!(e.to_string().contains("no body named `x`"), "{e}");
         let e = SceneFile::parse("dim: 3\nbodies:\n  - name: a\n    shape: {kind: sphere, centre: [0,0,0], radius: -1}\nsample: [a]\n")
             .unwrap()
             .build()
             .unwrap_err();
         assert!(e.to_string().contains("radius"), "{e}");
-        assert!(SceneFile::parse("dim: 3\nbodies:\n  - name: a\n    shape: {kind: blob}\nsample: [a]\n").is_err());
+        assert!(SceneFile::parse(
+            "dim: 3\nbodies:\n  - name: a\n    shape: {kind: blob}\nsample: [a]\n"
+        )
+        .is_err());
         let e = SceneFile::parse("dim: 4\nbodies:\n  - name: a\n    shape: {kind: sphere, centre: [0,0,0], radius: 1}\nsample: [a]\n")
             .unwrap()
             .build()

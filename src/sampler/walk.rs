@@ -1,8 +1,8 @@
 //! The walkers and the three schemes: one step of each, and the driver that seeds walkers,
 //! burns them in and draws samples round-robin.
 
-use super::figure::{axpy, dot, Figure, MAX_CONSTRAINTS};
 use super::field::Q;
+use super::figure::{axpy, dot, Figure, MAX_CONSTRAINTS};
 use super::rng::Rng;
 use super::{LambdaPolicy, SampleStats, SamplerError, SamplerOptions, Scheme};
 
@@ -114,14 +114,18 @@ impl<'a> Sampler<'a> {
             let got = self.fig.pull_onto(
                 q0,
                 self.opts.tol,
-                self.opts.max_newton * 10,
+                (self.opts.max_newton * 100).max(2000),
                 max_step,
                 &mut self.stats.evals,
             );
             if let Some(q) = got {
                 if self.fig.admits(&q) {
                     if self.opts.scheme == Scheme::Explicit
-                        || self.fig.local(&q, &mut self.stats.evals).normals().is_some()
+                        || self
+                            .fig
+                            .local(&q, &mut self.stats.evals)
+                            .normals()
+                            .is_some()
                     {
                         return Ok(q);
                     }
@@ -218,15 +222,13 @@ impl<'a> Sampler<'a> {
             }
         }
         let rhs: [f64; MAX_CONSTRAINTS] = std::array::from_fn(|c| trace[c] + self.k * l.f[c]);
-        let Some(x) = l.solve_d(rhs) else {
+        let Some(corr) = l.correction(rhs) else {
             self.stats.singular += 1;
             self.finish_explicit(w, q, dw);
             return;
         };
         let mut dq = tangent_part(&dw, &nrm, l.m);
-        for c in 0..l.m {
-            axpy(&mut dq, -self.opts.alpha * self.opts.dt * x[c], &l.g[c]);
-        }
+        axpy(&mut dq, -self.opts.alpha * self.opts.dt, &corr);
         self.finish_explicit(w, q, dq);
     }
 
