@@ -39,6 +39,14 @@
 //! assert!(s.points.iter().all(|q| fig.residual(q) < 1e-8));
 //! ```
 
+// `!(x > 0.0)` is meant: it rejects NaN as well as non-positive values. The index loops over
+// M ≤ 3 constraints mirror the formulas' indices (D^{ab}, Cholesky factors).
+#![allow(
+    clippy::neg_cmp_op_on_partial_ord,
+    clippy::needless_range_loop,
+    clippy::nonminimal_bool
+)]
+
 pub mod exact;
 mod field;
 mod figure;

@@ -119,16 +119,16 @@ impl<'a> Sampler<'a> {
                 &mut self.stats.evals,
             );
             if let Some(q) = got {
-                if self.fig.admits(&q) {
-                    if self.opts.scheme == Scheme::Explicit
+                // The Newton schemes need a tangent space to start from (not a cone apex).
+                if self.fig.admits(&q)
+                    && (self.opts.scheme == Scheme::Explicit
                         || self
                             .fig
                             .local(&q, &mut self.stats.evals)
                             .normals()
-                            .is_some()
-                    {
-                        return Ok(q);
-                    }
+                            .is_some())
+                {
+                    return Ok(q);
                 }
             } else {
                 best = best.min(self.fig.residual(&q0));
