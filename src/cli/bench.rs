@@ -83,6 +83,25 @@ pub enum BenchWhich {
         #[arg(long)]
         no_sweep: bool,
     },
+    /// The stochastic sampler (issue 7): uniformity error (KS) against run time and
+    /// evaluations per scheme and step on three figures with exact answers.
+    Sampler {
+        /// Time steps (noise variance 2·dt per coordinate).
+        #[arg(long, value_delimiter = ',', default_value = "0.01,0.003,0.001")]
+        dts: Vec<f64>,
+        /// Samples of the longest run.
+        #[arg(long, default_value_t = 256_000)]
+        samples: usize,
+        /// The KS level at which samples per second are compared.
+        #[arg(long, default_value_t = 0.01)]
+        target: f64,
+        /// Write the Markdown report here (e.g. docs/sampler-error.md).
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+        /// Write an SVG plot here.
+        #[arg(long)]
+        svg: Option<std::path::PathBuf>,
+    },
 }
 
 /// Runs a benchmark and prints its figures.
@@ -123,6 +142,19 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             *encoding,
             *reps,
             if *no_sweep { &[] } else { sweep },
+        ),
+        BenchWhich::Sampler {
+            dts,
+            samples,
+            target,
+            out,
+            svg,
+        } => super::bench_sampler::bench_sampler(
+            dts,
+            (*samples).clamp(1000, crate::sampler::MAX_SAMPLES),
+            *target,
+            out.as_deref(),
+            svg.as_deref(),
         ),
     }
 }

@@ -5,11 +5,13 @@
 
 pub mod bench;
 pub mod bench_check;
+pub mod bench_sampler;
 pub mod check;
 pub mod live;
 pub mod mesh;
 pub mod param;
 pub mod replay;
+pub mod sample;
 pub mod scene;
 
 use crate::mesh::FrameRef;
@@ -49,6 +51,8 @@ pub enum Command {
     Param(param::ParamArgs),
     /// Benchmarks that print the figures the README quotes.
     Bench(bench::BenchArgs),
+    /// Sample points uniformly on an implicit scene (seed 001); write a PointCloud2 bag.
+    Sample(sample::SampleArgs),
 }
 
 /// A failure that ends a command (per-frame problems are counted, not fatal).
@@ -77,6 +81,9 @@ pub enum CliError {
     /// A command-line value is malformed.
     #[error("{0}")]
     Usage(String),
+    /// An implicit scene cannot be sampled.
+    #[error(transparent)]
+    Sample(#[from] crate::sampler::scene_file::SceneFileError),
 }
 
 /// The VoxelGrid frames of a bag with its problems handled once for every command: an
@@ -194,6 +201,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Record(a) => live::record(&a),
         Command::Param(a) => param::run(&a),
         Command::Bench(a) => bench::run(&a),
+        Command::Sample(a) => sample::run(&a),
     }
 }
 
