@@ -68,6 +68,17 @@ impl Quat {
         }
     }
 
+    /// The rotation `self` after `other` (Hamilton product `self · other`).
+    pub fn mul(&self, b: &Self) -> Self {
+        let a = self;
+        Self {
+            w: a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z,
+            x: a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
+            y: a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+            z: a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w,
+        }
+    }
+
     /// Rotates `v`.
     pub fn rotate(&self, v: Vec3) -> Vec3 {
         let u = [self.x, self.y, self.z];

@@ -10,7 +10,7 @@
 //! the value of eq. 2, and the face attaining it the cutting face whose normal a newly
 //! exposed point takes (§5.2).
 
-use super::math::{dot, lerp, norm, scale, sub, Vec3};
+use super::math::{add, dot, lerp, norm, scale, sub, Vec3};
 use super::tool::{Tool, ToolKind};
 use super::workpiece::{
     Workpiece, BOUND, COLOUR_CHISEL, COLOUR_EDGE, COLOUR_KNIFE, NO_SURFEL, OUTSIDE,
@@ -49,6 +49,9 @@ struct Sweep {
     /// Face `k` of the tool's face list is slanted (a chisel side).
     slanted: [bool; 8],
     d: Vec3,
+    /// For a box tool (the knife): start centre, world axes and half-extents, for the exact
+    /// closest point of the swept solid.
+    boxed: Option<(Vec3, [Vec3; 3], Vec3)>,
 }
 
 impl Sweep {
@@ -63,13 +66,72 @@ impl Sweep {
             b[k] = dot(nw, d);
             slanted[k] = tool.kind() == ToolKind::Chisel && n[0] == 0.0 && n[2] < 0.0;
         }
+        let boxed = (tool.kind() == ToolKind::Knife).then(|| {
+            let f = tool.faces();
+            (
+                c0,
+                [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].map(|a| rot.rotate(a)),
+                [f[0].1, f[2].1, f[4].1],
+            )
+        });
         Self {
             faces,
             m,
             b,
             slanted,
             d,
+            boxed,
         }
+    }
+
+    /// For a box tool, the closest point of the swept solid to `p` (outside it) and the
+    /// distance: `min over s of dist(p - s d, box)`, convex in `s`, by golden-section search.
+    fn closest_on_box_sweep(&self, p: Vec3) -> Option<(Vec3, f64)> {
+        let (c0, ax, half) = self.boxed?;
+        let q = sub(p, c0);
+        let local = |s: f64| {
+            let r = sub(q, scale(self.d, s));
+            [0, 1, 2].map(|a| dot(ax[a], r))
+        };
+        let dist2 = |s: f64| {
+            let l = local(s);
+            (0..3)
+                .map(|a| (l[a].abs() - half[a]).max(0.0).powi(2))
+                .sum::<f64>()
+        };
+        let g = (5f64.sqrt() - 1.0) / 2.0;
+        let (mut a, mut b) = (0.0f64, 1.0f64);
+        let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+        let (mut f1, mut f2) = (dist2(x1), dist2(x2));
+        for _ in 0..48 {
+            if f1 < f2 {
+                b = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = b - g * (b - a);
+                f1 = dist2(x1);
+            } else {
+                a = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = a + g * (b - a);
+                f2 = dist2(x2);
+            }
+        }
+        let mut best = (dist2((a + b) / 2.0), (a + b) / 2.0);
+        for s in [0.0, 1.0] {
+            let v = dist2(s);
+            if v < best.0 {
+                best = (v, s);
+            }
+        }
+        let s = best.1;
+        let l = local(s);
+        let mut c = add(c0, scale(self.d, s));
+        for k in 0..3 {
+            c = add(c, scale(ax[k], l[k].clamp(-half[k], half[k])));
+        }
+        Some((c, best.0.sqrt()))
     }
 
     /// `f(p) = min over s in [0,1] of max_k (a_k - s b_k)`, the `s` and the face attaining it.
@@ -128,7 +190,7 @@ fn row_range(cons: &[(f64, f64, f64)]) -> Option<(f64, f64)> {
         }
         true
     };
-    for (x, &(ci, cs, c0)) in cons.iter().enumerate() {
+    for &(ci, cs, c0) in cons {
         if cs == 0.0 {
             if !bound(ci, c0) {
                 return None;
@@ -139,7 +201,7 @@ fn row_range(cons: &[(f64, f64, f64)]) -> Option<(f64, f64)> {
             continue;
         }
         // x bounds s from above; pair it with every constraint bounding s from below.
-        for &(cj, csj, c0j) in &cons[..] {
+        for &(cj, csj, c0j) in cons {
             if csj < 0.0 {
                 let (lp, ln) = (1.0 / cs, -1.0 / csj);
                 if !bound(lp * ci + ln * cj, lp * c0 + ln * c0j) {
@@ -147,7 +209,6 @@ fn row_range(cons: &[(f64, f64, f64)]) -> Option<(f64, f64)> {
                 }
             }
         }
-        let _ = x;
     }
     (lo <= hi).then_some((lo, hi))
 }
@@ -342,6 +403,14 @@ impl Workpiece {
             }
         }
         self.flags[idx] = BOUND;
+        // The knife: the surfel at the exact closest point of the swept solid, facing it.
+        if let Some((c, dist)) = sweep.closest_on_box_sweep(p) {
+            if dist > 1e-12 * h && dist <= 1.5 * h {
+                self.set_surfel(idx, c, scale(sub(c, p), 1.0 / dist), colour);
+                stats.exposed += 1;
+                return;
+            }
+        }
         // The surfel on the cutting face (eq. 2's plane), if the point is within the band.
         let pos = if f > 0.0 && f <= 1.5 * h {
             sub(p, scale(nw, f))

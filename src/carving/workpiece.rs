@@ -114,6 +114,12 @@ impl Workpiece {
             hi,
             removed: Vec::new(),
         };
+        // Room for the surfels of cuts: growing a vector of a million surfels would copy it
+        // inside one pose's update (milliseconds).
+        let faces = 2 * (dims[0] * dims[1] + dims[1] * dims[2] + dims[0] * dims[2]);
+        let room = (4 * faces).min(n);
+        w.surfels.reserve_exact(room);
+        w.owners.reserve_exact(room);
         // The six faces: BOUND points with the block's normals, surfels on the true faces.
         for k in 0..dims[2] {
             for j in 0..dims[1] {
