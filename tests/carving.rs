@@ -445,13 +445,21 @@ fn steady_force(h: f64, dt: f64, model: ForceModel) -> f64 {
 
 #[test]
 fn the_volume_force_is_rate_and_resolution_independent_and_the_count_force_is_not() {
-    let base = steady_force(1e-3, 1e-3, ForceModel::Volume);
-    // Cross-section 3 mm x 6 mm = 18 mm^2 at 2e5 N/m^2 = 3.6 N.
-    assert!((base - 3.6).abs() < 0.5, "{base}");
-    let slow = steady_force(1e-3, 2e-3, ForceModel::Volume);
-    let fine = steady_force(0.5e-3, 1e-3, ForceModel::Volume);
-    assert!((slow / base - 1.0).abs() < 0.1, "{slow} vs {base}");
-    assert!((fine / base - 1.0).abs() < 0.15, "{fine} vs {base}");
+    for model in [ForceModel::Volume, ForceModel::Section] {
+        let base = steady_force(1e-3, 1e-3, model);
+        // Cross-section 3 mm x 6 mm = 18 mm^2 at 2e5 N/m^2 = 3.6 N.
+        assert!((base - 3.6).abs() < 0.5, "{model:?}: {base}");
+        let slow = steady_force(1e-3, 2e-3, model);
+        let fine = steady_force(0.5e-3, 1e-3, model);
+        assert!(
+            (slow / base - 1.0).abs() < 0.1,
+            "{model:?}: {slow} vs {base}"
+        );
+        assert!(
+            (fine / base - 1.0).abs() < 0.15,
+            "{model:?}: {fine} vs {base}"
+        );
+    }
     let c1 = steady_force(1e-3, 1e-3, ForceModel::Count);
     let c2 = steady_force(1e-3, 2e-3, ForceModel::Count);
     assert!(

@@ -15,6 +15,12 @@ pub enum ForceModel {
     /// times a specific cutting pressure (N/m^2), along `n_avg`: independent of the pose
     /// rate and, up to sampling, of the spacing.
     Volume,
+    /// The cut cross-section read off the material in front of the tool: `A = m h^2` for the
+    /// `m` material points within one spacing ahead of it along the move
+    /// ([`crate::carving::Workpiece::material_ahead`]), times the cutting pressure, against
+    /// the motion. Rate independent like [`ForceModel::Volume`], and without its stepping
+    /// (points are removed a layer at a time, so the removed volume per pose comes in bursts).
+    Section,
 }
 
 impl std::str::FromStr for ForceModel {
@@ -23,7 +29,8 @@ impl std::str::FromStr for ForceModel {
         match s {
             "count" => Ok(Self::Count),
             "volume" => Ok(Self::Volume),
-            o => Err(format!("force model {o:?}: one of count, volume")),
+            "section" => Ok(Self::Section),
+            o => Err(format!("force model {o:?}: one of count, volume, section")),
         }
     }
 }
@@ -52,7 +59,7 @@ pub struct ForceParams {
 impl Default for ForceParams {
     fn default() -> Self {
         Self {
-            model: ForceModel::Volume,
+            model: ForceModel::Section,
             newtons_per_point: 0.05,
             pressure: 2.0e5,
             cutoff_hz: 30.0,
@@ -99,6 +106,14 @@ impl ForceRenderer {
 
     /// The unfiltered cut force of one move (N) on a grid of `spacing`.
     pub fn cut_force(&self, cut: &CutStats, spacing: f64, motion: Vec3) -> Vec3 {
+        if self.p.model == ForceModel::Section {
+            let len = norm(motion);
+            if cut.ahead == 0 || !(len > 1e-12) {
+                return [0.0; 3];
+            }
+            let area = cut.ahead as f64 * spacing * spacing;
+            return scale(motion, -self.p.pressure * area / len);
+        }
         if cut.removed == 0 {
             return [0.0; 3];
         }
@@ -114,7 +129,9 @@ impl ForceRenderer {
         }
         let unit = scale(dir, 1.0 / len);
         let magnitude = match self.p.model {
-            ForceModel::Count => self.p.newtons_per_point * cut.removed as f64,
+            ForceModel::Count | ForceModel::Section => {
+                self.p.newtons_per_point * cut.removed as f64
+            }
             ForceModel::Volume => {
                 // No travel (a stroke's first pose, the tool appearing in the material): no
                 // cross-section to speak of.

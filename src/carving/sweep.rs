@@ -35,6 +35,9 @@ pub struct CutStats {
     pub resampled: u64,
     /// Rotation substeps used.
     pub substeps: u32,
+    /// Material points in the layer one spacing ahead of the tool after the move
+    /// ([`Workpiece::material_ahead`]).
+    pub ahead: u64,
     /// Distance swept: the tool origin's displacement plus rotation angle x tool radius (m).
     pub travel: f64,
 }
@@ -256,18 +259,21 @@ impl Workpiece {
             let sweep = Sweep::new(tool, &rot, c0, sub(c1, c0));
             self.carve_translation(tool, &rot, c0, c1, &sweep, &mut stats);
         }
+        stats.ahead = self.material_ahead(tool, to, sub(to.position, from.position));
         Ok(stats)
     }
 
-    fn carve_translation(
-        &mut self,
+    /// The grid points inside the translation sweep, as row spans `(row start, i0, i1)`.
+    fn sweep_spans(
+        &self,
         tool: &Tool,
         rot: &super::Quat,
         c0: Vec3,
         c1: Vec3,
         sweep: &Sweep,
-        stats: &mut CutStats,
+        spans: &mut Vec<(usize, usize, usize)>,
     ) {
+        spans.clear();
         let h = self.h;
         // Bounding box of the sweep, in grid indices.
         let mut bmin = [f64::INFINITY; 3];
@@ -292,7 +298,6 @@ impl Workpiece {
             }
             range[a] = (lo as usize, hi as usize);
         }
-        self.removed.clear();
         let m = sweep.m;
         let mut cons = [(0.0, 0.0, 0.0); 10];
         cons[m] = (0.0, -1.0, 0.0); // s >= 0
@@ -316,26 +321,64 @@ impl Workpiece {
                 };
                 let i0 = lo.ceil().max(range[0].0 as f64);
                 let i1 = hi.floor().min(range[0].1 as f64);
-                if !(i0 <= i1) {
-                    continue;
-                }
-                let row = self.index(0, j, k);
-                for i in i0 as usize..=i1 as usize {
-                    let idx = row + i;
-                    if self.flags[idx] == OUTSIDE {
-                        continue;
-                    }
-                    if let Some(n) = self.remove_point(idx) {
-                        stats.removed_surface += 1;
-                        for a in 0..3 {
-                            stats.normal_sum[a] += f64::from(n[a]);
-                        }
-                    }
-                    stats.removed += 1;
-                    self.removed.push(idx as u32);
+                if i0 <= i1 {
+                    spans.push((self.index(0, j, k), i0 as usize, i1 as usize));
                 }
             }
         }
+    }
+
+    /// Material points the tool at `pose` would meet in its next spacing of travel along
+    /// `motion`: the layer in front of it. Times spacing^2 it is the cut cross-section,
+    /// sampled without the stepping of the points removed per pose.
+    pub fn material_ahead(&mut self, tool: &Tool, pose: &ToolPose, motion: Vec3) -> u64 {
+        let len = norm(motion);
+        if !(len > 1e-12) {
+            return 0;
+        }
+        let c1 = add(pose.position, scale(motion, self.h / len));
+        let sweep = Sweep::new(tool, &pose.rotation, pose.position, sub(c1, pose.position));
+        let mut spans = std::mem::take(&mut self.spans);
+        self.sweep_spans(tool, &pose.rotation, pose.position, c1, &sweep, &mut spans);
+        let mut n = 0u64;
+        for &(row, i0, i1) in &spans {
+            n += self.flags[row + i0..=row + i1]
+                .iter()
+                .filter(|&&f| f != OUTSIDE)
+                .count() as u64;
+        }
+        self.spans = spans;
+        n
+    }
+
+    fn carve_translation(
+        &mut self,
+        tool: &Tool,
+        rot: &super::Quat,
+        c0: Vec3,
+        c1: Vec3,
+        sweep: &Sweep,
+        stats: &mut CutStats,
+    ) {
+        let mut spans = std::mem::take(&mut self.spans);
+        self.sweep_spans(tool, rot, c0, c1, sweep, &mut spans);
+        self.removed.clear();
+        for &(row, i0, i1) in &spans {
+            for idx in row + i0..=row + i1 {
+                if self.flags[idx] == OUTSIDE {
+                    continue;
+                }
+                if let Some(n) = self.remove_point(idx) {
+                    stats.removed_surface += 1;
+                    for a in 0..3 {
+                        stats.normal_sum[a] += f64::from(n[a]);
+                    }
+                }
+                stats.removed += 1;
+                self.removed.push(idx as u32);
+            }
+        }
+        self.spans = spans;
         if self.removed.is_empty() {
             return;
         }

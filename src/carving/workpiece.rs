@@ -67,6 +67,8 @@ pub struct Workpiece {
     pub(crate) hi: Vec3,
     /// Scratch: points removed by the current substep.
     pub(crate) removed: Vec<u32>,
+    /// Scratch: row spans of a sweep.
+    pub(crate) spans: Vec<(usize, usize, usize)>,
 }
 
 impl Workpiece {
@@ -113,6 +115,7 @@ impl Workpiece {
             lo,
             hi,
             removed: Vec::new(),
+            spans: Vec::new(),
         };
         // Room for the surfels of cuts: growing a vector of a million surfels would copy it
         // inside one pose's update (milliseconds).

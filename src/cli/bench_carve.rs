@@ -40,8 +40,16 @@ struct Timing {
 /// `depth` deeper once y is done; every pose cuts fresh material. Each pose timed.
 fn time_stroke(work: &mut Workpiece, tool: &Tool, step: f64, depth: f64, poses: usize) -> Timing {
     let (lo, hi) = work.block_bounds();
-    let half_len = tool.vertices().iter().map(|v| v[0].abs()).fold(0.0, f64::max);
-    let half_width = tool.vertices().iter().map(|v| v[1].abs()).fold(0.0, f64::max);
+    let half_len = tool
+        .vertices()
+        .iter()
+        .map(|v| v[0].abs())
+        .fold(0.0, f64::max);
+    let half_width = tool
+        .vertices()
+        .iter()
+        .map(|v| v[1].abs())
+        .fold(0.0, f64::max);
     let (x0, x1) = (lo[0] + 0.1 * (hi[0] - lo[0]), lo[0] + 0.9 * (hi[0] - lo[0]));
     let (y0, y1) = (lo[1] + 0.1 * (hi[1] - lo[1]), lo[1] + 0.9 * (hi[1] - lo[1]));
     let mut z = hi[2] + half_len - depth;
@@ -196,15 +204,22 @@ fn accuracy_case(h: f64, per_frame: f64, rotate: bool) -> Result<Accuracy, CliEr
     let length = ((end[0] - start[0]).powi(2) + (end[1] - start[1]).powi(2)).sqrt();
     let frames = ((length / (per_frame * h)).ceil() as usize).max(1);
     let v0 = work.material_volume();
-    let t0 = Instant::now();
-    let mut prev = pose(0.0);
-    work.carve(&tool, &prev, &prev).map_err(err)?;
-    for k in 1..=frames {
-        let next = pose(k as f64 / frames as f64);
-        work.carve(&tool, &prev, &next).map_err(err)?;
-        prev = next;
+    // The stroke cut three times on fresh blocks; the fastest time kept.
+    let mut ms = f64::INFINITY;
+    for rep in 0..3 {
+        if rep > 0 {
+            work = Workpiece::block(lo, hi, h).map_err(err)?;
+        }
+        let t0 = Instant::now();
+        let mut prev = pose(0.0);
+        work.carve(&tool, &prev, &prev).map_err(err)?;
+        for k in 1..=frames {
+            let next = pose(k as f64 / frames as f64);
+            work.carve(&tool, &prev, &next).map_err(err)?;
+            prev = next;
+        }
+        ms = ms.min(t0.elapsed().as_secs_f64() * 1e3);
     }
-    let ms = t0.elapsed().as_secs_f64() * 1e3;
     let removed = v0 - work.material_volume();
     // The exact solid: one sweep for a translation, 400 fine sweeps for the rotating move.
     let half = knife_half(&tool);
@@ -337,7 +352,6 @@ fn accuracy_case(h: f64, per_frame: f64, rotate: bool) -> Result<Accuracy, CliEr
     })
 }
 
-
 /// Coefficient of variation of the rendered force over a steady cut at 1 kHz (after 0.2 s),
 /// and its mean (N).
 fn force_cv(h: f64, model: ForceModel, filtered: bool) -> Result<(f64, f64), CliError> {
@@ -416,7 +430,9 @@ pub fn bench_carve_accuracy(
     md.push_str(
         "to one outside it, one spacing away from the block's faces) with no surfel within a\n",
     );
-    md.push_str("surfel radius (√3/2 spacing). Time = carving the whole stroke.\n\n");
+    md.push_str(
+        "surfel radius (√3/2 spacing). Time = carving the whole stroke (fastest of three).\n\n",
+    );
     md.push_str("| spacing mm | spacings/frame | rotation | frames | volume err | surfel RMS mm | surfel max mm | holes (samples) | time ms |\n");
     md.push_str("|---|---|---|---|---|---|---|---|---|\n");
     print!("{md}");
@@ -446,18 +462,19 @@ pub fn bench_carve_accuracy(
     f.push_str(
         "\nForce in a steady cut: knife 3 mm deep moving along x at 50 mm/s, poses at 1 kHz,\n",
     );
-    f.push_str("0.8 s after the first 0.2 s. CV = standard deviation / mean of |F|.\n\n");
+    f.push_str(
+        "0.8 s after the first 0.2 s. CV = standard deviation / mean of |F|. Filtered = the\n",
+    );
+    f.push_str("default 30 Hz low-pass and virtual coupling (2000 N/m, 8 N·s/m, 0.02 kg).\n\n");
     f.push_str("| spacing mm | force | mean N | CV |\n|---|---|---|---|\n");
     for &s in spacings_mm {
         let h = s * 1e-3;
         for (name, model, filtered) in [
             ("eq. 8 (count), raw", ForceModel::Count, false),
             ("cross-section (volume), raw", ForceModel::Volume, false),
-            (
-                "cross-section, filtered + coupling",
-                ForceModel::Volume,
-                true,
-            ),
+            ("cross-section (volume), filtered", ForceModel::Volume, true),
+            ("layer ahead (section), raw", ForceModel::Section, false),
+            ("layer ahead (section), filtered", ForceModel::Section, true),
         ] {
             let (cv, mean) = force_cv(h, model, filtered)?;
             f.push_str(&format!("| {s} | {name} | {mean:.3} | {cv:.2} |\n"));

@@ -137,7 +137,8 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
     let n = CARVING_POSES;
     // The knife's blade faces +x (tool z → x, its length along -z), turned about z.
     let facing_x = Q::from_axis_angle([0.0, 1.0, 0.0], std::f64::consts::FRAC_PI_2);
-    let knife = |turn_deg: f64| Q::from_axis_angle([0.0, 0.0, 1.0], turn_deg.to_radians()).mul(&facing_x);
+    let knife =
+        |turn_deg: f64| Q::from_axis_angle([0.0, 0.0, 1.0], turn_deg.to_radians()).mul(&facing_x);
     // The chisel cuts along its x: turned to cut along y, its V opening up.
     let chisel = Q::from_axis_angle([0.0, 0.0, 1.0], std::f64::consts::FRAC_PI_2);
     let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
@@ -152,12 +153,18 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
             ([lerp(0.012, 0.048, t), 0.030, kz], knife(30.0 * t))
         } else if s < 0.5 {
             let t = (s - 0.45) / 0.05;
-            ([lerp(0.048, 0.030, t), lerp(0.030, 0.006, t), 0.045], knife(30.0))
+            (
+                [lerp(0.048, 0.030, t), lerp(0.030, 0.006, t), 0.045],
+                knife(30.0),
+            )
         } else if s < 0.55 {
             // The chisel (from 1.5 s) descends: apex 3 mm below the top.
             ([0.030, 0.006, lerp(0.045, 0.027, (s - 0.5) / 0.05)], chisel)
         } else {
-            ([0.030, lerp(0.006, 0.054, (s - 0.55) / 0.45), 0.027], chisel)
+            (
+                [0.030, lerp(0.006, 0.054, (s - 0.55) / 0.45), 0.027],
+                chisel,
+            )
         }
     };
     let mut fixture_k = 0i64;

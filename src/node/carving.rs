@@ -86,7 +86,7 @@ impl CarvingNode {
         let chisel_thick = p.double("chisel_thickness_m", 0.002, 0.0..=1.0)?;
         let cutouts = p.strings("cutouts")?.unwrap_or_default();
         let model = match p.string("force_model")?.as_deref() {
-            None => ForceModel::Volume,
+            None => ForceModel::Section,
             Some(s) => s.parse().map_err(|e: String| bad("force_model", e))?,
         };
         let defaults = ForceParams::default();
