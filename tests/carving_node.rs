@@ -130,10 +130,7 @@ fn bad_poses_are_refused_counted_and_leave_the_workpiece_unchanged() {
         out.clear();
         n.on_message(&m, &mut out);
         assert!(out.is_empty(), "{kind}: published {}", out.len());
-        assert!(
-            n.status().problems.get(kind).is_some(),
-            "{kind} not counted"
-        );
+        assert!(n.status().problems.contains_key(kind), "{kind} not counted");
         assert_eq!(n.workpiece().material_points(), before, "{kind} cut");
         assert_eq!(n.workpiece().surfels().len(), surfels);
     }

@@ -25,6 +25,10 @@
 //! Nothing here knows of ROS, MCAP or clocks: the carving node (`crate::node::carving`) feeds
 //! poses in and publishes what this module computes.
 
+// Indexing the three axes by number reads like the formulas; `!(a <= b)` is deliberate where
+// a NaN must take the refusing branch.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+
 pub mod cutout;
 pub mod exact;
 mod force;
