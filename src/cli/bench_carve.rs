@@ -1,4 +1,4 @@
-//! `chronotope bench carve` and `chronotope bench carve-accuracy`: the carving model's
+//! `chronotope bench carve` and `chronotope bench carve --accuracy`: the carving model's
 //! per-pose update time, and its error against the exact swept solid.
 //!
 //! Speed: a knife stroke across a block at 1 kHz; each pose's update (sweep, surface update,
@@ -393,7 +393,7 @@ fn force_cv(h: f64, model: ForceModel, filtered: bool) -> Result<(f64, f64), Cli
     Ok((var.sqrt() / mean.max(1e-300), mean))
 }
 
-/// `chronotope bench carve-accuracy`: prints the tables and writes them to `out` (Markdown).
+/// `chronotope bench carve --accuracy`: prints the tables and writes them to `out` (Markdown).
 ///
 /// # Errors
 /// A workpiece the model refuses, or `out` cannot be written.
@@ -402,7 +402,7 @@ pub fn bench_carve_accuracy(
     out: Option<&std::path::Path>,
 ) -> Result<(), CliError> {
     let mut md = String::new();
-    md.push_str("# Carving accuracy (`chronotope bench carve-accuracy`)\n\n");
+    md.push_str("# Carving accuracy (`chronotope bench carve --accuracy --out docs/carving-accuracy.md`)\n\n");
     md.push_str(
         "Block 60 x 40 x 20 mm; knife 8 x 6 x 2 mm (a box), 4 mm into the top, a 40 mm stroke\n",
     );
