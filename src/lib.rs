@@ -11,6 +11,7 @@
 #![warn(missing_docs)]
 
 pub mod bag;
+pub mod carving;
 pub mod checker;
 pub mod cli;
 pub mod kernel;

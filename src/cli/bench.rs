@@ -102,6 +102,22 @@ pub enum BenchWhich {
         #[arg(long)]
         svg: Option<std::path::PathBuf>,
     },
+    /// Carving: per-pose update time of a knife stroke (256^3 grid, ~1M surfels, tool sizes);
+    /// with --accuracy, error against the exact swept solid and the force's variation.
+    Carve {
+        /// Poses per stroke (speed).
+        #[arg(long, default_value_t = 2000)]
+        poses: usize,
+        /// Run the accuracy benchmark instead.
+        #[arg(long)]
+        accuracy: bool,
+        /// Grid spacings of the accuracy benchmark (mm).
+        #[arg(long, value_delimiter = ',', default_value = "1,0.5,0.25")]
+        spacings: Vec<f64>,
+        /// Write the accuracy tables here (Markdown), e.g. docs/carving-accuracy.md.
+        #[arg(long)]
+        out: Option<std::path::PathBuf>,
+    },
 }
 
 /// Runs a benchmark and prints its figures.
@@ -156,6 +172,18 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             out.as_deref(),
             svg.as_deref(),
         ),
+        BenchWhich::Carve {
+            poses,
+            accuracy,
+            spacings,
+            out,
+        } => {
+            if *accuracy {
+                super::bench_carve::bench_carve_accuracy(spacings, out.as_deref())
+            } else {
+                super::bench_carve::bench_carve(*poses)
+            }
+        }
     }
 }
 

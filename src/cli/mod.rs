@@ -4,6 +4,7 @@
 //! the same code the binary runs.
 
 pub mod bench;
+pub mod bench_carve;
 pub mod bench_check;
 pub mod bench_sampler;
 pub mod check;

@@ -76,39 +76,95 @@ const POSE_PERIOD_NS: i64 = 2_000_000;
 /// Fixture frame period (the carving node's `occupancy_period_s`).
 const FIXTURE_PERIOD_NS: i64 = 100_000_000;
 
-/// A recorded haptic carving session: `/haptic/pose` (PoseStamped, 500 Hz, 2 s) of a ball tool
-/// plunging into the block of `launch_configs/carving_session.yaml`, cutting a groove along x,
-/// lifting and cutting a second groove along y; with the faults a device produces (a NaN pose,
-/// a zero quaternion, a stamp going backwards, a pose in another frame); and
+/// Poses of the carving session (3 s at 500 Hz).
+const CARVING_POSES: i64 = 1500;
+
+/// The cut-out images of the carving session, written next to its bag: the outline seen from
+/// above (cut along z) and the profile seen from the side (cut along y), black = material.
+fn carving_outlines(dir: &std::path::Path) -> Result<(), CliError> {
+    let write = |name: &str, w: usize, h: usize, black: &dyn Fn(f64, f64) -> bool| {
+        // P2 text: small, diffable, one row per line; (u, v) in [0, 1]^2, v up.
+        let mut t = format!("P2\n# chronotope scene carving-session: {name}\n{w} {h}\n1\n");
+        for row in 0..h {
+            let v = 1.0 - (row as f64 + 0.5) / h as f64;
+            let line: Vec<&str> = (0..w)
+                .map(|col| {
+                    let u = (col as f64 + 0.5) / w as f64;
+                    if black(u, v) {
+                        "0"
+                    } else {
+                        "1"
+                    }
+                })
+                .collect();
+            t.push_str(&line.join(" "));
+            t.push('\n');
+        }
+        let path = dir.join(name);
+        std::fs::write(&path, t).map_err(|source| CliError::Io { path, source })
+    };
+    // From above (x right, y up): a body (ellipse) and a head (disc) towards +x.
+    write("carving-outline-z.pgm", 60, 60, &|u, v| {
+        let body = ((u - 0.45) / 0.4).powi(2) + ((v - 0.5) / 0.3).powi(2) < 1.0;
+        let head = (u - 0.8).powi(2) + (v - 0.5).powi(2) < 0.15f64.powi(2);
+        body || head
+    })?;
+    // From the side (x right, z up): a back rounded down towards both ends.
+    write("carving-outline-y.pgm", 60, 30, &|u, v| {
+        v < 1.0 - 0.5 * ((u - 0.5) / 0.5).powi(2)
+    })
+}
+
+/// A recorded haptic carving session: `/haptic/pose` (PoseStamped, 500 Hz, 3 s) on the block
+/// of `launch_configs/carving_session.yaml` (cut out beforehand by the two images this also
+/// writes next to the bag): a knife stroke planing a groove along x while turning 30° about
+/// z, a lift, then (the launch config's `tool_schedule` switches to the chisel at 1.5 s) a
+/// chisel V-groove along y; with the faults a device produces (a NaN pose, a zero
+/// quaternion, a stamp going backwards, a pose in another frame, a non-unit quaternion); and
 /// `/fixture/occupancy`, a clamp one voxel off the block's -x face, on the block's lattice and
 /// frame times.
 fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
+    use crate::carving::Quat as Q;
     use crate::msg::{Header, Point, Pose, PoseStamped, Quaternion, Time};
+    let dir = out
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(std::path::Path::new("."));
+    carving_outlines(dir)?;
     let mut w = BagWriter::create(out)?;
     w.add_topic::<PoseStamped>("/haptic/pose")?;
     w.add_topic::<VoxelGrid>("/fixture/occupancy")?;
-    let n = 1000i64;
-    let path = |k: i64| -> [f64; 3] {
-        let s = k as f64 / n as f64; // 0..1
-        let depth = 0.03 - 0.002; // 2 mm into the 30 mm block
+    let n = CARVING_POSES;
+    // The knife's blade faces +x (tool z → x, its length along -z), turned about z.
+    let facing_x = Q::from_axis_angle([0.0, 1.0, 0.0], std::f64::consts::FRAC_PI_2);
+    let knife =
+        |turn_deg: f64| Q::from_axis_angle([0.0, 0.0, 1.0], turn_deg.to_radians()).mul(&facing_x);
+    // The chisel cuts along its x: turned to cut along y, its V opening up.
+    let chisel = Q::from_axis_angle([0.0, 0.0, 1.0], std::f64::consts::FRAC_PI_2);
+    let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+    // The knife (16 mm long) centred 4 mm below the block's 30 mm top + 8 mm.
+    let kz = 0.030 + 0.008 - 0.004;
+    let path = |k: i64| -> ([f64; 3], Q) {
+        let s = k as f64 / n as f64; // 0..1 over 3 s
         if s < 0.1 {
-            [0.01, 0.02, 0.04 - (0.04 - depth) * s / 0.1]
+            ([0.012, 0.030, lerp(0.045, kz, s / 0.1)], knife(0.0))
         } else if s < 0.45 {
-            [0.01 + 0.04 * (s - 0.1) / 0.35, 0.02, depth]
+            let t = (s - 0.1) / 0.35;
+            ([lerp(0.012, 0.048, t), 0.030, kz], knife(30.0 * t))
+        } else if s < 0.5 {
+            let t = (s - 0.45) / 0.05;
+            (
+                [lerp(0.048, 0.030, t), lerp(0.030, 0.006, t), 0.045],
+                knife(30.0),
+            )
         } else if s < 0.55 {
-            [
-                0.05 - 0.02 * (s - 0.45) / 0.1,
-                0.02 + 0.01 * (s - 0.45) / 0.1,
-                0.04,
-            ]
-        } else if s < 0.6 {
-            [
-                0.03,
-                0.03,
-                0.04 - (0.04 - depth + 0.001) * (s - 0.55) / 0.05,
-            ]
+            // The chisel (from 1.5 s) descends: apex 3 mm below the top.
+            ([0.030, 0.006, lerp(0.045, 0.027, (s - 0.5) / 0.05)], chisel)
         } else {
-            [0.03, 0.03 + 0.025 * (s - 0.6) / 0.4, depth - 0.001]
+            (
+                [0.030, lerp(0.006, 0.054, (s - 0.55) / 0.45), 0.027],
+                chisel,
+            )
         }
     };
     let mut fixture_k = 0i64;
@@ -146,7 +202,7 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
     };
     for k in 0..n {
         let mut stamp = CARVING_T0_NS + k * POSE_PERIOD_NS;
-        let p = path(k);
+        let (p, q) = path(k);
         let mut pose = PoseStamped {
             header: Header {
                 stamp: Time::from_nanos(stamp),
@@ -158,7 +214,12 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
                     y: p[1],
                     z: p[2],
                 },
-                orientation: Quaternion::IDENTITY,
+                orientation: Quaternion {
+                    x: q.x,
+                    y: q.y,
+                    z: q.z,
+                    w: q.w,
+                },
             },
         };
         match k {
@@ -176,12 +237,13 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
                 pose.header.stamp = Time::from_nanos(stamp);
             }
             500 => pose.header.frame_id = "tool0".into(),
+            // The same rotation, twice the norm: normalised by the node.
             600 => {
                 pose.pose.orientation = Quaternion {
-                    x: 0.0,
-                    y: 0.0,
-                    z: 0.0,
-                    w: 2.0,
+                    x: 2.0 * q.x,
+                    y: 2.0 * q.y,
+                    z: 2.0 * q.z,
+                    w: 2.0 * q.w,
                 }
             }
             _ => {}

@@ -1,30 +1,30 @@
 //! The carving node: a haptic tool's poses in (geometry_msgs/PoseStamped on `pose_topic`),
-//! a penalty force back per pose (`~/wrench`, WrenchStamped), and the workpiece published
-//! every `occupancy_period_s` as VoxelGrid frames (`~/occupancy`, so the mesher can watch it)
-//! and as PointCloud2 surfels (`~/surfels`: x, y, z and the outward normal of each boundary
-//! voxel).
+//! the cutting force back per pose (`~/wrench`, WrenchStamped), and the workpiece published
+//! every `occupancy_period_s` as VoxelGrid frames (`~/occupancy`: the grid points still
+//! material, so the mesher can watch it) and as PointCloud2 surfels (`~/surfels`: x, y, z,
+//! normal, radius, rgb).
 //!
-//! The workpiece here is a voxel block carved by a ball tool: every voxel whose centre lies
-//! within the ball is removed, and the force is `stiffness · depth` along the direction from
-//! the material to the tool centre, from the material the ball was in before it cut. The
-//! surfel workpiece and the other tools of issue 6 replace this model; the topics, messages
-//! and input checks stay.
+//! The model is [`crate::carving`]: a block sampled as a point grid with surfels on its
+//! surface, cut out by images (`cutouts`) at start, then carved by the knife or the
+//! triangular chisel, each move sweeping the tool from the previous pose to this one. The
+//! force of each move is computed and published before any workpiece frame that falls due,
+//! so the display rate never holds up the force.
 //!
-//! Parameters: `pose_topic` (required), `frame_id` (default `world`; poses in another frame are
-//! refused), `tool_radius_m` (0.004), `workpiece_min` / `workpiece_max` ([m], the block),
-//! `resolution_m` (0.002), `stiffness_n_per_m` (800), `occupancy_period_s` (0.1).
+//! Bad input never stops the node: a pose with a non-finite position or a zero quaternion, a
+//! stamp older than the last, a pose in another frame are refused (counted problems, the
+//! workpiece unchanged); a non-unit quaternion is normalised (counted); an image that does not
+//! load or an unknown tool in the schedule is a counted problem at start and is skipped.
 
 use std::sync::Arc;
 
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
+use crate::carving::cutout::{Axis, BinaryImage};
+use crate::carving::{ForceModel, ForceParams, ForceRenderer, Tool, ToolKind, ToolPose, Workpiece};
 use crate::msg::{
     Header, Point, PointCloud2, PointField, PoseStamped, RosMessage, Time, Vector3, VoxelGrid,
     Wrench, WrenchStamped,
 };
-
-/// Most voxels of a workpiece.
-const MAX_VOXELS: u64 = 1 << 24;
 
 /// The carving node.
 pub struct CarvingNode {
@@ -34,15 +34,18 @@ pub struct CarvingNode {
     occupancy_topic: String,
     surfels_topic: String,
     frame_id: String,
-    radius: f64,
-    origin: [f64; 3],
-    res: f64,
-    size: [u32; 3],
-    stiffness: f64,
+    work: Workpiece,
+    knife: Tool,
+    chisel: Tool,
+    tool: ToolKind,
+    /// `(ns after the first pose, tool)`, sorted.
+    schedule: Vec<(i64, ToolKind)>,
+    force: ForceRenderer,
     period_ns: i64,
-    occupied: Vec<bool>,
-    last_stamp: Option<i64>,
+    first_stamp: Option<i64>,
+    last: Option<(i64, ToolPose, ToolKind)>,
     next_publish: Option<i64>,
+    last_force: [f64; 3],
     status: NodeStatus,
 }
 
@@ -67,52 +70,142 @@ impl CarvingNode {
         };
         let pose_topic = p.resolve("pose_topic", &pose)?;
         let frame_id = p.string("frame_id")?.unwrap_or_else(|| "world".into());
-        let radius = p.double("tool_radius_m", 0.004, 1e-6..=10.0)?;
         let lo = p.doubles("workpiece_min", [0.0, 0.0, 0.0])?;
         let hi = p.doubles("workpiece_max", [0.06, 0.06, 0.03])?;
-        let res = p.double("resolution_m", 0.002, 1e-6..=10.0)?;
-        let stiffness = p.double("stiffness_n_per_m", 800.0, 0.0..=1e9)?;
-        let period = p.double("occupancy_period_s", 0.1, 1e-3..=3600.0)?;
+        let spacing = p.double("spacing_m", 0.002, 1e-5..=1.0)?;
+        let tool_name = p.string("tool")?.unwrap_or_else(|| "knife".into());
+        let tool: ToolKind = tool_name
+            .parse()
+            .map_err(|e: crate::carving::CarveError| bad("tool", e.to_string()))?;
+        let schedule_raw = p.strings("tool_schedule")?.unwrap_or_default();
+        let knife_len = p.double("knife_length_m", 0.02, 1e-5..=1.0)?;
+        let knife_width = p.double("knife_width_m", 0.01, 1e-5..=1.0)?;
+        let knife_thick = p.double("knife_thickness_m", 0.002, 0.0..=1.0)?;
+        let chisel_width = p.double("chisel_width_m", 0.008, 1e-5..=1.0)?;
+        let chisel_height = p.double("chisel_height_m", 0.004, 1e-5..=1.0)?;
+        let chisel_thick = p.double("chisel_thickness_m", 0.002, 0.0..=1.0)?;
+        let cutouts = p.strings("cutouts")?.unwrap_or_default();
+        let model = match p.string("force_model")?.as_deref() {
+            None => ForceModel::Section,
+            Some(s) => s.parse().map_err(|e: String| bad("force_model", e))?,
+        };
+        let defaults = ForceParams::default();
+        let force = ForceParams {
+            model,
+            newtons_per_point: p.double(
+                "newtons_per_point",
+                defaults.newtons_per_point,
+                0.0..=1e3,
+            )?,
+            pressure: p.double("cutting_pressure_n_per_m2", defaults.pressure, 0.0..=1e9)?,
+            cutoff_hz: p.double("filter_cutoff_hz", defaults.cutoff_hz, 0.0..=1e4)?,
+            coupling_stiffness: p.double(
+                "coupling_stiffness_n_per_m",
+                defaults.coupling_stiffness,
+                0.0..=1e7,
+            )?,
+            coupling_damping: p.double(
+                "coupling_damping_ns_per_m",
+                defaults.coupling_damping,
+                0.0..=1e5,
+            )?,
+            proxy_mass: p.double("proxy_mass_kg", defaults.proxy_mass, 1e-6..=100.0)?,
+            max_force: p.double("max_force_n", defaults.max_force, 0.0..=1e4)?,
+        };
+        let period = p.double("occupancy_period_s", 1.0 / 30.0, 1e-3..=3600.0)?;
         let wrench_topic = p.resolve("~/wrench", "~/wrench")?;
         let occupancy_topic = p.resolve("~/occupancy", "~/occupancy")?;
         let surfels_topic = p.resolve("~/surfels", "~/surfels")?;
         p.finish()?;
-        let mut size = [0u32; 3];
-        for k in 0..3 {
-            let n = ((hi[k] - lo[k]) / res).round();
-            if !(1.0..=4096.0).contains(&n) {
-                return Err(bad(
-                    "workpiece_max",
-                    format!("the block is {n} voxels along axis {k}; 1..=4096 allowed"),
-                ));
+        let work =
+            Workpiece::block(lo, hi, spacing).map_err(|e| bad("workpiece_max", e.to_string()))?;
+        let knife = Tool::knife(knife_len, knife_width, knife_thick, spacing)
+            .map_err(|e| bad("knife_length_m", e.to_string()))?;
+        let chisel = Tool::chisel(chisel_width, chisel_height, chisel_thick, spacing)
+            .map_err(|e| bad("chisel_width_m", e.to_string()))?;
+        let mut status = NodeStatus::default();
+        let mut schedule = Vec::new();
+        for entry in &schedule_raw {
+            let mut it = entry.split_whitespace();
+            let parsed = match (it.next().map(str::parse::<f64>), it.next(), it.next()) {
+                (Some(Ok(t)), Some(name), None) if t.is_finite() && (0.0..=1e6).contains(&t) => {
+                    name.parse::<ToolKind>()
+                        .map(|k| ((t * 1e9).round() as i64, k))
+                        .map_err(|e| e.to_string())
+                }
+                _ => Err(
+                    "expected \"SECONDS TOOL\" (seconds after the first pose, knife or chisel)"
+                        .into(),
+                ),
+            };
+            match parsed {
+                Ok(e) => schedule.push(e),
+                Err(why) => status.problem(
+                    &node,
+                    "unknown_tool",
+                    format!("tool_schedule entry {entry:?}: {why}; skipped"),
+                ),
             }
-            size[k] = n as u32;
         }
-        let voxels = size.iter().map(|&v| u64::from(v)).product::<u64>();
-        if voxels > MAX_VOXELS {
-            return Err(bad(
-                "resolution_m",
-                format!("{voxels} voxels: at most {MAX_VOXELS}"),
-            ));
-        }
-        Ok(Self {
-            fqn: node,
+        schedule.sort_by_key(|e| e.0);
+        let mut me = Self {
+            fqn: node.clone(),
             pose_topic,
             wrench_topic,
             occupancy_topic,
             surfels_topic,
             frame_id,
-            radius,
-            origin: lo,
-            res,
-            size,
-            stiffness,
+            work,
+            knife,
+            chisel,
+            tool,
+            schedule,
+            force: ForceRenderer::new(force),
             period_ns: (period * 1e9).round() as i64,
-            occupied: vec![true; voxels as usize],
-            last_stamp: None,
+            first_stamp: None,
+            last: None,
             next_publish: None,
-            status: NodeStatus::default(),
-        })
+            last_force: [0.0; 3],
+            status,
+        };
+        for t in [&me.knife, &me.chisel] {
+            if let Some(asked) = t.thickened() {
+                let text = format!(
+                    "the {} is {asked} m thick, thinner than the grid spacing {spacing} m: cut as {} m thick",
+                    t.kind().name(),
+                    t.cut_thickness()
+                );
+                me.status.problem(&node, "thin_blade", text);
+            }
+        }
+        for entry in &cutouts {
+            me.apply_cutout(entry);
+        }
+        Ok(me)
+    }
+
+    /// Applies one `cutouts` entry ("AXIS PATH"); a bad entry or image is a counted problem.
+    fn apply_cutout(&mut self, entry: &str) {
+        let (axis, path) = match entry.trim().split_once(char::is_whitespace) {
+            Some((a, path)) => (a.parse::<Axis>(), path.trim()),
+            None => (Err("expected \"AXIS PATH\"".to_string()), ""),
+        };
+        let result = axis.and_then(|axis| {
+            BinaryImage::load(std::path::Path::new(path))
+                .map(|img| (axis, img))
+                .map_err(|e| e.to_string())
+        });
+        match result {
+            Ok((axis, img)) => {
+                let s = self.work.cut_out(&img, axis);
+                tracing::info!(node = %self.fqn, "cut-out {entry:?}: {} points removed", s.removed);
+            }
+            Err(why) => self.status.problem(
+                &self.fqn,
+                "bad_image",
+                format!("cut-out {entry:?}: {why}; skipped, workpiece unchanged"),
+            ),
+        }
     }
 
     /// The topic of the workpiece's occupancy frames.
@@ -120,59 +213,28 @@ impl CarvingNode {
         &self.occupancy_topic
     }
 
-    fn idx(&self, i: u32, j: u32, k: u32) -> usize {
-        (i as usize) + self.size[0] as usize * (j as usize + self.size[1] as usize * k as usize)
+    /// The workpiece.
+    pub fn workpiece(&self) -> &Workpiece {
+        &self.work
     }
 
-    fn centre(&self, i: u32, j: u32, k: u32) -> [f64; 3] {
-        let v = [i, j, k];
-        [0, 1, 2].map(|a| self.origin[a] + (f64::from(v[a]) + 0.5) * self.res)
+    /// The force published with the last pose (N).
+    pub fn last_force(&self) -> [f64; 3] {
+        self.last_force
     }
 
-    /// Occupied voxels left.
+    /// Occupied grid points left.
     pub fn occupied_voxels(&self) -> usize {
-        self.occupied.iter().filter(|&&o| o).count()
+        self.work.material_points() as usize
     }
 
-    /// Carves with the ball at `c`; returns the force on the tool (N).
-    fn carve(&mut self, c: [f64; 3]) -> [f64; 3] {
-        let r = self.radius;
-        let range = |a: usize| {
-            let lo = ((c[a] - r - self.origin[a]) / self.res).floor().max(0.0);
-            let hi = ((c[a] + r - self.origin[a]) / self.res)
-                .ceil()
-                .min(f64::from(self.size[a]));
-            (lo as u32, (hi as u32).max(lo as u32))
-        };
-        let (x, y, z) = (range(0), range(1), range(2));
-        let mut dir = [0.0; 3];
-        let mut nearest = f64::INFINITY;
-        for k in z.0..z.1 {
-            for j in y.0..y.1 {
-                for i in x.0..x.1 {
-                    let n = self.idx(i, j, k);
-                    if !self.occupied[n] {
-                        continue;
-                    }
-                    let v = self.centre(i, j, k);
-                    let d = [c[0] - v[0], c[1] - v[1], c[2] - v[2]];
-                    let dist = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                    if dist <= r {
-                        self.occupied[n] = false;
-                        nearest = nearest.min(dist);
-                        for a in 0..3 {
-                            dir[a] += d[a];
-                        }
-                    }
-                }
-            }
-        }
-        let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
-        if !nearest.is_finite() || len == 0.0 {
-            return [0.0; 3];
-        }
-        let depth = r - nearest;
-        dir.map(|d| self.stiffness * depth * d / len)
+    fn tool_at(&self, stamp: i64) -> ToolKind {
+        let since = stamp - self.first_stamp.unwrap_or(stamp);
+        self.schedule
+            .iter()
+            .take_while(|e| e.0 <= since)
+            .last()
+            .map_or(self.tool, |e| e.1)
     }
 
     fn publish_workpiece(&self, stamp: i64, out: &mut Vec<Message>) {
@@ -180,93 +242,52 @@ impl CarvingNode {
             stamp: Time::from_nanos(stamp),
             frame_id: self.frame_id.clone(),
         };
-        let n = self.occupied.len();
-        let mut data = vec![0u8; n.div_ceil(8)];
-        for (i, &o) in self.occupied.iter().enumerate() {
-            if o {
-                data[i / 8] |= 1 << (i % 8);
-            }
-        }
+        let dims = self.work.dims();
+        let (lo, _) = self.work.block_bounds();
         let grid = VoxelGrid {
             header: header.clone(),
             origin: Point {
-                x: self.origin[0],
-                y: self.origin[1],
-                z: self.origin[2],
+                x: lo[0],
+                y: lo[1],
+                z: lo[2],
             },
-            resolution: self.res,
-            size_x: self.size[0],
-            size_y: self.size[1],
-            size_z: self.size[2],
+            resolution: self.work.spacing(),
+            size_x: dims[0] as u32,
+            size_y: dims[1] as u32,
+            size_z: dims[2] as u32,
             encoding: VoxelGrid::ENCODING_BITS,
-            data,
+            data: self.work.occupancy_bits(),
         };
         out.push(Message::new(
             &self.occupancy_topic,
             stamp,
             Payload::VoxelGrid(Arc::new(grid)),
         ));
-        // Surfels: occupied voxels with a free face neighbour; normal = sum of free directions.
-        let mut pts: Vec<u8> = Vec::new();
-        let mut count = 0u32;
-        let s = self.size.map(|v| v as i64);
-        let occ = |i: i64, j: i64, k: i64| {
-            i >= 0
-                && j >= 0
-                && k >= 0
-                && i < s[0]
-                && j < s[1]
-                && k < s[2]
-                && self.occupied[self.idx(i as u32, j as u32, k as u32)]
-        };
-        for k in 0..s[2] {
-            for j in 0..s[1] {
-                for i in 0..s[0] {
-                    if !occ(i, j, k) {
-                        continue;
-                    }
-                    let mut nrm = [0.0f32; 3];
-                    for (a, step) in [(0usize, [1i64, 0, 0]), (1, [0, 1, 0]), (2, [0, 0, 1])] {
-                        if !occ(i + step[0], j + step[1], k + step[2]) {
-                            nrm[a] += 1.0;
-                        }
-                        if !occ(i - step[0], j - step[1], k - step[2]) {
-                            nrm[a] -= 1.0;
-                        }
-                    }
-                    let len = (nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]).sqrt();
-                    if len == 0.0 {
-                        continue;
-                    }
-                    let c = self.centre(i as u32, j as u32, k as u32);
-                    for v in [
-                        c[0] as f32,
-                        c[1] as f32,
-                        c[2] as f32,
-                        nrm[0] / len,
-                        nrm[1] / len,
-                        nrm[2] / len,
-                    ] {
-                        pts.extend_from_slice(&v.to_le_bytes());
-                    }
-                    count += 1;
-                }
+        let surfels = self.work.surfels();
+        let mut data = Vec::with_capacity(surfels.len() * 32);
+        for s in surfels {
+            for v in s.position.iter().chain(&s.normal).chain([&s.radius]) {
+                data.extend_from_slice(&v.to_le_bytes());
             }
+            data.extend_from_slice(&s.colour.to_le_bytes());
         }
-        let fields = ["x", "y", "z", "normal_x", "normal_y", "normal_z"]
-            .iter()
-            .enumerate()
-            .map(|(i, n)| PointField::new(*n, 4 * i as u32, PointField::FLOAT32, 1))
-            .collect();
+        let mut fields: Vec<PointField> =
+            ["x", "y", "z", "normal_x", "normal_y", "normal_z", "radius"]
+                .iter()
+                .enumerate()
+                .map(|(i, n)| PointField::new(*n, 4 * i as u32, PointField::FLOAT32, 1))
+                .collect();
+        fields.push(PointField::new("rgb", 28, PointField::UINT32, 1));
+        let count = surfels.len() as u32;
         let cloud = PointCloud2 {
             header,
             height: 1,
             width: count,
             fields,
             is_bigendian: false,
-            point_step: 24,
-            row_step: 24 * count,
-            data: pts,
+            point_step: 32,
+            row_step: 32 * count,
+            data,
             is_dense: true,
         };
         out.push(Message::new(
@@ -280,35 +301,25 @@ impl CarvingNode {
         let stamp = p.header.stamp.as_nanos();
         let pos = [p.pose.position.x, p.pose.position.y, p.pose.position.z];
         let q = p.pose.orientation;
-        let qn = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
-        let refuse = if !pos.iter().all(|v| v.is_finite()) {
-            Some((
-                "bad_pose",
-                format!("pose at {stamp} ns: position {pos:?} is not finite"),
-            ))
-        } else if !qn.is_finite() || qn < 1e-9 {
-            Some((
-                "bad_pose",
-                format!("pose at {stamp} ns: orientation quaternion has norm {qn}"),
-            ))
-        } else if self.last_stamp.is_some_and(|l| stamp < l) {
-            Some((
+        let last_stamp = self.last.map(|l| l.0);
+        let pose = ToolPose::new(pos, [q.x, q.y, q.z, q.w]);
+        let refuse = match &pose {
+            Err(e) => Some(("bad_pose", format!("pose at {stamp} ns: {e}"))),
+            Ok(_) if last_stamp.is_some_and(|l| stamp < l) => Some((
                 "stamp_backwards",
                 format!(
                     "pose at {stamp} ns is older than the last one ({} ns)",
-                    self.last_stamp.unwrap_or(0)
+                    last_stamp.unwrap_or(0)
                 ),
-            ))
-        } else if !p.header.frame_id.is_empty() && p.header.frame_id != self.frame_id {
-            Some((
+            )),
+            Ok(_) if !p.header.frame_id.is_empty() && p.header.frame_id != self.frame_id => Some((
                 "unknown_frame",
                 format!(
                     "pose at {stamp} ns in frame {:?}, not {:?}",
                     p.header.frame_id, self.frame_id
                 ),
-            ))
-        } else {
-            None
+            )),
+            Ok(_) => None,
         };
         if let Some((kind, why)) = refuse {
             self.status.problem(
@@ -318,32 +329,65 @@ impl CarvingNode {
             );
             return;
         }
-        // (A non-unit quaternion would be normalised; the ball tool does not depend on it.)
+        let Ok(pose) = pose else { return };
+        let qn = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
+        if (qn - 1.0).abs() > 1e-6 {
+            self.status.problem(
+                &self.fqn,
+                "non_unit_quaternion",
+                format!("pose at {stamp} ns: quaternion of norm {qn} normalised"),
+            );
+        }
+        self.first_stamp.get_or_insert(stamp);
+        let kind = self.tool_at(stamp);
+        let tool = match kind {
+            ToolKind::Knife => &self.knife,
+            ToolKind::Chisel => &self.chisel,
+        };
+        // A new stroke (first pose, or a tool change) starts where the tool is.
+        let (from, dt) = match self.last {
+            Some((t, prev, k)) if k == kind => (prev, (stamp - t) as f64 * 1e-9),
+            Some((t, _, _)) => (pose, (stamp - t) as f64 * 1e-9),
+            None => (pose, 0.0),
+        };
+        let cut = match self.work.carve(tool, &from, &pose) {
+            Ok(c) => c,
+            Err(e) => {
+                self.status.problem(
+                    &self.fqn,
+                    "bad_move",
+                    format!("pose at {stamp} ns: {e}; not cut"),
+                );
+                Default::default()
+            }
+        };
+        self.last = Some((stamp, pose, kind));
+        let motion = [0, 1, 2].map(|a| pose.position[a] - from.position[a]);
+        let f = self.force.step(&cut, self.work.spacing(), motion, dt);
+        self.last_force = f;
+        // The force first: the workpiece frames due are published after it.
+        out.push(Message::new(
+            &self.wrench_topic,
+            stamp,
+            Payload::WrenchStamped(Arc::new(WrenchStamped {
+                header: Header {
+                    stamp: p.header.stamp,
+                    frame_id: self.frame_id.clone(),
+                },
+                wrench: Wrench {
+                    force: Vector3::new(f[0], f[1], f[2]),
+                    torque: Vector3::default(),
+                },
+            })),
+        ));
         let next = *self.next_publish.get_or_insert(stamp);
-        // Workpiece frames on the period grid up to this pose (state before the cut).
+        // Frames on the period grid up to this pose, showing the workpiece after it.
         let mut t = next;
         while t <= stamp {
             self.publish_workpiece(t, out);
             t += self.period_ns;
         }
         self.next_publish = Some(t);
-        self.last_stamp = Some(stamp);
-        let f = self.carve(pos);
-        let w = WrenchStamped {
-            header: Header {
-                stamp: p.header.stamp,
-                frame_id: self.frame_id.clone(),
-            },
-            wrench: Wrench {
-                force: Vector3::new(f[0], f[1], f[2]),
-                torque: Vector3::default(),
-            },
-        };
-        out.push(Message::new(
-            &self.wrench_topic,
-            stamp,
-            Payload::WrenchStamped(Arc::new(w)),
-        ));
     }
 }
 

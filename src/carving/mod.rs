@@ -1,0 +1,119 @@
+//! Haptic carving of a workpiece (seed 004, Kishida & Miura; DESIGN.md §8).
+//!
+//! The workpiece is an equally spaced point grid whose points are OUTSIDE (air), BOUND
+//! (material on the surface) or INSIDE (material inside) — the force model of seed §5 — and
+//! the surfels (position, normal, radius, colour; seed §4) of its BOUND points, kept one per
+//! BOUND point so their number is bounded by the grid whatever is cut ([`Workpiece`]).
+//!
+//! Tools ([`Tool`]) are convex prisms in their own frame: the knife (a rectangle, seed §4.2)
+//! and the triangular chisel (an isosceles triangle, seed §4.3), both given a thickness so
+//! that the solid they sweep has volume. [`Workpiece::carve`] removes the solid a tool sweeps
+//! between two poses: exactly for a translation (a point is inside the sweep iff the
+//! intervals of the sweep parameter allowed by each face have a common point — DESIGN.md §8),
+//! and, for a rotation, by substeps small enough that angle × tool radius < spacing / 2. Only
+//! the grid rows crossing the sweep's bounding box are visited, and on each row the range of
+//! removed points is solved for rather than searched. The classification uses the seed's
+//! band `d_s` (eqs. 2-5): material points next to removed ones become BOUND and take the
+//! cutting face's normal (§5.2), their surfel projected onto that face.
+//!
+//! [`ForceRenderer`] turns what a step removed into a force (seed eq. 8, or the rate- and
+//! resolution-independent cut cross-section of DESIGN.md §8), low-pass filtered and through
+//! a virtual coupling. [`cutout`] cuts the workpiece out along an axis from a binary image
+//! (seed §4.1, eq. 1). [`exact`] holds the exact swept solid of a translating box, the oracle
+//! of the accuracy benchmark and the tests.
+//!
+//! Nothing here knows of ROS, MCAP or clocks: the carving node (`crate::node::carving`) feeds
+//! poses in and publishes what this module computes.
+
+// Indexing the three axes by number reads like the formulas; `!(a <= b)` is deliberate where
+// a NaN must take the refusing branch.
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
+
+pub mod cutout;
+pub mod exact;
+mod force;
+mod math;
+mod sweep;
+mod tool;
+mod workpiece;
+
+pub use force::{ForceModel, ForceParams, ForceRenderer};
+pub use math::{Quat, Vec3};
+pub use sweep::CutStats;
+pub use tool::{Tool, ToolKind};
+pub use workpiece::{Flag, Surfel, Workpiece, MAX_POINTS};
+
+/// Why a workpiece, tool or pose was refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CarveError {
+    /// A size or spacing that is not a finite positive number, or a grid too big.
+    #[error("workpiece: {0}")]
+    Workpiece(String),
+    /// A tool dimension that is not a finite positive number (or a chisel angle out of range).
+    #[error("tool: {0}")]
+    Tool(String),
+    /// An unknown tool name.
+    #[error("unknown tool {0:?}: one of knife, chisel")]
+    UnknownTool(String),
+    /// A pose with a non-finite position or a quaternion that cannot be normalised.
+    #[error("pose: {0}")]
+    Pose(String),
+    /// A move needing more rotation substeps than allowed.
+    #[error("the move rotates by {angle_deg:.1} deg: {substeps} substeps needed, at most {max}")]
+    TooManySubsteps {
+        /// Rotation of the move (degrees).
+        angle_deg: f64,
+        /// Substeps it would need.
+        substeps: u64,
+        /// The limit.
+        max: u64,
+    },
+}
+
+/// A pose of a tool: the tool frame's origin and orientation in the workpiece's frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ToolPose {
+    /// Origin of the tool frame (m).
+    pub position: Vec3,
+    /// Orientation (unit quaternion).
+    pub rotation: Quat,
+}
+
+impl ToolPose {
+    /// A pose from a position and a quaternion `(x, y, z, w)`; a non-unit quaternion is
+    /// normalised.
+    ///
+    /// # Errors
+    /// [`CarveError::Pose`] for a non-finite position or a quaternion whose norm is not a
+    /// finite number above 1e-9 (a zero quaternion has no rotation to normalise to).
+    pub fn new(position: Vec3, q: [f64; 4]) -> Result<Self, CarveError> {
+        if !position.iter().all(|v| v.is_finite()) {
+            return Err(CarveError::Pose(format!(
+                "position {position:?} is not finite"
+            )));
+        }
+        let n = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+        if !n.is_finite() || n < 1e-9 {
+            return Err(CarveError::Pose(format!(
+                "orientation quaternion {q:?} has norm {n}: not a rotation"
+            )));
+        }
+        Ok(Self {
+            position,
+            rotation: Quat {
+                w: q[3] / n,
+                x: q[0] / n,
+                y: q[1] / n,
+                z: q[2] / n,
+            },
+        })
+    }
+
+    /// The identity orientation at `position`.
+    pub fn at(position: Vec3) -> Self {
+        Self {
+            position,
+            rotation: Quat::IDENTITY,
+        }
+    }
+}

@@ -1,0 +1,489 @@
+//! Removing the solid a tool sweeps between two poses (seed §4.2-4.3, eqs. 2-7; DESIGN.md §8).
+//!
+//! For a translation by `d` from `c0`, the tool's faces `n_k · x <= o_k` become, for a point
+//! `p` and the sweep parameter `s ∈ [0, 1]`, `a_k(p) - s b_k <= 0` with
+//! `a_k = n_k · (p - c0) - o_k` and `b_k = n_k · d`; `p` is in the swept solid iff these
+//! intervals of `s` have a common point. Along a grid row `p = p0 + i h x̂` the `a_k` are
+//! linear in `i`, so eliminating `s` (Fourier-Motzkin on two unknowns) gives the exact range
+//! of `i` inside: each row costs a few dozen flops plus the points it removes. The same test
+//! with `<= d_s` gives the seed's BOUND band (eq. 2); `f(p) = min_s max_k (a_k - s b_k)` is
+//! the value of eq. 2, and the face attaining it the cutting face whose normal a newly
+//! exposed point takes (§5.2).
+
+use super::math::{add, dot, lerp, norm, scale, sub, Vec3};
+use super::tool::{Tool, ToolKind};
+use super::workpiece::{
+    Workpiece, BOUND, COLOUR_CHISEL, COLOUR_EDGE, COLOUR_KNIFE, NO_SURFEL, OUTSIDE,
+};
+use super::{CarveError, ToolPose};
+
+/// Most rotation substeps of one move.
+pub const MAX_SUBSTEPS: u64 = 4096;
+
+/// What one move removed.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct CutStats {
+    /// Grid points removed (the seed's `n`, eq. 8).
+    pub removed: u64,
+    /// Of them, points that were on the surface (had a normal).
+    pub removed_surface: u64,
+    /// Sum of the outward normals of the removed surface points (`n · n_avg` of eq. 8).
+    pub normal_sum: Vec3,
+    /// Material points newly exposed or re-oriented (surfels put or moved).
+    pub exposed: u64,
+    /// Surfels moved onto a chisel edge (eq. 6).
+    pub resampled: u64,
+    /// Rotation substeps used.
+    pub substeps: u32,
+    /// Material points in the layer one spacing ahead of the tool after the move
+    /// ([`Workpiece::material_ahead`]).
+    pub ahead: u64,
+    /// Distance swept: the tool origin's displacement plus rotation angle x tool radius (m).
+    pub travel: f64,
+}
+
+/// A translation sweep of the tool at one orientation, in world coordinates.
+struct Sweep {
+    /// `(world normal, offset at s = 0)`: `n · x <= off` at the start pose.
+    faces: [(Vec3, f64); 8],
+    m: usize,
+    /// `n_k · d`.
+    b: [f64; 8],
+    /// Face `k` of the tool's face list is slanted (a chisel side).
+    slanted: [bool; 8],
+    d: Vec3,
+    /// For a box tool (the knife): start centre, world axes and half-extents, for the exact
+    /// closest point of the swept solid.
+    boxed: Option<(Vec3, [Vec3; 3], Vec3)>,
+}
+
+impl Sweep {
+    fn new(tool: &Tool, rot: &super::Quat, c0: Vec3, d: Vec3) -> Self {
+        let mut faces = [([0.0; 3], 0.0); 8];
+        let mut b = [0.0; 8];
+        let mut slanted = [false; 8];
+        let m = tool.faces().len();
+        for (k, &(n, o)) in tool.faces().iter().enumerate() {
+            let nw = rot.rotate(n);
+            faces[k] = (nw, o + dot(nw, c0));
+            b[k] = dot(nw, d);
+            slanted[k] = tool.kind() == ToolKind::Chisel && n[0] == 0.0 && n[2] < 0.0;
+        }
+        let boxed = (tool.kind() == ToolKind::Knife).then(|| {
+            let f = tool.faces();
+            (
+                c0,
+                [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]].map(|a| rot.rotate(a)),
+                [f[0].1, f[2].1, f[4].1],
+            )
+        });
+        Self {
+            faces,
+            m,
+            b,
+            slanted,
+            d,
+            boxed,
+        }
+    }
+
+    /// For a box tool, the closest point of the swept solid to `p` (outside it) and the
+    /// distance: `min over s of dist(p - s d, box)`, convex in `s`, by golden-section search.
+    fn closest_on_box_sweep(&self, p: Vec3) -> Option<(Vec3, f64)> {
+        let (c0, ax, half) = self.boxed?;
+        let q = sub(p, c0);
+        let local = |s: f64| {
+            let r = sub(q, scale(self.d, s));
+            [0, 1, 2].map(|a| dot(ax[a], r))
+        };
+        let dist2 = |s: f64| {
+            let l = local(s);
+            (0..3)
+                .map(|a| (l[a].abs() - half[a]).max(0.0).powi(2))
+                .sum::<f64>()
+        };
+        let g = (5f64.sqrt() - 1.0) / 2.0;
+        let (mut a, mut b) = (0.0f64, 1.0f64);
+        let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+        let (mut f1, mut f2) = (dist2(x1), dist2(x2));
+        for _ in 0..48 {
+            if f1 < f2 {
+                b = x2;
+                x2 = x1;
+                f2 = f1;
+                x1 = b - g * (b - a);
+                f1 = dist2(x1);
+            } else {
+                a = x1;
+                x1 = x2;
+                f1 = f2;
+                x2 = a + g * (b - a);
+                f2 = dist2(x2);
+            }
+        }
+        let mut best = (dist2((a + b) / 2.0), (a + b) / 2.0);
+        for s in [0.0, 1.0] {
+            let v = dist2(s);
+            if v < best.0 {
+                best = (v, s);
+            }
+        }
+        let s = best.1;
+        let l = local(s);
+        let mut c = add(c0, scale(self.d, s));
+        for k in 0..3 {
+            c = add(c, scale(ax[k], l[k].clamp(-half[k], half[k])));
+        }
+        Some((c, best.0.sqrt()))
+    }
+
+    /// `f(p) = min over s in [0,1] of max_k (a_k - s b_k)`, the `s` and the face attaining it.
+    fn value(&self, p: Vec3) -> (f64, f64, usize) {
+        let mut a = [0.0; 8];
+        for k in 0..self.m {
+            a[k] = dot(self.faces[k].0, p) - self.faces[k].1;
+        }
+        let eval = |s: f64| {
+            let mut best = (f64::NEG_INFINITY, 0usize);
+            for k in 0..self.m {
+                let v = a[k] - s * self.b[k];
+                if v > best.0 {
+                    best = (v, k);
+                }
+            }
+            best
+        };
+        let mut best = {
+            let (v, k) = eval(0.0);
+            (v, 0.0, k)
+        };
+        let mut try_s = |s: f64| {
+            let (v, k) = eval(s);
+            if v < best.0 {
+                best = (v, s, k);
+            }
+        };
+        try_s(1.0);
+        for k in 0..self.m {
+            for l in k + 1..self.m {
+                let db = self.b[k] - self.b[l];
+                if db.abs() > 1e-300 {
+                    let s = (a[k] - a[l]) / db;
+                    if s > 0.0 && s < 1.0 {
+                        try_s(s);
+                    }
+                }
+            }
+        }
+        best
+    }
+}
+
+/// The real range `[lo, hi]` of `i` for which some `s ∈ [0, 1]` satisfies every constraint
+/// `ci · i + cs · s <= c0`, or `None`.
+fn row_range(cons: &[(f64, f64, f64)]) -> Option<(f64, f64)> {
+    let (mut lo, mut hi) = (f64::NEG_INFINITY, f64::INFINITY);
+    let mut bound = |ci: f64, c0: f64| -> bool {
+        if ci > 0.0 {
+            hi = hi.min(c0 / ci);
+        } else if ci < 0.0 {
+            lo = lo.max(c0 / ci);
+        } else if c0 < 0.0 {
+            return false;
+        }
+        true
+    };
+    for &(ci, cs, c0) in cons {
+        if cs == 0.0 {
+            if !bound(ci, c0) {
+                return None;
+            }
+            continue;
+        }
+        if cs < 0.0 {
+            continue;
+        }
+        // x bounds s from above; pair it with every constraint bounding s from below.
+        for &(cj, csj, c0j) in cons {
+            if csj < 0.0 {
+                let (lp, ln) = (1.0 / cs, -1.0 / csj);
+                if !bound(lp * ci + ln * cj, lp * c0 + ln * c0j) {
+                    return None;
+                }
+            }
+        }
+    }
+    (lo <= hi).then_some((lo, hi))
+}
+
+impl Workpiece {
+    /// Removes the solid `tool` sweeps from pose `from` to pose `to`; returns what it removed.
+    ///
+    /// Exact for a translation; a rotation is cut in substeps, each a translation at the
+    /// substep's middle orientation, so small that rotation angle x tool radius < spacing/2
+    /// (no point is skipped between substeps by more than a quarter spacing). The workpiece
+    /// is unchanged on error.
+    ///
+    /// # Errors
+    /// [`CarveError::TooManySubsteps`] if the rotation would need more than 4096 substeps.
+    pub fn carve(
+        &mut self,
+        tool: &Tool,
+        from: &ToolPose,
+        to: &ToolPose,
+    ) -> Result<CutStats, CarveError> {
+        let angle = from.rotation.angle_to(&to.rotation);
+        let need = (angle * tool.radius() / (self.h / 2.0)).ceil().max(1.0);
+        if !(need <= MAX_SUBSTEPS as f64) {
+            return Err(CarveError::TooManySubsteps {
+                angle_deg: angle.to_degrees(),
+                substeps: if need.is_finite() {
+                    need as u64
+                } else {
+                    u64::MAX
+                },
+                max: MAX_SUBSTEPS,
+            });
+        }
+        let n = need as u32;
+        let mut stats = CutStats {
+            substeps: n,
+            travel: norm(sub(to.position, from.position)) + angle * tool.radius(),
+            ..CutStats::default()
+        };
+        for j in 0..n {
+            let (t0, t1) = (f64::from(j) / f64::from(n), f64::from(j + 1) / f64::from(n));
+            let rot = from.rotation.slerp(&to.rotation, (t0 + t1) / 2.0);
+            let c0 = lerp(from.position, to.position, t0);
+            let c1 = lerp(from.position, to.position, t1);
+            let sweep = Sweep::new(tool, &rot, c0, sub(c1, c0));
+            self.carve_translation(tool, &rot, c0, c1, &sweep, &mut stats);
+        }
+        stats.ahead = self.material_ahead(tool, to, sub(to.position, from.position));
+        Ok(stats)
+    }
+
+    /// The grid points inside the translation sweep, as row spans `(row start, i0, i1)`.
+    fn sweep_spans(
+        &self,
+        tool: &Tool,
+        rot: &super::Quat,
+        c0: Vec3,
+        c1: Vec3,
+        sweep: &Sweep,
+        spans: &mut Vec<(usize, usize, usize)>,
+    ) {
+        spans.clear();
+        let h = self.h;
+        // Bounding box of the sweep, in grid indices.
+        let mut bmin = [f64::INFINITY; 3];
+        let mut bmax = [f64::NEG_INFINITY; 3];
+        for &v in tool.vertices() {
+            let w = rot.rotate(v);
+            for c in [c0, c1] {
+                for a in 0..3 {
+                    bmin[a] = bmin[a].min(c[a] + w[a]);
+                    bmax[a] = bmax[a].max(c[a] + w[a]);
+                }
+            }
+        }
+        let mut range = [(0usize, 0usize); 3];
+        for a in 0..3 {
+            let lo = ((bmin[a] - self.origin[a]) / h).ceil().max(0.0);
+            let hi = ((bmax[a] - self.origin[a]) / h)
+                .floor()
+                .min(self.dims[a] as f64 - 1.0);
+            if !(lo <= hi) {
+                return;
+            }
+            range[a] = (lo as usize, hi as usize);
+        }
+        let m = sweep.m;
+        let mut cons = [(0.0, 0.0, 0.0); 10];
+        cons[m] = (0.0, -1.0, 0.0); // s >= 0
+        cons[m + 1] = (0.0, 1.0, 1.0); // s <= 1
+        for k in range[2].0..=range[2].1 {
+            for j in range[1].0..=range[1].1 {
+                let p0 = self.point(0, j, k);
+                for (q, &(nw, off)) in sweep.faces[..m].iter().enumerate() {
+                    // a_q(i) - s b_q <= 0  with  a_q(i) = n·p0 - off + i n_x h.
+                    let alpha = dot(nw, p0) - off;
+                    // A face parallel to the move: its constraint does not involve s.
+                    let b = if sweep.b[q].abs() < 1e-12 * h {
+                        0.0
+                    } else {
+                        sweep.b[q]
+                    };
+                    cons[q] = (nw[0] * h, -b, -alpha);
+                }
+                let Some((lo, hi)) = row_range(&cons[..m + 2]) else {
+                    continue;
+                };
+                let i0 = lo.ceil().max(range[0].0 as f64);
+                let i1 = hi.floor().min(range[0].1 as f64);
+                if i0 <= i1 {
+                    spans.push((self.index(0, j, k), i0 as usize, i1 as usize));
+                }
+            }
+        }
+    }
+
+    /// Material points the tool at `pose` would meet in its next spacing of travel along
+    /// `motion`: the layer in front of it. Times spacing^2 it is the cut cross-section,
+    /// sampled without the stepping of the points removed per pose.
+    pub fn material_ahead(&mut self, tool: &Tool, pose: &ToolPose, motion: Vec3) -> u64 {
+        let len = norm(motion);
+        if !(len > 1e-12) {
+            return 0;
+        }
+        let c1 = add(pose.position, scale(motion, self.h / len));
+        let sweep = Sweep::new(tool, &pose.rotation, pose.position, sub(c1, pose.position));
+        let mut spans = std::mem::take(&mut self.spans);
+        self.sweep_spans(tool, &pose.rotation, pose.position, c1, &sweep, &mut spans);
+        let mut n = 0u64;
+        for &(row, i0, i1) in &spans {
+            n += self.flags[row + i0..=row + i1]
+                .iter()
+                .filter(|&&f| f != OUTSIDE)
+                .count() as u64;
+        }
+        self.spans = spans;
+        n
+    }
+
+    fn carve_translation(
+        &mut self,
+        tool: &Tool,
+        rot: &super::Quat,
+        c0: Vec3,
+        c1: Vec3,
+        sweep: &Sweep,
+        stats: &mut CutStats,
+    ) {
+        let mut spans = std::mem::take(&mut self.spans);
+        self.sweep_spans(tool, rot, c0, c1, sweep, &mut spans);
+        self.removed.clear();
+        for &(row, i0, i1) in &spans {
+            for idx in row + i0..=row + i1 {
+                if self.flags[idx] == OUTSIDE {
+                    continue;
+                }
+                if let Some(n) = self.remove_point(idx) {
+                    stats.removed_surface += 1;
+                    for a in 0..3 {
+                        stats.normal_sum[a] += f64::from(n[a]);
+                    }
+                }
+                stats.removed += 1;
+                self.removed.push(idx as u32);
+            }
+        }
+        self.spans = spans;
+        if self.removed.is_empty() {
+            return;
+        }
+        // §5.2: material 6-neighbours of removed points are on the surface now; they lie
+        // within one spacing of the swept solid (the seed's BOUND band with d_s = spacing)
+        // and take the normal of the cutting face nearest to them.
+        let colour = match tool.kind() {
+            ToolKind::Knife => COLOUR_KNIFE,
+            ToolKind::Chisel => COLOUR_CHISEL,
+        };
+        let removed = std::mem::take(&mut self.removed);
+        let stride = [
+            1isize,
+            self.dims[0] as isize,
+            (self.dims[0] * self.dims[1]) as isize,
+        ];
+        for &r in &removed {
+            let c = self.coords(r as usize);
+            for a in 0..3 {
+                for dir in [-1isize, 1] {
+                    if (dir < 0 && c[a] == 0) || (dir > 0 && c[a] + 1 == self.dims[a]) {
+                        continue;
+                    }
+                    let nb = (r as isize + dir * stride[a]) as usize;
+                    if self.flags[nb] == OUTSIDE {
+                        continue;
+                    }
+                    self.expose(nb, sweep, colour, stats);
+                }
+            }
+        }
+        self.removed = removed;
+    }
+
+    /// Point `idx` (material, next to a removed point) is on the surface of the cut.
+    fn expose(&mut self, idx: usize, sweep: &Sweep, colour: u32, stats: &mut CutStats) {
+        let c = self.coords(idx);
+        let p = self.point(c[0], c[1], c[2]);
+        let (f, s, k) = sweep.value(p);
+        let nw = sweep.faces[k].0;
+        let h = self.h;
+        let was_surface = self.flags[idx] == BOUND && self.surfel_of[idx] != NO_SURFEL;
+        // Eq. 6: a chisel's slanted face meeting the old surface: slide the old surfel
+        // within its tangent plane onto the face (the groove's edge), keeping its normal.
+        if sweep.slanted[k] && was_surface {
+            let old = self.surfels[self.surfel_of[idx] as usize];
+            let nb = old.normal.map(f64::from);
+            let xb = old.position.map(f64::from);
+            let cos = dot(nw, nb);
+            if cos.abs() < 0.94 {
+                let v = sub(nw, scale(nb, cos));
+                // Plane of face k at the sweep parameter s: n · x = off + s (n · d).
+                let fb = dot(nw, xb) - sweep.faces[k].1 - s * dot(nw, sweep.d);
+                let nv = dot(nw, v);
+                if nv.abs() > 1e-12 {
+                    let step = scale(v, fb / nv);
+                    if fb > 0.0 && norm(step) <= h {
+                        let edge = sub(xb, step);
+                        self.set_surfel(idx, edge, nb, COLOUR_EDGE);
+                        stats.resampled += 1;
+                        stats.exposed += 1;
+                        return;
+                    }
+                }
+            }
+        }
+        self.flags[idx] = BOUND;
+        // The knife: the surfel at the exact closest point of the swept solid, facing it.
+        if let Some((c, dist)) = sweep.closest_on_box_sweep(p) {
+            if dist > 1e-12 * h && dist <= 1.5 * h {
+                self.set_surfel(idx, c, scale(sub(c, p), 1.0 / dist), colour);
+                stats.exposed += 1;
+                return;
+            }
+        }
+        // The surfel on the cutting face (eq. 2's plane), if the point is within the band.
+        let pos = if f > 0.0 && f <= 1.5 * h {
+            sub(p, scale(nw, f))
+        } else {
+            p
+        };
+        self.set_surfel(idx, pos, scale(nw, -1.0), colour);
+        stats.exposed += 1;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn row_range_of_a_box_moving_along_x() {
+        // Unit box [-0.5, 0.5] moving by 2 along x, row along x through its centre, h = 1.
+        let d = [2.0, 0.0, 0.0];
+        let faces = [([1.0, 0.0, 0.0], 0.5), ([-1.0, 0.0, 0.0], 0.5)];
+        let mut cons = vec![];
+        for (n, o) in faces {
+            cons.push((n[0], -dot(n, d), o));
+        }
+        cons.push((0.0, -1.0, 0.0));
+        cons.push((0.0, 1.0, 1.0));
+        let (lo, hi) = row_range(&cons).unwrap();
+        assert!(
+            (lo + 0.5).abs() < 1e-12 && (hi - 2.5).abs() < 1e-12,
+            "{lo} {hi}"
+        );
+    }
+}

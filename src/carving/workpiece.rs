@@ -1,0 +1,348 @@
+//! The workpiece: an equally spaced point grid with OUTSIDE / BOUND / INSIDE flags (seed §5)
+//! and one surfel per BOUND point (seed §4).
+
+use super::math::{add, scale, Vec3};
+use super::CarveError;
+
+/// Most grid points of a workpiece (2^25 ≈ 33.5M: 5 bytes each plus the surfels).
+pub const MAX_POINTS: u64 = 1 << 25;
+
+/// Surfel colour of the block's faces (RGB, wood).
+pub(crate) const COLOUR_BLOCK: u32 = 0xd8b07a;
+/// Surfel colour of faces cut by the knife.
+pub(crate) const COLOUR_KNIFE: u32 = 0xc09050;
+/// Surfel colour of faces cut by the chisel.
+pub(crate) const COLOUR_CHISEL: u32 = 0xa87840;
+/// Surfel colour of the chisel's resampled edges (red, as in the seed's Fig. 7).
+pub(crate) const COLOUR_EDGE: u32 = 0xd02020;
+/// Surfel colour of cut-out sides.
+pub(crate) const COLOUR_CUTOUT: u32 = 0xb89060;
+
+/// Classification of a grid point (seed eq. 2 and §5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Flag {
+    /// Air: removed, or never material.
+    Outside = 0,
+    /// Material on the surface (a 6-neighbour is air or off the grid); has a surfel.
+    Bound = 1,
+    /// Material inside.
+    Inside = 2,
+}
+
+pub(crate) const OUTSIDE: u8 = Flag::Outside as u8;
+pub(crate) const BOUND: u8 = Flag::Bound as u8;
+pub(crate) const INSIDE: u8 = Flag::Inside as u8;
+pub(crate) const NO_SURFEL: u32 = u32::MAX;
+
+/// A surfel: an oriented disc (seed §4).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surfel {
+    /// Centre (m).
+    pub position: [f32; 3],
+    /// Outward unit normal.
+    pub normal: [f32; 3],
+    /// Radius (m).
+    pub radius: f32,
+    /// Colour, 0xRRGGBB.
+    pub colour: u32,
+}
+
+/// The workpiece: the point grid (force model) and the surfels of its BOUND points (shape).
+///
+/// Point `(i, j, k)` is at `origin + spacing · (i, j, k)`; a block from `lo` to `hi` has its
+/// points at the centres of the `spacing`-sized cells filling it, so the block's faces lie
+/// half a spacing beyond its outermost points (where their surfels are put).
+#[derive(Debug, Clone)]
+pub struct Workpiece {
+    pub(crate) origin: Vec3,
+    pub(crate) h: f64,
+    pub(crate) dims: [usize; 3],
+    pub(crate) flags: Vec<u8>,
+    pub(crate) surfel_of: Vec<u32>,
+    pub(crate) surfels: Vec<Surfel>,
+    pub(crate) owners: Vec<u32>,
+    pub(crate) material: u64,
+    pub(crate) lo: Vec3,
+    pub(crate) hi: Vec3,
+    /// Scratch: points removed by the current substep.
+    pub(crate) removed: Vec<u32>,
+    /// Scratch: row spans of a sweep.
+    pub(crate) spans: Vec<(usize, usize, usize)>,
+}
+
+impl Workpiece {
+    /// A block from `lo` to `hi` (m) sampled every `spacing` (m).
+    ///
+    /// # Errors
+    /// [`CarveError::Workpiece`] for a non-finite or non-positive size or spacing, fewer than
+    /// one or more than 4096 points along an axis, or more than [`MAX_POINTS`] points.
+    pub fn block(lo: Vec3, hi: Vec3, spacing: f64) -> Result<Self, CarveError> {
+        if !(spacing.is_finite() && spacing > 0.0) {
+            return Err(CarveError::Workpiece(format!(
+                "spacing {spacing} is not a positive number"
+            )));
+        }
+        let mut dims = [0usize; 3];
+        for a in 0..3 {
+            let n = (hi[a] - lo[a]) / spacing;
+            if !n.is_finite() || n.round() < 1.0 || n.round() > 4096.0 {
+                return Err(CarveError::Workpiece(format!(
+                    "the block is {n:.1} spacings along axis {a} (from {} to {} m): 1..=4096 allowed",
+                    lo[a], hi[a]
+                )));
+            }
+            dims[a] = n.round() as usize;
+        }
+        let count = dims.iter().map(|&d| d as u64).product::<u64>();
+        if count > MAX_POINTS {
+            return Err(CarveError::Workpiece(format!(
+                "{}x{}x{} = {count} points: at most {MAX_POINTS}; use a coarser spacing",
+                dims[0], dims[1], dims[2]
+            )));
+        }
+        let n = count as usize;
+        let hi = [0, 1, 2].map(|a| lo[a] + dims[a] as f64 * spacing);
+        let mut w = Self {
+            origin: lo.map(|v| v + spacing / 2.0),
+            h: spacing,
+            dims,
+            flags: vec![INSIDE; n],
+            surfel_of: vec![NO_SURFEL; n],
+            surfels: Vec::new(),
+            owners: Vec::new(),
+            material: count,
+            lo,
+            hi,
+            removed: Vec::new(),
+            spans: Vec::new(),
+        };
+        // Room for the surfels of cuts: growing a vector of a million surfels would copy it
+        // inside one pose's update (milliseconds).
+        let faces = 2 * (dims[0] * dims[1] + dims[1] * dims[2] + dims[0] * dims[2]);
+        let room = (4 * faces).min(n);
+        w.surfels.reserve_exact(room);
+        w.owners.reserve_exact(room);
+        // The six faces: BOUND points with the block's normals, surfels on the true faces.
+        for k in 0..dims[2] {
+            for j in 0..dims[1] {
+                for i in 0..dims[0] {
+                    let c = [i, j, k];
+                    let mut nrm = [0.0; 3];
+                    for a in 0..3 {
+                        if c[a] == 0 {
+                            nrm[a] -= 1.0;
+                        }
+                        if c[a] + 1 == dims[a] {
+                            nrm[a] += 1.0;
+                        }
+                    }
+                    if nrm == [0.0; 3] {
+                        continue;
+                    }
+                    let idx = w.index(i, j, k);
+                    let pos = add(w.point(i, j, k), scale(nrm, spacing / 2.0));
+                    let len = (nrm[0] * nrm[0] + nrm[1] * nrm[1] + nrm[2] * nrm[2]).sqrt();
+                    w.flags[idx] = BOUND;
+                    w.set_surfel(idx, pos, scale(nrm, 1.0 / len), COLOUR_BLOCK);
+                }
+            }
+        }
+        Ok(w)
+    }
+
+    /// Grid spacing (m).
+    pub fn spacing(&self) -> f64 {
+        self.h
+    }
+
+    /// Points along x, y, z.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// Position of point `(0, 0, 0)` (m).
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+
+    /// The block the workpiece started as: `(lo, hi)` (m).
+    pub fn block_bounds(&self) -> (Vec3, Vec3) {
+        (self.lo, self.hi)
+    }
+
+    /// Flat index of point `(i, j, k)` (x fastest).
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        i + self.dims[0] * (j + self.dims[1] * k)
+    }
+
+    /// Position of point `(i, j, k)` (m).
+    pub fn point(&self, i: usize, j: usize, k: usize) -> Vec3 {
+        [
+            self.origin[0] + i as f64 * self.h,
+            self.origin[1] + j as f64 * self.h,
+            self.origin[2] + k as f64 * self.h,
+        ]
+    }
+
+    /// Grid coordinates of a flat index.
+    pub fn coords(&self, idx: usize) -> [usize; 3] {
+        let i = idx % self.dims[0];
+        let r = idx / self.dims[0];
+        [i, r % self.dims[1], r / self.dims[1]]
+    }
+
+    /// The flag of point `idx`.
+    pub fn flag(&self, idx: usize) -> Flag {
+        match self.flags[idx] {
+            OUTSIDE => Flag::Outside,
+            BOUND => Flag::Bound,
+            _ => Flag::Inside,
+        }
+    }
+
+    /// Material points left (BOUND or INSIDE).
+    pub fn material_points(&self) -> u64 {
+        self.material
+    }
+
+    /// Material volume left: material points x spacing^3 (m^3).
+    pub fn material_volume(&self) -> f64 {
+        self.material as f64 * self.h.powi(3)
+    }
+
+    /// The surfels (one per BOUND point, in no particular order).
+    pub fn surfels(&self) -> &[Surfel] {
+        &self.surfels
+    }
+
+    /// Radius given to surfels: half the diagonal of a grid cell, so that the discs of a
+    /// plane sampled by the grid at any orientation overlap.
+    pub fn surfel_radius(&self) -> f64 {
+        self.h * 3f64.sqrt() / 2.0
+    }
+
+    /// Occupancy, one bit per point (LSB first, x fastest): 1 = material. The layout of a
+    /// `VoxelGrid` with `ENCODING_BITS` whose voxels are centred on the points.
+    pub fn occupancy_bits(&self) -> Vec<u8> {
+        let mut data = vec![0u8; self.flags.len().div_ceil(8)];
+        for (byte, chunk) in data.iter_mut().zip(self.flags.chunks(8)) {
+            let mut b = 0u8;
+            for (bit, &f) in chunk.iter().enumerate() {
+                b |= u8::from(f != OUTSIDE) << bit;
+            }
+            *byte = b;
+        }
+        data
+    }
+
+    /// Puts (or moves) the surfel of point `idx`.
+    pub(crate) fn set_surfel(&mut self, idx: usize, pos: Vec3, normal: Vec3, colour: u32) {
+        let s = Surfel {
+            position: pos.map(|v| v as f32),
+            normal: normal.map(|v| v as f32),
+            radius: self.surfel_radius() as f32,
+            colour,
+        };
+        let slot = self.surfel_of[idx];
+        if slot == NO_SURFEL {
+            self.surfel_of[idx] = self.surfels.len() as u32;
+            self.surfels.push(s);
+            self.owners.push(idx as u32);
+        } else {
+            self.surfels[slot as usize] = s;
+        }
+    }
+
+    /// Removes point `idx` (material → OUTSIDE) and its surfel; returns the surfel's normal
+    /// if it had one.
+    pub(crate) fn remove_point(&mut self, idx: usize) -> Option<[f32; 3]> {
+        debug_assert!(self.flags[idx] != OUTSIDE);
+        self.flags[idx] = OUTSIDE;
+        self.material -= 1;
+        let slot = self.surfel_of[idx];
+        if slot == NO_SURFEL {
+            return None;
+        }
+        self.surfel_of[idx] = NO_SURFEL;
+        let normal = self.surfels[slot as usize].normal;
+        self.surfels.swap_remove(slot as usize);
+        self.owners.swap_remove(slot as usize);
+        if (slot as usize) < self.surfels.len() {
+            let moved = self.owners[slot as usize];
+            self.surfel_of[moved as usize] = slot;
+        }
+        Some(normal)
+    }
+
+    /// The surfel of point `idx`, if it has one.
+    pub fn surfel_at(&self, idx: usize) -> Option<&Surfel> {
+        let s = self.surfel_of[idx];
+        (s != NO_SURFEL).then(|| &self.surfels[s as usize])
+    }
+
+    /// Is `idx` material with a 6-neighbour that is air or off the grid?
+    pub fn on_surface(&self, idx: usize) -> bool {
+        if self.flags[idx] == OUTSIDE {
+            return false;
+        }
+        let c = self.coords(idx);
+        for a in 0..3 {
+            if c[a] == 0 || c[a] + 1 == self.dims[a] {
+                return true;
+            }
+        }
+        let stride = [1, self.dims[0], self.dims[0] * self.dims[1]];
+        stride
+            .iter()
+            .any(|&s| self.flags[idx - s] == OUTSIDE || self.flags[idx + s] == OUTSIDE)
+    }
+
+    /// Checks the invariants (for tests): a point is BOUND iff it is material on the surface;
+    /// BOUND points and only they have a surfel; the material count is right.
+    ///
+    /// # Errors
+    /// The first violation, described.
+    pub fn validate(&self) -> Result<(), String> {
+        let mut material = 0u64;
+        for idx in 0..self.flags.len() {
+            let f = self.flags[idx];
+            if f != OUTSIDE {
+                material += 1;
+            }
+            let want = if f == OUTSIDE {
+                OUTSIDE
+            } else if self.on_surface(idx) {
+                BOUND
+            } else {
+                INSIDE
+            };
+            if f != want {
+                return Err(format!(
+                    "point {:?} is {f}, should be {want}",
+                    self.coords(idx)
+                ));
+            }
+            let has = self.surfel_of[idx] != NO_SURFEL;
+            if has != (f == BOUND) {
+                return Err(format!(
+                    "point {:?} flag {f} has surfel: {has}",
+                    self.coords(idx)
+                ));
+            }
+            if has && self.owners[self.surfel_of[idx] as usize] as usize != idx {
+                return Err(format!(
+                    "surfel of {:?} has the wrong owner",
+                    self.coords(idx)
+                ));
+            }
+        }
+        if material != self.material {
+            return Err(format!("material count {} != {material}", self.material));
+        }
+        if self.surfels.len() != self.owners.len() {
+            return Err("surfels and owners differ in length".into());
+        }
+        Ok(())
+    }
+}
