@@ -286,23 +286,12 @@ impl Workpiece {
             }
         }
         let removed = std::mem::take(&mut self.removed);
-        let stride = [
-            1isize,
-            self.dims[0] as isize,
-            (self.dims[0] * self.dims[1]) as isize,
-        ];
         for &r in &removed {
-            let c = self.coords(r as usize);
-            for a in 0..3 {
-                for dir in [-1isize, 1] {
-                    if (dir < 0 && c[a] == 0) || (dir > 0 && c[a] + 1 == self.dims[a]) {
-                        continue;
-                    }
-                    let nb = (r as isize + dir * stride[a]) as usize;
-                    if self.flags[nb] != OUTSIDE {
-                        self.side_surfel(nb);
-                        stats.exposed += 1;
-                    }
+            let (nbs, n) = self.neighbours6(r as usize);
+            for &nb in &nbs[..n] {
+                if self.flags[nb] != OUTSIDE {
+                    self.side_surfel(nb);
+                    stats.exposed += 1;
                 }
             }
         }

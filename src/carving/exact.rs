@@ -71,27 +71,8 @@ impl BoxSweep {
         let q = sub(p, self.c0);
         if !self.contains(p) {
             let f = |s: f64| self.box_distance(&ax, sub(q, scale(self.d, s)));
-            let (mut a, mut b) = (0.0f64, 1.0f64);
-            let g = (5f64.sqrt() - 1.0) / 2.0;
-            let mut x1 = b - g * (b - a);
-            let mut x2 = a + g * (b - a);
-            let (mut f1, mut f2) = (f(x1), f(x2));
-            while b - a > 1e-12 {
-                if f1 < f2 {
-                    b = x2;
-                    x2 = x1;
-                    f2 = f1;
-                    x1 = b - g * (b - a);
-                    f1 = f(x1);
-                } else {
-                    a = x1;
-                    x1 = x2;
-                    f1 = f2;
-                    x2 = a + g * (b - a);
-                    f2 = f(x2);
-                }
-            }
-            return f(0.0).min(f(1.0)).min(f((a + b) / 2.0));
+            let mid = super::sweep::golden_section_min(f, 60);
+            return f(0.0).min(f(1.0)).min(f(mid));
         }
         // Inside: the smallest slack over the facet normals.
         let support = |n: Vec3| -> f64 {

@@ -102,26 +102,8 @@ impl Sweep {
                 .map(|a| (l[a].abs() - half[a]).max(0.0).powi(2))
                 .sum::<f64>()
         };
-        let g = (5f64.sqrt() - 1.0) / 2.0;
-        let (mut a, mut b) = (0.0f64, 1.0f64);
-        let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
-        let (mut f1, mut f2) = (dist2(x1), dist2(x2));
-        for _ in 0..48 {
-            if f1 < f2 {
-                b = x2;
-                x2 = x1;
-                f2 = f1;
-                x1 = b - g * (b - a);
-                f1 = dist2(x1);
-            } else {
-                a = x1;
-                x1 = x2;
-                f1 = f2;
-                x2 = a + g * (b - a);
-                f2 = dist2(x2);
-            }
-        }
-        let mut best = (dist2((a + b) / 2.0), (a + b) / 2.0);
+        let mid = golden_section_min(dist2, 48);
+        let mut best = (dist2(mid), mid);
         for s in [0.0, 1.0] {
             let v = dist2(s);
             if v < best.0 {
@@ -390,22 +372,10 @@ impl Workpiece {
             ToolKind::Chisel => COLOUR_CHISEL,
         };
         let removed = std::mem::take(&mut self.removed);
-        let stride = [
-            1isize,
-            self.dims[0] as isize,
-            (self.dims[0] * self.dims[1]) as isize,
-        ];
         for &r in &removed {
-            let c = self.coords(r as usize);
-            for a in 0..3 {
-                for dir in [-1isize, 1] {
-                    if (dir < 0 && c[a] == 0) || (dir > 0 && c[a] + 1 == self.dims[a]) {
-                        continue;
-                    }
-                    let nb = (r as isize + dir * stride[a]) as usize;
-                    if self.flags[nb] == OUTSIDE {
-                        continue;
-                    }
+            let (nbs, n) = self.neighbours6(r as usize);
+            for &nb in &nbs[..n] {
+                if self.flags[nb] != OUTSIDE {
                     self.expose(nb, sweep, colour, stats);
                 }
             }
@@ -463,6 +433,31 @@ impl Workpiece {
         self.set_surfel(idx, pos, scale(nw, -1.0), colour);
         stats.exposed += 1;
     }
+}
+
+/// The minimiser over [0, 1] of a unimodal `f` by golden-section search, `iters` steps (each
+/// shrinks the bracket by 0.618: 48 steps leave about 1e-10).
+pub(crate) fn golden_section_min(f: impl Fn(f64) -> f64, iters: u32) -> f64 {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut a, mut b) = (0.0f64, 1.0f64);
+    let (mut x1, mut x2) = (b - g * (b - a), a + g * (b - a));
+    let (mut f1, mut f2) = (f(x1), f(x2));
+    for _ in 0..iters {
+        if f1 < f2 {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - g * (b - a);
+            f1 = f(x1);
+        } else {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + g * (b - a);
+            f2 = f(x2);
+        }
+    }
+    (a + b) / 2.0
 }
 
 #[cfg(test)]

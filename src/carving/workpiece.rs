@@ -185,6 +185,25 @@ impl Workpiece {
         ]
     }
 
+    /// The grid 6-neighbours of point `idx` that exist (none off the grid's faces), and
+    /// how many there are.
+    pub(crate) fn neighbours6(&self, idx: usize) -> ([usize; 6], usize) {
+        let c = self.coords(idx);
+        let stride = [1, self.dims[0], self.dims[0] * self.dims[1]];
+        let (mut out, mut n) = ([0usize; 6], 0);
+        for a in 0..3 {
+            if c[a] > 0 {
+                out[n] = idx - stride[a];
+                n += 1;
+            }
+            if c[a] + 1 < self.dims[a] {
+                out[n] = idx + stride[a];
+                n += 1;
+            }
+        }
+        (out, n)
+    }
+
     /// Grid coordinates of a flat index.
     pub fn coords(&self, idx: usize) -> [usize; 3] {
         let i = idx % self.dims[0];
