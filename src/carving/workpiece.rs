@@ -48,6 +48,26 @@ pub struct Surfel {
     pub colour: u32,
 }
 
+/// Bytes of one surfel in [`Workpiece::surfel_bytes`].
+pub const SURFEL_BYTES: usize = 32;
+
+impl Surfel {
+    /// Its PointCloud2 bytes: x, y, z, normal, radius (float32), rgb (uint32), little-endian.
+    pub fn to_bytes(&self) -> [u8; SURFEL_BYTES] {
+        let mut b = [0u8; SURFEL_BYTES];
+        let floats = self
+            .position
+            .iter()
+            .chain(&self.normal)
+            .chain([&self.radius]);
+        for (k, v) in floats.enumerate() {
+            b[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
+        }
+        b[28..].copy_from_slice(&self.colour.to_le_bytes());
+        b
+    }
+}
+
 /// The workpiece: the point grid (force model) and the surfels of its BOUND points (shape).
 ///
 /// Point `(i, j, k)` is at `origin + spacing · (i, j, k)`; a block from `lo` to `hi` has its
@@ -63,6 +83,12 @@ pub struct Workpiece {
     pub(crate) surfels: Vec<Surfel>,
     pub(crate) owners: Vec<u32>,
     pub(crate) material: u64,
+    /// Occupancy kept as it changes, one bit per point (1 = material): a display frame
+    /// copies it instead of scanning every point.
+    pub(crate) bits: Vec<u8>,
+    /// The surfels as PointCloud2 bytes ([`SURFEL_BYTES`] each, in `surfels` order), kept as
+    /// they change, for the same reason.
+    pub(crate) cloud: Vec<u8>,
     pub(crate) lo: Vec3,
     pub(crate) hi: Vec3,
     /// Scratch: points removed by the current substep.
@@ -112,6 +138,16 @@ impl Workpiece {
             surfels: Vec::new(),
             owners: Vec::new(),
             material: count,
+            bits: {
+                let mut b = vec![0xFFu8; n.div_ceil(8)];
+                if n % 8 != 0 {
+                    if let Some(last) = b.last_mut() {
+                        *last = (1u8 << (n % 8)) - 1;
+                    }
+                }
+                b
+            },
+            cloud: Vec::new(),
             lo,
             hi,
             removed: Vec::new(),
@@ -123,6 +159,7 @@ impl Workpiece {
         let room = (4 * faces).min(n);
         w.surfels.reserve_exact(room);
         w.owners.reserve_exact(room);
+        w.cloud.reserve_exact(room * SURFEL_BYTES);
         // The six faces: BOUND points with the block's normals, surfels on the true faces.
         for k in 0..dims[2] {
             for j in 0..dims[1] {
@@ -242,17 +279,18 @@ impl Workpiece {
     }
 
     /// Occupancy, one bit per point (LSB first, x fastest): 1 = material. The layout of a
-    /// `VoxelGrid` with `ENCODING_BITS` whose voxels are centred on the points.
-    pub fn occupancy_bits(&self) -> Vec<u8> {
-        let mut data = vec![0u8; self.flags.len().div_ceil(8)];
-        for (byte, chunk) in data.iter_mut().zip(self.flags.chunks(8)) {
-            let mut b = 0u8;
-            for (bit, &f) in chunk.iter().enumerate() {
-                b |= u8::from(f != OUTSIDE) << bit;
-            }
-            *byte = b;
-        }
-        data
+    /// `VoxelGrid` with `ENCODING_BITS` whose voxels are centred on the points. Kept up to
+    /// date by every cut, so this is a copy, not a scan.
+    pub fn occupancy_bits(&self) -> &[u8] {
+        &self.bits
+    }
+
+    /// The surfels as the data of a `sensor_msgs/PointCloud2` with fields x, y, z,
+    /// normal_x, normal_y, normal_z, radius (float32) and rgb (uint32), little-endian,
+    /// [`SURFEL_BYTES`] per surfel, in [`Workpiece::surfels`] order. Kept up to date by every
+    /// cut.
+    pub fn surfel_bytes(&self) -> &[u8] {
+        &self.cloud
     }
 
     /// Puts (or moves) the surfel of point `idx`.
@@ -264,12 +302,16 @@ impl Workpiece {
             colour,
         };
         let slot = self.surfel_of[idx];
+        let bytes = s.to_bytes();
         if slot == NO_SURFEL {
             self.surfel_of[idx] = self.surfels.len() as u32;
             self.surfels.push(s);
             self.owners.push(idx as u32);
+            self.cloud.extend_from_slice(&bytes);
         } else {
+            let at = slot as usize * SURFEL_BYTES;
             self.surfels[slot as usize] = s;
+            self.cloud[at..at + SURFEL_BYTES].copy_from_slice(&bytes);
         }
     }
 
@@ -278,6 +320,7 @@ impl Workpiece {
     pub(crate) fn remove_point(&mut self, idx: usize) -> Option<[f32; 3]> {
         debug_assert!(self.flags[idx] != OUTSIDE);
         self.flags[idx] = OUTSIDE;
+        self.bits[idx / 8] &= !(1u8 << (idx % 8));
         self.material -= 1;
         let slot = self.surfel_of[idx];
         if slot == NO_SURFEL {
@@ -287,6 +330,14 @@ impl Workpiece {
         let normal = self.surfels[slot as usize].normal;
         self.surfels.swap_remove(slot as usize);
         self.owners.swap_remove(slot as usize);
+        let (at, end) = (
+            slot as usize * SURFEL_BYTES,
+            self.cloud.len() - SURFEL_BYTES,
+        );
+        if at != end {
+            self.cloud.copy_within(end.., at);
+        }
+        self.cloud.truncate(end);
         if (slot as usize) < self.surfels.len() {
             let moved = self.owners[slot as usize];
             self.surfel_of[moved as usize] = slot;
@@ -361,6 +412,15 @@ impl Workpiece {
         }
         if self.surfels.len() != self.owners.len() {
             return Err("surfels and owners differ in length".into());
+        }
+        for (idx, &f) in self.flags.iter().enumerate() {
+            if (self.bits[idx / 8] >> (idx % 8) & 1 == 1) != (f != OUTSIDE) {
+                return Err(format!("occupancy bit of {:?} is stale", self.coords(idx)));
+            }
+        }
+        let fresh: Vec<u8> = self.surfels.iter().flat_map(Surfel::to_bytes).collect();
+        if fresh != self.cloud {
+            return Err("the surfel bytes do not match the surfels".into());
         }
         Ok(())
     }

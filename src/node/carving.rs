@@ -256,21 +256,15 @@ impl CarvingNode {
             size_y: dims[1] as u32,
             size_z: dims[2] as u32,
             encoding: VoxelGrid::ENCODING_BITS,
-            data: self.work.occupancy_bits(),
+            data: self.work.occupancy_bits().to_vec(),
         };
         out.push(Message::new(
             &self.occupancy_topic,
             stamp,
             Payload::VoxelGrid(Arc::new(grid)),
         ));
+        let data = self.work.surfel_bytes().to_vec();
         let surfels = self.work.surfels();
-        let mut data = Vec::with_capacity(surfels.len() * 32);
-        for s in surfels {
-            for v in s.position.iter().chain(&s.normal).chain([&s.radius]) {
-                data.extend_from_slice(&v.to_le_bytes());
-            }
-            data.extend_from_slice(&s.colour.to_le_bytes());
-        }
         let mut fields: Vec<PointField> =
             ["x", "y", "z", "normal_x", "normal_y", "normal_z", "radius"]
                 .iter()
