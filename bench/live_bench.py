@@ -273,7 +273,6 @@ def bench_mesher(a, exe, domain, tmp):
     cfg = ROOT / "launch_configs/machine_tool.yaml"
     summary = tmp / "summary.json"
     launch = start_launch(exe, cfg, domain, a.seconds_max, summary, tmp / "launch.log")
-    cpu0 = 0.0
     time.sleep(1.0)
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), RUST_LOG="warn")
     t0 = time.monotonic()
@@ -283,7 +282,7 @@ def bench_mesher(a, exe, domain, tmp):
     log(play.stderr.strip().splitlines()[-1] if play.stderr.strip() else "play: no output")
     # Let the nodes close the streams (idle timeout) and check.
     time.sleep(a.settle)
-    cpu = proc_cpu_s(launch.pid) - cpu0
+    cpu = proc_cpu_s(launch.pid)
     rss = proc_rss_mb(launch.pid)
     launch.terminate()
     wait(launch, "chronotope launch", 300)

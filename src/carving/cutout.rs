@@ -275,14 +275,7 @@ impl Workpiece {
             let col = pixel(p[cu], cu, image.width);
             let row = image.height - 1 - pixel(p[cv], cv, image.height);
             if !image.is_black(col, row) {
-                if let Some(n) = self.remove_point(idx) {
-                    stats.removed_surface += 1;
-                    for a in 0..3 {
-                        stats.normal_sum[a] += f64::from(n[a]);
-                    }
-                }
-                stats.removed += 1;
-                self.removed.push(idx as u32);
+                self.cut_point(idx, &mut stats);
             }
         }
         let removed = std::mem::take(&mut self.removed);

@@ -350,14 +350,7 @@ impl Workpiece {
                 if self.flags[idx] == OUTSIDE {
                     continue;
                 }
-                if let Some(n) = self.remove_point(idx) {
-                    stats.removed_surface += 1;
-                    for a in 0..3 {
-                        stats.normal_sum[a] += f64::from(n[a]);
-                    }
-                }
-                stats.removed += 1;
-                self.removed.push(idx as u32);
+                self.cut_point(idx, stats);
             }
         }
         self.spans = spans;

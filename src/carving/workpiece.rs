@@ -345,6 +345,19 @@ impl Workpiece {
         Some(normal)
     }
 
+    /// Removes material point `idx` by a cut: counted in `stats` (with its surfel's normal
+    /// for eq. 8) and remembered in `removed`, whose neighbours the cut then exposes.
+    pub(crate) fn cut_point(&mut self, idx: usize, stats: &mut super::sweep::CutStats) {
+        if let Some(n) = self.remove_point(idx) {
+            stats.removed_surface += 1;
+            for a in 0..3 {
+                stats.normal_sum[a] += f64::from(n[a]);
+            }
+        }
+        stats.removed += 1;
+        self.removed.push(idx as u32);
+    }
+
     /// The surfel of point `idx`, if it has one.
     pub fn surfel_at(&self, idx: usize) -> Option<&Surfel> {
         let s = self.surfel_of[idx];
