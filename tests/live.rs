@@ -96,7 +96,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
             "launch",
             cfg,
             "--duration",
-            "12",
+            "14",
             "--summary",
             summary.to_str().unwrap(),
         ],
@@ -112,7 +112,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
             "--out",
             rec.to_str().unwrap(),
             "--duration",
-            "13",
+            "15",
         ],
         &r_log,
     );
@@ -131,7 +131,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
             "--out",
             rec_in.to_str().unwrap(),
             "--duration",
-            "13",
+            "15",
         ],
         &ri_log,
     );
@@ -139,7 +139,10 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
     let play = Proc::start(
         "play",
         &dom,
-        &["play", bag.to_str().unwrap(), "--wait", "2"],
+        // Readers of a volatile topic get only what is written after they match: give both
+        // recorders and the launch time to discover the player's writers (a loaded CI
+        // machine needs more than 2 s).
+        &["play", bag.to_str().unwrap(), "--wait", "4"],
         &p_log,
     );
     play.wait(&p_log);
