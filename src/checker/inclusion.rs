@@ -26,6 +26,9 @@ pub const FAR_POINTS: usize = FAR_OFFSETS.len();
 pub struct Inclusion<'a> {
     mesh: &'a TetMesh,
     bvh: &'a Bvh,
+    /// A normal per tet (as [`Prepared::normals`](super::Prepared)), if known: the sides
+    /// of a segment's ends from two dot products instead of two 5-point determinants.
+    normals: Option<&'a [[i32; 4]]>,
     far: [LatticePoint; FAR_POINTS],
     ws: TraverseWorkspace,
     hits: Vec<u32>,
@@ -39,9 +42,25 @@ enum Cross {
     Degenerate,
 }
 
-fn segment_tet(p: &LatticePoint, q: &LatticePoint, t: &[LatticePoint; 4]) -> Cross {
-    let sp = orient4_i128([&t[0], &t[1], &t[2], &t[3], p]).signum();
-    let sq = orient4_i128([&t[0], &t[1], &t[2], &t[3], q]).signum();
+/// sign orient4(t, x) from a normal `n` of `t`'s hyperplane (a positive multiple of the
+/// signed minors of its edges, see `edge_minors`): orient4(t, x) = det[t1 − t0, t2 − t0,
+/// t3 − t0, x − t0] = −n·(x − t0), expanded along its last row. Coordinates are `i32`, so
+/// each term is below 2^31·2^32 = 2^63: `i64` products, an `i128` sum.
+#[inline]
+fn orient_by_normal(n: &[i32; 4], t0: &LatticePoint, x: &LatticePoint) -> i128 {
+    let term = |k: usize| i64::from(n[k]) * (i64::from(x[k]) - i64::from(t0[k]));
+    -(i128::from(term(0)) + i128::from(term(1)) + i128::from(term(2)) + i128::from(term(3)))
+        .signum()
+}
+
+/// How segment p→q meets tet `t`, given sp = sign orient4(t, p) and sq = sign orient4(t, q).
+fn segment_tet_sides(
+    p: &LatticePoint,
+    q: &LatticePoint,
+    t: &[LatticePoint; 4],
+    sp: i128,
+    sq: i128,
+) -> Cross {
     if sp == 0 || sq == 0 {
         // An end point on the tet's hyperplane: the count would be ambiguous if it were on
         // the tet itself; be safe and call it degenerate only if the segment can touch it.
@@ -131,10 +150,21 @@ impl<'a> Inclusion<'a> {
         Self {
             mesh,
             bvh,
+            normals: None,
             far,
             ws: TraverseWorkspace::new(),
             hits: Vec::new(),
         }
+    }
+
+    /// As [`Inclusion::new`], with a normal of each tet's hyperplane (one per tet of
+    /// `mesh`, positive multiples of the signed edge minors, [`NO_NORMAL`](super::NO_NORMAL)
+    /// where unknown): most candidate tets of a segment are then rejected by two dot
+    /// products. Normals of the wrong length are not used.
+    pub fn with_normals(mesh: &'a TetMesh, bvh: &'a Bvh, normals: &'a [[i32; 4]]) -> Self {
+        let mut inc = Self::new(mesh, bvh);
+        inc.normals = (normals.len() == mesh.tets.len()).then_some(normals);
+        inc
     }
 
     /// `Some(true)` if `p` is inside, `Some(false)` outside, `None` if every far point met a
@@ -187,7 +217,17 @@ impl<'a> Inclusion<'a> {
         let mut sum = i32::from(q_inside);
         for &i in &self.hits {
             let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
-            match segment_tet(p, q, &t) {
+            let (sp, sq) = match self.normals.map(|n| n[i as usize]) {
+                Some(n) if n != super::NO_NORMAL => (
+                    orient_by_normal(&n, &t[0], p),
+                    orient_by_normal(&n, &t[0], q),
+                ),
+                _ => (
+                    orient4_i128([&t[0], &t[1], &t[2], &t[3], p]).signum(),
+                    orient4_i128([&t[0], &t[1], &t[2], &t[3], q]).signum(),
+                ),
+            };
+            match segment_tet_sides(p, q, &t, sp, sq) {
                 Cross::No => {}
                 Cross::Yes(s) => sum += i32::from(s),
                 Cross::Degenerate => return None,
@@ -198,6 +238,69 @@ impl<'a> Inclusion<'a> {
             1 => Some(true),
             // A closed, consistently oriented mesh never gives anything else; treat as undecided.
             _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// xorshift64: enough spread for test points.
+    struct Rng(u64);
+    impl Rng {
+        fn next_u64(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+    }
+
+    /// The normal-based side is the sign of orient4 for every tet and point, including
+    /// normals reduced by their gcd on coarse-to-fine lattices and far points.
+    #[test]
+    fn sides_from_normals_are_the_orientation_signs() {
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        for scale in [4u64, 1 << 12, 1 << 20, 1 << 29] {
+            let mut mesh = TetMesh::default();
+            for _ in 0..300 {
+                let c = |r: &mut Rng| (r.next_u64() % (2 * scale)) as i64 - scale as i64;
+                let base = mesh.vertices.len() as u32;
+                // Voxel-sized tets anywhere (edges up to 64 lattice units).
+                let at = [0; 4].map(|_| c(&mut rng));
+                for _ in 0..4 {
+                    let v = at.map(|x| x + (rng.next_u64() % 129) as i64 - 64);
+                    mesh.vertices.push(v.map(|x| x as i32));
+                }
+                mesh.tets.push([base, base + 1, base + 2, base + 3]);
+            }
+            // Flat tets too: their normal is zero, every side 0.
+            mesh.vertices
+                .extend([[0, 0, 0, 0], [1, 0, 0, 0], [2, 0, 0, 0], [0, 1, 0, 0]]);
+            let n = mesh.vertices.len() as u32;
+            mesh.tets.push([n - 4, n - 3, n - 2, n - 1]);
+            let normals = super::super::tet_normals(&mesh);
+            let usable = normals
+                .iter()
+                .filter(|n| **n != super::super::NO_NORMAL)
+                .count();
+            assert!(usable > 250, "{usable} normals at scale {scale}");
+            for (t, normal) in mesh.tets.iter().zip(&normals) {
+                if *normal == super::super::NO_NORMAL {
+                    continue;
+                }
+                let v = t.map(|i| mesh.vertices[i as usize]);
+                for _ in 0..20 {
+                    let x = [0; 4].map(|_| (rng.next_u64() as i64 % (2 * scale as i64)) as i32);
+                    let expect = orient4_i128([&v[0], &v[1], &v[2], &v[3], &x]).signum();
+                    assert_eq!(orient_by_normal(normal, &v[0], &x), expect, "{v:?} {x:?}");
+                }
+                // Points on the hyperplane: the vertices themselves.
+                for x in &v {
+                    assert_eq!(orient_by_normal(normal, &v[0], x), 0);
+                }
+            }
         }
     }
 }

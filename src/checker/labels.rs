@@ -9,7 +9,6 @@
 //! across face adjacency. This is right with no INTERFERENCE tet at all: a body entirely
 //! inside the other is one INSIDE region, disjoint bodies one OUTSIDE region each.
 
-use super::adjacency::NO_NEIGHBOUR;
 use crate::kernel::LatticePoint;
 use serde::Serialize;
 use std::collections::{HashMap, VecDeque};
@@ -111,61 +110,89 @@ pub fn label_regions(
     touch: &[Touch],
     test: &mut impl InsideTest,
 ) -> Labeling {
-    let n = adjacency.len();
+    let n = adjacency.len().min(touch.len());
     let mut labels = vec![Label::Outside; n];
-    // Tets whose label is decided and whose reference point is off the other boundary.
-    let mut decided = vec![false; n];
     let mut out = Labeling::default();
-    let mut stack = Vec::new();
-    let mut members = Vec::new();
+    let clear = |t: usize| touch[t] == Touch::Clear;
+    // Regions of clear tets by union-find in one pass over the tets in index order (the
+    // tree's leaf order: a linear read of the adjacency, where a flood fill jumps around
+    // and waits on memory). Each region's root is its smallest tet.
+    let mut parent: Vec<u32> = (0..n as u32).collect();
     let mut contact = Vec::new();
-    let mut seen = vec![false; n];
-    for start in 0..n {
-        match touch[start] {
-            Touch::Interference => {
-                labels[start] = Label::Interference;
-                continue;
-            }
-            Touch::Contact | Touch::FaceToFace => {
-                contact.push(start as u32);
-                continue;
-            }
-            Touch::Clear if seen[start] => continue,
-            Touch::Clear => {}
-        }
-        // Collect the region of clear tets.
-        members.clear();
-        stack.push(start as u32);
-        seen[start] = true;
-        while let Some(t) = stack.pop() {
-            members.push(t);
-            for &nb in &adjacency[t as usize] {
-                if nb != NO_NEIGHBOUR && !seen[nb as usize] && touch[nb as usize] == Touch::Clear {
-                    seen[nb as usize] = true;
-                    stack.push(nb);
+    for t in 0..n {
+        match touch[t] {
+            Touch::Interference => labels[t] = Label::Interference,
+            Touch::Contact | Touch::FaceToFace => contact.push(t as u32),
+            Touch::Clear => {
+                let mut root = find(&mut parent, t as u32);
+                for &nb in &adjacency[t] {
+                    if (nb as usize) < n && clear(nb as usize) {
+                        let other = find(&mut parent, nb);
+                        // The smaller root becomes the root of both.
+                        if other != root {
+                            parent[root.max(other) as usize] = root.min(other);
+                            root = root.min(other);
+                        }
+                    }
                 }
             }
         }
-        out.regions += 1;
-        // Spread the tries over the region; one interior point per tet suffices here.
-        let step = (members.len() / TRIES_PER_REGION).max(1);
-        let verdict = members
-            .iter()
-            .step_by(step)
-            .take(TRIES_PER_REGION)
-            .find_map(|&t| test.far(t, 1));
-        let label = match verdict {
-            Some((true, _)) => Label::Inside,
-            Some((false, _)) => Label::Outside,
-            None => {
-                out.undecided_regions += 1;
-                Label::Outside
+    }
+    // Every clear tet points at its root; regions numbered by root, in order.
+    const NO_REGION: u32 = u32::MAX;
+    let mut region_of_root = vec![NO_REGION; n];
+    let mut sizes: Vec<usize> = Vec::new();
+    for t in 0..n {
+        if clear(t) {
+            let r = find(&mut parent, t as u32);
+            parent[t] = r;
+            let k = &mut region_of_root[r as usize];
+            if *k == NO_REGION {
+                *k = sizes.len() as u32;
+                sizes.push(0);
             }
-        };
-        for &t in &members {
-            labels[t as usize] = label;
-            // An undecided region is no reference for its neighbours.
-            decided[t as usize] = verdict.is_some();
+            sizes[*k as usize] += 1;
+        }
+    }
+    out.regions = sizes.len() as u32;
+    // Tries spread over each region (every step-th tet, up to TRIES_PER_REGION of them);
+    // one interior point per tet suffices here.
+    let steps: Vec<usize> = sizes
+        .iter()
+        .map(|&s| (s / TRIES_PER_REGION).max(1))
+        .collect();
+    let mut tries: Vec<Vec<u32>> = vec![Vec::new(); sizes.len()];
+    let mut seen = vec![0usize; sizes.len()];
+    for t in 0..n {
+        if clear(t) {
+            let k = region_of_root[parent[t] as usize] as usize;
+            if seen[k] % steps[k] == 0 && tries[k].len() < TRIES_PER_REGION {
+                tries[k].push(t as u32);
+            }
+            seen[k] += 1;
+        }
+    }
+    let verdicts: Vec<Option<bool>> = tries
+        .iter()
+        .map(|ts| {
+            ts.iter()
+                .find_map(|&t| test.far(t, 1))
+                .map(|(inside, _)| inside)
+        })
+        .collect();
+    out.undecided_regions = verdicts.iter().filter(|v| v.is_none()).count() as u32;
+    // Tets whose label is decided and whose reference point is off the other boundary (an
+    // undecided region is no reference for its neighbours).
+    let mut decided = vec![false; n];
+    for t in 0..n {
+        if clear(t) {
+            let verdict = verdicts[region_of_root[parent[t] as usize] as usize];
+            labels[t] = if verdict == Some(true) {
+                Label::Inside
+            } else {
+                Label::Outside
+            };
+            decided[t] = verdict.is_some();
         }
     }
     // Contact tets, breadth first from decided neighbours.
@@ -175,7 +202,7 @@ pub fn label_regions(
         .filter(|&t| {
             adjacency[t as usize]
                 .iter()
-                .any(|&u| u != NO_NEIGHBOUR && decided[u as usize])
+                .any(|&u| (u as usize) < n && decided[u as usize])
         })
         .collect();
     // Records a contact tet's verdict.
@@ -213,7 +240,7 @@ pub fn label_regions(
             continue;
         }
         let reference = adjacency[t as usize].iter().find_map(|&u| {
-            if u == NO_NEIGHBOUR || !st.decided[u as usize] {
+            if u as usize >= n || !st.decided[u as usize] {
                 return None;
             }
             let q = st.points.get(&u).copied().unwrap_or_else(|| test.point(u));
@@ -224,7 +251,7 @@ pub fn label_regions(
             .or_else(|| test.far(t, usize::MAX));
         decide(t, verdict, &mut st);
         for &u in &adjacency[t as usize] {
-            if u != NO_NEIGHBOUR
+            if (u as usize) < n
                 && !st.done[u as usize]
                 && matches!(touch[u as usize], Touch::Contact | Touch::FaceToFace)
             {
@@ -243,6 +270,16 @@ pub fn label_regions(
     } = st;
     out.labels = labels;
     out
+}
+
+/// The root of `x`'s set, halving the path on the way.
+fn find(parent: &mut [u32], mut x: u32) -> u32 {
+    while parent[x as usize] != x {
+        let up = parent[parent[x as usize] as usize];
+        parent[x as usize] = up;
+        x = up;
+    }
+    x
 }
 
 /// The labelling state of the contact pass.

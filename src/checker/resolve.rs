@@ -236,7 +236,7 @@ fn verified_clear(
     let a = placement.source();
     let mut tests: Vec<Inclusion> = others
         .iter()
-        .map(|b| Inclusion::new(&b.mesh, &b.bvh))
+        .map(|b| Inclusion::with_normals(&b.mesh, &b.bvh, &b.normals))
         .collect();
     if likely
         .iter()
