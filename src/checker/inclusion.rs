@@ -246,16 +246,7 @@ impl<'a> Inclusion<'a> {
 mod tests {
     use super::*;
 
-    /// xorshift64: enough spread for test points.
-    struct Rng(u64);
-    impl Rng {
-        fn next_u64(&mut self) -> u64 {
-            self.0 ^= self.0 << 13;
-            self.0 ^= self.0 >> 7;
-            self.0 ^= self.0 << 17;
-            self.0
-        }
-    }
+    use crate::kernel::intersect::test_rng::Rng;
 
     /// The normal-based side is the sign of orient4 for every tet and point, including
     /// normals reduced by their gcd on coarse-to-fine lattices and far points.
@@ -265,12 +256,12 @@ mod tests {
         for scale in [4u64, 1 << 12, 1 << 20, 1 << 29] {
             let mut mesh = TetMesh::default();
             for _ in 0..300 {
-                let c = |r: &mut Rng| (r.next_u64() % (2 * scale)) as i64 - scale as i64;
+                let c = |r: &mut Rng| (r.next() % (2 * scale)) as i64 - scale as i64;
                 let base = mesh.vertices.len() as u32;
                 // Voxel-sized tets anywhere (edges up to 64 lattice units).
                 let at = [0; 4].map(|_| c(&mut rng));
                 for _ in 0..4 {
-                    let v = at.map(|x| x + (rng.next_u64() % 129) as i64 - 64);
+                    let v = at.map(|x| x + (rng.next() % 129) as i64 - 64);
                     mesh.vertices.push(v.map(|x| x as i32));
                 }
                 mesh.tets.push([base, base + 1, base + 2, base + 3]);
@@ -292,7 +283,7 @@ mod tests {
                 }
                 let v = t.map(|i| mesh.vertices[i as usize]);
                 for _ in 0..20 {
-                    let x = [0; 4].map(|_| (rng.next_u64() as i64 % (2 * scale as i64)) as i32);
+                    let x = [0; 4].map(|_| (rng.next() as i64 % (2 * scale as i64)) as i32);
                     let expect = orient4_i128([&v[0], &v[1], &v[2], &v[3], &x]).signum();
                     assert_eq!(orient_by_normal(normal, &v[0], &x), expect, "{v:?} {x:?}");
                 }
