@@ -474,6 +474,7 @@ impl PairResult {
     }
 }
 
+#[inline]
 pub(crate) fn tet_of(m: &TetMesh, i: u32) -> [LatticePoint; 4] {
     m.tets[i as usize].map(|v| m.vertices[v as usize])
 }
