@@ -73,7 +73,7 @@ pub enum BenchWhich {
         /// Encoding.
         #[arg(long, value_enum, default_value_t = EncodingArg::Bits)]
         encoding: EncodingArg,
-        /// Timed repetitions of detection plus labels (the median is printed).
+        /// Timed repetitions of detection plus labels and of resolution (medians printed).
         #[arg(long, default_value_t = 3)]
         reps: usize,
         /// Frame counts of the what-each-misses sweep.
