@@ -12,8 +12,8 @@
 //! this gives an independent [`TetPairRelation`].
 
 use chronotope::kernel::intersect::{
-    classify, relative_interiors_meet, segment_crosses_tet, tets_cross, tets_intersect,
-    triangles_cross, LatticeTet, TetPairRelation,
+    classify, classify_if, relative_interiors_meet, segment_crosses_tet, tets_cross,
+    tets_intersect, triangles_cross, LatticeTet, TetPairRelation,
 };
 use chronotope::kernel::LatticePoint;
 use proptest::prelude::*;
@@ -410,6 +410,21 @@ fn check_pair(a: &LatticeTet, b: &LatticeTet, tally: &mut Tally) {
     let got = classify(a, b);
     assert_eq!(got, want, "classify({a:?}, {b:?})");
     assert_eq!(classify(b, a), got, "symmetry for {a:?}, {b:?}");
+    // When touching does not matter, a pair that only touches (a common boundary point,
+    // or tets in one hyperplane meeting without a common interior point) may read
+    // Disjoint; every other relation is decided in full.
+    let lax = classify_if(a, b, false);
+    match want {
+        TetPairRelation::Touching
+        | TetPairRelation::Coplanar {
+            overlap_volume_positive: false,
+            ..
+        } => assert!(
+            lax == want || lax == TetPairRelation::Disjoint,
+            "classify_if({a:?}, {b:?}, false) = {lax:?}, want {want:?} or Disjoint"
+        ),
+        _ => assert_eq!(lax, want, "classify_if({a:?}, {b:?}, false)"),
+    }
     let crossing = want == TetPairRelation::Crossing;
     assert_eq!(tets_cross(a, b), crossing, "tets_cross({a:?}, {b:?})");
     assert_eq!(tets_cross(b, a), crossing, "tets_cross({b:?}, {a:?})");

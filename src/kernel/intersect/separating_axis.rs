@@ -118,13 +118,49 @@ pub(super) fn separating_axes<T: Exact>(
     if d == 0 || d > 4 {
         return true;
     }
-    // Axis families: i edge vectors from an i-face of A and d−1−i from a face of B.
-    // A's own normal first, then B's, then the mixed ones.
+    let verdict = separating_axes_low(a, b, d, strict);
+    if strict {
+        verdict.interiors_meet
+    } else {
+        verdict.meet
+    }
+}
+
+/// Both verdicts of the separating-axis test in R^d (d < 4) from one pass over the axes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) struct SatVerdict {
+    /// No axis separates: the closed sets meet.
+    pub(super) meet: bool,
+    /// No axis separates or makes the intervals touch: the interiors meet.
+    pub(super) interiors_meet: bool,
+}
+
+/// [`separating_axes`] for d < 4, closed and strict at once: each axis's intervals are
+/// computed once. With `strict_only` the walk stops at the first axis that separates or
+/// touches (then `meet` is not decided and reads `true`). Axis families: i edge vectors from an i-face of A and d−1−i from a face
+/// of B; the faces' own normals (A's, then B's) come first, since they separate most
+/// pairs that are apart, then the mixed ones.
+pub(super) fn separating_axes_low<T: Exact>(
+    a: &[V4<T>; 4],
+    b: &[V4<T>; 4],
+    d: usize,
+    strict_only: bool,
+) -> SatVerdict {
+    let mut out = SatVerdict {
+        meet: true,
+        interiors_meet: true,
+    };
+    if d == 0 || d >= 4 {
+        return out;
+    }
     let zero = [T::ZERO; 4];
-    for i in [3, 0, 1, 2] {
-        if i > d - 1 || d - 1 - i > 3 {
-            continue;
-        }
+    // R^3: A's triangles, B's triangles, edge × edge; R^2: A's edges, B's edges; R^1: x.
+    let families: &[usize] = match d {
+        3 => &[2, 0, 1],
+        2 => &[1, 0],
+        _ => &[0],
+    };
+    for &i in families {
         let j = d - 1 - i;
         for fa in 0..face_count(i) {
             for fb in 0..face_count(j) {
@@ -133,13 +169,26 @@ pub(super) fn separating_axes<T: Exact>(
                 let nb = face_vectors(b, j, fb, &mut vs[na..na + j]);
                 debug_assert_eq!(na + nb, d - 1);
                 let n = generalized_cross(&vs[..d - 1], d);
-                if !is_zero(&n) && separates(&n, a, b, strict) {
-                    return false;
+                if is_zero(&n) {
+                    continue;
+                }
+                let ((lo_a, hi_a), (lo_b, hi_b)) = (interval(&n, a), interval(&n, b));
+                if hi_a < lo_b || hi_b < lo_a {
+                    return SatVerdict {
+                        meet: false,
+                        interiors_meet: false,
+                    };
+                }
+                if hi_a == lo_b || hi_b == lo_a {
+                    out.interiors_meet = false;
+                    if strict_only {
+                        return out;
+                    }
                 }
             }
         }
     }
-    true
+    out
 }
 
 /// [`separating_axes`] in R^4, with the edge vectors and each triangle's 2x2 minors

@@ -2,7 +2,9 @@
 //!
 //! The rule, how it is decided and why, are in the [parent module notes](super).
 
-use super::separating_axis::{difference_contains_origin, drop_coordinate, separating_axes};
+use super::separating_axis::{
+    difference_contains_origin, drop_coordinate, separating_axes, separating_axes_low,
+};
 use super::{
     cross3, dot4, edge_index, rel_tet, sign, sub4, Exact, LatticeTet, TET_EDGES, TET_TRIANGLES, V4,
 };
@@ -272,7 +274,7 @@ fn classify_in<T: Exact>(
         return touching_or_disjoint(&mut || difference_contains_origin(&p.a, &p.b, 4, false));
     }
     if p.sides_of_b == [0; 4] {
-        return coplanar(&p);
+        return coplanar(&p, touching_matters);
     }
     if strictly_one_side(&p.sides_of_b) || strictly_one_side(&p.sides_of_a) {
         return TetPairRelation::Disjoint;
@@ -367,8 +369,11 @@ fn point_in_tet_3d<T: Exact>(p: &V4<T>, t: &[V4<T>; 4]) -> Option<bool> {
 }
 
 /// Non-flat tets in one hyperplane: an exact 3D test after dropping a coordinate in which
-/// the normal does not vanish (an affine bijection of the hyperplane onto R^3).
-fn coplanar<T: Exact>(p: &Pair<T>) -> TetPairRelation {
+/// the normal does not vanish (an affine bijection of the hyperplane onto R^3). Unless
+/// `touching_matters`, a pair whose interiors do not meet is `Disjoint` and the test stops
+/// at the first axis that separates or touches (tets face to face share many faces and
+/// edges: proving they only touch takes every axis).
+fn coplanar<T: Exact>(p: &Pair<T>, touching_matters: bool) -> TetPairRelation {
     let mut k = 0;
     while k < 3 && p.na[k] == T::ZERO {
         k += 1;
@@ -376,11 +381,12 @@ fn coplanar<T: Exact>(p: &Pair<T>) -> TetPairRelation {
     let drop = |x: &V4<T>| drop_coordinate(x, k);
     let a3 = p.a.map(|x| drop(&x));
     let b3 = p.b.map(|x| drop(&x));
-    if !separating_axes(&a3, &b3, 3, false) {
+    let verdict = separating_axes_low(&a3, &b3, 3, !touching_matters);
+    if !verdict.meet || !(touching_matters || verdict.interiors_meet) {
         return TetPairRelation::Disjoint;
     }
     TetPairRelation::Coplanar {
-        overlap_volume_positive: separating_axes(&a3, &b3, 3, true),
+        overlap_volume_positive: verdict.interiors_meet,
         same_orientation: sign(p.na[k]) == sign(p.nb[k]),
     }
 }
