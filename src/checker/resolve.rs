@@ -15,7 +15,9 @@
 //! - **Time scaling** (seed §4.3, eqs. 1-2): t_s = t0 + s (t − t0). The same distance along
 //!   the time axis gives t_A (the point) and t_B (where it leaves); t0 is whichever of A's
 //!   t_min / t_max lies farther from [t_A, t_B]; s = (t_B − t0)/(t_A − t0). s is made a
-//!   fraction p/64 (rounded away from 1) and verified exactly on a lattice refined 64 times.
+//!   fraction p/64 (rounded away from 1) and verified exactly on a lattice refined 64 times;
+//!   if it does not clear, s moves away from 1 by 10 % at a time until it does, and then
+//!   p is bisected between the last failing and the first clearing scale.
 //!
 //! Ray distances are measurements in floating point; every verdict comes from the exact
 //! checker. Speed: each search places one copy of the body again and again
@@ -481,21 +483,14 @@ pub fn suggest_time_scaling(
         others.iter().map(|b| b.mapped([Q; 4], [0; 4])).collect();
     let refined_refs: Option<Vec<&Prepared>> = refined_others.as_ref().map(|r| r.iter().collect());
     let mut placement = Placement::new(a);
-    let mut out = None;
-    for _ in 0..=GROWTH_STEPS {
-        let p = if s >= 1.0 {
-            (s * Q as f64).ceil()
-        } else {
-            (s * Q as f64).floor()
-        }
-        .max(1.0) as i64;
+    let mut try_p = |p: i64| {
         let witnesses: Vec<(u32, usize)> = likely
             .iter()
             .take_while(|w| w.0 > p as f64 / Q as f64)
             .map(|w| (w.1, w.2))
             .collect();
         // Times become Q·t0 + p·(t − t0) on the lattice refined Q times: t_s = t0 + s (t − t0).
-        let ok = refined_refs.as_ref().is_some_and(|others| {
+        refined_refs.as_ref().is_some_and(|others| {
             verified_clear(
                 &mut placement,
                 others,
@@ -503,16 +498,49 @@ pub fn suggest_time_scaling(
                 [Q, Q, Q, p],
                 [0, 0, 0, Q * t0 - p * t0],
             )
-        });
-        out = Some(TimeScaling {
-            t0,
-            scale: p as f64 / Q as f64,
-            verified_clear: ok,
-        });
-        if ok {
+        })
+    };
+    let snap = |s: f64| {
+        if s >= 1.0 {
+            (s * Q as f64).ceil()
+        } else {
+            (s * Q as f64).floor()
+        }
+        .max(1.0) as i64
+    };
+    // Grow away from 1 by 10 % until it clears ...
+    let (mut failed, mut cleared) = (None, None);
+    for _ in 0..=GROWTH_STEPS {
+        let p = snap(s);
+        if try_p(p) {
+            cleared = Some(p);
             break;
         }
+        failed = Some(p);
         s = if s >= 1.0 { s * 1.1 } else { s / 1.1 };
     }
-    out
+    let Some(mut clear) = cleared else {
+        return failed.map(|p| TimeScaling {
+            t0,
+            scale: p as f64 / Q as f64,
+            verified_clear: false,
+        });
+    };
+    // ... then bisect the steps p between the last scale that failed and the first that
+    // cleared, for the clearing scale closest to 1 (the least retiming) found that way.
+    if let Some(mut fail) = failed {
+        while (clear - fail).abs() > 1 {
+            let mid = (clear + fail) / 2;
+            if try_p(mid) {
+                clear = mid;
+            } else {
+                fail = mid;
+            }
+        }
+    }
+    Some(TimeScaling {
+        t0,
+        scale: clear as f64 / Q as f64,
+        verified_clear: true,
+    })
 }
