@@ -14,11 +14,15 @@ use chronotope::sampler::{
 };
 use std::sync::Arc;
 
-fn big_box(e: f64) -> Wall {
-    Wall::Box {
-        min: [-e; 4],
-        max: [e; 4],
-    }
+/// The figure of `fields` in R^3 inside the box [−e, e]^4.
+fn boxed(fields: Vec<Arc<dyn Field>>, e: f64) -> Figure {
+    Figure::new(3, fields)
+        .unwrap()
+        .wall(Wall::Box {
+            min: [-e; 4],
+            max: [e; 4],
+        })
+        .unwrap()
 }
 
 fn torus(major: f64, minor: f64) -> Arc<dyn Field> {
@@ -34,6 +38,14 @@ fn sphere(centre: [f64; 3], radius: f64) -> Body {
     Body::fixed(Shape::Sphere { centre, radius })
 }
 
+/// The largest distance (m) of a point from the unit sphere about the origin.
+fn off_unit_sphere(points: &[Q]) -> f64 {
+    points
+        .iter()
+        .map(|q| ((q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt() - 1.0).abs())
+        .fold(0.0, f64::max)
+}
+
 fn all_finite(p: &[Q]) -> bool {
     p.iter().flatten().all(|x| x.is_finite())
 }
@@ -46,10 +58,7 @@ fn torus_ks(points: &[Q], major: f64, minor: f64) -> f64 {
 
 #[test]
 fn every_scheme_is_uniform_on_the_torus_and_metropolis_is_exactly_so() {
-    let fig = Figure::new(3, vec![torus(1.0, 0.4)])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![torus(1.0, 0.4)], 2.0);
     // KS of 40 000 correlated samples from 32 walkers is 0.01-0.03 (mixing); a sampler that
     // ignores the curvature (uniform in θ) scores r/(2πR) = 0.064 whatever the run length.
     for scheme in Scheme::ALL {
@@ -84,10 +93,7 @@ fn every_scheme_is_uniform_on_the_torus_and_metropolis_is_exactly_so() {
 
 #[test]
 fn samples_are_deterministic_for_a_seed() {
-    let fig = Figure::new(3, vec![torus(1.0, 0.4)])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![torus(1.0, 0.4)], 2.0);
     let o = SamplerOptions::default().samples(300).seed(9);
     let a = sample(&fig, &o).unwrap().points;
     let b = sample(&fig, &o).unwrap().points;
@@ -126,10 +132,7 @@ fn x_ks(points: &[Q]) -> f64 {
 fn gradient_varying_a_thousandfold_changes_nothing() {
     // k = ln(1000)/2: |∇F| = 2e^{kx} runs from 2/31.6 to 2·31.6 over the sphere.
     let k = 1000f64.ln() / 2.0;
-    let fig = Figure::new(3, vec![Arc::new(ExpSphere(k))])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![Arc::new(ExpSphere(k))], 2.0);
     let (lo, hi) = (
         ExpSphere(k).eval(&[-1.0, 0.0, 0.0, 0.0]).1[0].abs(),
         ExpSphere(k).eval(&[1.0, 0.0, 0.0, 0.0]).1[0],
@@ -147,11 +150,7 @@ fn gradient_varying_a_thousandfold_changes_nothing() {
         let ks = x_ks(&s.points);
         assert!(ks < 0.04, "{scheme:?}: KS of x {ks}");
         // Distance to the sphere, not |F|: the test is in metres whatever |∇F| is.
-        let worst = s
-            .points
-            .iter()
-            .map(|q| ((q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt() - 1.0).abs())
-            .fold(0.0, f64::max);
+        let worst = off_unit_sphere(&s.points);
         let bound = if scheme == Scheme::Explicit {
             0.05
         } else {
@@ -163,10 +162,7 @@ fn gradient_varying_a_thousandfold_changes_nothing() {
 
 #[test]
 fn explicit_lambda_near_two_is_stable_above_two_refused_or_clamped() {
-    let fig = Figure::new(3, vec![torus(1.0, 0.4)])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![torus(1.0, 0.4)], 2.0);
     let base = SamplerOptions::default()
         .scheme(Scheme::Explicit)
         .dt(1e-3)
@@ -207,10 +203,7 @@ fn explicit_lambda_near_two_is_stable_above_two_refused_or_clamped() {
 
 #[test]
 fn bad_options_are_refused_with_their_name() {
-    let fig = Figure::new(3, vec![torus(1.0, 0.4)])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![torus(1.0, 0.4)], 2.0);
     for (o, name) in [
         (SamplerOptions::default().dt(f64::NAN), "dt"),
         (SamplerOptions::default().dt(-1.0), "dt"),
@@ -327,10 +320,7 @@ fn nearly_tangent_spheres_give_a_small_circle_and_exact_tangency_is_refused() {
     // Exactly tangent: the figure is the single point (1, 0, 0), where D is singular. Either
     // no walker gets on (refused) or every sample sits at that point; never NaN.
     let b = sphere([2.0, 0.0, 0.0], 1.0);
-    let fig = Figure::new(3, vec![Arc::new(a), Arc::new(b)])
-        .unwrap()
-        .wall(big_box(3.0))
-        .unwrap();
+    let fig = boxed(vec![Arc::new(a), Arc::new(b)], 3.0);
     match sample(&fig, &SamplerOptions::default().samples(10).walkers(2)) {
         Err(SamplerError::NoStart { .. }) => {}
         Ok(s) => assert!(
@@ -347,10 +337,7 @@ fn nearly_tangent_spheres_give_a_small_circle_and_exact_tangency_is_refused() {
 #[test]
 fn thin_torus() {
     let (major, minor) = (1.0, 0.01);
-    let fig = Figure::new(3, vec![torus(major, minor)])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![torus(major, minor)], 2.0);
     for scheme in Scheme::ALL {
         // Steps must be small against the tube: dt = 1e-6 gives ~0.002.
         let o = SamplerOptions::default()
@@ -390,10 +377,7 @@ impl Field for TwoSpheres {
 #[test]
 fn disconnected_components_are_each_reached_but_not_weighted_by_area() {
     let f = TwoSpheres(sphere([-1.0, 0.0, 0.0], 0.6), sphere([1.2, 0.0, 0.0], 0.3));
-    let fig = Figure::new(3, vec![Arc::new(f)])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let fig = boxed(vec![Arc::new(f)], 2.0);
     let s = sample(
         &fig,
         &SamplerOptions::default().samples(6400).walkers(64).seed(6),
@@ -418,10 +402,7 @@ fn walkers_started_far_away_reach_the_figure() {
         Arc::new(sphere([0.0; 3], 1.0)) as Arc<dyn Field>,
         Arc::new(ExpSphere(0.0)),
     ] {
-        let fig = Figure::new(3, vec![field])
-            .unwrap()
-            .wall(big_box(500.0))
-            .unwrap();
+        let fig = boxed(vec![field], 500.0);
         for scheme in Scheme::ALL {
             let o = SamplerOptions::default()
                 .scheme(scheme)
@@ -436,11 +417,7 @@ fn walkers_started_far_away_reach_the_figure() {
             let o = o.burn_in(2000);
             let s = sample(&fig, &o).unwrap();
             assert!(all_finite(&s.points));
-            let worst = s
-                .points
-                .iter()
-                .map(|q| ((q[0] * q[0] + q[1] * q[1] + q[2] * q[2]).sqrt() - 1.0).abs())
-                .fold(0.0, f64::max);
+            let worst = off_unit_sphere(&s.points);
             // The explicit scheme's samples are off the sphere by O(step) (0.14 here).
             let bound = if scheme == Scheme::Explicit {
                 0.3
@@ -458,10 +435,7 @@ fn walkers_started_far_away_reach_the_figure() {
     }
     // (|q|² - 1) e^x also tends to 0 as x → -∞: from far away Gauss-Newton follows the
     // exponential down to that zero at infinity instead of the sphere. Refused, not NaN.
-    let fig = Figure::new(3, vec![Arc::new(ExpSphere(1.0))])
-        .unwrap()
-        .wall(big_box(500.0))
-        .unwrap();
+    let fig = boxed(vec![Arc::new(ExpSphere(1.0))], 500.0);
     let o = SamplerOptions::default().samples(10).walkers(1).starts(far);
     assert!(matches!(
         sample(&fig, &o),
@@ -491,20 +465,14 @@ fn seed_surfaces_with_the_fig1_shell_walls() {
         assert!((0.5..=1.5).contains(&r), "{q:?}");
         assert!(saddle.eval(q).0.abs() < 1e-9);
     }
-    let rim = Figure::new(3, vec![Arc::new(saddle), Arc::new(sphere([0.0; 3], 1.5))])
-        .unwrap()
-        .wall(big_box(2.0))
-        .unwrap();
+    let rim = boxed(vec![Arc::new(saddle), Arc::new(sphere([0.0; 3], 1.5))], 2.0);
     let s = sample(&rim, &SamplerOptions::default().samples(500).seed(1)).unwrap();
     assert!(s.points.iter().all(|q| rim.residual(q) < 1e-9));
     // Fig. 2: the surface with holes.
-    let holes = Figure::new(
-        3,
+    let holes = boxed(
         vec![Arc::new(Body::fixed(Shape::SeedHoles { centre: [0.0; 3] }))],
-    )
-    .unwrap()
-    .wall(big_box(4.0))
-    .unwrap();
+        4.0,
+    );
     let s = sample(&holes, &SamplerOptions::default().samples(1000).seed(1)).unwrap();
     assert!(s.points.iter().all(|q| holes.residual(q) < 1e-9));
 }
