@@ -5,6 +5,7 @@
 use crate::checker::bounds;
 use crate::checker::labels::LabelCounts;
 pub use crate::checker::par_map;
+use crate::checker::prep::BodyPrep;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{check_pair, CheckError, CommonLattice, PairResult, Prepared};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
@@ -200,6 +201,21 @@ pub fn check_bodies(
     plan: &CheckPlan,
     opts: MesherOptions,
 ) -> Result<CheckOutcome, CheckError> {
+    check_streamed(bodies, BTreeMap::new(), plan, opts)
+}
+
+/// [`check_bodies`] with some bodies already prepared piece by piece as their streams
+/// arrived (`preps`, by body id; see [`checker::prep`](crate::checker::prep)): only their
+/// trees' tops and the placement on the common lattice are left to do.
+///
+/// # Errors
+/// As [`check_bodies`].
+pub fn check_streamed(
+    bodies: &BTreeMap<String, BodyMesh>,
+    mut preps: BTreeMap<String, BodyPrep>,
+    plan: &CheckPlan,
+    opts: MesherOptions,
+) -> Result<CheckOutcome, CheckError> {
     let start = Instant::now();
     let mut problems = Vec::new();
     let meshed = |id: &str| bodies.get(id).is_some_and(|b| b.stamps_ns.len() >= 2);
@@ -288,9 +304,19 @@ pub fn check_bodies(
     let c = plan.time_scale.unwrap_or(lat.resolution / period);
     report.time_scale_m_per_s = c;
     // Bodies are prepared, and pairs checked, on all cores: they are independent.
-    let prepared: Vec<Prepared> = par_map(named.len(), |i| lat.prepare(named[i].0, named[i].1))
-        .into_iter()
-        .collect::<Result<_, _>>()?;
+    let streamed: Vec<std::sync::Mutex<Option<BodyPrep>>> = named
+        .iter()
+        .map(|(id, _)| std::sync::Mutex::new(preps.remove(*id)))
+        .collect();
+    let prepared: Vec<Prepared> = par_map(named.len(), |i| {
+        let (id, b) = named[i];
+        match streamed[i].lock().ok().and_then(|mut p| p.take()) {
+            Some(p) => lat.place_prep(id, b, p),
+            None => lat.prepare(id, b),
+        }
+    })
+    .into_iter()
+    .collect::<Result<_, _>>()?;
     let jobs: Vec<(usize, usize)> = pair_ids
         .iter()
         .filter_map(|(a, b)| Some((index(a)?, index(b)?)))

@@ -8,79 +8,171 @@ pub const NO_NEIGHBOUR: u32 = u32::MAX;
 
 /// Neighbours across each face. Faces shared by more than two tets (never in a closed
 /// 2-manifold boundary) are left unlinked, as are faces naming a vertex that does not exist.
-///
-/// Faces are bucketed by their smallest vertex (a counting sort, linear in the mesh), and
-/// within each bucket, a few dozen faces around one vertex, equal faces are paired by a
-/// scan (by a sort on the other two vertices in the rare larger bucket).
 pub fn face_adjacency(mesh: &TetMesh) -> Vec<[u32; 4]> {
-    let nv = mesh.vertices.len();
-    let mut adj = vec![[NO_NEIGHBOUR; 4]; mesh.tets.len()];
-    // Bucket starts by smallest vertex.
-    let mut start = vec![0usize; nv + 1];
-    for tet in &mesh.tets {
-        for (f, _) in sorted_faces(*tet) {
-            if (f[2] as usize) < nv {
-                start[f[0] as usize + 1] += 1;
-            }
-        }
+    let mut b = AdjacencyBuilder::new();
+    b.add(&mesh.tets, mesh.vertices.len());
+    b.finish()
+}
+
+/// Face adjacency built piece by piece as a mesh arrives (the slabs of a stream): each
+/// piece's faces are paired among themselves and with the faces still unpaired from the
+/// pieces before (in a slab stack, the body's surface at the slab's first frame).
+///
+/// Faces are bucketed by their smallest vertex (a counting sort over the range of vertices
+/// the round's faces span), and within each bucket, a few dozen faces around one vertex,
+/// equal faces are paired by a scan (by a sort on the other two vertices in the rare larger
+/// bucket). A face met more than twice in one round is left unlinked; one met a third time
+/// in a later round stays unpaired (neither happens in a closed 2-manifold boundary).
+#[derive(Debug, Default)]
+pub struct AdjacencyBuilder {
+    adj: Vec<[u32; 4]>,
+    /// Faces not paired yet: sorted vertex triple and `tet << 2 | face`.
+    pending: Vec<([u32; 3], u64)>,
+    /// This round's faces (pending ones first).
+    faces: Vec<([u32; 3], u64)>,
+    start: Vec<u32>,
+    keys: Vec<u64>,
+    ids: Vec<u64>,
+    bucket: Vec<(u64, u64)>,
+}
+
+impl AdjacencyBuilder {
+    /// No tets yet.
+    pub fn new() -> Self {
+        Self::default()
     }
-    for v in 0..nv {
-        start[v + 1] += start[v];
+
+    /// Tets added so far.
+    pub fn len(&self) -> usize {
+        self.adj.len()
     }
-    // (other two vertices, tet << 2 | face) per bucket slot.
-    let mut keys = vec![0u64; start[nv]];
-    let mut ids = vec![0u32; start[nv]];
-    let mut fill = start.clone();
-    for (t, tet) in mesh.tets.iter().enumerate() {
-        for (f, i) in sorted_faces(*tet) {
-            if (f[2] as usize) < nv {
-                let slot = &mut fill[f[0] as usize];
-                keys[*slot] = u64::from(f[1]) << 32 | u64::from(f[2]);
-                ids[*slot] = (t as u32) << 2 | i;
-                *slot += 1;
-            }
-        }
+
+    /// Whether no tet was added.
+    pub fn is_empty(&self) -> bool {
+        self.adj.is_empty()
     }
-    let mut link = |x: u32, y: u32| {
-        adj[(x >> 2) as usize][(x & 3) as usize] = y >> 2;
-        adj[(y >> 2) as usize][(y & 3) as usize] = x >> 2;
-    };
-    let mut bucket: Vec<(u64, u32)> = Vec::new();
-    for v in 0..nv {
-        let (lo, hi) = (start[v], start[v + 1]);
-        let (keys, ids) = (&mut keys[lo..hi], &ids[lo..hi]);
-        if keys.len() <= SCAN_BUCKET {
-            // Pair by scanning: each face against the later ones (a few hundred compares
-            // in L1 beat a general sort at this size); a key seen is cleared to `SEEN`.
-            for i in 0..keys.len() {
-                let key = keys[i];
-                if key == SEEN {
-                    continue;
+
+    /// Faces not paired so far (in a closed mesh fed slab by slab: the surface where the
+    /// next slab starts).
+    pub fn unpaired(&self) -> usize {
+        self.pending.len()
+    }
+
+    /// Adds `tets` (numbered after the tets added before) over a vertex table of
+    /// `vertices` entries, linking them with each other and with the unpaired faces of
+    /// earlier tets.
+    pub fn add(&mut self, tets: &[[u32; 4]], vertices: usize) {
+        let first = self.adj.len() as u64;
+        self.adj
+            .resize(self.adj.len() + tets.len(), [NO_NEIGHBOUR; 4]);
+        self.faces.clear();
+        self.faces.append(&mut self.pending);
+        for (t, tet) in tets.iter().enumerate() {
+            for (f, i) in sorted_faces(*tet) {
+                if (f[2] as usize) < vertices {
+                    self.faces.push((f, (first + t as u64) << 2 | u64::from(i)));
                 }
-                let (mut partner, mut count) = (None, 1);
-                for (j, other) in keys.iter_mut().enumerate().skip(i + 1) {
-                    if *other == key {
-                        partner = Some(j);
-                        count += 1;
-                        *other = SEEN;
+            }
+        }
+        let Some(lo) = self.faces.iter().map(|f| f.0[0]).min() else {
+            return;
+        };
+        let hi = self.faces.iter().map(|f| f.0[0]).max().unwrap_or(lo);
+        let span = (hi - lo) as usize + 1;
+        if span > 4 * self.faces.len() + 64 {
+            // Faces spread over far more vertices than there are faces (a piece far from
+            // the unpaired faces of an open mesh): sort rather than bucket.
+            self.faces.sort_unstable();
+            let mut i = 0;
+            while i < self.faces.len() {
+                let j = i + self.faces[i..]
+                    .iter()
+                    .take_while(|f| f.0 == self.faces[i].0)
+                    .count();
+                match j - i {
+                    1 => self.pending.push(self.faces[i]),
+                    2 => link(&mut self.adj, self.faces[i].1, self.faces[i + 1].1),
+                    _ => {}
+                }
+                i = j;
+            }
+            return;
+        }
+        // Bucket starts by smallest vertex.
+        self.start.clear();
+        self.start.resize(span + 1, 0);
+        for (f, _) in &self.faces {
+            self.start[(f[0] - lo) as usize + 1] += 1;
+        }
+        for v in 0..span {
+            self.start[v + 1] += self.start[v];
+        }
+        let n = self.faces.len();
+        self.keys.resize(n, 0);
+        self.ids.resize(n, 0);
+        for (f, id) in &self.faces {
+            let slot = &mut self.start[(f[0] - lo) as usize];
+            self.keys[*slot as usize] = u64::from(f[1]) << 32 | u64::from(f[2]);
+            self.ids[*slot as usize] = *id;
+            *slot += 1;
+        }
+        // `start[v]` is now the end of bucket v.
+        let mut begin = 0;
+        for v in 0..span {
+            let end = self.start[v] as usize;
+            let (keys, ids) = (&mut self.keys[begin..end], &self.ids[begin..end]);
+            let face = |key: u64| [lo + v as u32, (key >> 32) as u32, key as u32];
+            if keys.len() <= SCAN_BUCKET {
+                // Pair by scanning: each face against the later ones (a few hundred
+                // compares in L1 beat a general sort at this size); a key seen is cleared
+                // to `SEEN`.
+                for i in 0..keys.len() {
+                    let key = keys[i];
+                    if key == SEEN {
+                        continue;
+                    }
+                    let (mut partner, mut count) = (None, 1);
+                    for (j, other) in keys.iter_mut().enumerate().skip(i + 1) {
+                        if *other == key {
+                            partner = Some(j);
+                            count += 1;
+                            *other = SEEN;
+                        }
+                    }
+                    match (partner, count) {
+                        (Some(j), 2) => link(&mut self.adj, ids[i], ids[j]),
+                        (None, _) => self.pending.push((face(key), ids[i])),
+                        _ => {}
                     }
                 }
-                if let (Some(j), 2) = (partner, count) {
-                    link(ids[i], ids[j]);
+            } else {
+                self.bucket.clear();
+                self.bucket
+                    .extend(keys.iter().copied().zip(ids.iter().copied()));
+                self.bucket.sort_unstable();
+                for run in self.bucket.chunk_by(|a, b| a.0 == b.0) {
+                    match run {
+                        [(key, x)] => self.pending.push((face(*key), *x)),
+                        [(_, x), (_, y)] => link(&mut self.adj, *x, *y),
+                        _ => {}
+                    }
                 }
             }
-            continue;
-        }
-        bucket.clear();
-        bucket.extend(keys.iter().copied().zip(ids.iter().copied()));
-        bucket.sort_unstable();
-        for run in bucket.chunk_by(|a, b| a.0 == b.0) {
-            if let [(_, x), (_, y)] = run {
-                link(*x, *y);
-            }
+            begin = end;
         }
     }
-    adj
+
+    /// The neighbours of every tet added (faces still unpaired have none).
+    pub fn finish(self) -> Vec<[u32; 4]> {
+        self.adj
+    }
+}
+
+/// Links the faces `x` and `y` (each `tet << 2 | face`).
+#[inline]
+fn link(adj: &mut [[u32; 4]], x: u64, y: u64) {
+    adj[(x >> 2) as usize][(x & 3) as usize] = (y >> 2) as u32;
+    adj[(y >> 2) as usize][(y & 3) as usize] = (x >> 2) as u32;
 }
 
 /// The faces of a tet as sorted vertex triples, each with its face index (the position of
@@ -113,6 +205,47 @@ const SEEN: u64 = u64::MAX;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Fed in pieces of any size, the adjacency is the one built at once, except where a
+    /// face is met more than twice.
+    #[test]
+    fn pieces_give_the_same_adjacency_as_the_whole() {
+        // A strip of tets, each sharing a face with the next; two more on face (5, 6, 7)
+        // (met four times) and one on (9, 10, 11) through a missing vertex (met three).
+        let mut tets = Vec::new();
+        for k in 0..200u32 {
+            tets.push([k, k + 1, k + 2, k + 3]);
+        }
+        tets.push([5, 6, 7, 300]);
+        tets.push([5, 6, 7, 301]);
+        tets.push([9, 10, 11, 999]);
+        let mesh = TetMesh {
+            vertices: vec![[0; 4]; 302],
+            tets: tets.clone(),
+        };
+        let whole = face_adjacency(&mesh);
+        for cut in [1, 7, 50, 199] {
+            let mut b = AdjacencyBuilder::new();
+            for piece in tets.chunks(cut) {
+                b.add(piece, 302);
+            }
+            let pieces = b.finish();
+            // Faces met three times within one round are unlinked either way; across
+            // rounds the first two meet and link. Everything else agrees.
+            for (t, (w, p)) in whole.iter().zip(&pieces).enumerate() {
+                for f in 0..4 {
+                    if w[f] != p[f] {
+                        assert!(
+                            w[f] == NO_NEIGHBOUR && [4, 5, 8, 9, 200, 201, 202].contains(&t),
+                            "cut {cut}, tet {t} face {f}: {} vs {}",
+                            w[f],
+                            p[f]
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn tets_sharing_a_face_are_neighbours_and_missing_vertices_are_unlinked() {

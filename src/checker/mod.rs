@@ -24,6 +24,7 @@ pub mod contact;
 pub mod inclusion;
 pub mod labels;
 pub mod oracle;
+pub mod prep;
 pub mod resolve;
 
 use crate::kernel::bvh::{overlapping_pairs_under, top_pairs, Bvh, BvhError, TraverseWorkspace};
@@ -31,9 +32,9 @@ use crate::kernel::intersect::{classify_if, TetPairRelation};
 use crate::kernel::LatticePoint;
 use crate::mesh::glue::BodyMesh;
 use crate::mesh::{GridGeometry, TetMesh};
-use adjacency::face_adjacency;
 use inclusion::Inclusion;
 use labels::{label_regions, LabelCounts, Labeling, Touch};
+use prep::{BodyPrep, LocalPrep, PrepError};
 use std::ops::ControlFlow;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
@@ -67,7 +68,8 @@ pub enum CheckError {
         /// What differs.
         reason: String,
     },
-    /// The tree over a body's tets could not be built.
+    /// The tree over a body's tets could not be built (too many tets, or a tet names a
+    /// missing vertex).
     #[error("body {id}: {source}")]
     Bvh {
         /// The body.
@@ -126,6 +128,31 @@ impl Prepared {
             out[o as usize] = v;
         }
         out
+    }
+
+    /// Maps this body by x_k → mul_k·x_k + add_k on each axis (every `mul_k > 0`) in
+    /// place, like [`Placement::place`]; `false`, with the body unchanged, if a
+    /// coordinate would leave ±2^30.
+    pub fn map_in_place(&mut self, mul: [i64; 4], add: [i64; 4]) -> bool {
+        if mul.iter().any(|&m| m <= 0)
+            || !self
+                .mesh
+                .vertices
+                .iter()
+                .all(|p| map_point(p, mul, add).is_some())
+            || !self.bvh.map_axes(mul, add)
+        {
+            return false;
+        }
+        for p in &mut self.mesh.vertices {
+            *p = map_point(p, mul, add).unwrap_or(*p);
+        }
+        if mul.iter().any(|&m| m != mul[0]) {
+            let mut normals = Vec::new();
+            map_normals(&self.normals, mul, &mut normals);
+            self.normals = normals;
+        }
+        true
     }
 
     /// The same body mapped by x_k → mul_k·x_k + add_k on each axis (`mul_k > 0`: a
@@ -313,15 +340,47 @@ impl CommonLattice {
         })
     }
 
-    /// Puts a body on this lattice (coordinates ×[`CHECKER_FACTOR`]).
+    /// Puts a body on this lattice (coordinates ×[`CHECKER_FACTOR`]), preparing it one
+    /// piece at a time as [`BodyMesh::pieces`] says it arrived (see [`prep`]).
     ///
     /// # Errors
-    /// The tree cannot be built (too many tets).
+    /// The tree cannot be built (too many tets, a missing vertex) or the coordinates do
+    /// not fit the checker lattice.
     pub fn prepare(&self, id: &str, b: &BodyMesh) -> Result<Prepared, CheckError> {
+        let local = BodyPrep::of(&b.mesh, &b.pieces).map_err(|e| prep_error(id, e))?;
+        self.place(id, b, local)
+    }
+
+    /// [`place`](Self::place) for a body fed to `prep` piece by piece as it was welded
+    /// (prepared again at once if `prep` did not see all of `b`'s tets).
+    ///
+    /// # Errors
+    /// As [`prepare`](Self::prepare).
+    pub fn place_prep(
+        &self,
+        id: &str,
+        b: &BodyMesh,
+        prep: BodyPrep,
+    ) -> Result<Prepared, CheckError> {
+        if prep.len() != b.mesh.tets.len() {
+            return self.prepare(id, b);
+        }
+        let local = prep.finish().map_err(|e| prep_error(id, e))?;
+        self.place(id, b, local)
+    }
+
+    /// Puts a body prepared in its own lattice (by [`BodyPrep`], as its stream arrived) on
+    /// this lattice: nothing to do when the body's lattice is the reference one, otherwise
+    /// an increasing axis map of its coordinates and tree boxes.
+    ///
+    /// # Errors
+    /// The body has no lattice, its origin is not a whole number of voxels from the
+    /// reference, or its coordinates would not fit the checker lattice.
+    pub fn place(&self, id: &str, b: &BodyMesh, local: LocalPrep) -> Result<Prepared, CheckError> {
         let g = b
             .geometry
             .ok_or_else(|| CheckError::EmptyBody { id: id.to_string() })?;
-        let factor = CHECKER_FACTOR * (self.scale / g.scale);
+        let ratio = i64::from(self.scale / g.scale.max(1)).max(1);
         let voxels = origin_offset(
             &self.voxel0_centre.map(|c| c - 0.5 * self.resolution),
             &g.origin,
@@ -332,61 +391,36 @@ impl CommonLattice {
             b: id.to_string(),
             reason,
         })?;
-        let frame0 = self.stamps_ns.binary_search(&b.stamps_ns[0]).unwrap_or(0) as i64;
-        // Checker coordinates must fit in i32 with room for far points (2^30): bodies far
-        // apart on a fine lattice are refused, never wrapped.
-        let too_far = || {
-            CheckError::LatticeMismatch {
-            a: "reference".into(),
-            b: id.to_string(),
-            reason: "checker lattice coordinates would overflow (bodies too far apart, or grids too large \
-                     for a common fine lattice)"
-                .into(),
-        }
-        };
-        const LIMIT: i64 = 1 << 30;
-        let fit = |v: i64| {
-            if v.abs() < LIMIT {
-                Ok(v)
-            } else {
-                Err(too_far())
-            }
-        };
+        let frame0 =
+            b.stamps_ns
+                .first()
+                .map_or(0, |s| self.stamps_ns.binary_search(s).unwrap_or(0)) as i64;
         let step = self.per_step();
-        let shift = [
-            fit(voxels[0].saturating_mul(step))?,
-            fit(voxels[1].saturating_mul(step))?,
-            fit(voxels[2].saturating_mul(step))?,
-            fit(frame0.saturating_mul(step))?,
-        ];
-        let mut mesh = b.mesh.clone();
-        for p in &mut mesh.vertices {
-            for k in 0..4 {
-                p[k] = fit(i64::from(p[k]) * i64::from(factor) + shift[k])? as i32;
-            }
-        }
-        let mut bvh =
-            Bvh::from_tets(&mesh.vertices, &mesh.tets).map_err(|source| CheckError::Bvh {
-                id: id.to_string(),
-                source,
-            })?;
-        bvh.shrink_scratch();
-        // Tets in leaf order: the walks read them in memory order.
-        let order = bvh.renumber_in_leaf_order();
-        mesh.tets = order.iter().map(|&t| mesh.tets[t as usize]).collect();
-        renumber_vertices_by_first_use(&mut mesh);
-        let adjacency = face_adjacency(&mesh).into();
-        Ok(Prepared {
+        let shift = [voxels[0], voxels[1], voxels[2], frame0].map(|v| v.saturating_mul(step));
+        let mut p = Prepared {
             id: id.to_string(),
-            normals: tet_normals(&mesh),
-            mesh,
-            bvh,
-            adjacency,
-            factor,
+            mesh: local.mesh,
+            bvh: local.bvh,
+            adjacency: local.adjacency.into(),
+            normals: local.normals,
+            factor: CHECKER_FACTOR * ratio as i32,
             geometry: g,
             stamps_ns: self.stamps_ns.clone(),
-            original: order.into(),
-        })
+            original: local.original.into(),
+        };
+        let mul = [ratio; 4];
+        if (mul != [1; 4] || shift != [0; 4]) && !p.map_in_place(mul, shift) {
+            // Checker coordinates must fit in i32 with room for far points (2^30): bodies
+            // far apart on a fine lattice are refused, never wrapped.
+            return Err(CheckError::LatticeMismatch {
+                a: "reference".into(),
+                b: id.to_string(),
+                reason: "checker lattice coordinates would overflow (bodies too far apart, or \
+                         grids too large for a common fine lattice)"
+                    .into(),
+            });
+        }
+        Ok(p)
     }
 
     /// Checker lattice units per voxel and per frame period.
@@ -405,6 +439,21 @@ impl CommonLattice {
         let n = self.stamps_ns.len() as i64;
         let k = ((t / per).floor() as i64).clamp(0, n - 2) as usize;
         (self.stamps_ns[k + 1] - self.stamps_ns[k]) as f64 * 1e-9
+    }
+}
+
+/// A body's preparation error, named.
+fn prep_error(id: &str, e: PrepError) -> CheckError {
+    match e {
+        PrepError::Tree(source) => CheckError::Bvh {
+            id: id.to_string(),
+            source,
+        },
+        PrepError::Overflow { .. } => CheckError::LatticeMismatch {
+            a: "reference".into(),
+            b: id.to_string(),
+            reason: e.to_string(),
+        },
     }
 }
 
@@ -487,54 +536,31 @@ fn t_range(t: &[LatticePoint; 4]) -> (f64, f64) {
     )
 }
 
-/// Renumbers the vertices in the order the tets first use them (tets in the tree's leaf
-/// order, so a walk reads nearby tets' vertices from nearby memory). Vertices no tet uses
-/// go last. Tets naming a vertex that does not exist keep that index.
-fn renumber_vertices_by_first_use(mesh: &mut TetMesh) {
-    const UNSEEN: u32 = u32::MAX;
-    let n = mesh.vertices.len();
-    let mut new_of = vec![UNSEEN; n];
-    let mut vertices = Vec::with_capacity(n);
-    for tet in &mut mesh.tets {
-        for v in tet.iter_mut() {
-            let Some(slot) = new_of.get_mut(*v as usize) else {
-                continue;
-            };
-            if *slot == UNSEEN {
-                *slot = vertices.len() as u32;
-                vertices.push(mesh.vertices[*v as usize]);
-            }
-            *v = *slot;
-        }
-    }
-    for (old, &new) in new_of.iter().enumerate() {
-        if new == UNSEEN {
-            vertices.push(mesh.vertices[old]);
-        }
-    }
-    mesh.vertices = vertices;
-}
-
 /// Marks a tet normal that does not fit `i32` (the exact predicate decides alone).
 pub const NO_NORMAL: [i32; 4] = [i32::MIN; 4];
 
 /// A normal of each tet's hyperplane: N_k = (−1)^k det of the edge vectors without
 /// coordinate k (zero for a flat tet), or [`NO_NORMAL`].
+#[cfg(test)]
 fn tet_normals(m: &TetMesh) -> Vec<[i32; 4]> {
     m.tets
         .iter()
-        .map(|t| {
-            let p = t.map(|v| m.vertices[v as usize].map(i64::from));
-            let e = [1, 2, 3].map(|i| [0, 1, 2, 3].map(|k| p[i][k] - p[0][k]));
-            // Edges below 2^20 keep the minors' six triple products below 2^63: i64 is
-            // exact there (every voxel-sized tet); longer ones take i128.
-            if e.iter().flatten().all(|c| c.abs() < 1 << 20) {
-                normal_in_i32(edge_minors(e).map(i128::from))
-            } else {
-                normal_in_i32(edge_minors(e.map(|r| r.map(i128::from))))
-            }
-        })
+        .map(|t| tet_normal(t.map(|v| m.vertices[v as usize])))
         .collect()
+}
+
+/// A normal of the hyperplane through `p` (see [`Prepared::normals`]).
+#[inline]
+pub(crate) fn tet_normal(p: [LatticePoint; 4]) -> [i32; 4] {
+    let p = p.map(|q| q.map(i64::from));
+    let e = [1, 2, 3].map(|i| [0, 1, 2, 3].map(|k| p[i][k] - p[0][k]));
+    // Edges below 2^20 keep the minors' six triple products below 2^63: i64 is exact
+    // there (every voxel-sized tet); longer ones take i128.
+    if e.iter().flatten().all(|c| c.abs() < 1 << 20) {
+        normal_in_i32(edge_minors(e).map(i128::from))
+    } else {
+        normal_in_i32(edge_minors(e.map(|r| r.map(i128::from))))
+    }
 }
 
 /// The signed 3×3 minors (−1)^k det(edges without coordinate k) of three edge vectors.

@@ -17,5 +17,5 @@ pub use intersect::{classify, tets_cross, tets_intersect, TetPairRelation};
 pub mod bvh;
 pub use bvh::{
     overlapping_pairs, overlapping_pairs_under, top_pairs, try_overlapping_pairs, Aabb4, Bvh,
-    BvhError, NodePair, TraverseWorkspace,
+    BvhError, Forest, NodePair, TraverseWorkspace,
 };

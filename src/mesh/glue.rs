@@ -11,6 +11,9 @@ use super::{FrameRef, MeshError, OccupancyGrid};
 pub struct BodyMesh {
     /// Closed, welded mesh: lateral tets of every slab plus the first and last caps.
     pub mesh: TetMesh,
+    /// Where each piece (first cap, each slab, last cap) starts in `mesh.tets`, in the
+    /// order they were welded.
+    pub pieces: Vec<usize>,
     /// Stamps of the accepted frames (ns); frame n is at lattice time `scale · n`.
     pub stamps_ns: Vec<i64>,
     /// The lattice, once a frame was accepted.
@@ -44,6 +47,7 @@ impl BodyGluer {
     /// The cap closing the body at its first frame (with that frame's occupied voxel count).
     /// Must come before the first lateral slab.
     pub fn first_cap(&mut self, cap: &TetMesh, occupied: u64) {
+        self.body.pieces.push(self.body.mesh.tets.len());
         self.welder.append(&mut self.body.mesh, cap);
         self.first_cap = Some((cap.clone(), occupied));
     }
@@ -55,11 +59,13 @@ impl BodyGluer {
         }
         self.acc
             .add_lateral(slab, self.first_cap.as_ref().map(|c| &c.0));
+        self.body.pieces.push(self.body.mesh.tets.len());
         self.welder.append(&mut self.body.mesh, slab.mesh);
     }
 
     /// The cap closing the body at its last frame.
     pub fn last_cap(&mut self, cap: &TetMesh, occupied: u64) {
+        self.body.pieces.push(self.body.mesh.tets.len());
         self.welder.append(&mut self.body.mesh, cap);
         self.last_cap = Some((cap.clone(), occupied));
     }
@@ -67,6 +73,11 @@ impl BodyGluer {
     /// Tets welded so far.
     pub fn tets(&self) -> usize {
         self.body.mesh.tets.len()
+    }
+
+    /// The mesh welded so far (each call above appends one piece's tets).
+    pub fn mesh(&self) -> &TetMesh {
+        &self.body.mesh
     }
 
     /// The body, with `frames` accepted frames at `stamps_ns` on `geometry`.
@@ -160,6 +171,11 @@ impl BodyAssembler {
             }
             self.gluer.lateral(slab.lateral_ref(), None);
         }
+    }
+
+    /// The mesh welded so far (grows by a piece with each slab).
+    pub fn mesh(&self) -> &TetMesh {
+        self.gluer.mesh()
     }
 
     /// Closes the mesh with the last frame's cap and returns the body. With fewer than two

@@ -19,6 +19,7 @@ use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
+use crate::checker::prep::BodyPrep;
 use crate::cli::frame_ref;
 use crate::mesh::glue::{BodyGluer, BodyMesh};
 use crate::mesh::slice::Slicer;
@@ -28,7 +29,7 @@ use crate::msg::{
     BodySummary, ColorRGBA, Header, InterferenceReport, MarkerArray, MeshSlab, PairInterference,
     ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time, Vector3, VoxelGrid,
 };
-use crate::report::{check_bodies, CheckOutcome, CheckPlan, Report, Resolution};
+use crate::report::{check_streamed, CheckOutcome, CheckPlan, Report, Resolution};
 
 /// Label colours of the markers.
 const INTERFERENCE_COLOR: ColorRGBA = ColorRGBA::new(0.9, 0.05, 0.05, 1.0);
@@ -37,6 +38,9 @@ const INSIDE_COLOR: ColorRGBA = ColorRGBA::new(1.0, 0.6, 0.0, 0.95);
 #[derive(Default)]
 struct Body {
     gluer: BodyGluer,
+    /// The body's trees, adjacency and normals, built piece by piece as they are welded,
+    /// so that a check at the end of the stream does not wait for them.
+    prep: BodyPrep,
     stamps_ns: Vec<i64>,
     geometry: Option<GridGeometry>,
     frame_id: String,
@@ -47,6 +51,8 @@ struct Body {
     /// Pieces came without the opening cap (this node started after the body's stream did):
     /// said once; the body's pieces are skipped until its next stream starts.
     joined_late: bool,
+    /// Preparing the mesh failed (said once).
+    prep_failed: bool,
 }
 
 /// The checker node.
@@ -258,6 +264,19 @@ impl CheckerNode {
                 self.status.problem(&self.fqn, "piece_out_of_order", why);
             }
         }
+        if b.prep.len() < b.gluer.tets() {
+            if let Err(e) = b.prep.add(b.gluer.mesh()) {
+                // Said once: the check names the body and the reason again.
+                if !b.prep_failed {
+                    b.prep_failed = true;
+                    let why = format!(
+                        "{}: the mesh cannot be prepared for checking: {e}",
+                        s.body_id
+                    );
+                    self.status.problem(&self.fqn, "bad_mesh", why);
+                }
+            }
+        }
     }
 
     fn on_frame(&mut self, topic: &str, g: &VoxelGrid) {
@@ -270,9 +289,10 @@ impl CheckerNode {
         }
     }
 
-    /// The glued meshes of every body; the bodies start over, empty, for the next stream.
-    fn body_meshes(&mut self) -> BTreeMap<String, BodyMesh> {
-        let mut out = BTreeMap::new();
+    /// The glued meshes of every body, and what of them is prepared for checking; the
+    /// bodies start over, empty, for the next stream.
+    fn body_meshes(&mut self) -> (BTreeMap<String, BodyMesh>, BTreeMap<String, BodyPrep>) {
+        let (mut out, mut preps) = (BTreeMap::new(), BTreeMap::new());
         let bodies = std::mem::take(&mut self.bodies);
         self.bodies = bodies
             .keys()
@@ -293,9 +313,10 @@ impl CheckerNode {
             let n = b.stamps_ns.len() as u64;
             let mut body = b.gluer.finish(n, b.stamps_ns, b.geometry);
             body.frames = frames;
+            preps.insert(id.clone(), b.prep);
             out.insert(id, body);
         }
-        out
+        (out, preps)
     }
 
     fn publish(&self, o: &CheckOutcome, frame_id: &str, out: &mut Vec<Message>) {
@@ -617,8 +638,8 @@ impl CheckerNode {
             .map(|b| b.frame_id.clone())
             .find(|f| !f.is_empty())
             .unwrap_or_default();
-        let bodies = self.body_meshes();
-        match check_bodies(&bodies, &self.plan, self.opts) {
+        let (bodies, preps) = self.body_meshes();
+        match check_streamed(&bodies, preps, &self.plan, self.opts) {
             Ok(mut o) => {
                 o.report.problems.extend(ends);
                 let before = out.len();

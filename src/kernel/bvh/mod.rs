@@ -12,6 +12,8 @@
 //!   once), [`Bvh::segment_candidates`] and [`Bvh::ray_candidates`] (exact rational slab
 //!   test, for the crossing-count inside test of DESIGN §4). Walks use an explicit stack
 //!   in a reusable [`TraverseWorkspace`]: no recursion, no allocation after warm-up.
+//! - [`Forest`]: a tree grown piece by piece (a subtree per slab as a stream arrives),
+//!   joined under a balanced top at the end.
 //! - [`top_pairs`] and [`overlapping_pairs_under`] split a tree-against-tree walk into
 //!   independent sub-walks (for a later parallel version).
 //!
@@ -20,10 +22,12 @@
 
 mod aabb;
 mod build;
+mod forest;
 mod pairs;
 mod segment;
 
 pub use aabb::Aabb4;
+pub use forest::Forest;
 pub use pairs::{
     overlapping_pairs, overlapping_pairs_under, top_pairs, try_overlapping_pairs, NodePair,
 };
@@ -97,7 +101,8 @@ struct BuildScratch {
 /// ```
 #[derive(Clone, Default)]
 pub struct Bvh {
-    /// Root first; children always after their parent.
+    /// Root first. Children come after their parent in a tree built at once; a
+    /// [`Forest`]'s top nodes come after the pieces they join.
     pub(crate) nodes: Vec<Node>,
     /// Item boxes in leaf order (empty boxes replaced by [`Aabb4::EMPTY`]).
     pub(crate) leaf_boxes: Vec<Aabb4>,
@@ -191,27 +196,8 @@ impl Bvh {
     /// without a rebuild. Empty boxes stay empty. `false`, with this tree unchanged, if
     /// some `mul_k` is not positive or a coordinate would leave the `i32` range.
     pub fn map_axes_from(&mut self, src: &Bvh, mul: [i64; 4], add: [i64; 4]) -> bool {
-        if mul.iter().any(|&m| m <= 0) {
+        let Some(apply) = axis_map(src, mul, add) else {
             return false;
-        }
-        let map = |k: usize, c: i32| i32::try_from(i64::from(c) * mul[k] + add[k]).ok();
-        let fits = |b: &Aabb4| {
-            b.is_empty() || (0..4).all(|k| map(k, b.min[k]).is_some() && map(k, b.max[k]).is_some())
-        };
-        // The root box bounds every other box: checking it checks them all.
-        if !src.nodes.first().is_none_or(|n| fits(&n.aabb)) {
-            return false;
-        }
-        let apply = |b: &Aabb4| {
-            if b.is_empty() {
-                return *b;
-            }
-            let mut m = *b;
-            for k in 0..4 {
-                m.min[k] = map(k, b.min[k]).unwrap_or(b.min[k]);
-                m.max[k] = map(k, b.max[k]).unwrap_or(b.max[k]);
-            }
-            m
         };
         self.nodes.clear();
         self.nodes.extend(src.nodes.iter().map(|n| Node {
@@ -221,6 +207,20 @@ impl Bvh {
         self.leaf_boxes.clear();
         self.leaf_boxes.extend(src.leaf_boxes.iter().map(apply));
         self.order.clone_from(&src.order);
+        true
+    }
+
+    /// [`map_axes_from`](Self::map_axes_from) this tree itself, in place.
+    pub fn map_axes(&mut self, mul: [i64; 4], add: [i64; 4]) -> bool {
+        let Some(apply) = axis_map(self, mul, add) else {
+            return false;
+        };
+        for n in &mut self.nodes {
+            n.aabb = apply(&n.aabb);
+        }
+        for b in &mut self.leaf_boxes {
+            *b = apply(b);
+        }
         true
     }
 
@@ -240,18 +240,51 @@ impl Bvh {
 
     /// Depth of the tree (0 for empty, 1 for a single leaf). Allocates: for diagnostics.
     pub fn depth(&self) -> usize {
-        let mut depth = vec![0u32; self.nodes.len()];
-        let mut max = 0;
-        for (n, node) in self.nodes.iter().enumerate() {
-            let d = if n == 0 { 1 } else { depth[n] };
+        if self.nodes.is_empty() {
+            return 0;
+        }
+        let (mut max, mut stack) = (0, vec![(0u32, 1usize)]);
+        while let Some((n, d)) = stack.pop() {
             max = max.max(d);
+            let node = &self.nodes[n as usize];
             if !node.is_leaf() {
-                depth[node.first as usize] = d + 1;
-                depth[node.first as usize + 1] = d + 1;
+                stack.push((node.first, d + 1));
+                stack.push((node.first + 1, d + 1));
             }
         }
-        max as usize
+        max
     }
+}
+
+/// The map x_k → mul_k·x_k + add_k of boxes, if every `mul_k > 0` and every box of `t`
+/// stays in the `i32` range (checked on the root, which bounds them all).
+fn axis_map(t: &Bvh, mul: [i64; 4], add: [i64; 4]) -> Option<impl Fn(&Aabb4) -> Aabb4> {
+    if mul.iter().any(|&m| m <= 0) {
+        return None;
+    }
+    let map = move |k: usize, c: i32| {
+        i64::from(c)
+            .checked_mul(mul[k])
+            .and_then(|v| v.checked_add(add[k]))
+            .and_then(|v| i32::try_from(v).ok())
+    };
+    let fits = |b: &Aabb4| {
+        b.is_empty() || (0..4).all(|k| map(k, b.min[k]).is_some() && map(k, b.max[k]).is_some())
+    };
+    if !t.nodes.first().is_none_or(|n| fits(&n.aabb)) {
+        return None;
+    }
+    Some(move |b: &Aabb4| {
+        if b.is_empty() {
+            return *b;
+        }
+        let mut m = *b;
+        for k in 0..4 {
+            m.min[k] = map(k, b.min[k]).unwrap_or(b.min[k]);
+            m.max[k] = map(k, b.max[k]).unwrap_or(b.max[k]);
+        }
+        m
+    })
 }
 
 /// Stacks reused by tree walks; keep one per thread and pass it to every query.

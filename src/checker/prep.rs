@@ -1,0 +1,313 @@
+//! Preparing one body for checking piece by piece, as its mesh arrives: each piece (a cap
+//! or a slab, welded onto the body's mesh) gets its subtree, its tets in that subtree's
+//! leaf order with their vertices numbered by first use, its tet normals, and its face
+//! adjacency (with the faces left open by the pieces before) when it comes. What is left
+//! when the stream ends is the top of the tree (one node per piece) and putting the body
+//! on the common lattice of the bodies it is checked against ([`CommonLattice::place`]),
+//! which is a no-op when every body shares its lattice and time origin.
+//!
+//! Everything is in the body's own lattice × [`CHECKER_FACTOR`]: the common lattice
+//! (finer for a mix of encodings, shifted for other origins or later starts) is known only
+//! once every body's stream has begun, and mapping onto it is an increasing axis map, which
+//! keeps the tree valid (see [`Placement`](super::Placement)).
+//!
+//! [`CommonLattice::place`]: super::CommonLattice::place
+
+use super::adjacency::AdjacencyBuilder;
+use super::{tet_normal, CHECKER_FACTOR};
+use crate::kernel::bvh::{Aabb4, BvhError, Forest};
+use crate::kernel::LatticePoint;
+use crate::mesh::TetMesh;
+use std::time::Instant;
+
+/// Why a body's mesh cannot be prepared.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PrepError {
+    /// The tree cannot hold the tets, or a tet names a vertex that does not exist.
+    #[error(transparent)]
+    Tree(#[from] BvhError),
+    /// A coordinate × [`CHECKER_FACTOR`] leaves ±2^30 (the exact predicates' far points
+    /// must fit `i32`).
+    #[error("lattice coordinate {value} is too large for the checker lattice (×{CHECKER_FACTOR} must stay within ±2^30)")]
+    Overflow {
+        /// The body's lattice coordinate.
+        value: i32,
+    },
+}
+
+/// A body being prepared piece by piece; see the module documentation.
+#[derive(Debug, Default)]
+pub struct BodyPrep {
+    forest: Forest,
+    adjacency: AdjacencyBuilder,
+    /// The body mesh's vertex → prepared vertex ([`UNSEEN`] until a tet uses it).
+    new_of: Vec<u32>,
+    vertices: Vec<LatticePoint>,
+    tets: Vec<[u32; 4]>,
+    normals: Vec<[i32; 4]>,
+    original: Vec<u32>,
+    boxes: Vec<Aabb4>,
+    /// The first error; the body cannot be checked after it.
+    error: Option<PrepError>,
+    /// Seconds spent in [`add`](Self::add), in total and at most per piece.
+    busy_s: f64,
+    max_piece_s: f64,
+}
+
+/// A prepared vertex not assigned yet.
+const UNSEEN: u32 = u32::MAX;
+
+/// The coordinates, tree and topology [`BodyPrep::finish`] hands over.
+#[derive(Debug)]
+pub struct LocalPrep {
+    /// Tets in leaf order over vertices numbered by first use, × [`CHECKER_FACTOR`].
+    pub mesh: TetMesh,
+    /// Tree over `mesh.tets` (item `i` is tet `i`).
+    pub bvh: crate::kernel::Bvh,
+    /// Face neighbours of each tet.
+    pub adjacency: Vec<[u32; 4]>,
+    /// Hyperplane normal of each tet (see [`Prepared::normals`](super::Prepared::normals)).
+    pub normals: Vec<[i32; 4]>,
+    /// Each tet's index in the body's mesh.
+    pub original: Vec<u32>,
+}
+
+impl BodyPrep {
+    /// Nothing prepared yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Prepares the tets of `mesh` not seen by earlier calls (`mesh` grows between calls,
+    /// as [`BodyGluer`](crate::mesh::glue::BodyGluer) welds pieces onto it) as one piece.
+    ///
+    /// # Errors
+    /// A tet names a missing vertex, a coordinate is too large, or there are too many
+    /// tets; the error stays, and every later call and [`finish`](Self::finish) return it.
+    pub fn add(&mut self, mesh: &TetMesh) -> Result<(), PrepError> {
+        // A mesh shorter than what was seen is not the one this body was fed with.
+        let new = mesh.tets.get(self.original.len()..).unwrap_or(&[]);
+        self.add_tets(&mesh.vertices, new)
+    }
+
+    /// [`add`](Self::add) with the new tets given.
+    fn add_tets(&mut self, vertices: &[LatticePoint], new: &[[u32; 4]]) -> Result<(), PrepError> {
+        if let Some(e) = &self.error {
+            return Err(e.clone());
+        }
+        if new.is_empty() {
+            return Ok(());
+        }
+        let start = Instant::now();
+        let result = self.add_piece(vertices, new);
+        let s = start.elapsed().as_secs_f64();
+        self.busy_s += s;
+        self.max_piece_s = self.max_piece_s.max(s);
+        if let Err(e) = &result {
+            self.error = Some(e.clone());
+        }
+        result
+    }
+
+    fn add_piece(&mut self, vertices: &[LatticePoint], new: &[[u32; 4]]) -> Result<(), PrepError> {
+        let done = self.original.len();
+        let nv = vertices.len();
+        if let Some((t, &v)) = new
+            .iter()
+            .enumerate()
+            .find_map(|(t, tet)| tet.iter().find(|&&v| v as usize >= nv).map(|v| (t, v)))
+        {
+            return Err(BvhError::VertexOutOfRange {
+                tet: done + t,
+                vertex: v,
+                vertices: nv,
+            }
+            .into());
+        }
+        const LIMIT: i32 = (1 << 30) / CHECKER_FACTOR;
+        self.boxes.clear();
+        for tet in new {
+            let mut b = Aabb4::from_point(vertices[tet[0] as usize]);
+            for &v in &tet[1..] {
+                b.grow(&vertices[v as usize]);
+            }
+            for c in b.min.iter().chain(&b.max) {
+                if c.unsigned_abs() >= LIMIT as u32 {
+                    return Err(PrepError::Overflow { value: *c });
+                }
+            }
+            self.boxes.push(Aabb4::new(
+                b.min.map(|c| c * CHECKER_FACTOR),
+                b.max.map(|c| c * CHECKER_FACTOR),
+            ));
+        }
+        let order = self.forest.add(&self.boxes)?;
+        self.new_of.resize(nv, UNSEEN);
+        let first = self.tets.len();
+        for &local in order {
+            let tet = new[local as usize].map(|v| {
+                let slot = &mut self.new_of[v as usize];
+                if *slot == UNSEEN {
+                    *slot = self.vertices.len() as u32;
+                    self.vertices
+                        .push(vertices[v as usize].map(|c| c * CHECKER_FACTOR));
+                }
+                *slot
+            });
+            self.normals
+                .push(tet_normal(tet.map(|v| self.vertices[v as usize])));
+            self.tets.push(tet);
+            self.original.push((done + local as usize) as u32);
+        }
+        self.adjacency.add(&self.tets[first..], self.vertices.len());
+        Ok(())
+    }
+
+    /// Tets prepared so far.
+    pub fn len(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// Whether no tet was prepared.
+    pub fn is_empty(&self) -> bool {
+        self.tets.is_empty()
+    }
+
+    /// Seconds spent preparing pieces: in total, and the most for one piece.
+    pub fn busy_s(&self) -> (f64, f64) {
+        (self.busy_s, self.max_piece_s)
+    }
+
+    /// Pieces prepared so far (those with at least one tet).
+    pub fn pieces(&self) -> usize {
+        self.forest.pieces()
+    }
+
+    /// The prepared body (the tree's top is built here).
+    ///
+    /// # Errors
+    /// The first error of [`add`](Self::add).
+    pub fn finish(self) -> Result<LocalPrep, PrepError> {
+        if let Some(e) = self.error {
+            return Err(e);
+        }
+        Ok(LocalPrep {
+            mesh: TetMesh {
+                vertices: self.vertices,
+                tets: self.tets,
+            },
+            bvh: self.forest.finish(),
+            adjacency: self.adjacency.finish(),
+            normals: self.normals,
+            original: self.original,
+        })
+    }
+
+    /// A body's whole mesh prepared at once, one piece per range starting at each of
+    /// `pieces` (tet offsets, increasing; none: the whole mesh as one piece).
+    ///
+    /// # Errors
+    /// As [`add`](Self::add).
+    pub fn of(mesh: &TetMesh, pieces: &[usize]) -> Result<LocalPrep, PrepError> {
+        Self::from_pieces(mesh, pieces).finish()
+    }
+
+    /// [`of`](Self::of) before [`finish`](Self::finish): the state a stream of these pieces
+    /// leaves (an error, if any, is kept for `finish`).
+    pub fn from_pieces(mesh: &TetMesh, pieces: &[usize]) -> Self {
+        let mut p = Self::new();
+        let n = mesh.tets.len();
+        let mut lo = 0;
+        for hi in pieces.iter().copied().chain([n]) {
+            let hi = hi.clamp(lo, n);
+            if p.add_tets(&mesh.vertices, &mesh.tets[lo..hi]).is_err() {
+                break;
+            }
+            lo = hi;
+        }
+        p
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tet_mesh(vertices: Vec<LatticePoint>, tets: Vec<[u32; 4]>) -> TetMesh {
+        TetMesh { vertices, tets }
+    }
+
+    #[test]
+    fn a_missing_vertex_is_a_typed_error_that_stays() {
+        let mut p = BodyPrep::new();
+        let good = tet_mesh(
+            vec![[0, 0, 0, 0], [1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 1]],
+            vec![[0, 1, 2, 3]],
+        );
+        p.add(&good).unwrap();
+        let mut bad = good.clone();
+        bad.tets.push([0, 1, 2, 7]);
+        let e = p.add(&bad).unwrap_err();
+        assert_eq!(
+            e,
+            PrepError::Tree(BvhError::VertexOutOfRange {
+                tet: 1,
+                vertex: 7,
+                vertices: 4
+            })
+        );
+        // Nothing of the bad piece was taken, and the error stays.
+        assert_eq!(p.len(), 1);
+        bad.tets.push([0, 1, 2, 3]);
+        assert_eq!(p.add(&bad), Err(e.clone()));
+        assert_eq!(p.finish().unwrap_err(), e);
+    }
+
+    #[test]
+    fn coordinates_too_large_for_the_checker_lattice_are_refused() {
+        let big = (1 << 30) / CHECKER_FACTOR;
+        let m = tet_mesh(
+            vec![[0, 0, 0, 0], [big, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 1]],
+            vec![[0, 1, 2, 3]],
+        );
+        assert_eq!(
+            BodyPrep::of(&m, &[]).unwrap_err(),
+            PrepError::Overflow { value: big }
+        );
+        let m = tet_mesh(
+            vec![[0, 0, 0, 0], [big - 1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 1]],
+            vec![[0, 1, 2, 3]],
+        );
+        assert!(BodyPrep::of(&m, &[]).is_ok());
+    }
+
+    #[test]
+    fn vertices_are_numbered_by_first_use_and_tets_remember_their_place() {
+        // Two pieces sharing vertices 1..=3; an unused vertex 9 is left out.
+        let mut vertices: Vec<LatticePoint> =
+            (0..10).map(|i| [i, i * i % 7, i % 3, i / 4]).collect();
+        vertices[4] = [5, 5, 5, 2];
+        let m = tet_mesh(
+            vertices.clone(),
+            vec![[0, 1, 2, 3], [4, 1, 2, 3], [5, 6, 7, 8]],
+        );
+        let l = BodyPrep::of(&m, &[0, 1]).unwrap();
+        assert_eq!(l.mesh.tets.len(), 3);
+        assert_eq!(l.mesh.vertices.len(), 9);
+        let mut seen = 0;
+        for (t, &o) in l.mesh.tets.iter().zip(&l.original) {
+            for (&v, &w) in t.iter().zip(&m.tets[o as usize]) {
+                assert_eq!(
+                    l.mesh.vertices[v as usize],
+                    vertices[w as usize].map(|c| c * CHECKER_FACTOR)
+                );
+                assert!(v <= seen, "vertex {v} used before {seen}");
+                seen = seen.max(v + 1);
+            }
+        }
+        // Tets 0 and 1 share face (1, 2, 3), across the two pieces.
+        let at = |o: u32| l.original.iter().position(|&x| x == o).unwrap() as u32;
+        assert!(l.adjacency[at(0) as usize].contains(&at(1)));
+        assert_eq!(l.bvh.len(), 3);
+    }
+}

@@ -1,0 +1,248 @@
+//! A tree grown piece by piece: each piece of items (one slab of a stream) gets its own
+//! subtree when it arrives, and [`Forest::finish`] joins the subtrees under a balanced top,
+//! so that the cost of building a body's tree is spread over its stream and only the top
+//! (one node per piece) is left for the end.
+//!
+//! The pieces of a 4D mesh come in time order and each covers one frame period, so a top
+//! split between consecutive pieces is a split along time: the tree a whole-body build
+//! would make splits space and time alike, this one splits time first. Items are numbered
+//! in leaf order as they arrive (the tree is born [renumbered](Bvh::renumber_in_leaf_order)).
+
+use super::{Aabb4, Bvh, BvhError, Node};
+
+/// A tree being grown piece by piece; see the module documentation.
+///
+/// ```
+/// use chronotope::kernel::{overlapping_pairs, Aabb4, Bvh, Forest, TraverseWorkspace};
+/// let mut f = Forest::new();
+/// // Two pieces; within a piece the items are renumbered in leaf order, so `add` returns
+/// // which of the piece's boxes each new item is.
+/// let order = f.add(&[Aabb4::new([0; 4], [1; 4]), Aabb4::new([5; 4], [6; 4])])?.to_vec();
+/// assert_eq!(order.len(), 2);
+/// f.add(&[Aabb4::new([10; 4], [11; 4])])?;
+/// let tree = f.finish();
+/// let probe = Bvh::from_boxes(&[Aabb4::new([11; 4], [12; 4])])?;
+/// let mut pairs = Vec::new();
+/// overlapping_pairs(&tree, &probe, &mut TraverseWorkspace::new(), |i, j| pairs.push((i, j)));
+/// assert_eq!(pairs, [(2, 0)]);
+/// # Ok::<(), chronotope::kernel::BvhError>(())
+/// ```
+#[derive(Debug, Clone, Default)]
+pub struct Forest {
+    /// Node 0 is kept for the root; each piece's nodes follow (its own root included).
+    tree: Bvh,
+    /// Each non-empty piece's root as it will sit in the top (children and items in the
+    /// forest's numbering), with its item count.
+    roots: Vec<(Node, u32)>,
+    /// Builds one piece at a time; its buffers are reused.
+    piece: Bvh,
+}
+
+impl Forest {
+    /// An empty forest.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Items added so far.
+    pub fn len(&self) -> usize {
+        self.tree.order.len()
+    }
+
+    /// Whether no item was added.
+    pub fn is_empty(&self) -> bool {
+        self.tree.order.is_empty()
+    }
+
+    /// Pieces with at least one item added so far.
+    pub fn pieces(&self) -> usize {
+        self.roots.len()
+    }
+
+    /// Adds a piece: its items become items `len()..len() + boxes.len()` in the piece
+    /// tree's leaf order; returns, for each of them, its index in `boxes` (for the caller
+    /// to order its own items alike). Nothing is added on error.
+    ///
+    /// # Errors
+    /// [`BvhError::TooManyItems`] if the forest would hold more than [`Bvh::MAX_ITEMS`].
+    pub fn add(&mut self, boxes: &[Aabb4]) -> Result<&[u32], BvhError> {
+        let total = self.len().saturating_add(boxes.len());
+        if total > Bvh::MAX_ITEMS {
+            return Err(BvhError::TooManyItems {
+                items: total,
+                max: Bvh::MAX_ITEMS,
+            });
+        }
+        self.piece.build(boxes)?;
+        // Node indices must stay `u32` (one more node per piece than a one-off build).
+        if self.tree.nodes.len() + self.piece.nodes.len() + 2 * (self.roots.len() + 1)
+            > u32::MAX as usize
+        {
+            return Err(BvhError::TooManyItems {
+                items: total,
+                max: Bvh::MAX_ITEMS / 2,
+            });
+        }
+        if boxes.is_empty() {
+            return Ok(&self.piece.order);
+        }
+        let t = &mut self.tree;
+        if t.nodes.is_empty() {
+            t.nodes.push(Node {
+                aabb: Aabb4::EMPTY,
+                first: 0,
+                count: 0,
+            });
+        }
+        let base = t.nodes.len() as u32;
+        let items = t.order.len() as u32;
+        let shift = |n: &Node| Node {
+            first: n.first + if n.is_leaf() { items } else { base },
+            ..*n
+        };
+        t.nodes.extend(self.piece.nodes.iter().map(shift));
+        t.leaf_boxes.extend_from_slice(&self.piece.leaf_boxes);
+        t.order.extend(items..items + boxes.len() as u32);
+        self.roots
+            .push((shift(&self.piece.nodes[0]), boxes.len() as u32));
+        Ok(&self.piece.order)
+    }
+
+    /// The tree over every item added, the pieces joined under a top split at the median
+    /// item (one piece: its own tree). Each piece's own root stays as an unused node.
+    pub fn finish(self) -> Bvh {
+        let Self {
+            mut tree, roots, ..
+        } = self;
+        match roots.len() {
+            0 => return Bvh::new(),
+            1 => {
+                tree.nodes[0] = roots[0].0;
+                return tree;
+            }
+            _ => {}
+        }
+        // Items before each piece, to split ranges of pieces at their median item.
+        let mut before = Vec::with_capacity(roots.len() + 1);
+        before.push(0u64);
+        for (_, n) in &roots {
+            before.push(before[before.len() - 1] + u64::from(*n));
+        }
+        let mut pending = vec![(0usize, 0usize, roots.len())];
+        while let Some((slot, lo, hi)) = pending.pop() {
+            if hi - lo == 1 {
+                tree.nodes[slot] = roots[lo].0;
+                continue;
+            }
+            let half = (before[lo] + before[hi]) / 2;
+            let mid = before[lo..=hi]
+                .partition_point(|&b| b <= half)
+                .saturating_sub(1)
+                .clamp(1, hi - lo - 1)
+                + lo;
+            let aabb = roots[lo..hi]
+                .iter()
+                .fold(Aabb4::EMPTY, |a, (r, _)| a.union_valid(&r.aabb));
+            let child = tree.nodes.len();
+            tree.nodes[slot] = Node {
+                aabb,
+                first: child as u32,
+                count: 0,
+            };
+            let blank = Node {
+                aabb: Aabb4::EMPTY,
+                first: 0,
+                count: 0,
+            };
+            tree.nodes.push(blank);
+            tree.nodes.push(blank);
+            pending.push((child, lo, mid));
+            pending.push((child + 1, mid, hi));
+        }
+        tree
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::{overlapping_pairs, TraverseWorkspace};
+
+    /// Boxes of a pseudo-random stream, in pieces of varying size (empty ones included).
+    fn pieces(seed: u64) -> Vec<Vec<Aabb4>> {
+        let mut s = seed;
+        let mut next = move |m: i32| {
+            s = s
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            ((s >> 33) % m as u64) as i32
+        };
+        (0..9)
+            .map(|k| {
+                let n = [0, 1, 3, 17, 60][next(5) as usize];
+                (0..n)
+                    .map(|_| {
+                        let lo = [next(40), next(40), next(40), 10 * k + next(3)];
+                        let ext = [next(4), next(4), next(4), next(11)];
+                        Aabb4::new(lo, [0, 1, 2, 3].map(|i| lo[i] + ext[i]))
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn joined_pieces_find_exactly_the_overlapping_pairs() {
+        for seed in 0..40 {
+            let ps = pieces(seed);
+            let mut f = Forest::new();
+            // Items in the forest's numbering, to compare with a brute force.
+            let mut items = Vec::new();
+            for p in &ps {
+                let order = f.add(p).unwrap().to_vec();
+                items.extend(order.iter().map(|&i| p[i as usize]));
+            }
+            assert_eq!(f.len(), items.len());
+            let tree = f.finish();
+            assert_eq!(tree.len(), items.len());
+            let probes: Vec<Aabb4> = pieces(seed + 1000).concat();
+            let other = Bvh::from_boxes(&probes).unwrap();
+            let mut got = Vec::new();
+            overlapping_pairs(&tree, &other, &mut TraverseWorkspace::new(), |i, j| {
+                got.push((i, j))
+            });
+            got.sort_unstable();
+            let mut want = Vec::new();
+            for (i, a) in items.iter().enumerate() {
+                for (j, b) in probes.iter().enumerate() {
+                    if a.overlaps(b) {
+                        want.push((i as u32, j as u32));
+                    }
+                }
+            }
+            assert_eq!(got, want, "seed {seed}");
+            // Every node box holds its children's and items' boxes.
+            let root = tree.aabb();
+            assert!(items.iter().all(|b| root.contains(b)));
+        }
+    }
+
+    #[test]
+    fn no_pieces_or_only_empty_ones_give_an_empty_tree() {
+        let mut f = Forest::new();
+        f.add(&[]).unwrap();
+        let t = f.finish();
+        assert!(t.is_empty());
+        assert_eq!(t.node_count(), 0);
+    }
+
+    #[test]
+    fn one_piece_is_its_own_tree() {
+        let boxes = pieces(7).concat();
+        let mut f = Forest::new();
+        f.add(&boxes).unwrap();
+        let t = f.finish();
+        assert_eq!(t.aabb(), Bvh::from_boxes(&boxes).unwrap().aabb());
+        assert_eq!(t.len(), boxes.len());
+    }
+}
