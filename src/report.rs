@@ -7,7 +7,9 @@ use crate::checker::labels::LabelCounts;
 pub use crate::checker::par_map;
 use crate::checker::prep::BodyPrep;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
-use crate::checker::{check_pair, CheckError, CommonLattice, PairResult, Prepared};
+use crate::checker::{
+    check_pair, check_pair_walked, CheckError, CommonLattice, PairResult, Prepared, StreamWalk,
+};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::MesherOptions;
 use serde::Serialize;
@@ -163,6 +165,15 @@ pub struct CheckPlan {
 }
 
 impl CheckPlan {
+    /// Whether the plan checks bodies `a` and `b` against each other.
+    pub fn pairs_with(&self, a: &str, b: &str) -> bool {
+        a != b
+            && self.pairs.as_ref().is_none_or(|p| {
+                p.iter()
+                    .any(|(x, y)| (x == a && y == b) || (x == b && y == a))
+            })
+    }
+
     /// Every pair, resolutions for the body whose id sorts first (CONTRACT.md's default).
     pub fn all_pairs_first_movable(ids: &[&str], time_scale: Option<f64>) -> Self {
         let mut sorted: Vec<&str> = ids.to_vec();
@@ -201,18 +212,21 @@ pub fn check_bodies(
     plan: &CheckPlan,
     opts: MesherOptions,
 ) -> Result<CheckOutcome, CheckError> {
-    check_streamed(bodies, BTreeMap::new(), plan, opts)
+    check_streamed(bodies, BTreeMap::new(), BTreeMap::new(), plan, opts)
 }
 
 /// [`check_bodies`] with some bodies already prepared piece by piece as their streams
-/// arrived (`preps`, by body id; see [`checker::prep`](crate::checker::prep)): only their
-/// trees' tops and the placement on the common lattice are left to do.
+/// arrived (`preps`, by body id; see [`checker::prep`](crate::checker::prep)), and some
+/// pairs already walked as they arrived (`walks`, by the pair's ids in sorted order; used
+/// when both bodies are on the common lattice as prepared): for those only the trees'
+/// tops and the labels are left to do.
 ///
 /// # Errors
 /// As [`check_bodies`].
 pub fn check_streamed(
     bodies: &BTreeMap<String, BodyMesh>,
     mut preps: BTreeMap<String, BodyPrep>,
+    mut walks: BTreeMap<(String, String), StreamWalk>,
     plan: &CheckPlan,
     opts: MesherOptions,
 ) -> Result<CheckOutcome, CheckError> {
@@ -321,9 +335,20 @@ pub fn check_streamed(
         .iter()
         .filter_map(|(a, b)| Some((index(a)?, index(b)?)))
         .collect();
+    let as_is: Vec<bool> = named.iter().map(|(_, b)| lat.places_as_is(b)).collect();
+    let walked: Vec<std::sync::Mutex<Option<StreamWalk>>> = jobs
+        .iter()
+        .map(|&(i, j)| {
+            let w = walks.remove(&(ids[i].clone(), ids[j].clone()));
+            std::sync::Mutex::new(w.filter(|_| as_is[i] && as_is[j]))
+        })
+        .collect();
     let results = par_map(jobs.len(), |k| {
         let (i, j) = jobs[k];
-        let r = check_pair(&prepared[i], &prepared[j]);
+        let r = match walked[k].lock().ok().and_then(|mut w| w.take()) {
+            Some(w) => check_pair_walked(&prepared[i], &prepared[j], w),
+            None => check_pair(&prepared[i], &prepared[j]),
+        };
         let hv = if r.interfering() {
             overlap_hypervolume(named[i].1, named[j].1, opts)
         } else {

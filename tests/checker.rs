@@ -3,7 +3,7 @@
 mod common;
 
 use chronotope::checker::labels::LabelCounts;
-use chronotope::checker::{check_pair, CommonLattice, PairResult};
+use chronotope::checker::{check_pair, check_pair_walked, CommonLattice, PairResult, StreamWalk};
 use chronotope::cli::frame_ref;
 use chronotope::mesh::glue::{BodyAssembler, BodyMesh};
 use chronotope::mesh::MesherOptions;
@@ -510,32 +510,47 @@ fn labels_in_body_order(
 fn preparing_slab_by_slab_as_the_stream_arrives_changes_no_result() {
     use chronotope::checker::prep::BodyPrep;
     // Four spheres meshed frame by frame, each body prepared three ways: fed to a
-    // `BodyPrep` after every frame (as the checker node does), from the recorded pieces at
-    // once, and as one piece (one tree over the whole body). Every pair must come out the
-    // same: interference, intervals, candidate pairs, labels tet by tet.
+    // `BodyPrep` after every frame with every pair walked as the pieces come (as the
+    // checker node does), from the recorded pieces at once, and as one piece (one tree
+    // over the whole body). Every pair must come out the same: interference, intervals,
+    // candidate pairs, labels tet by tet.
     let opts = SceneOptions::for_scene(SceneName::FourSpheres)
         .grid(14)
         .frames(15)
         .encoding(VoxelEncoding::Bits);
     let scene = build_scene(SceneName::FourSpheres, &opts).unwrap();
     let topics = scene.topics();
-    let mut bodies = Vec::new();
-    let mut streamed = Vec::new();
-    for b in 0..topics.len() {
-        let mut asm = BodyAssembler::new(MesherOptions::default()).unwrap();
-        let mut prep = BodyPrep::new();
-        for k in 0..scene.frame_count() {
-            asm.push(&frame_ref(&scene.frame(b, k))).unwrap();
-            prep.add(asm.mesh()).unwrap();
+    // Frame k of every body, then frame k + 1, ...; every pair walked as pieces come.
+    let n = topics.len();
+    let mut asms: Vec<BodyAssembler> = (0..n)
+        .map(|_| BodyAssembler::new(MesherOptions::default()).unwrap())
+        .collect();
+    let mut streamed: Vec<BodyPrep> = (0..n).map(|_| BodyPrep::new()).collect();
+    let mut walks: Vec<Vec<StreamWalk>> = (0..n)
+        .map(|_| (0..n).map(|_| StreamWalk::new()).collect())
+        .collect();
+    let advance = |walks: &mut Vec<Vec<StreamWalk>>, preps: &[BodyPrep]| {
+        for i in 0..n {
+            for j in i + 1..n {
+                walks[i][j].advance(&preps[i], &preps[j]);
+            }
         }
-        let body = asm.finish();
-        // The last cap arrives at `finish`.
-        prep.add(&body.mesh).unwrap();
-        assert_eq!(prep.len(), body.mesh.tets.len());
-        assert!(prep.pieces() + 1 >= scene.frame_count() as usize);
-        bodies.push(body);
-        streamed.push(prep);
+    };
+    for k in 0..scene.frame_count() {
+        for b in 0..n {
+            asms[b].push(&frame_ref(&scene.frame(b, k))).unwrap();
+            streamed[b].add(asms[b].mesh()).unwrap();
+        }
+        advance(&mut walks, &streamed);
     }
+    let bodies: Vec<BodyMesh> = asms.into_iter().map(|a| a.finish()).collect();
+    for (p, body) in streamed.iter_mut().zip(&bodies) {
+        // The last cap arrives at `finish`.
+        p.add(&body.mesh).unwrap();
+        assert_eq!(p.len(), body.mesh.tets.len());
+        assert!(p.pieces() + 1 >= scene.frame_count() as usize);
+    }
+    advance(&mut walks, &streamed);
     let named: Vec<(&str, &BodyMesh)> = topics.iter().map(|t| t.as_str()).zip(&bodies).collect();
     let lat = CommonLattice::of(&named).unwrap();
     let ways: Vec<Vec<chronotope::checker::Prepared>> = vec![
@@ -556,13 +571,25 @@ fn preparing_slab_by_slab_as_the_stream_arrives_changes_no_result() {
             })
             .collect(),
     ];
+    assert!(named.iter().all(|(_, b)| lat.places_as_is(b)));
     let mut interfering = 0;
     for i in 0..4 {
         for j in i + 1..4 {
+            let w = std::mem::take(&mut walks[i][j]);
+            // Every tet of both bodies was walked while streaming (no fallback below).
+            assert_eq!(
+                w.tets(),
+                (bodies[i].mesh.tets.len(), bodies[j].mesh.tets.len())
+            );
+            let mut walked = Some(w);
             let results: Vec<_> = ways
                 .iter()
                 .map(|p| {
-                    let r = check_pair(&p[i], &p[j]);
+                    // The first way (prepared as streamed) also uses the streamed walk.
+                    let r = match walked.take() {
+                        Some(w) => check_pair_walked(&p[i], &p[j], w),
+                        None => check_pair(&p[i], &p[j]),
+                    };
                     let labels = labels_in_body_order(&r, &p[i], &p[j]);
                     (
                         r.interfering(),

@@ -27,7 +27,9 @@ pub mod oracle;
 pub mod prep;
 pub mod resolve;
 
-use crate::kernel::bvh::{overlapping_pairs_under, top_pairs, Bvh, BvhError, TraverseWorkspace};
+use crate::kernel::bvh::{
+    overlapping_pairs_under, top_pairs, Bvh, BvhError, NodePair, TraverseWorkspace,
+};
 use crate::kernel::intersect::{classify_if, TetPairRelation};
 use crate::kernel::LatticePoint;
 use crate::mesh::glue::BodyMesh;
@@ -369,6 +371,32 @@ impl CommonLattice {
         self.place(id, b, local)
     }
 
+    /// Whether `b`, prepared in its own lattice, is already on this one (same scale, origin
+    /// and first frame): then [`place`](Self::place) leaves it as it is, and walks done
+    /// as its pieces arrived ([`StreamWalk`]) hold.
+    pub fn places_as_is(&self, b: &BodyMesh) -> bool {
+        matches!(self.axis_map(b), Ok((1, [0, 0, 0, 0])))
+    }
+
+    /// The map (common factor over the body's own × [`CHECKER_FACTOR`], shift) of `b`
+    /// onto this lattice.
+    fn axis_map(&self, b: &BodyMesh) -> Result<(i64, [i64; 4]), String> {
+        let g = b.geometry.ok_or("no lattice")?;
+        let ratio = i64::from(self.scale / g.scale.max(1)).max(1);
+        let voxels = origin_offset(
+            &self.voxel0_centre.map(|c| c - 0.5 * self.resolution),
+            &g.origin,
+            self.resolution,
+        )?;
+        let frame0 =
+            b.stamps_ns
+                .first()
+                .map_or(0, |s| self.stamps_ns.binary_search(s).unwrap_or(0)) as i64;
+        let step = self.per_step();
+        let shift = [voxels[0], voxels[1], voxels[2], frame0].map(|v| v.saturating_mul(step));
+        Ok((ratio, shift))
+    }
+
     /// Puts a body prepared in its own lattice (by [`BodyPrep`], as its stream arrived) on
     /// this lattice: nothing to do when the body's lattice is the reference one, otherwise
     /// an increasing axis map of its coordinates and tree boxes.
@@ -380,23 +408,13 @@ impl CommonLattice {
         let g = b
             .geometry
             .ok_or_else(|| CheckError::EmptyBody { id: id.to_string() })?;
-        let ratio = i64::from(self.scale / g.scale.max(1)).max(1);
-        let voxels = origin_offset(
-            &self.voxel0_centre.map(|c| c - 0.5 * self.resolution),
-            &g.origin,
-            self.resolution,
-        )
-        .map_err(|reason| CheckError::LatticeMismatch {
-            a: "reference".into(),
-            b: id.to_string(),
-            reason,
-        })?;
-        let frame0 =
-            b.stamps_ns
-                .first()
-                .map_or(0, |s| self.stamps_ns.binary_search(s).unwrap_or(0)) as i64;
-        let step = self.per_step();
-        let shift = [voxels[0], voxels[1], voxels[2], frame0].map(|v| v.saturating_mul(step));
+        let (ratio, shift) = self
+            .axis_map(b)
+            .map_err(|reason| CheckError::LatticeMismatch {
+                a: "reference".into(),
+                b: id.to_string(),
+                reason,
+            })?;
         let mut p = Prepared {
             id: id.to_string(),
             mesh: local.mesh,
@@ -701,6 +719,7 @@ fn straddles(s: &[i8; 4]) -> bool {
 }
 
 /// One worker's share of a pair check.
+#[derive(Debug, Default)]
 struct Part {
     hit_a: Vec<Touch>,
     hit_b: Vec<Touch>,
@@ -719,6 +738,21 @@ const SPLIT_DEPTH: u32 = 6;
 pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
     let start = std::time::Instant::now();
     let all = walk(a, b, false);
+    finish_pair(a, b, all, start)
+}
+
+/// [`check_pair`] with the walk done as the bodies' pieces arrived (`walked`, over `a`
+/// and `b` prepared from those same pieces and placed as they are): only the labels are
+/// left. If `walked` did not see every tet of both bodies, the walk is done here.
+pub fn check_pair_walked(a: &Prepared, b: &Prepared, walked: StreamWalk) -> PairResult {
+    if walked.tets() != (a.mesh.tets.len(), b.mesh.tets.len()) {
+        return check_pair(a, b);
+    }
+    finish_pair(a, b, walked.part, std::time::Instant::now())
+}
+
+/// The labels and the rest of a [`PairResult`] after the walk (`all`, started at `start`).
+fn finish_pair(a: &Prepared, b: &Prepared, all: Part, start: std::time::Instant) -> PairResult {
     let mut r = PairResult {
         candidate_pairs: all.candidate_pairs,
         interfering_pairs: all.interfering_pairs,
@@ -838,7 +872,7 @@ fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Part {
             let k = next.fetch_add(1, Ordering::Relaxed);
             let Some(&top) = tops.get(k) else { break };
             let _ = overlapping_pairs_under(&a.bvh, &b.bvh, top, &mut ws, |i, j| {
-                visit(a, b, i, j, &mut part);
+                visit(Side::of(a), Side::of(b), i, j, &mut part);
                 if stop_at_interference && part.interfering_pairs > 0 {
                     stop.store(true, Ordering::Relaxed);
                     return ControlFlow::Break(());
@@ -919,9 +953,95 @@ fn faces_apart(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4], instant: i32) -> 
     (0..3).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k])
 }
 
+/// What the walk reads of a body: its tets and their normals.
+#[derive(Clone, Copy)]
+struct Side<'a> {
+    mesh: &'a TetMesh,
+    normals: &'a [[i32; 4]],
+}
+
+impl<'a> Side<'a> {
+    fn of(p: &'a Prepared) -> Self {
+        Self {
+            mesh: &p.mesh,
+            normals: &p.normals,
+        }
+    }
+}
+
+/// The tree walk of one pair of bodies done as their pieces arrive (see [`prep`]): each
+/// new piece of either body is walked against the pieces of the other that came before
+/// it, so that every pair of pieces is walked once and, at the end of the stream, only
+/// the labels are left ([`check_pair_walked`]).
+///
+/// Valid only if both bodies are already on the common lattice as prepared (same
+/// lattice, same first frame: [`CommonLattice::places_as_is`]); otherwise the walk is
+/// done again at the end.
+#[derive(Debug, Default)]
+pub struct StreamWalk {
+    part: Part,
+    /// Pieces of each body walked so far.
+    seen: (usize, usize),
+}
+
+impl StreamWalk {
+    /// Nothing walked yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Walks the pieces of `a` and `b` that came since the last call.
+    pub fn advance(&mut self, a: &BodyPrep, b: &BodyPrep) {
+        let (fa, fb) = (a.forest(), b.forest());
+        let (na, nb) = (fa.pieces(), fb.pieces());
+        let (sa, sb) = self.seen;
+        if (na, nb) == (sa, sb) {
+            return;
+        }
+        let part = &mut self.part;
+        part.hit_a.resize(a.len(), Touch::Clear);
+        part.hit_b.resize(b.len(), Touch::Clear);
+        let (side_a, side_b) = (
+            Side {
+                mesh: a.mesh(),
+                normals: a.normals(),
+            },
+            Side {
+                mesh: b.mesh(),
+                normals: b.normals(),
+            },
+        );
+        let (ta, tb) = (fa.tree_so_far(), fb.tree_so_far());
+        let mut ws = TraverseWorkspace::new();
+        // New pieces of `a` against every piece of `b`, then old pieces of `a` against
+        // the new ones of `b`.
+        let pairs = (sa..na)
+            .flat_map(|i| (0..nb).map(move |j| (i, j)))
+            .chain((0..sa).flat_map(|i| (sb..nb).map(move |j| (i, j))));
+        for (i, j) in pairs {
+            let (Some((ra, ba)), Some((rb, bb))) = (fa.piece_root(i), fb.piece_root(j)) else {
+                continue;
+            };
+            if !ba.overlaps(&bb) {
+                continue;
+            }
+            let _ = overlapping_pairs_under(ta, tb, NodePair::new(ra, rb), &mut ws, |i, j| {
+                visit(side_a, side_b, i, j, part);
+                ControlFlow::<()>::Continue(())
+            });
+        }
+        self.seen = (na, nb);
+    }
+
+    /// Tets of each body walked so far.
+    pub fn tets(&self) -> (usize, usize) {
+        (self.part.hit_a.len(), self.part.hit_b.len())
+    }
+}
+
 /// One candidate pair: the exact relation, recorded in the worker's share.
 #[inline]
-fn visit(a: &Prepared, b: &Prepared, i: u32, j: u32, part: &mut Part) {
+fn visit(a: Side<'_>, b: Side<'_>, i: u32, j: u32, part: &mut Part) {
     part.candidate_pairs += 1;
     let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
     let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);

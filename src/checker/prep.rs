@@ -42,8 +42,8 @@ pub struct BodyPrep {
     adjacency: AdjacencyBuilder,
     /// The body mesh's vertex → prepared vertex ([`UNSEEN`] until a tet uses it).
     new_of: Vec<u32>,
-    vertices: Vec<LatticePoint>,
-    tets: Vec<[u32; 4]>,
+    /// Tets in leaf order over vertices numbered by first use, × [`CHECKER_FACTOR`].
+    mesh: TetMesh,
     normals: Vec<[i32; 4]>,
     original: Vec<u32>,
     boxes: Vec<Aabb4>,
@@ -143,34 +143,63 @@ impl BodyPrep {
         }
         let order = self.forest.add(&self.boxes)?;
         self.new_of.resize(nv, UNSEEN);
-        let first = self.tets.len();
+        let first = self.mesh.tets.len();
         for &local in order {
             let tet = new[local as usize].map(|v| {
                 let slot = &mut self.new_of[v as usize];
                 if *slot == UNSEEN {
-                    *slot = self.vertices.len() as u32;
-                    self.vertices
+                    *slot = self.mesh.vertices.len() as u32;
+                    self.mesh
+                        .vertices
                         .push(vertices[v as usize].map(|c| c * CHECKER_FACTOR));
                 }
                 *slot
             });
             self.normals
-                .push(tet_normal(tet.map(|v| self.vertices[v as usize])));
-            self.tets.push(tet);
+                .push(tet_normal(tet.map(|v| self.mesh.vertices[v as usize])));
+            self.mesh.tets.push(tet);
             self.original.push((done + local as usize) as u32);
         }
-        self.adjacency.add(&self.tets[first..], self.vertices.len());
+        self.adjacency
+            .add(&self.mesh.tets[first..], self.mesh.vertices.len());
         Ok(())
     }
 
     /// Tets prepared so far.
     pub fn len(&self) -> usize {
-        self.tets.len()
+        self.mesh.tets.len()
     }
 
     /// Whether no tet was prepared.
     pub fn is_empty(&self) -> bool {
-        self.tets.is_empty()
+        self.mesh.tets.is_empty()
+    }
+
+    /// The tets prepared so far, in their final order and coordinates (the body's own
+    /// lattice × [`CHECKER_FACTOR`]).
+    pub fn mesh(&self) -> &TetMesh {
+        &self.mesh
+    }
+
+    /// The normals of [`mesh`](Self::mesh)'s tets.
+    pub fn normals(&self) -> &[[i32; 4]] {
+        &self.normals
+    }
+
+    /// The pieces' subtrees so far.
+    pub fn forest(&self) -> &Forest {
+        &self.forest
+    }
+
+    /// Prepares the body mesh's tets from those seen so far up to `end` as one piece (a
+    /// recorded piece of [`BodyMesh::pieces`](crate::mesh::glue::BodyMesh::pieces)).
+    ///
+    /// # Errors
+    /// As [`add`](Self::add).
+    pub fn add_up_to(&mut self, mesh: &TetMesh, end: usize) -> Result<(), PrepError> {
+        let lo = self.original.len().min(mesh.tets.len());
+        let hi = end.clamp(lo, mesh.tets.len());
+        self.add_tets(&mesh.vertices, &mesh.tets[lo..hi])
     }
 
     /// Seconds spent preparing pieces: in total, and the most for one piece.
@@ -192,10 +221,7 @@ impl BodyPrep {
             return Err(e);
         }
         Ok(LocalPrep {
-            mesh: TetMesh {
-                vertices: self.vertices,
-                tets: self.tets,
-            },
+            mesh: self.mesh,
             bvh: self.forest.finish(),
             adjacency: self.adjacency.finish(),
             normals: self.normals,

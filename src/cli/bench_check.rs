@@ -21,7 +21,9 @@
 use super::{frame_ref, CliError, EncodingArg};
 use crate::checker::prep::BodyPrep;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
-use crate::checker::{check_pair, CommonLattice, PairResult, Prepared};
+use crate::checker::{
+    check_pair, check_pair_walked, CommonLattice, PairResult, Prepared, StreamWalk,
+};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::slice::{slice_mesh, PlaneValue, TriMesh as SliceMesh};
 use crate::mesh::MesherOptions;
@@ -78,13 +80,40 @@ fn detect(
     Ok((lat, prepared, prepare_s, results))
 }
 
-/// Detection plus labels at the end of a stream whose pieces were prepared as they came
-/// (`preps`, one per body): returns the seconds from the last piece to the labels, those
-/// spent on the lattice, trees' tops and placement, and the pair results.
+/// Detection plus labels with the two bodies' pieces arriving in turn (A's slab k, B's
+/// slab k, ...), each prepared and walked against the other body's pieces as it comes, as
+/// the checker node does. Returns the seconds each piece took (preparation and walk), and
+/// from the last piece to the labels: in total, for the lattice, trees' tops and
+/// placement, and the pair result.
 fn detect_streamed(
     bodies: &[(String, BodyMesh)],
-    preps: Vec<BodyPrep>,
-) -> Result<(f64, f64, Vec<PairResult>), CliError> {
+) -> Result<(Vec<f64>, f64, f64, PairResult), CliError> {
+    let mut preps = [BodyPrep::new(), BodyPrep::new()];
+    let mut walk = StreamWalk::new();
+    let mut per_piece = Vec::new();
+    let most = bodies
+        .iter()
+        .map(|(_, b)| b.pieces.len())
+        .max()
+        .unwrap_or(0);
+    for k in 0..most {
+        for (p, (_, b)) in preps.iter_mut().zip(bodies) {
+            if k >= b.pieces.len() {
+                continue;
+            }
+            let end = b.pieces.get(k + 1).copied().unwrap_or(b.mesh.tets.len());
+            let t = Instant::now();
+            p.add_up_to(&b.mesh, end)
+                .map_err(|e| CliError::Usage(e.to_string()))?;
+            per_piece.push(t.elapsed().as_secs_f64());
+        }
+        let t = Instant::now();
+        walk.advance(&preps[0], &preps[1]);
+        // The walk is charged to the piece that completed the pair of slabs.
+        if let Some(last) = per_piece.last_mut() {
+            *last += t.elapsed().as_secs_f64();
+        }
+    }
     let t0 = Instant::now();
     let named: Vec<(&str, &BodyMesh)> = bodies.iter().map(|(id, b)| (id.as_str(), b)).collect();
     let lat = CommonLattice::of(&named)?;
@@ -103,10 +132,12 @@ fn detect_streamed(
     .into_iter()
     .collect::<Result<_, _>>()?;
     let place_s = t0.elapsed().as_secs_f64();
-    let results = (1..prepared.len())
-        .map(|j| check_pair(&prepared[0], &prepared[j]))
-        .collect();
-    Ok((t0.elapsed().as_secs_f64(), place_s, results))
+    let r = if named.iter().all(|(_, b)| lat.places_as_is(b)) {
+        check_pair_walked(&prepared[0], &prepared[1], walk)
+    } else {
+        check_pair(&prepared[0], &prepared[1])
+    };
+    Ok((per_piece, t0.elapsed().as_secs_f64(), place_s, r))
 }
 
 /// One body's surface at frame `k` (lattice units; the first and last frames are sliced
@@ -221,27 +252,18 @@ pub fn bench_check(
         checked.push(results[0].timing.detect_s + results[0].timing.label_s);
         run = Some((lat, prepared, results));
     }
-    // The same detection with each body prepared slab by slab as its stream arrives (as
-    // the checker node does), outside the clock: what is left after the last slab.
-    let (mut end, mut place, mut piece_max, mut busy) = (vec![], vec![], 0.0f64, vec![]);
-    let (mut s_det, mut s_lab) = (vec![], vec![]);
+    // The same detection with each body prepared and walked slab by slab as its stream
+    // arrives (as the checker node does), outside the clock: what is left after the last
+    // slab, and what each slab costs while the stream runs.
+    let (mut end, mut place, mut pieces, mut s_lab) = (vec![], vec![], vec![], vec![]);
     let mut streamed = None;
     for _ in 0..reps.max(1) {
-        let preps: Vec<BodyPrep> = bodies
-            .iter()
-            .map(|(_, b)| BodyPrep::from_pieces(&b.mesh, &b.pieces))
-            .collect();
-        for p in &preps {
-            let (total, max) = p.busy_s();
-            busy.push(total / p.pieces().max(1) as f64);
-            piece_max = piece_max.max(max);
-        }
-        let (e, pl, results) = detect_streamed(&bodies, preps)?;
+        let (per_piece, e, pl, r) = detect_streamed(&bodies)?;
         end.push(e);
         place.push(pl);
-        s_det.push(results[0].timing.detect_s);
-        s_lab.push(results[0].timing.label_s);
-        streamed = Some(results);
+        s_lab.push(r.timing.label_s);
+        pieces = per_piece;
+        streamed = Some(r);
     }
     let (lat, prepared, results) = run.expect("one run");
     let r = &results[0];
@@ -263,17 +285,22 @@ pub fn bench_check(
         median(&mut det),
         median(&mut lab),
     );
-    let s = &streamed.expect("one run")[0];
+    let s = streamed.expect("one run");
+    let total_pieces: f64 = pieces.iter().sum();
+    let max_piece = pieces.iter().copied().fold(0.0, f64::max);
     println!(
-        "  prepared slab by slab as the stream arrives (the checker node): {:.3} s after the last slab (lattice, trees' tops, placement {:.3} s; traversal + exact predicate {:.3} s; labels {:.3} s); per slab and body {:.1} ms on average, at most {:.1} ms, {} slabs; same result: {}",
+        "  prepared and walked slab by slab as the streams arrive (the checker node): {:.3} s after the last slab (lattice, trees' tops, placement {:.3} s; labels {:.3} s); while streaming {:.1} ms per slab and body on average, at most {:.1} ms, {:.2} s in all over {} pieces (one core); same result: {}",
         median(&mut end),
         median(&mut place),
-        median(&mut s_det),
         median(&mut s_lab),
-        median(&mut busy) * 1e3,
-        piece_max * 1e3,
-        bodies[0].1.pieces.len(),
-        s.intervals == r.intervals && s.counts() == r.counts() && s.candidate_pairs == r.candidate_pairs,
+        total_pieces / pieces.len().max(1) as f64 * 1e3,
+        max_piece * 1e3,
+        total_pieces,
+        pieces.len(),
+        s.intervals == r.intervals
+            && s.counts() == r.counts()
+            && s.candidate_pairs == r.candidate_pairs
+            && s.interfering_pairs == r.interfering_pairs,
     );
     println!(
         "  {} candidate tet pairs, {} interfering; A: {} interference / {} inside / {} outside; B: {} / {} / {}",

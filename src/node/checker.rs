@@ -20,6 +20,7 @@ use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
 use crate::checker::prep::BodyPrep;
+use crate::checker::StreamWalk;
 use crate::cli::frame_ref;
 use crate::mesh::glue::{BodyGluer, BodyMesh};
 use crate::mesh::slice::Slicer;
@@ -68,6 +69,9 @@ pub struct CheckerNode {
     bodies: BTreeMap<String, Body>,
     /// A piece came since the last check.
     pending: bool,
+    /// Each planned pair's tree walk, done piece by piece while both bodies share one
+    /// lattice and first frame (keyed by the ids in sorted order).
+    walks: BTreeMap<(String, String), StreamWalk>,
     outcome: Option<CheckOutcome>,
     status: NodeStatus,
 }
@@ -152,6 +156,7 @@ impl CheckerNode {
             markers_topic,
             bodies,
             pending: false,
+            walks: BTreeMap::new(),
             outcome: None,
             status: NodeStatus::default(),
         })
@@ -212,6 +217,8 @@ impl CheckerNode {
                 }
             );
             self.status.problem(&self.fqn, "stream_restarted", why);
+            self.walks
+                .retain(|(x, y), _| *x != s.body_id && *y != s.body_id);
             *b = Body {
                 frames: std::mem::take(&mut b.frames),
                 ..Body::default()
@@ -265,17 +272,45 @@ impl CheckerNode {
             }
         }
         if b.prep.len() < b.gluer.tets() {
-            if let Err(e) = b.prep.add(b.gluer.mesh()) {
-                // Said once: the check names the body and the reason again.
-                if !b.prep_failed {
-                    b.prep_failed = true;
-                    let why = format!(
-                        "{}: the mesh cannot be prepared for checking: {e}",
-                        s.body_id
-                    );
-                    self.status.problem(&self.fqn, "bad_mesh", why);
+            match b.prep.add(b.gluer.mesh()) {
+                Ok(()) => self.advance_walks(&s.body_id),
+                Err(e) => {
+                    // Said once: the check names the body and the reason again.
+                    if !b.prep_failed {
+                        b.prep_failed = true;
+                        let why = format!(
+                            "{}: the mesh cannot be prepared for checking: {e}",
+                            s.body_id
+                        );
+                        self.status.problem(&self.fqn, "bad_mesh", why);
+                    }
                 }
             }
+        }
+    }
+
+    /// Walks the new pieces of body `id` against the bodies it is paired with, for each
+    /// pair whose bodies share one lattice and first frame (others are walked at the end).
+    fn advance_walks(&mut self, id: &str) {
+        let Some(me) = self.bodies.get(id) else {
+            return;
+        };
+        let same_start = |a: &Body, b: &Body| {
+            a.geometry.is_some()
+                && a.geometry == b.geometry
+                && a.stamps_ns.first().is_some()
+                && a.stamps_ns.first() == b.stamps_ns.first()
+        };
+        for (other_id, other) in &self.bodies {
+            if other_id == id || !self.plan.pairs_with(id, other_id) || !same_start(me, other) {
+                continue;
+            }
+            let (x, y, key) = if id < other_id.as_str() {
+                (me, other, (id.to_string(), other_id.clone()))
+            } else {
+                (other, me, (other_id.clone(), id.to_string()))
+            };
+            self.walks.entry(key).or_default().advance(&x.prep, &y.prep);
         }
     }
 
@@ -638,8 +673,9 @@ impl CheckerNode {
             .map(|b| b.frame_id.clone())
             .find(|f| !f.is_empty())
             .unwrap_or_default();
+        let walks = std::mem::take(&mut self.walks);
         let (bodies, preps) = self.body_meshes();
-        match check_streamed(&bodies, preps, &self.plan, self.opts) {
+        match check_streamed(&bodies, preps, walks, &self.plan, self.opts) {
             Ok(mut o) => {
                 o.report.problems.extend(ends);
                 let before = out.len();

@@ -32,8 +32,8 @@ pub struct Forest {
     /// Node 0 is kept for the root; each piece's nodes follow (its own root included).
     tree: Bvh,
     /// Each non-empty piece's root as it will sit in the top (children and items in the
-    /// forest's numbering), with its item count.
-    roots: Vec<(Node, u32)>,
+    /// forest's numbering), with its item count and its index in `tree`.
+    roots: Vec<(Node, u32, u32)>,
     /// Builds one piece at a time; its buffers are reused.
     piece: Bvh,
 }
@@ -57,6 +57,19 @@ impl Forest {
     /// Pieces with at least one item added so far.
     pub fn pieces(&self) -> usize {
         self.roots.len()
+    }
+
+    /// The pieces grown so far as one tree without a top: walk it from a piece's root
+    /// ([`piece_root`](Self::piece_root), e.g. with
+    /// [`overlapping_pairs_under`](super::overlapping_pairs_under)), never from node 0.
+    pub fn tree_so_far(&self) -> &Bvh {
+        &self.tree
+    }
+
+    /// The root node (in [`tree_so_far`](Self::tree_so_far)) of the `k`-th non-empty
+    /// piece, and its box.
+    pub fn piece_root(&self, k: usize) -> Option<(u32, Aabb4)> {
+        self.roots.get(k).map(|(n, _, at)| (*at, n.aabb))
     }
 
     /// Adds a piece: its items become items `len()..len() + boxes.len()` in the piece
@@ -104,7 +117,7 @@ impl Forest {
         t.leaf_boxes.extend_from_slice(&self.piece.leaf_boxes);
         t.order.extend(items..items + boxes.len() as u32);
         self.roots
-            .push((shift(&self.piece.nodes[0]), boxes.len() as u32));
+            .push((shift(&self.piece.nodes[0]), boxes.len() as u32, base));
         Ok(&self.piece.order)
     }
 
@@ -125,7 +138,7 @@ impl Forest {
         // Items before each piece, to split ranges of pieces at their median item.
         let mut before = Vec::with_capacity(roots.len() + 1);
         before.push(0u64);
-        for (_, n) in &roots {
+        for (_, n, _) in &roots {
             before.push(before[before.len() - 1] + u64::from(*n));
         }
         let mut pending = vec![(0usize, 0usize, roots.len())];
@@ -142,7 +155,7 @@ impl Forest {
                 + lo;
             let aabb = roots[lo..hi]
                 .iter()
-                .fold(Aabb4::EMPTY, |a, (r, _)| a.union_valid(&r.aabb));
+                .fold(Aabb4::EMPTY, |a, (r, _, _)| a.union_valid(&r.aabb));
             let child = tree.nodes.len();
             tree.nodes[slot] = Node {
                 aabb,

@@ -17,6 +17,11 @@ pub struct NodePair {
 }
 
 impl NodePair {
+    /// The pair of node `a` of the first tree and node `b` of the second.
+    pub fn new(a: u32, b: u32) -> Self {
+        Self { a, b }
+    }
+
     /// Node index in the first tree.
     pub fn a(&self) -> u32 {
         self.a
