@@ -183,11 +183,7 @@ impl Bvh {
         // At most 2n - 1 nodes: reserving them all (untouched pages cost no memory) means
         // the walk below never reallocates, and a rebuild at the same size never allocates.
         self.nodes.reserve(2 * n - 1);
-        self.nodes.push(Node {
-            aabb: Aabb4::EMPTY,
-            first: 0,
-            count: 0,
-        });
+        self.nodes.push(Node::BLANK);
         s.ranges.clear();
         s.ranges.push((0, 0, n as u32));
         while let Some((node, lo, hi)) = s.ranges.pop() {
@@ -210,13 +206,8 @@ impl Bvh {
                 );
             let child = self.nodes.len() as u32;
             self.nodes[node as usize].first = child;
-            let blank = Node {
-                aabb: Aabb4::EMPTY,
-                first: 0,
-                count: 0,
-            };
-            self.nodes.push(blank);
-            self.nodes.push(blank);
+            self.nodes.push(Node::BLANK);
+            self.nodes.push(Node::BLANK);
             s.ranges.push((child, lo, mid as u32));
             s.ranges.push((child + 1, mid as u32, hi));
         }

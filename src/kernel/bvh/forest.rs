@@ -101,11 +101,7 @@ impl Forest {
         }
         let t = &mut self.tree;
         if t.nodes.is_empty() {
-            t.nodes.push(Node {
-                aabb: Aabb4::EMPTY,
-                first: 0,
-                count: 0,
-            });
+            t.nodes.push(Node::BLANK);
         }
         let base = t.nodes.len() as u32;
         let items = t.order.len() as u32;
@@ -162,13 +158,8 @@ impl Forest {
                 first: child as u32,
                 count: 0,
             };
-            let blank = Node {
-                aabb: Aabb4::EMPTY,
-                first: 0,
-                count: 0,
-            };
-            tree.nodes.push(blank);
-            tree.nodes.push(blank);
+            tree.nodes.push(Node::BLANK);
+            tree.nodes.push(Node::BLANK);
             pending.push((child, lo, mid));
             pending.push((child + 1, mid, hi));
         }

@@ -68,6 +68,13 @@ pub(crate) struct Node {
 }
 
 impl Node {
+    /// A node to be filled in later (an empty internal node).
+    pub(crate) const BLANK: Node = Node {
+        aabb: Aabb4::EMPTY,
+        first: 0,
+        count: 0,
+    };
+
     #[inline]
     pub(crate) fn is_leaf(&self) -> bool {
         self.count > 0
