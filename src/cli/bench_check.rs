@@ -14,7 +14,10 @@
 //!
 //! Detection and resolution run `reps` times each and their medians are printed;
 //! detection also without the per-body preparation, which every pair and every
-//! resolution of a body reuses.
+//! resolution of a body reuses, and streamed as the checker node does it: the two bodies'
+//! slabs arrive in turn, each is prepared and walked against the other body's slabs as it
+//! comes (timed per slab, outside the clock), and the clock covers what is left after the
+//! last slab (trees' tops, placement, labels).
 //!
 //! A sweep over frame counts then shows what each misses on all three of A's pairs.
 
