@@ -52,12 +52,6 @@ impl AdjacencyBuilder {
         self.adj.is_empty()
     }
 
-    /// Faces not paired so far (in a closed mesh fed slab by slab: the surface where the
-    /// next slab starts).
-    pub fn unpaired(&self) -> usize {
-        self.pending.len()
-    }
-
     /// Adds `tets` (numbered after the tets added before) over a vertex table of
     /// `vertices` entries, linking them with each other and with the unpaired faces of
     /// earlier tets.

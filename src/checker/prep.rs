@@ -18,7 +18,6 @@ use super::{tet_normal, CHECKER_FACTOR};
 use crate::kernel::bvh::{Aabb4, BvhError, Forest};
 use crate::kernel::LatticePoint;
 use crate::mesh::TetMesh;
-use std::time::Instant;
 
 /// Why a body's mesh cannot be prepared.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -49,9 +48,6 @@ pub struct BodyPrep {
     boxes: Vec<Aabb4>,
     /// The first error; the body cannot be checked after it.
     error: Option<PrepError>,
-    /// Seconds spent in [`add`](Self::add), in total and at most per piece.
-    busy_s: f64,
-    max_piece_s: f64,
 }
 
 /// A prepared vertex not assigned yet.
@@ -98,11 +94,7 @@ impl BodyPrep {
         if new.is_empty() {
             return Ok(());
         }
-        let start = Instant::now();
         let result = self.add_piece(vertices, new);
-        let s = start.elapsed().as_secs_f64();
-        self.busy_s += s;
-        self.max_piece_s = self.max_piece_s.max(s);
         if let Err(e) = &result {
             self.error = Some(e.clone());
         }
@@ -202,11 +194,6 @@ impl BodyPrep {
         self.add_tets(&mesh.vertices, &mesh.tets[lo..hi])
     }
 
-    /// Seconds spent preparing pieces: in total, and the most for one piece.
-    pub fn busy_s(&self) -> (f64, f64) {
-        (self.busy_s, self.max_piece_s)
-    }
-
     /// Pieces prepared so far (those with at least one tet).
     pub fn pieces(&self) -> usize {
         self.forest.pieces()
@@ -235,23 +222,15 @@ impl BodyPrep {
     /// # Errors
     /// As [`add`](Self::add).
     pub fn of(mesh: &TetMesh, pieces: &[usize]) -> Result<LocalPrep, PrepError> {
-        Self::from_pieces(mesh, pieces).finish()
-    }
-
-    /// [`of`](Self::of) before [`finish`](Self::finish): the state a stream of these pieces
-    /// leaves (an error, if any, is kept for `finish`).
-    pub fn from_pieces(mesh: &TetMesh, pieces: &[usize]) -> Self {
         let mut p = Self::new();
         let n = mesh.tets.len();
         let mut lo = 0;
         for hi in pieces.iter().copied().chain([n]) {
             let hi = hi.clamp(lo, n);
-            if p.add_tets(&mesh.vertices, &mesh.tets[lo..hi]).is_err() {
-                break;
-            }
+            p.add_tets(&mesh.vertices, &mesh.tets[lo..hi])?;
             lo = hi;
         }
-        p
+        p.finish()
     }
 }
 
