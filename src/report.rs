@@ -139,6 +139,9 @@ pub enum Resolution {
         direction: &'static str,
         /// Bound on the distance's excess over the shortest clearing shift (m, extra field).
         distance_error_bound_m: f64,
+        /// The contact episode it clears: start and end (s since the time origin; extra
+        /// field).
+        episode_s: [f64; 2],
     },
     /// Retime the body: t -> t0 + scale·(t − t0).
     TimeScale {
@@ -150,6 +153,8 @@ pub enum Resolution {
         scale: f64,
         /// Checked again against every other body: clear.
         verified_clear: bool,
+        /// The contact episode it clears (s since the time origin; extra field).
+        episode_s: [f64; 2],
     },
 }
 
@@ -384,6 +389,13 @@ pub fn check_streamed(
         }
         if rs.iter().any(|r| r.interfering()) {
             let rs: Vec<&PairResult> = rs.iter().map(|r| r.as_ref()).collect();
+            let episode = [
+                lat.time_s(0.0, time_origin_ns),
+                lat.time_s(
+                    ((lat.stamps_ns.len() - 1) as i64 * lat.per_step()) as f64,
+                    time_origin_ns,
+                ),
+            ];
             report.resolutions.extend(resolve(
                 &prepared[im],
                 &others,
@@ -391,6 +403,7 @@ pub fn check_streamed(
                 &lat,
                 c,
                 time_origin_ns,
+                episode,
             ));
         }
     }
@@ -405,14 +418,16 @@ pub fn check_streamed(
     })
 }
 
-/// Translation and time scaling of body `a` against `others`, each verified.
-fn resolve(
+/// Translation and time scaling of body `a` against `others`, each verified; `episode` is
+/// the contact episode they clear (s since `origin`).
+pub fn resolve(
     a: &Prepared,
     others: &[&Prepared],
     rs: &[&PairResult],
     lat: &CommonLattice,
     c: f64,
     origin: i64,
+    episode: [f64; 2],
 ) -> Vec<Resolution> {
     let m = Metric::new(lat, c);
     let mut out = Vec::new();
@@ -433,6 +448,7 @@ fn resolve(
             verified_clear: t.verified_clear,
             direction: t.direction,
             distance_error_bound_m: bounds::translation_bound(lat.resolution, period, c, snap),
+            episode_s: episode,
         });
     } else {
         tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
@@ -443,6 +459,7 @@ fn resolve(
             t0_s: lat.time_s(ts.t0 as f64, origin),
             scale: ts.scale,
             verified_clear: ts.verified_clear,
+            episode_s: episode,
         });
     }
     out

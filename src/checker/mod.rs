@@ -26,6 +26,8 @@ pub mod labels;
 pub mod oracle;
 pub mod prep;
 pub mod resolve;
+pub mod rolling;
+pub mod window;
 
 use crate::kernel::bvh::{
     overlapping_pairs_under, top_pairs, Bvh, BvhError, NodePair, TraverseWorkspace,
@@ -476,7 +478,7 @@ fn prep_error(id: &str, e: PrepError) -> CheckError {
 }
 
 /// Whole-voxel offset from origin `a` to origin `b`, or why there is none.
-fn origin_offset(a: &[f64; 3], b: &[f64; 3], res: f64) -> Result<[i64; 3], String> {
+pub(crate) fn origin_offset(a: &[f64; 3], b: &[f64; 3], res: f64) -> Result<[i64; 3], String> {
     let mut out = [0i64; 3];
     for k in 0..3 {
         let v = (b[k] - a[k]) / res;
@@ -546,7 +548,7 @@ pub(crate) fn tet_of(m: &TetMesh, i: u32) -> [LatticePoint; 4] {
     m.tets[i as usize].map(|v| m.vertices[v as usize])
 }
 
-fn t_range(t: &[LatticePoint; 4]) -> (f64, f64) {
+pub(crate) fn t_range(t: &[LatticePoint; 4]) -> (f64, f64) {
     let ts = t.map(|p| p[3]);
     (
         f64::from(*ts.iter().min().expect("4")),
@@ -739,6 +741,18 @@ pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
     let start = std::time::Instant::now();
     let all = walk(a, b, false);
     finish_pair(a, b, all, start)
+}
+
+/// One tet pair whose boundaries cross: the checker-time range of their section, and the
+/// two tets (indices in the leaf order of the bodies' meshes).
+pub type CrossingPair = (f64, f64, u32, u32);
+
+/// [`check_pair`], with every crossing tet pair it found (in no particular order).
+pub fn check_pair_detailed(a: &Prepared, b: &Prepared) -> (PairResult, Vec<CrossingPair>) {
+    let start = std::time::Instant::now();
+    let all = walk(a, b, false);
+    let crossings = all.ranges.clone();
+    (finish_pair(a, b, all, start), crossings)
 }
 
 /// [`check_pair`] with the walk done as the bodies' pieces arrived (`walked`, over `a`

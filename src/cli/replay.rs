@@ -450,10 +450,13 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
                 vector,
                 distance,
                 verified_clear,
+                episode_s,
                 ..
             } => writeln!(
                 s,
-                "  FIX      move {body} by ({:+.4}, {:+.4}, {:+.4}) m and {:+.3} s: {:.1} mm deep, {}",
+                "  FIX      {:.3}-{:.3} s: move {body} by ({:+.4}, {:+.4}, {:+.4}) m and {:+.3} s: {:.1} mm deep, {}",
+                episode_s[0],
+                episode_s[1],
                 vector[0],
                 vector[1],
                 vector[2],
@@ -466,6 +469,7 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
                 t0_s,
                 scale,
                 verified_clear,
+                ..
             } => writeln!(
                 s,
                 "  FIX      or retime {body}: durations after {t0_s:.3} s ×{scale:.3}, {}",

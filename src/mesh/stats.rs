@@ -112,6 +112,12 @@ impl StatsAccumulator {
         Self::default()
     }
 
+    /// The statistics of the slabs added so far (the caps' tets and vertices, and the
+    /// closing plane's faces, count only at [`finish`](Self::finish)).
+    pub fn so_far(&self) -> &BodyStats {
+        &self.stats
+    }
+
     /// Records the meshing time of one slab.
     pub fn record_time(&mut self, ms: f64) {
         self.stats.slab_ms.push(ms);

@@ -20,7 +20,7 @@ pub use std_types::{
     UVCoordinate, Vector3, Wrench, WrenchStamped,
 };
 pub use suite::{
-    BodySummary, InterferenceReport, MeshSlab, PairInterference, ResolveSuggestion,
+    BodySummary, ContactEvent, InterferenceReport, MeshSlab, PairInterference, ResolveSuggestion,
     ResolveSuggestions, TetLabels,
 };
 pub use voxel_grid::{Header, Point, Time, VoxelEncoding, VoxelGrid};

@@ -251,16 +251,26 @@ impl RosMessage for MeshSlab {
     }
 }
 
-/// `chronotope_msgs/msg/TetLabels`: every tet of one body labelled against another.
+/// `chronotope_msgs/msg/TetLabels`: the labels of one slab of a body against another body.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct TetLabels {
-    /// Time of the last frame checked; frame of the lattice.
+    /// Time of the slab's later frame; frame of the lattice.
     pub header: Header,
     /// The labelled body.
     pub body_id: String,
     /// The body it is labelled against.
     pub other_id: String,
-    /// One per tet, in the order of `body_id`'s MeshSlab pieces.
+    /// The slab: `body_id`'s LATERAL piece with this index.
+    pub index: u32,
+    /// Time of frame `index`.
+    pub stamp_lo: Time,
+    /// Time of frame `index + 1`.
+    pub stamp_hi: Time,
+    /// The labels begin with the tets of the body's CAP_START piece.
+    pub with_cap_start: bool,
+    /// The labels end with the tets of the body's CAP_END piece.
+    pub with_cap_end: bool,
+    /// One per tet: first cap (if any), the slab, last cap (if any).
     #[serde(with = "serde_bytes")]
     pub labels: Vec<u8>,
     /// INTERFERENCE count.
@@ -400,6 +410,10 @@ pub struct ResolveSuggestion {
     pub scale: f64,
     /// Checked again against every other body: clear.
     pub verified_clear: bool,
+    /// Start of the contact episode it clears (s since the time origin).
+    pub episode_start_s: f64,
+    /// End of that episode (s).
+    pub episode_end_s: f64,
 }
 
 impl ResolveSuggestion {
@@ -407,6 +421,55 @@ impl ResolveSuggestion {
     pub const KIND_TRANSLATE: u8 = 0;
     /// Retime the body.
     pub const KIND_TIME_SCALE: u8 = 1;
+}
+
+/// `chronotope_msgs/msg/ContactEvent`: a contact of two bodies as it begins, goes on and ends.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+pub struct ContactEvent {
+    /// Time of the later frame of the period that found, extended or closed it.
+    pub header: Header,
+    /// First body (ids in sorted order).
+    pub body_a: String,
+    /// Second body.
+    pub body_b: String,
+    /// [`Self::BEGIN`], [`Self::ONGOING`] or [`Self::END`].
+    pub event: u8,
+    /// The contact's place among the pair's contacts.
+    pub contact_index: u64,
+    /// Times below are seconds since this stamp.
+    pub time_origin: Time,
+    /// Interval start (s).
+    pub start_s: f64,
+    /// Interval end so far (s).
+    pub end_s: f64,
+    /// Bound on the start's error (s), NaN until known.
+    pub start_error_bound_s: f64,
+    /// Bound on the end's error (s), NaN before the end.
+    pub end_error_bound_s: f64,
+    /// The pair's first contact (s).
+    pub first_contact_s: f64,
+    /// The pair's overlap so far (m³·s), NaN if not measurable.
+    pub overlap_hypervolume_m3s: f64,
+}
+
+impl ContactEvent {
+    /// A new contact.
+    pub const BEGIN: u8 = 0;
+    /// The contact went on through another frame period.
+    pub const ONGOING: u8 = 1;
+    /// The contact ended.
+    pub const END: u8 = 2;
+}
+
+impl RosMessage for ContactEvent {
+    const TYPE_NAME: &'static str = "chronotope_msgs/msg/ContactEvent";
+    const DEFINITION: &'static str = include_str!("../../msgs/msg/ContactEvent.msg");
+    fn dependencies() -> Vec<(&'static str, &'static str)> {
+        deps![
+            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+        ]
+    }
 }
 
 /// `chronotope_msgs/msg/ResolveSuggestions`.

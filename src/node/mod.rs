@@ -18,9 +18,9 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::msg::{
-    decode_cdr, encode_cdr, CdrError, DiagnosticArray, InterferenceReport, Marker, MarkerArray,
-    MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid,
-    WrenchStamped,
+    decode_cdr, encode_cdr, CdrError, ContactEvent, DiagnosticArray, InterferenceReport, Marker,
+    MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels,
+    VoxelGrid, WrenchStamped,
 };
 
 macro_rules! payloads {
@@ -101,6 +101,7 @@ payloads! {
     TetLabels(TetLabels),
     Report(InterferenceReport),
     Suggestions(ResolveSuggestions),
+    Contact(ContactEvent),
     Marker(Marker),
     MarkerArray(MarkerArray),
     PoseStamped(PoseStamped),
