@@ -19,7 +19,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 use chronotope::bag::BagReader;
-use chronotope::msg::{decode_cdr, InterferenceReport, MarkerArray, TetLabels};
+use chronotope::msg::{decode_cdr, ContactEvent, InterferenceReport, MarkerArray, TetLabels};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
 
@@ -112,6 +112,7 @@ struct Offline {
     reports: Vec<InterferenceReport>,
     labels: Vec<TetLabels>,
     markers: Vec<MarkerArray>,
+    contacts: Vec<ContactEvent>,
 }
 
 fn offline(out: &Path) -> Offline {
@@ -119,6 +120,7 @@ fn offline(out: &Path) -> Offline {
         reports: Vec::new(),
         labels: Vec::new(),
         markers: Vec::new(),
+        contacts: Vec::new(),
     };
     for m in BagReader::open(out).expect("the replay's output bag opens") {
         let m = m.expect("the replay's output bag reads");
@@ -126,6 +128,7 @@ fn offline(out: &Path) -> Offline {
             "/checker/report" => o.reports.push(decode_cdr(&m.data).expect("a report")),
             "/checker/labels" => o.labels.push(decode_cdr(&m.data).expect("labels")),
             "/checker/markers" => o.markers.push(decode_cdr(&m.data).expect("markers")),
+            "/checker/contacts" => o.contacts.push(decode_cdr(&m.data).expect("a contact")),
             _ => {}
         }
     }
@@ -266,30 +269,45 @@ fn compare_report(live: &Value, r: &InterferenceReport) {
 }
 
 fn compare_labels(live: &Value, offline: &[TetLabels]) {
-    // Keyed by (body, other): the live order is the order of arrival.
-    let live: BTreeMap<(String, String), &Value> = live
+    // Keyed by (body, other, slab): the live order is the order of arrival.
+    let live: BTreeMap<(String, String, u64), &Value> = live
         .as_array()
         .expect("labels")
         .iter()
         .map(|l| {
             (
-                (s(&l["body_id"]).to_owned(), s(&l["other_id"]).to_owned()),
+                (
+                    s(&l["body_id"]).to_owned(),
+                    s(&l["other_id"]).to_owned(),
+                    u(&l["index"]),
+                ),
                 l,
             )
         })
         .collect();
-    let off: BTreeMap<(String, String), &TetLabels> = offline
+    let off: BTreeMap<(String, String, u64), &TetLabels> = offline
         .iter()
-        .map(|l| ((l.body_id.clone(), l.other_id.clone()), l))
+        .map(|l| {
+            (
+                (l.body_id.clone(), l.other_id.clone(), u64::from(l.index)),
+                l,
+            )
+        })
         .collect();
+    assert_eq!(live.len(), offline.len(), "labels: one message per body, pair and slab");
     assert_eq!(
         live.keys().collect::<Vec<_>>(),
         off.keys().collect::<Vec<_>>(),
-        "labels: (body_id, other_id) received over Cyclone vs offline"
+        "labels: (body_id, other_id, index) received over Cyclone vs offline"
     );
     for (k, l) in &live {
         let o = off[k];
-        let w = format!("labels {} vs {}", k.0, k.1);
+        let w = format!("labels {} vs {} slab {}", k.0, k.1, k.2);
+        assert_eq!(
+            (l["with_cap_start"].as_bool(), l["with_cap_end"].as_bool()),
+            (Some(o.with_cap_start), Some(o.with_cap_end)),
+            "{w}: caps"
+        );
         assert_eq!(u(&l["len"]), o.labels.len() as u64, "{w}: number of labels");
         assert_eq!(u(&l["interference"]), o.interference, "{w}: interference");
         assert_eq!(u(&l["inside"]), o.inside, "{w}: inside");
@@ -311,9 +329,63 @@ fn compare_labels(live: &Value, offline: &[TetLabels]) {
     }
 }
 
+/// The same contact events, in the same order, and at least one taken by the peer while it
+/// was still playing frames: contacts are published while the streams go on.
+fn compare_contacts(live: &Value, offline: &[ContactEvent]) {
+    let live = live.as_array().expect("contacts");
+    // Per pair in order (pairs interleave in the order their frames arrived).
+    let mut live: Vec<&Value> = live.iter().collect();
+    live.sort_by_key(|l| (s(&l["body_a"]).to_owned(), s(&l["body_b"]).to_owned()));
+    let mut offline: Vec<&ContactEvent> = offline.iter().collect();
+    offline.sort_by_key(|o| (o.body_a.clone(), o.body_b.clone()));
+    let brief_live: Vec<String> = live
+        .iter()
+        .map(|l| format!("{} {} {}#{}", s(&l["body_a"]), s(&l["body_b"]), u(&l["event"]), u(&l["contact_index"])))
+        .collect();
+    let brief_off: Vec<String> = offline
+        .iter()
+        .map(|o| format!("{} {} {}#{}", o.body_a, o.body_b, o.event, o.contact_index))
+        .collect();
+    assert_eq!(brief_live, brief_off, "contact events over Cyclone vs offline");
+    for (i, (l, o)) in live.iter().zip(offline).enumerate() {
+        let w = format!("contacts[{i}]");
+        assert_eq!(s(&l["body_a"]), o.body_a, "{w}: body_a");
+        assert_eq!(s(&l["body_b"]), o.body_b, "{w}: body_b");
+        assert_eq!(u(&l["event"]), u64::from(o.event), "{w}: event");
+        assert_eq!(u(&l["contact_index"]), o.contact_index, "{w}: contact_index");
+        eq_f(&format!("{w}.start_s"), f(&l["start_s"]), o.start_s);
+        eq_f(&format!("{w}.end_s"), f(&l["end_s"]), o.end_s);
+        eq_f(
+            &format!("{w}.start_error_bound_s"),
+            f(&l["start_error_bound_s"]),
+            o.start_error_bound_s,
+        );
+        eq_f(
+            &format!("{w}.overlap_hypervolume_m3s"),
+            f(&l["overlap_hypervolume_m3s"]),
+            o.overlap_hypervolume_m3s,
+        );
+    }
+    let streaming = live
+        .iter()
+        .filter(|l| l["while_streaming"].as_bool() == Some(true))
+        .count();
+    assert!(
+        streaming > 0,
+        "no contact event arrived while the frames were being played ({} in all)",
+        live.len()
+    );
+}
+
 fn compare_markers(live: &Value, offline: &[MarkerArray]) {
     let live = live.as_array().expect("markers");
     assert_eq!(live.len(), offline.len(), "number of MarkerArray messages");
+    // Per body in order (one array per body and slab; bodies interleave in the order their
+    // frames arrived).
+    let mut live: Vec<&Value> = live.iter().collect();
+    live.sort_by_key(|l| s(&l["ids"][0][0]).to_owned());
+    let mut offline: Vec<&MarkerArray> = offline.iter().collect();
+    offline.sort_by_key(|o| o.markers.first().map(|k| k.ns.clone()));
     for (i, (l, o)) in live.iter().zip(offline).enumerate() {
         assert_eq!(
             u(&l["markers"]),
@@ -395,10 +467,13 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
         String::from_utf8_lossy(&out.stderr)
     );
     let off = offline(&offline_bag);
-    assert_eq!(
-        off.reports.len(),
-        1,
-        "the offline replay publishes one report"
+    assert!(
+        !off.reports.is_empty(),
+        "the offline replay publishes a report"
+    );
+    assert!(
+        !off.contacts.is_empty(),
+        "the offline replay publishes contact events"
     );
     assert!(
         !off.labels.is_empty(),
@@ -433,6 +508,8 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
         .arg("--out")
         .arg(&json)
         .args([
+            "--expect-labels",
+            &off.labels.len().to_string(),
             "--domain",
             &domain,
             "--match-timeout",
@@ -477,12 +554,13 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
     );
 
     let live: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(
-        live["reports"].as_array().map(Vec::len),
-        Some(1),
-        "one report over Cyclone"
+    assert!(
+        live["reports"].as_array().is_some_and(|r| !r.is_empty()),
+        "a report over Cyclone"
     );
-    compare_report(&live["report"], &off.reports[0]);
+    // The last report is the whole answer; the ones before it are the answer so far.
+    compare_report(&live["report"], off.reports.last().unwrap());
+    compare_contacts(&live["contacts"], &off.contacts);
     compare_labels(&live["labels"], &off.labels);
     if markers {
         compare_markers(&live["markers"], &off.markers);

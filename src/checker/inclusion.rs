@@ -167,6 +167,21 @@ impl<'a> Inclusion<'a> {
         inc
     }
 
+    /// Far points at times strictly between `t0` and `t1` (`t1 − t0` at least
+    /// [`FAR_POINTS`] + 1), for points whose time lies in [t0, t1]: every segment to them
+    /// stays in that band (its interior strictly inside), so it meets only the tets there.
+    /// A mesh that is one slab of a body between two frame times (closed or not at the
+    /// band's ends) then answers as the whole body does at those times.
+    #[must_use]
+    pub fn within_time(mut self, t0: i32, t1: i32) -> Self {
+        let span = i64::from(t1) - i64::from(t0);
+        for (k, f) in self.far.iter_mut().enumerate() {
+            let t = i64::from(t0) + span * (k as i64 + 1) / (FAR_POINTS as i64 + 1);
+            f[3] = t as i32;
+        }
+        self
+    }
+
     /// `Some(true)` if `p` is inside, `Some(false)` outside, `None` if every far point met a
     /// degenerate configuration (p on or very near-aligned with the boundary).
     ///

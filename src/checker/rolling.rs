@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use super::bounds;
 use super::labels::{Label, LabelCounts};
-use super::window::{check_window, prepare_window, CapSource, WindowBody, WindowResult};
+use super::window::{check_window, prepare_window, WindowBody, WindowResult};
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
 use crate::kernel::float::tet_normal as float_normal;
@@ -797,25 +797,32 @@ impl RollingChecker {
                 } else {
                     (&b, &a)
                 };
-                if other == Status::Maybe {
-                    if !over(self, s) {
-                        return false;
-                    }
-                    // A partner that stopped is gone; one that never said anything is late.
-                    let stopped = self.bodies[partner].current().is_some_and(|r| r.ended());
-                    if !stopped && !self.pairs[i].partner_absent {
-                        self.pairs[i].partner_absent = true;
-                        let hi = self.bodies[me].slabs[&s].hi;
-                        let why = format!(
-                            "pair {a} x {b}: {partner} has nothing for {:.3}-{:.3} s while {me} is \
-                             {} slabs ahead; {me} is checked without it from there (pieces of \
-                             {partner} that come later for that time are refused)",
-                            self.seconds_of_stamp(s),
-                            self.seconds_of_stamp(hi),
-                            self.cfg.max_lead_frames
-                        );
-                        self.problem(out, "partner_late", why);
-                    }
+                if other == Status::Maybe && !over(self, s) {
+                    return false;
+                }
+                // A partner that stopped is gone; one that never said anything is late.
+                let stopped = self.bodies[partner].current().is_some_and(|r| r.ended());
+                if stopped && !self.pairs[i].partner_absent {
+                    self.pairs[i].partner_absent = true;
+                    let why = format!(
+                        "{partner}: its frames end before {:.3} s while {me} goes on (the \
+                         stream stopped); pair {a} x {b} has nothing to check from there until \
+                         it comes back",
+                        self.seconds_of_stamp(s)
+                    );
+                    self.problem(out, "partner_stopped", why);
+                } else if other == Status::Maybe && !self.pairs[i].partner_absent {
+                    self.pairs[i].partner_absent = true;
+                    let hi = self.bodies[me].slabs[&s].hi;
+                    let why = format!(
+                        "pair {a} x {b}: {partner} has nothing for {:.3}-{:.3} s while {me} is \
+                         {} slabs ahead; {me} is checked without it from there (pieces of \
+                         {partner} that come later for that time are refused)",
+                        self.seconds_of_stamp(s),
+                        self.seconds_of_stamp(hi),
+                        self.cfg.max_lead_frames
+                    );
+                    self.problem(out, "partner_late", why);
                 }
                 let me = me.clone();
                 self.alone(i, &me, s, out);
@@ -877,9 +884,19 @@ impl RollingChecker {
         {
             p.stamps.pop_first();
         }
-        // Nothing later can start before the end of this period.
+        // Nothing later can start before the end of this period, and nothing goes on past
+        // it where either body's stream ends there.
         let hi_t = ((k + 1 - p.base) * p.per) as f64;
-        if p.open.as_ref().is_some_and(|o| o.t.1 < hi_t) {
+        let before_end = p.open.as_ref().is_some_and(|o| o.t.1 < hi_t);
+        let (a, b) = (p.a.clone(), p.b.clone());
+        let ends_here = |id: &str| {
+            let body = &self.bodies[id];
+            body.slabs
+                .get(&s)
+                .and_then(|x| body.run(x.run))
+                .is_some_and(|r| r.last_cap_at(hi).is_some())
+        };
+        if before_end || ends_here(&a) || ends_here(&b) {
             self.close_open(i, out);
         }
         self.finish_speeds(i, false);
@@ -928,38 +945,8 @@ impl RollingChecker {
                 hi_stamp = x.hi;
             }
         }
-        // An end without a frame (never sent, or filled in by the mesher): reach further
-        // while the slab is there.
-        let real_low = |st: i64| r.first_stamp == st;
-        let real_high = |st: i64| r.last_cap_at(st).is_some();
-        for _ in 0..CONTEXT_SLABS {
-            if real_low(lo_stamp) || body.frames.contains_key(&lo_stamp) {
-                break;
-            }
-            let Some(x) = prev(lo_stamp) else { break };
-            slabs.push_front(x);
-            centre += 1;
-            lo_stamp = x.0;
-        }
-        for _ in 0..CONTEXT_SLABS {
-            if real_high(hi_stamp) || body.frames.contains_key(&hi_stamp) {
-                break;
-            }
-            let Some(x) = body.slabs.get(&hi_stamp).filter(|x| x.run == r.id) else {
-                break;
-            };
-            slabs.push_back((hi_stamp, x));
-            hi_stamp = x.hi;
-        }
-        let low = if real_low(lo_stamp) {
-            OwnedCap::Real(r.first_cap.clone())
-        } else {
-            OwnedCap::Frame(body.frames.get(&lo_stamp)?.clone())
-        };
-        let high = match r.last_cap_at(hi_stamp) {
-            Some(c) => OwnedCap::Real(c.clone()),
-            None => OwnedCap::Frame(body.frames.get(&hi_stamp)?.clone()),
-        };
+        let low = (r.first_stamp == lo_stamp).then(|| r.first_cap.clone());
+        let high = r.last_cap_at(hi_stamp).cloned();
         let lo_common = k - centre as i64;
         Some(WindowSpec {
             geometry: r.geometry,
@@ -1059,10 +1046,9 @@ impl RollingChecker {
             self.advance(i, s, hi, k, out);
             return true;
         };
-        let iso = self.opts.decode.iso_percent;
-        let max_cap_tets = self.opts.max_slab_tets;
-        let result = prepare_window(&wa.body(&a, iso, max_cap_tets))
-            .and_then(|pa| Ok((pa, prepare_window(&wb.body(&b, iso, max_cap_tets))?)));
+        let t0 = std::time::Instant::now();
+        let result = prepare_window(&wa.body(&a))
+            .and_then(|pa| Ok((pa, prepare_window(&wb.body(&b))?)));
         let (pa, pb) = match result {
             Ok(x) => x,
             Err(e) => {
@@ -1076,7 +1062,19 @@ impl RollingChecker {
                 return true;
             }
         };
+        let t1 = std::time::Instant::now();
         let r = check_window(&pa, &pb);
+        if std::env::var_os("CHRONO_DEBUG").is_some() {
+            eprintln!(
+                "window {a} x {b} at {s}: slabs {}+{} tets {}+{} prep {:.3} s check {:.3} s",
+                wa.slabs.len(),
+                wb.slabs.len(),
+                pa.body.mesh.tets.len(),
+                pb.body.mesh.tets.len(),
+                (t1 - t0).as_secs_f64(),
+                t1.elapsed().as_secs_f64()
+            );
+        }
         drop((pa, pb));
         self.overlap_push(i, s, hi);
         {
@@ -1173,25 +1171,33 @@ impl RollingChecker {
                 }
             }
         }
-        // Ranges in order: merged into the open interval, or closing it and opening another.
+        // The window's ranges merged (so that a contact begins with all this period gives
+        // it, whatever order the walk found them in), then in order: merged into the open
+        // interval, or closing it and opening another.
         let mut ranges = r.ranges.clone();
-        ranges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0));
-        let mut extended = false;
+        ranges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
+        let mut merged: Vec<(f64, f64)> = Vec::new();
         for (t0, t1) in ranges {
+            match merged.last_mut() {
+                Some(m) if t0 <= m.1 => m.1 = m.1.max(t1),
+                _ => merged.push((t0, t1)),
+            }
+        }
+        for (t0, t1) in merged {
             let merges = self.pairs[i].open.as_ref().is_some_and(|o| t0 <= o.t.1);
             if merges {
+                let mut extended = false;
                 if let Some(o) = &mut self.pairs[i].open {
                     if t1 > o.t.1 {
                         o.t.1 = t1;
                         extended = true;
                     }
                 }
+                if extended {
+                    self.convert_open(i);
+                    out.extend(self.update(i, ContactPhase::Ongoing, hi));
+                }
                 continue;
-            }
-            if extended {
-                self.convert_open(i);
-                out.extend(self.update(i, ContactPhase::Ongoing, hi));
-                extended = false;
             }
             self.close_open(i, out);
             let p = &mut self.pairs[i];
@@ -1206,10 +1212,6 @@ impl RollingChecker {
             });
             self.convert_open(i);
             out.extend(self.update(i, ContactPhase::Begin, hi));
-        }
-        if extended {
-            self.convert_open(i);
-            out.extend(self.update(i, ContactPhase::Ongoing, hi));
         }
     }
 
@@ -1775,13 +1777,6 @@ fn plan_movable(plan: &CheckPlan) -> BTreeMap<String, f64> {
         .collect()
 }
 
-/// An end cap of a window body, owned.
-#[derive(Debug, Clone)]
-enum OwnedCap {
-    Real(Arc<TetMesh>),
-    Frame(Arc<OccupancyGrid>),
-}
-
 /// What one body's window is made of (see [`WindowBody`]).
 #[derive(Debug, Clone)]
 struct WindowSpec {
@@ -1789,8 +1784,8 @@ struct WindowSpec {
     lo: u32,
     slabs: Vec<Arc<TetMesh>>,
     centre: usize,
-    low: OwnedCap,
-    high: OwnedCap,
+    low: Option<Arc<TetMesh>>,
+    high: Option<Arc<TetMesh>>,
     mul: i64,
     add: [i64; 4],
     /// Run number of the first taken tet.
@@ -1798,23 +1793,17 @@ struct WindowSpec {
 }
 
 impl WindowSpec {
-    fn body<'a>(&'a self, id: &'a str, iso: u8, max_cap_tets: usize) -> WindowBody<'a> {
-        let cap = |c: &'a OwnedCap| match c {
-            OwnedCap::Real(m) => CapSource::Real(m.as_ref()),
-            OwnedCap::Frame(f) => CapSource::Frame(f.as_ref()),
-        };
+    fn body<'a>(&'a self, id: &'a str) -> WindowBody<'a> {
         WindowBody {
             id,
             geometry: self.geometry,
-            iso,
             lo: self.lo,
             slabs: self.slabs.iter().map(|m| m.as_ref()).collect(),
             centre: self.centre,
-            low: cap(&self.low),
-            high: cap(&self.high),
+            low: self.low.as_deref(),
+            high: self.high.as_deref(),
             mul: self.mul,
             add: self.add,
-            max_cap_tets,
         }
     }
 }

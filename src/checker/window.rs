@@ -6,37 +6,34 @@
 //! - **Interference.** A lateral tet's relative interior lies strictly between the two frame
 //!   times, so it can only cross the other body's lateral tets of the same slab; tets of
 //!   neighbouring slabs and caps meet it in one instant at most, and only touch.
-//! - **Inside or outside.** Whether a point strictly inside the slab lies inside the other
-//!   body is the same question for the other body's slab closed by two caps: the closed
-//!   solid agrees with the body at every time strictly between its end caps.
+//! - **Inside or outside.** Whether a point of the slab lies inside the other body is
+//!   decided along segments that stay in the slab's time band: to far points whose time
+//!   lies strictly between the two frame times (see [`Inclusion::within_time`]), and
+//!   between interior points of neighbouring tets of the slab. Such a segment meets only
+//!   the other body's lateral tets of the same slab, and that slab, closed by any two caps,
+//!   agrees with the other body at every time strictly between them: the crossing count
+//!   is the one the closed body gives, and no cap is needed.
 //!
-//! So each body's window is its slab closed by caps: its own first or last cap where its
-//! stream starts or ends there, otherwise a cap built from its decoded frame there (an
-//! *artificial* cap, not part of the body's boundary). Labels are taken only for the
-//! *centre* slab and the real caps at its two frame times. A real cap of one body lies in
-//! a time plane where the other body may go on: the other's window then reaches one slab
-//! further, so that its artificial cap is not in that plane (see [`WindowBody`]). With that,
-//! every taken tet gets exactly the label and the crossings the full check gives it
-//! (tests/rolling.rs compares the two on whole scenes).
+//! So each body's window is its slab, with its own first or last cap where its stream
+//! starts or ends there. Labels are taken only for the *centre* slab and the real caps at
+//! its two frame times. A real cap of one body lies in a time plane where the other body
+//! may go on, and there meets the other's slabs on both sides of it: the other's window
+//! then reaches one slab further (see [`WindowBody`]). With that, every taken tet gets
+//! exactly the label and the crossings the full check gives it (tests/rolling.rs compares
+//! the two on whole scenes).
+//!
+//! [`Inclusion::within_time`]: super::inclusion::Inclusion::within_time
 
 use std::ops::Range;
 
-use super::labels::{Label, LabelCounts};
+use super::inclusion::Inclusion;
+use super::labels::{label_regions, InsideTest, Label, LabelCounts, Labeling, Touch};
 use super::prep::{BodyPrep, PrepError};
-use super::{check_pair_detailed, t_range, tet_of, Prepared, CHECKER_FACTOR};
+use super::{t_range, tet_of, walk, Prepared, TetInside, CHECKER_FACTOR};
 use crate::kernel::float::tet_normal;
-use crate::mesh::march::{march_cap, Welder};
-use crate::mesh::table::table;
-use crate::mesh::{CapSide, GridGeometry, OccupancyGrid, SlabPlacement, TetMesh};
-
-/// Where a window body's end cap comes from.
-#[derive(Debug, Clone, Copy)]
-pub enum CapSource<'a> {
-    /// The body's own first or last cap (as the mesher sent it, in the body's lattice).
-    Real(&'a TetMesh),
-    /// The body goes on past this frame: an artificial cap built from the decoded frame.
-    Frame(&'a OccupancyGrid),
-}
+use crate::kernel::LatticePoint;
+use crate::mesh::march::Welder;
+use crate::mesh::{GridGeometry, TetMesh};
 
 /// One body's part of a window.
 #[derive(Debug, Clone)]
@@ -45,8 +42,6 @@ pub struct WindowBody<'a> {
     pub id: &'a str,
     /// The body's lattice.
     pub geometry: GridGeometry,
-    /// Percent iso level of its frames (graded frames only).
-    pub iso: u8,
     /// Body frame index of the first slab's earlier frame.
     pub lo: u32,
     /// Consecutive lateral pieces from `lo` (body lattice, as the mesher made them).
@@ -54,17 +49,15 @@ pub struct WindowBody<'a> {
     /// Which of `slabs` is the checked one (the others are context for the other body's
     /// real caps).
     pub centre: usize,
-    /// The cap at frame `lo`.
-    pub low: CapSource<'a>,
-    /// The cap at frame `lo + slabs.len()`.
-    pub high: CapSource<'a>,
+    /// The body's first cap, if its stream starts at frame `lo`.
+    pub low: Option<&'a TetMesh>,
+    /// The body's last cap, if its stream ends at frame `lo + slabs.len()`.
+    pub high: Option<&'a TetMesh>,
     /// Axis map onto the pair's lattice: checker coordinates (body lattice ×
     /// [`CHECKER_FACTOR`], with frame `lo` at time 0) times `mul`, plus `add`.
     pub mul: i64,
     /// See `mul`.
     pub add: [i64; 4],
-    /// Most tets an artificial cap may have.
-    pub max_cap_tets: usize,
 }
 
 /// Why a window cannot be checked.
@@ -75,16 +68,6 @@ pub enum WindowError {
     NoCentre {
         /// The body.
         id: String,
-    },
-    /// An artificial cap would exceed the tet limit.
-    #[error("body {id}: the cap of frame {frame} exceeds {limit} tets")]
-    CapTooLarge {
-        /// The body.
-        id: String,
-        /// Body frame index.
-        frame: u32,
-        /// The limit.
-        limit: usize,
     },
     /// The window's mesh cannot be prepared.
     #[error("body {id}: {source}")]
@@ -105,11 +88,13 @@ pub enum WindowError {
 /// One body of a window, prepared, with the tets whose labels are taken.
 #[derive(Debug)]
 pub struct PreparedWindow {
-    /// The closed window mesh on the pair's lattice.
+    /// The window mesh on the pair's lattice.
     pub body: Prepared,
     /// Taken tets in the window mesh's own order: the real first cap (if the centre slab
     /// opens the stream), the centre slab, the real last cap (if it closes it).
     pub taken: [Range<usize>; 3],
+    /// Checker times of the centre slab's two frames on the pair's lattice.
+    pub band: (i32, i32),
 }
 
 impl PreparedWindow {
@@ -141,64 +126,41 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     if w.centre >= w.slabs.len() {
         return Err(WindowError::NoCentre { id: id() });
     }
-    let scale = w.geometry.scale;
-    let shift_t = i64::from(scale) * i64::from(w.lo);
-    let shifted = |m: &TetMesh| -> Result<TetMesh, WindowError> {
-        let mut out = m.clone();
-        for p in &mut out.vertices {
-            let t = i64::from(p[3]) - shift_t;
-            p[3] = i32::try_from(t).map_err(|_| WindowError::Overflow { id: id() })?;
-        }
-        Ok(out)
-    };
-    let cap = |src: &CapSource<'_>, local: u32, side: CapSide| -> Result<TetMesh, WindowError> {
-        match src {
-            CapSource::Real(m) => shifted(m),
-            CapSource::Frame(g) => {
-                let mut out = TetMesh::default();
-                let at = SlabPlacement {
-                    scale,
-                    frame: i64::from(local),
-                    iso: w.iso,
-                };
-                if march_cap(table(), g, at, side, w.max_cap_tets, &mut out) {
-                    Ok(out)
-                } else {
-                    Err(WindowError::CapTooLarge {
-                        id: id(),
-                        frame: w.lo + local,
-                        limit: w.max_cap_tets,
-                    })
-                }
-            }
-        }
-    };
-    let n = w.slabs.len() as u32;
+    let scale = i64::from(w.geometry.scale);
+    let shift_t = scale * i64::from(w.lo);
+    let overflow = || WindowError::Overflow { id: id() };
     let mut mesh = TetMesh::default();
     let mut welder = Welder::default();
     let mut pieces = Vec::with_capacity(w.slabs.len() + 2);
     let mut ranges = Vec::with_capacity(w.slabs.len() + 2);
-    let mut push = |part: &TetMesh, mesh: &mut TetMesh| {
+    let parts = w
+        .low
+        .iter()
+        .chain(&w.slabs)
+        .chain(w.high.iter())
+        .copied();
+    for part in parts {
         let start = mesh.tets.len();
+        let first_vertex = mesh.vertices.len();
         pieces.push(start);
-        welder.append(mesh, part);
+        welder.append(&mut mesh, part);
+        // New vertices only: welded ones are already shifted.
+        for p in &mut mesh.vertices[first_vertex..] {
+            let t = i64::from(p[3]) - shift_t;
+            p[3] = i32::try_from(t).map_err(|_| overflow())?;
+        }
         ranges.push(start..mesh.tets.len());
-    };
-    push(&cap(&w.low, 0, CapSide::Low)?, &mut mesh);
-    for s in &w.slabs {
-        push(&shifted(s)?, &mut mesh);
     }
-    push(&cap(&w.high, n, CapSide::High)?, &mut mesh);
+    let centre = w.centre + usize::from(w.low.is_some());
     let empty = 0..0;
-    let centre = w.centre + 1;
     let taken = [
-        if w.centre == 0 && matches!(w.low, CapSource::Real(_)) {
+        if w.centre == 0 && w.low.is_some() {
             ranges[0].clone()
         } else {
             empty.clone()
         },
         ranges[centre].clone(),
-        if w.centre + 1 == w.slabs.len() && matches!(w.high, CapSource::Real(_)) {
+        if w.centre + 1 == w.slabs.len() && w.high.is_some() {
             ranges[ranges.len() - 1].clone()
         } else {
             empty
@@ -219,9 +181,14 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     };
     let mul = [w.mul; 4];
     if (mul != [1; 4] || w.add != [0; 4]) && !body.map_in_place(mul, w.add) {
-        return Err(WindowError::Overflow { id: id() });
+        return Err(overflow());
     }
-    Ok(PreparedWindow { body, taken })
+    let period = scale * i64::from(CHECKER_FACTOR);
+    let time = |frame: i64| -> Result<i32, WindowError> {
+        i32::try_from(frame * period * w.mul + w.add[3]).map_err(|_| overflow())
+    };
+    let band = (time(w.centre as i64)?, time(w.centre as i64 + 1)?);
+    Ok(PreparedWindow { body, taken, band })
 }
 
 /// One crossing tet pair of two taken tets.
@@ -256,7 +223,7 @@ pub struct WindowResult {
     pub ranges: Vec<(f64, f64)>,
     /// The crossings of taken tets.
     pub crossings: Vec<Crossing>,
-    /// Candidate tet pairs of the window (artificial caps and context slabs included).
+    /// Candidate tet pairs of the window (context slabs included).
     pub candidate_pairs: u64,
     /// Regions or contact tets whose inclusion stayed undecided (labelled OUTSIDE).
     pub undecided: u32,
@@ -264,27 +231,26 @@ pub struct WindowResult {
 
 /// Checks two prepared window bodies and keeps what their taken tets get.
 pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
-    let (r, crossings) = check_pair_detailed(&a.body, &b.body);
+    let all = walk(&a.body, &b.body, false);
+    let (la, lb) = rayon::join(
+        || label_taken(a, b, &all.hit_a),
+        || label_taken(b, a, &all.hit_b),
+    );
     let mut out = WindowResult {
-        candidate_pairs: r.candidate_pairs,
-        undecided: r.labels_a.undecided_regions + r.labels_b.undecided_regions,
+        candidate_pairs: all.candidate_pairs,
+        undecided: la.1 + lb.1,
         ..WindowResult::default()
     };
-    for (k, (w, l)) in [(a, &r.labels_a), (b, &r.labels_b)].into_iter().enumerate() {
-        let mut labels = vec![Label::Outside as u8; w.taken_len()];
-        for (leaf, (&orig, &label)) in w.body.original.iter().zip(&l.labels).enumerate() {
-            if let Some(p) = w.position(orig) {
-                labels[p as usize] = label as u8;
-                if label == Label::Inside {
+    for (k, (w, (labels, _))) in [(a, la), (b, lb)].into_iter().enumerate() {
+        let mut counts = LabelCounts::default();
+        for (leaf, &orig) in w.body.original.iter().enumerate() {
+            let Some(p) = w.position(orig) else { continue };
+            match labels[p as usize] {
+                x if x == Label::Interference as u8 => counts.interference += 1,
+                x if x == Label::Inside as u8 => {
+                    counts.inside += 1;
                     out.ranges.push(t_range(&tet_of(&w.body.mesh, leaf as u32)));
                 }
-            }
-        }
-        let mut counts = LabelCounts::default();
-        for &l in &labels {
-            match l {
-                x if x == Label::Interference as u8 => counts.interference += 1,
-                x if x == Label::Inside as u8 => counts.inside += 1,
                 _ => counts.outside += 1,
             }
         }
@@ -294,7 +260,7 @@ pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
             pieces: w.taken.clone().map(|r| r.len()),
         };
     }
-    for (t0, t1, i, j) in crossings {
+    for &(t0, t1, i, j) in &all.ranges {
         let (Some(pa), Some(pb)) = (w_position(a, i), w_position(b, j)) else {
             continue;
         };
@@ -311,6 +277,75 @@ pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
     out.crossings
         .sort_unstable_by(|x, y| x.tets.cmp(&y.tets).then(x.t.0.total_cmp(&y.t.0)));
     out
+}
+
+/// Labels of `p`'s taken tets against `other` (one per taken tet, in piece order), with the
+/// regions and contact tets left undecided. Only the taken tets are labelled, as one
+/// mesh whose face adjacency stops at their edge; far points lie in the centre slab's time
+/// band, so every segment tested stays in it.
+fn label_taken(p: &PreparedWindow, other: &PreparedWindow, hit: &[Touch]) -> (Vec<u8>, u32) {
+    let n = p.body.mesh.tets.len();
+    let mut leaves: Vec<u32> = Vec::with_capacity(p.taken_len());
+    let mut compact = vec![u32::MAX; n];
+    for (leaf, &orig) in p.body.original.iter().enumerate() {
+        if p.position(orig).is_some() {
+            compact[leaf] = leaves.len() as u32;
+            leaves.push(leaf as u32);
+        }
+    }
+    let adjacency: Vec<[u32; 4]> = leaves
+        .iter()
+        .map(|&leaf| {
+            p.body.adjacency[leaf as usize].map(|nb| compact.get(nb as usize).copied().unwrap_or(u32::MAX))
+        })
+        .collect();
+    let touch: Vec<Touch> = leaves
+        .iter()
+        .map(|&leaf| hit.get(leaf as usize).copied().unwrap_or(Touch::Clear))
+        .collect();
+    let mut test = Taken {
+        inner: TetInside {
+            mesh: &p.body.mesh,
+            inc: Inclusion::with_normals(&other.body.mesh, &other.body.bvh, &other.body.normals)
+                .within_time(p.band.0, p.band.1),
+        },
+        leaves: &leaves,
+    };
+    let Labeling {
+        labels,
+        undecided_regions,
+        ..
+    } = label_regions(&adjacency, &touch, &mut test);
+    let mut out = vec![Label::Outside as u8; p.taken_len()];
+    for (c, &leaf) in leaves.iter().enumerate() {
+        if let Some(pos) = p.position(p.body.original[leaf as usize]) {
+            out[pos as usize] = labels[c] as u8;
+        }
+    }
+    (out, undecided_regions)
+}
+
+/// Inclusion tests of the taken tets, numbered in the order of `leaves`.
+struct Taken<'a> {
+    inner: TetInside<'a>,
+    leaves: &'a [u32],
+}
+
+impl InsideTest for Taken<'_> {
+    fn far(&mut self, t: u32, tries: usize) -> Option<(bool, LatticePoint)> {
+        self.inner.far(self.leaves[t as usize], tries)
+    }
+    fn from_known(
+        &mut self,
+        t: u32,
+        q: &LatticePoint,
+        q_inside: bool,
+    ) -> Option<(bool, LatticePoint)> {
+        self.inner.from_known(self.leaves[t as usize], q, q_inside)
+    }
+    fn point(&self, t: u32) -> LatticePoint {
+        self.inner.point(self.leaves[t as usize])
+    }
 }
 
 /// Position of leaf `i` of a window body among the taken tets in leaf order: each piece

@@ -14,7 +14,7 @@ use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{QosPolicies, QosPolicyBuilder, RepresentationIdentifier};
 
 use crate::msg::{
-    Clock, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab, PointCloud2,
+    Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab, PointCloud2,
     PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
 };
 
@@ -183,9 +183,11 @@ impl TopicQos {
             t if t == InterferenceReport::TYPE_NAME || t == ResolveSuggestions::TYPE_NAME => {
                 Self::latched(1)
             }
-            // Two per checked pair, published together: a depth of one would let a slow
-            // reader lose all but the last of them.
-            t if t == TetLabels::TYPE_NAME => Self::latched(32),
+            // Two per checked pair and frame period: a late subscriber gets the latest
+            // 64 (the history is not kept: a stream may run for hours).
+            t if t == TetLabels::TYPE_NAME => Self::latched(64),
+            // Every event counts; a late subscriber reads the report for what came before.
+            t if t == ContactEvent::TYPE_NAME => Self::reliable(64),
             t if t == MarkerArray::TYPE_NAME => Self::latched(256),
             t if t == Marker::TYPE_NAME => Self::best_effort(16),
             t if t == PointCloud2::TYPE_NAME => Self::latched(1),

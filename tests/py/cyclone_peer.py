@@ -232,10 +232,31 @@ class TetLabels(IdlStruct, typename="chronotope_msgs::msg::dds_::TetLabels_"):
     header: Header
     body_id: str
     other_id: str
+    index: uint32
+    stamp_lo: Time
+    stamp_hi: Time
+    with_cap_start: bool
+    with_cap_end: bool
     labels: sequence[uint8]
     interference: uint64
     inside: uint64
     outside: uint64
+
+
+@dataclass
+class ContactEvent(IdlStruct, typename="chronotope_msgs::msg::dds_::ContactEvent_"):
+    header: Header
+    body_a: str
+    body_b: str
+    event: uint8
+    contact_index: uint64
+    time_origin: Time
+    start_s: float64
+    end_s: float64
+    start_error_bound_s: float64
+    end_error_bound_s: float64
+    first_contact_s: float64
+    overlap_hypervolume_m3s: float64
 
 
 # ---- helpers ----------------------------------------------------------------------------
@@ -301,11 +322,33 @@ def labels_json(l: TetLabels) -> dict:
         "header": {"stamp": time_json(l.header.stamp), "frame_id": l.header.frame_id},
         "body_id": l.body_id,
         "other_id": l.other_id,
+        "index": int(l.index),
+        "stamp_lo": time_json(l.stamp_lo),
+        "stamp_hi": time_json(l.stamp_hi),
+        "with_cap_start": bool(l.with_cap_start),
+        "with_cap_end": bool(l.with_cap_end),
         "len": len(data),
         "sha256": hashlib.sha256(data).hexdigest(),
         "interference": int(l.interference),
         "inside": int(l.inside),
         "outside": int(l.outside),
+    }
+
+
+def contact_json(c: ContactEvent) -> dict:
+    return {
+        "header": {"stamp": time_json(c.header.stamp), "frame_id": c.header.frame_id},
+        "body_a": c.body_a,
+        "body_b": c.body_b,
+        "event": int(c.event),
+        "contact_index": int(c.contact_index),
+        "time_origin": time_json(c.time_origin),
+        "start_s": fbits(c.start_s),
+        "end_s": fbits(c.end_s),
+        "start_error_bound_s": fbits(c.start_error_bound_s),
+        "end_error_bound_s": fbits(c.end_error_bound_s),
+        "first_contact_s": fbits(c.first_contact_s),
+        "overlap_hypervolume_m3s": fbits(c.overlap_hypervolume_m3s),
     }
 
 
@@ -364,6 +407,8 @@ def main() -> int:
                     help="seconds to wait for the nodes' readers and writers to match")
     ap.add_argument("--timeout", type=float, default=30.0,
                     help="seconds to wait, after the last frame, for the report and labels")
+    ap.add_argument("--expect-labels", type=int, default=None,
+                    help="wait (within --timeout) for this many TetLabels messages")
     ap.add_argument("--markers", action="store_true",
                     help="also subscribe to /checker/markers (MarkerArray, ~1 MB each: slow in Python)")
     ap.add_argument("--markers-quiet", type=float, default=3.0,
@@ -399,7 +444,11 @@ def main() -> int:
 
     readers = {
         "report": latched_reader("rt/checker/report", InterferenceReport, 8),
-        "labels": latched_reader("rt/checker/labels", TetLabels, 64),
+        "labels": latched_reader("rt/checker/labels", TetLabels, 1024),
+        "contacts": DataReader(dp, Topic(dp, "rt/checker/contacts", ContactEvent),
+                               qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
+                                       Policy.Durability.Volatile,
+                                       Policy.History.KeepLast(1024))),
     }
     if a.markers:
         readers["markers"] = latched_reader("rt/checker/markers", MarkerArray, 256)
@@ -424,12 +473,18 @@ def main() -> int:
     got_report: list = []
     got_labels: list = []
     got_markers: list = []
+    got_contacts: list = []
+    playing = [True]
 
     def drain() -> None:
         for r in readers["report"].take(N=64):
             got_report.append(r)
-        for l in readers["labels"].take(N=64):
+        for l in readers["labels"].take(N=256):
             got_labels.append(l)
+        for c in readers["contacts"].take(N=256):
+            got_contacts.append(contact_json(c))
+            # Taken while frames were still being played: published while streaming.
+            got_contacts[-1]["while_streaming"] = playing[0]
         if "markers" in readers:
             for m in readers["markers"].take(N=64):
                 got_markers.append(markers_json(m))
@@ -446,8 +501,9 @@ def main() -> int:
                 break
             time.sleep(min(due - now, 0.01))
         writers[topic].write(msg)
-        if "markers" in readers:
-            drain()
+        drain()
+    drain()
+    playing[0] = False
     t_played = time.monotonic()
     log(f"published {len(frames)} frames in {t_played - t0:.2f} s")
 
@@ -459,6 +515,8 @@ def main() -> int:
         have = {(l.body_id, l.other_id) for l in got_labels}
         if a.expect_markers is not None and len(got_markers) < a.expect_markers:
             return False
+        if a.expect_labels is not None and len(got_labels) < a.expect_labels:
+            return False
         return want <= have
 
     deadline = time.monotonic() + a.timeout
@@ -467,6 +525,15 @@ def main() -> int:
         time.sleep(0.02)
     ok = complete()
     t_done = time.monotonic()
+    if ok:
+        # Contact events travel on their own topic: take what is still on its way.
+        quiet = time.monotonic()
+        while time.monotonic() - quiet < 1.0:
+            n = len(got_contacts)
+            drain()
+            if len(got_contacts) != n:
+                quiet = time.monotonic()
+            time.sleep(0.02)
     if ok and "markers" in readers and a.expect_markers is None:
         # Markers precede the report; take what is still queued.
         quiet = time.monotonic()
@@ -489,6 +556,7 @@ def main() -> int:
         "reports": [report_json(r) for r in got_report],
         "report": report_json(got_report[-1]) if got_report else None,
         "labels": [labels_json(l) for l in got_labels],
+        "contacts": got_contacts,
     }
     if "markers" in readers:
         out["markers"] = got_markers
@@ -502,7 +570,7 @@ def main() -> int:
             + (f", {len(got_markers)} marker arrays" if "markers" in readers else "")
             + f"; wrote what arrived to {a.out}")
         return 1
-    log(f"got {len(got_report)} report(s), {len(got_labels)} labels"
+    log(f"got {len(got_report)} report(s), {len(got_labels)} labels, {len(got_contacts)} contact events"
         + (f", {len(got_markers)} marker arrays" if "markers" in readers else "")
         + f" {t_done - t_played:.2f} s after the last frame; wrote {a.out}")
     return 0
