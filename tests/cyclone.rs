@@ -294,7 +294,11 @@ fn compare_labels(live: &Value, offline: &[TetLabels]) {
             )
         })
         .collect();
-    assert_eq!(live.len(), offline.len(), "labels: one message per body, pair and slab");
+    assert_eq!(
+        live.len(),
+        offline.len(),
+        "labels: one message per body, pair and slab"
+    );
     assert_eq!(
         live.keys().collect::<Vec<_>>(),
         off.keys().collect::<Vec<_>>(),
@@ -340,19 +344,34 @@ fn compare_contacts(live: &Value, offline: &[ContactEvent]) {
     offline.sort_by_key(|o| (o.body_a.clone(), o.body_b.clone()));
     let brief_live: Vec<String> = live
         .iter()
-        .map(|l| format!("{} {} {}#{}", s(&l["body_a"]), s(&l["body_b"]), u(&l["event"]), u(&l["contact_index"])))
+        .map(|l| {
+            format!(
+                "{} {} {}#{}",
+                s(&l["body_a"]),
+                s(&l["body_b"]),
+                u(&l["event"]),
+                u(&l["contact_index"])
+            )
+        })
         .collect();
     let brief_off: Vec<String> = offline
         .iter()
         .map(|o| format!("{} {} {}#{}", o.body_a, o.body_b, o.event, o.contact_index))
         .collect();
-    assert_eq!(brief_live, brief_off, "contact events over Cyclone vs offline");
+    assert_eq!(
+        brief_live, brief_off,
+        "contact events over Cyclone vs offline"
+    );
     for (i, (l, o)) in live.iter().zip(offline).enumerate() {
         let w = format!("contacts[{i}]");
         assert_eq!(s(&l["body_a"]), o.body_a, "{w}: body_a");
         assert_eq!(s(&l["body_b"]), o.body_b, "{w}: body_b");
         assert_eq!(u(&l["event"]), u64::from(o.event), "{w}: event");
-        assert_eq!(u(&l["contact_index"]), o.contact_index, "{w}: contact_index");
+        assert_eq!(
+            u(&l["contact_index"]),
+            o.contact_index,
+            "{w}: contact_index"
+        );
         eq_f(&format!("{w}.start_s"), f(&l["start_s"]), o.start_s);
         eq_f(&format!("{w}.end_s"), f(&l["end_s"]), o.end_s);
         eq_f(

@@ -291,7 +291,10 @@ fn a_checker_started_mid_stream_says_so_and_checks_the_next_stream() {
     // last one is the second stream's whole answer.
     let last = reports.last().expect("a report for the second stream");
     assert!(last.pairs[0].interfering);
-    assert!(last.bodies.iter().all(|b| b.closed && b.frames == 6), "{last:?}");
+    assert!(
+        last.bodies.iter().all(|b| b.closed && b.frames == 6),
+        "{last:?}"
+    );
     let st = checker.status();
     assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
     assert_eq!(st.problems.get("check_failed"), None, "{st:?}");

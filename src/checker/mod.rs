@@ -775,12 +775,10 @@ fn finish_pair(a: &Prepared, b: &Prepared, all: Part, start: std::time::Instant)
     let mut ranges: Vec<(f64, f64)> = all.ranges.iter().map(|r| (r.0, r.1)).collect();
     r.timing.detect_s = start.elapsed().as_secs_f64();
     let start = std::time::Instant::now();
-    let (la, lb) = std::thread::scope(|s| {
-        let hb = &all.hit_b;
-        let other = s.spawn(move || label_against(b, a, hb));
-        let la = label_against(a, b, &all.hit_a);
-        (la, other.join().expect("labelling worker panicked"))
-    });
+    let (la, lb) = rayon::join(
+        || label_against(a, b, &all.hit_a),
+        || label_against(b, a, &all.hit_b),
+    );
     r.labels_a = la;
     r.labels_b = lb;
     for (p, labels) in [(a, &r.labels_a), (b, &r.labels_b)] {
@@ -847,19 +845,14 @@ pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
     if all.interfering_pairs > 0 {
         return true;
     }
-    std::thread::scope(|s| {
-        let hb = &all.hit_b;
-        let other = s.spawn(move || {
-            label_against(b, a, hb)
-                .labels
-                .contains(&labels::Label::Inside)
-        });
-        let a_inside = label_against(a, b, &all.hit_a)
+    let inside = |p: &Prepared, other: &Prepared, hit: &[Touch]| {
+        label_against(p, other, hit)
             .labels
-            .contains(&labels::Label::Inside);
-        let b_inside = other.join().expect("labelling worker panicked");
-        a_inside || b_inside
-    })
+            .contains(&labels::Label::Inside)
+    };
+    let (a_inside, b_inside) =
+        rayon::join(|| inside(a, b, &all.hit_a), || inside(b, a, &all.hit_b));
+    a_inside || b_inside
 }
 
 /// The tree-against-tree walk with the exact predicate, split over all cores; with
@@ -867,8 +860,7 @@ pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
 fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Part {
     let mut tops = Vec::new();
     top_pairs(&a.bvh, &b.bvh, SPLIT_DEPTH, &mut tops);
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |t| t.get())
+    let threads = rayon::current_num_threads()
         .clamp(1, 8)
         .min(tops.len().max(1));
     let next = AtomicUsize::new(0);
@@ -899,13 +891,18 @@ fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Part {
     let parts: Vec<Part> = if threads == 1 {
         vec![work()]
     } else {
-        std::thread::scope(|s| {
-            let handles: Vec<_> = (0..threads).map(|_| s.spawn(work)).collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("checker worker panicked"))
-                .collect()
-        })
+        // One part per worker (each holds a flag per tet of both bodies), the top pairs
+        // taken in turn; the parts are merged with commutative operations.
+        let done = std::sync::Mutex::new(Vec::with_capacity(threads));
+        rayon::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| {
+                    let part = work();
+                    done.lock().unwrap_or_else(|e| e.into_inner()).push(part);
+                });
+            }
+        });
+        done.into_inner().unwrap_or_else(|e| e.into_inner())
     };
     let mut parts = parts.into_iter();
     let mut all = parts.next().expect("at least one worker");
@@ -1167,39 +1164,10 @@ impl labels::InsideTest for TetInside<'_> {
     }
 }
 
-/// `f(0..n)` computed on all available cores, results in index order.
+/// `f(0..n)` computed on rayon's pool, results in index order.
 pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |t| t.get())
-        .min(n.max(1));
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<Option<T>> = (0..n).map(|_| None).collect();
-    let done: Vec<Vec<(usize, T)>> = std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut mine = Vec::new();
-                    loop {
-                        let k = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if k >= n {
-                            break mine;
-                        }
-                        mine.push((k, f(k)));
-                    }
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .map(|w| w.join().expect("worker panicked"))
-            .collect()
-    });
-    for (k, v) in done.into_iter().flatten() {
-        out[k] = Some(v);
-    }
-    out.into_iter()
-        .map(|v| v.expect("every index computed"))
-        .collect()
+    use rayon::prelude::*;
+    (0..n).into_par_iter().map(|i| f(i)).collect()
 }
 
 /// Sorts closed ranges and merges those that overlap or touch.

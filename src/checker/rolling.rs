@@ -32,7 +32,7 @@ use std::sync::Arc;
 
 use super::bounds;
 use super::labels::{Label, LabelCounts};
-use super::window::{check_window, prepare_window, WindowBody, WindowResult};
+use super::window::{check_window, prepare_window, TakenLabels, WindowBody, WindowResult};
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
 use crate::kernel::float::tet_normal as float_normal;
@@ -45,8 +45,8 @@ use crate::report::{
 };
 
 /// Slabs kept behind the oldest undecided one, for windows that reach one slab further
-/// (another body's real cap in their time plane) or past a frame that never came.
-pub const CONTEXT_SLABS: usize = 4;
+/// (another body's real cap in their time plane).
+pub const CONTEXT_SLABS: usize = 1;
 
 /// After this many frame periods the pair's time coordinates start again at the current
 /// period (they must stay within the exact predicates' range).
@@ -73,6 +73,10 @@ pub struct RollingConfig {
     pub max_episode_s: f64,
     /// Most resolutions kept in the report (older ones are dropped and counted).
     pub max_resolutions: usize,
+    /// Most tets of lateral slabs kept for resolutions alone (all bodies together): older
+    /// slabs are dropped first, and an episode is then resolved over the horizon that is
+    /// left (said as a problem, `resolution_horizon_cut`).
+    pub max_horizon_tets: usize,
 }
 
 impl Default for RollingConfig {
@@ -82,9 +86,10 @@ impl Default for RollingConfig {
             labels: true,
             slabs_done: false,
             max_intervals: 4096,
-            horizon_s: 1.0,
+            horizon_s: 0.5,
             max_episode_s: 4.0,
             max_resolutions: 1024,
+            max_horizon_tets: 1_500_000,
         }
     }
 }
@@ -308,6 +313,8 @@ struct BodyStream {
     joined_late: bool,
     /// Pairs it is in.
     pairs: usize,
+    /// End stamp of the latest slab dropped for `max_horizon_tets` (0: none).
+    horizon_cut_until: i64,
 }
 
 impl BodyStream {
@@ -801,7 +808,10 @@ impl RollingChecker {
                     return false;
                 }
                 // A partner that stopped is gone; one that never said anything is late.
-                let stopped = self.bodies[partner].current().is_some_and(|r| r.ended());
+                let stopped = self.bodies[partner]
+                    .runs
+                    .iter()
+                    .any(|r| r.ended() && r.frontier <= s);
                 if stopped && !self.pairs[i].partner_absent {
                     self.pairs[i].partner_absent = true;
                     let why = format!(
@@ -1046,36 +1056,31 @@ impl RollingChecker {
             self.advance(i, s, hi, k, out);
             return true;
         };
-        let t0 = std::time::Instant::now();
-        let result = prepare_window(&wa.body(&a))
-            .and_then(|pa| Ok((pa, prepare_window(&wb.body(&b))?)));
-        let (pa, pb) = match result {
-            Ok(x) => x,
-            Err(e) => {
-                let why = format!(
-                    "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
-                    self.seconds_of_stamp(s),
-                    self.seconds_of_stamp(hi)
-                );
-                self.problem(out, "period_unchecked", why);
-                self.advance(i, s, hi, k, out);
-                return true;
+        let r = if apart(&wa, &wb) {
+            // Boxes apart in space: no tet meets the other body, every one is outside.
+            WindowResult {
+                labels: [wa.all_outside(), wb.all_outside()],
+                ..WindowResult::default()
+            }
+        } else {
+            let (ra, rb) = rayon::join(
+                || prepare_window(&wa.body(&a)),
+                || prepare_window(&wb.body(&b)),
+            );
+            match ra.and_then(|pa| Ok((pa, rb?))) {
+                Ok((pa, pb)) => check_window(&pa, &pb),
+                Err(e) => {
+                    let why = format!(
+                        "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
+                        self.seconds_of_stamp(s),
+                        self.seconds_of_stamp(hi)
+                    );
+                    self.problem(out, "period_unchecked", why);
+                    self.advance(i, s, hi, k, out);
+                    return true;
+                }
             }
         };
-        let t1 = std::time::Instant::now();
-        let r = check_window(&pa, &pb);
-        if std::env::var_os("CHRONO_DEBUG").is_some() {
-            eprintln!(
-                "window {a} x {b} at {s}: slabs {}+{} tets {}+{} prep {:.3} s check {:.3} s",
-                wa.slabs.len(),
-                wb.slabs.len(),
-                pa.body.mesh.tets.len(),
-                pb.body.mesh.tets.len(),
-                (t1 - t0).as_secs_f64(),
-                t1.elapsed().as_secs_f64()
-            );
-        }
-        drop((pa, pb));
         self.overlap_push(i, s, hi);
         {
             let p = &mut self.pairs[i];
@@ -1462,6 +1467,39 @@ impl RollingChecker {
         }
         ids.sort();
         ids.dedup();
+        // Where older slabs were dropped (max_horizon_tets), the horizon starts later.
+        let cut_until = ids
+            .iter()
+            .filter_map(|id| self.bodies.get(id).map(|b| b.horizon_cut_until))
+            .max()
+            .unwrap_or(0);
+        let lo_kept = lo.max(cut_until);
+        let mut ep = ep;
+        if lo_kept > lo {
+            let from = self.seconds_of_stamp(lo_kept);
+            let why = if from >= ep[1] {
+                format!(
+                    "{m}: the contact episode {:.3}-{:.3} s is not resolved: its slabs were \
+                     dropped (resolve_max_tets {})",
+                    ep[0], ep[1], self.cfg.max_horizon_tets
+                )
+            } else {
+                format!(
+                    "{m}: the contact episode {:.3}-{:.3} s is resolved over {from:.3}-{:.3} s \
+                     only (older slabs were dropped: resolve_max_tets {})",
+                    ep[0],
+                    ep[1],
+                    ep[1] + h,
+                    self.cfg.max_horizon_tets
+                )
+            };
+            self.problem(out, "resolution_horizon_cut", why);
+            if from >= ep[1] {
+                return;
+            }
+            ep[0] = ep[0].max(from);
+        }
+        let lo = lo_kept;
         let mut meshes: BTreeMap<String, BodyMesh> = BTreeMap::new();
         for id in &ids {
             if let Some(b) = self.horizon_body(id, lo, hi) {
@@ -1656,6 +1694,7 @@ impl RollingChecker {
         let finishing = self.finishing;
         let max_frames = self.cfg.max_lead_frames + 2 * CONTEXT_SLABS + 2;
         let mut dropped_frames = Vec::new();
+        let mut oldest_of: BTreeMap<String, i64> = BTreeMap::new();
         for (id, b) in &mut self.bodies {
             // The oldest stamp a pair of this body has not decided.
             let oldest = pairs
@@ -1682,6 +1721,7 @@ impl RollingChecker {
                     }
                 }
             }
+            oldest_of.insert(id.clone(), oldest);
             let decided = b.slabs.range(..oldest).count();
             let horizon = keeps.get(id).copied().unwrap_or(i64::MAX);
             for _ in 0..decided.saturating_sub(CONTEXT_SLABS) {
@@ -1719,6 +1759,48 @@ impl RollingChecker {
             }
         }
         let _ = dropped_frames;
+        self.cut_horizon(&oldest_of);
+    }
+
+    /// Drops the oldest slabs kept for resolutions alone (those before what every pair
+    /// still needs, less [`CONTEXT_SLABS`]) while they hold more than
+    /// [`RollingConfig::max_horizon_tets`] tets.
+    fn cut_horizon(&mut self, oldest_of: &BTreeMap<String, i64>) {
+        let only_horizon = |b: &BodyStream, oldest: i64| -> Vec<(i64, usize)> {
+            let decided: Vec<(i64, usize)> = b
+                .slabs
+                .range(..oldest)
+                .map(|(s, x)| (*s, x.mesh.tets.len()))
+                .collect();
+            let n = decided.len().saturating_sub(CONTEXT_SLABS);
+            decided[..n].to_vec()
+        };
+        let mut kept: Vec<(i64, String, usize)> = Vec::new();
+        for (id, b) in &self.bodies {
+            let oldest = oldest_of.get(id).copied().unwrap_or(i64::MIN);
+            kept.extend(
+                only_horizon(b, oldest)
+                    .into_iter()
+                    .map(|(s, n)| (s, id.clone(), n)),
+            );
+        }
+        let mut total: usize = kept.iter().map(|k| k.2).sum();
+        if total <= self.cfg.max_horizon_tets {
+            return;
+        }
+        kept.sort();
+        for (s, id, n) in kept {
+            if total <= self.cfg.max_horizon_tets {
+                break;
+            }
+            if let Some(b) = self.bodies.get_mut(&id) {
+                if let Some(x) = b.slabs.remove(&s) {
+                    b.horizon_cut_until = b.horizon_cut_until.max(x.hi);
+                }
+                b.frames.remove(&s);
+            }
+            total -= n;
+        }
     }
 
     /// The answer so far (CONTRACT.md's report): bodies, pairs, intervals, overlaps.
@@ -1792,7 +1874,69 @@ struct WindowSpec {
     first_tet: u64,
 }
 
+/// Whether two windows' boxes are apart (a gap on some spatial axis) on the pair's
+/// lattice: then no tet of one meets the other body, nor lies inside it.
+fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
+    let (Some(x), Some(y)) = (a.spatial_box(), b.spatial_box()) else {
+        return true;
+    };
+    (0..3).any(|k| x.1[k] < y.0[k] || y.1[k] < x.0[k])
+}
+
 impl WindowSpec {
+    /// The box of every vertex of the window on the pair's lattice, spatial axes only
+    /// (`None` for a window without vertices).
+    fn spatial_box(&self) -> Option<([i64; 3], [i64; 3])> {
+        let mut lo = [i64::MAX; 3];
+        let mut hi = [i64::MIN; 3];
+        let parts = self
+            .low
+            .iter()
+            .chain(self.slabs.iter())
+            .chain(self.high.iter());
+        for m in parts {
+            for v in &m.vertices {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(i64::from(v[k]));
+                    hi[k] = hi[k].max(i64::from(v[k]));
+                }
+            }
+        }
+        if lo[0] > hi[0] {
+            return None;
+        }
+        let f = i64::from(CHECKER_FACTOR) * self.mul;
+        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + self.add[k]);
+        Some((map(lo), map(hi)))
+    }
+
+    /// Every taken tet OUTSIDE.
+    fn all_outside(&self) -> TakenLabels {
+        let n = self.slabs.len();
+        let pieces = [
+            if self.centre == 0 {
+                self.low.as_ref().map_or(0, |m| m.tets.len())
+            } else {
+                0
+            },
+            self.slabs[self.centre].tets.len(),
+            if self.centre + 1 == n {
+                self.high.as_ref().map_or(0, |m| m.tets.len())
+            } else {
+                0
+            },
+        ];
+        let total: usize = pieces.iter().sum();
+        TakenLabels {
+            labels: vec![Label::Outside as u8; total],
+            counts: LabelCounts {
+                outside: total as u64,
+                ..LabelCounts::default()
+            },
+            pieces,
+        }
+    }
+
     fn body<'a>(&'a self, id: &'a str) -> WindowBody<'a> {
         WindowBody {
             id,

@@ -133,12 +133,7 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     let mut welder = Welder::default();
     let mut pieces = Vec::with_capacity(w.slabs.len() + 2);
     let mut ranges = Vec::with_capacity(w.slabs.len() + 2);
-    let parts = w
-        .low
-        .iter()
-        .chain(&w.slabs)
-        .chain(w.high.iter())
-        .copied();
+    let parts = w.low.iter().chain(&w.slabs).chain(w.high.iter()).copied();
     for part in parts {
         let start = mesh.tets.len();
         let first_vertex = mesh.vertices.len();
@@ -296,7 +291,8 @@ fn label_taken(p: &PreparedWindow, other: &PreparedWindow, hit: &[Touch]) -> (Ve
     let adjacency: Vec<[u32; 4]> = leaves
         .iter()
         .map(|&leaf| {
-            p.body.adjacency[leaf as usize].map(|nb| compact.get(nb as usize).copied().unwrap_or(u32::MAX))
+            p.body.adjacency[leaf as usize]
+                .map(|nb| compact.get(nb as usize).copied().unwrap_or(u32::MAX))
         })
         .collect();
     let touch: Vec<Touch> = leaves

@@ -233,6 +233,10 @@ impl Output {
     }
 }
 
+/// How often a replay lets the nodes see the clock (bag log time), as the live transport's
+/// tick.
+const REPLAY_TICK_NS: i64 = 100_000_000;
+
 /// Replays `bag` through the nodes of `config` (the default config if `None`).
 ///
 /// # Errors
@@ -306,6 +310,7 @@ pub fn replay(
         }
     };
     let mut misrouted = Vec::new();
+    let mut last_tick: Option<i64> = None;
     for item in BagReader::open(bag)? {
         let m = match item {
             Ok(m) => m,
@@ -344,10 +349,14 @@ pub fn replay(
             }
         };
         input.delivered += 1;
-        misrouted.extend(bus.deliver(
-            Message::new(&m.topic, m.log_time_ns.min(i64::MAX as u64) as i64, payload),
-            &mut sink,
-        ));
+        let log_ns = m.log_time_ns.min(i64::MAX as u64) as i64;
+        // The transport's clock, as live: the bag's log time, ticked every REPLAY_TICK_NS
+        // (a mesher closes a stream whose frames stopped for its idle timeout).
+        if last_tick.is_none_or(|t| log_ns.saturating_sub(t) >= REPLAY_TICK_NS) {
+            last_tick = Some(log_ns);
+            misrouted.extend(bus.tick(log_ns, &mut sink));
+        }
+        misrouted.extend(bus.deliver(Message::new(&m.topic, log_ns, payload), &mut sink));
     }
     bar.set_message("checking");
     misrouted.extend(bus.finish(&mut sink));

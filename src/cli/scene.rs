@@ -11,7 +11,8 @@ use std::path::PathBuf;
 /// Options of `chronotope scene`.
 #[derive(Debug, Clone, Args)]
 pub struct SceneArgs {
-    /// `machine-tool`, `four-spheres`, or `carving-session` (haptic tool poses and a fixture).
+    /// `machine-tool`, `four-spheres`, `periodic` (two spheres meeting every 2 s, 20 Hz, for
+    /// as long as asked), or `carving-session` (haptic tool poses and a fixture).
     pub name: String,
     /// Output bag.
     #[arg(long)]
@@ -20,8 +21,11 @@ pub struct SceneArgs {
     #[arg(long)]
     pub grid: Option<u32>,
     /// Frames per body (default: the scene's).
-    #[arg(long)]
+    #[arg(long, conflicts_with = "duration")]
     pub frames: Option<u32>,
+    /// Seconds of recording (`periodic` only: 20 frames per second, plus the first).
+    #[arg(long)]
+    pub duration: Option<f64>,
     /// Voxel encoding.
     #[arg(long, value_enum, default_value_t = EncodingArg::Bits)]
     pub encoding: EncodingArg,
@@ -42,6 +46,22 @@ pub fn run(a: &SceneArgs) -> Result<(), CliError> {
     }
     if let Some(f) = a.frames {
         opts = opts.frames(f);
+    }
+    if let Some(d) = a.duration {
+        if name != SceneName::Periodic {
+            return Err(CliError::Usage(format!(
+                "--duration is for the periodic scene; {name} takes --frames"
+            )));
+        }
+        let period_s = crate::scene::PERIODIC_FRAME_PERIOD_NS as f64 / 1e9;
+        let frames = (d / period_s).round() + 1.0;
+        if !(d.is_finite() && d >= 0.0 && frames <= f64::from(crate::scene::MAX_FRAMES)) {
+            return Err(CliError::Usage(format!(
+                "--duration {d}: use 0..={} s",
+                f64::from(crate::scene::MAX_FRAMES - 1) * period_s
+            )));
+        }
+        opts = opts.frames(frames as u32);
     }
     let scene = build_scene(name, &opts)?;
     let mut w = BagWriter::create(&a.out)?;

@@ -14,8 +14,8 @@ use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{QosPolicies, QosPolicyBuilder, RepresentationIdentifier};
 
 use crate::msg::{
-    Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab, PointCloud2,
-    PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
+    Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab,
+    PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
 };
 
 /// A serialised message: the 4-byte CDR encapsulation header, then the body.

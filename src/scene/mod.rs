@@ -31,6 +31,7 @@ mod four_spheres;
 mod lattice;
 mod machine_tool;
 mod motion;
+mod periodic;
 mod raster;
 mod shape;
 
@@ -45,6 +46,10 @@ pub use machine_tool::{
     TOOL_WORKPIECE_CONTACT_U,
 };
 pub use motion::{Keyframe, Motion};
+pub use periodic::{
+    periodic_contacts, PERIODIC_AMPLITUDE, PERIODIC_FRAME_PERIOD_NS, PERIODIC_PERIOD_S,
+    PERIODIC_RADIUS,
+};
 pub use raster::{rasterize, Rasterizer, PERCENT_SUBSAMPLES};
 pub use shape::{Aabb, Axis, Shape};
 
@@ -109,17 +114,24 @@ pub enum SceneName {
     MachineTool,
     /// `four-spheres`: four spheres at constant velocity (seed 000).
     FourSpheres,
+    /// `periodic`: two spheres meeting every two seconds, for as long as asked.
+    Periodic,
 }
 
 impl SceneName {
     /// Every scene, in the order listed to users.
-    pub const ALL: [SceneName; 2] = [SceneName::MachineTool, SceneName::FourSpheres];
+    pub const ALL: [SceneName; 3] = [
+        SceneName::MachineTool,
+        SceneName::FourSpheres,
+        SceneName::Periodic,
+    ];
 
     /// The name on the command line.
     pub fn as_str(self) -> &'static str {
         match self {
             Self::MachineTool => "machine-tool",
             Self::FourSpheres => "four-spheres",
+            Self::Periodic => "periodic",
         }
     }
 }
@@ -155,7 +167,8 @@ pub struct SceneOptions {
 
 impl SceneOptions {
     /// The defaults of a scene: `machine-tool` 128³ voxels × 64 frames (seed 002's workload),
-    /// `four-spheres` 64³ × 33 frames (one frame every 1/32 s), both BITS.
+    /// `four-spheres` 64³ × 33 frames (one frame every 1/32 s), `periodic` 48³ × 201 frames
+    /// (10 s at 20 Hz), all BITS.
     pub fn for_scene(name: SceneName) -> Self {
         match name {
             SceneName::MachineTool => Self {
@@ -166,6 +179,11 @@ impl SceneOptions {
             SceneName::FourSpheres => Self {
                 grid: 64,
                 frames: 33,
+                encoding: VoxelEncoding::Bits,
+            },
+            SceneName::Periodic => Self {
+                grid: 48,
+                frames: 201,
                 encoding: VoxelEncoding::Bits,
             },
         }
@@ -237,6 +255,11 @@ pub fn build_scene(name: SceneName, opts: &SceneOptions) -> Result<Scene, SceneE
             let span_ns = ((p.t_span.1 - p.t_span.0) * 1e9).round() as i64;
             let lattice = VoxelLattice::cube(p.domain_origin, p.domain_edge, opts.grid);
             (lattice, p.bodies(), if steps == 0 { 0 } else { span_ns })
+        }
+        SceneName::Periodic => {
+            let span_ns = steps * periodic::PERIODIC_FRAME_PERIOD_NS;
+            let lattice = VoxelLattice::cube([0.0; 3], periodic::PERIODIC_DOMAIN_EDGE, opts.grid);
+            (lattice, periodic::bodies(span_ns as f64 / 1e9), span_ns)
         }
     };
     Ok(Scene {

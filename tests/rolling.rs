@@ -1,0 +1,282 @@
+//! The rolling checker against the full check, and its stream behaviours.
+//!
+//! - On whole scenes (small grids), `replay` (mesher and checker nodes, frame period by frame
+//!   period) gives the intervals, first contacts and their bounds, overlaps, label counts and
+//!   body figures that `check` (every body meshed whole, then checked at once) gives.
+//! - The periodic scene: every contact is found, each within its error bound, however long
+//!   the stream; what the checker keeps does not grow with it.
+//! - Streams that lag behind one another, stop while others go on, and restart.
+
+use std::path::{Path, PathBuf};
+
+use chronotope::bag::BagWriter;
+use chronotope::cli::check::check_bag;
+use chronotope::cli::replay::replay;
+use chronotope::mesh::MesherOptions;
+use chronotope::msg::{Header, Point, Time, VoxelGrid};
+use chronotope::node::launch::LaunchConfig;
+use chronotope::report::Report;
+use chronotope::scene::{build_scene, periodic_contacts, Rasterizer, SceneName, SceneOptions};
+
+/// Writes scene `name` at `grid`³ with `frames` frames.
+fn scene_bag(dir: &Path, name: SceneName, grid: u32, frames: u32) -> PathBuf {
+    let path = dir.join(format!("{name}-{grid}-{frames}.mcap"));
+    let opts = SceneOptions::for_scene(name).grid(grid).frames(frames);
+    let scene = build_scene(name, &opts).unwrap();
+    let mut w = BagWriter::create(&path).unwrap();
+    let topics = scene.topics();
+    for t in &topics {
+        w.add_topic::<VoxelGrid>(t).unwrap();
+    }
+    let mut raster = Rasterizer::new();
+    let mut g = VoxelGrid::default();
+    for k in 0..scene.frame_count() {
+        for (b, t) in topics.iter().enumerate() {
+            scene.write_frame(b, k, &mut raster, &mut g).unwrap();
+            w.write(t, scene.stamp_ns(k) as u64, &g).unwrap();
+        }
+    }
+    w.finish().unwrap();
+    path
+}
+
+/// The answers both paths must agree on, digit for digit.
+fn answers(r: &Report) -> String {
+    let mut out = String::new();
+    for b in &r.bodies {
+        out += &format!(
+            "body {} frames {} tets {} vertices {} closed {} hv {:e}\n",
+            b.id, b.frames, b.tets, b.vertices, b.closed, b.hypervolume_m3s
+        );
+    }
+    for p in &r.pairs {
+        out += &format!(
+            "pair {} {}: {} {:?} first {:?} ± {:?} speed {:?} bounds {:?} overlap {:?} ± {:?} labels {:?}\n",
+            p.a,
+            p.b,
+            p.interfering,
+            p.intervals_s,
+            p.first_contact_s,
+            p.first_contact_error_bound_s,
+            p.closing_speed_mps,
+            p.interval_error_bounds_s,
+            p.overlap_hypervolume_m3s,
+            p.overlap_hypervolume_error_bound_m3s,
+            p.labels,
+        );
+    }
+    out
+}
+
+/// Every pair checked, no resolution: the same plan for both paths.
+fn all_pairs(topics: &[String]) -> LaunchConfig {
+    let mut pairs = Vec::new();
+    for i in 0..topics.len() {
+        for j in i + 1..topics.len() {
+            pairs.push(format!("'{} {}'", topics[i], topics[j]));
+        }
+    }
+    LaunchConfig::parse(
+        &format!(
+            "launch:\n\
+             - node: {{pkg: chronotope, exec: mesher}}\n\
+             - node: {{pkg: chronotope, exec: checker, param: [{{name: pairs, value: [{}]}}]}}\n",
+            pairs.join(", ")
+        ),
+        "test",
+    )
+    .unwrap()
+}
+
+#[test]
+fn rolling_replay_answers_as_the_full_check_on_whole_scenes() {
+    let d = tempfile::tempdir().unwrap();
+    for (name, grid, frames) in [
+        (SceneName::FourSpheres, 20, 9),
+        (SceneName::MachineTool, 20, 10),
+        (SceneName::Periodic, 16, 61),
+    ] {
+        let bag = scene_bag(d.path(), name, grid, frames);
+        let full = check_bag(&bag, MesherOptions::default(), None).unwrap();
+        let topics: Vec<String> = full.bodies.iter().map(|b| b.id.clone()).collect();
+        let rolled = replay(&bag, Some(&all_pairs(&topics)), None, false).unwrap();
+        assert_eq!(
+            answers(&rolled.report),
+            answers(&full),
+            "{name} {grid}^3 x {frames}: rolling replay vs full check"
+        );
+        assert!(
+            full.pairs.iter().any(|p| p.interfering),
+            "{name}: the scene has a contact"
+        );
+    }
+}
+
+#[test]
+fn every_periodic_contact_is_found_within_its_bound() {
+    let d = tempfile::tempdir().unwrap();
+    // 15 s at 20 Hz: eight contacts (the last cut by the end of the stream).
+    let frames = 301;
+    let bag = scene_bag(d.path(), SceneName::Periodic, 16, frames);
+    let cfg = LaunchConfig::parse(
+        &std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("launch_configs/periodic.yaml"),
+        )
+        .unwrap(),
+        "periodic",
+    )
+    .unwrap();
+    let r = replay(&bag, Some(&cfg), None, false).unwrap().report;
+    let want = periodic_contacts(15.0);
+    assert_eq!(want.len(), 8);
+    let p = &r.pairs[0];
+    assert_eq!(p.intervals_s.len(), want.len(), "{:?}", p.intervals_s);
+    // Voxelised spheres: each found interval lies within a frame period and a voxel's
+    // travel (the swinger moves 0.25 m/s; voxels are 1/16 m) of the true one.
+    let slack = 0.05 + (1.0 / 16.0) / 0.25;
+    for (got, want) in p.intervals_s.iter().zip(&want) {
+        assert!(
+            (got[0] - want.0).abs() <= slack && (got[1] - want.1).abs() <= slack,
+            "found {got:?}, true {want:?}"
+        );
+    }
+    // One resolution pair (translation, time scaling) per contact episode, each naming it.
+    assert!(!r.resolutions.is_empty());
+    assert!(r.problems.is_empty(), "{:?}", r.problems);
+}
+
+/// A cube moving +x one voxel per frame (body /a) into a still cube (/b), frames at 0.1 s
+/// from `t0_ns`.
+fn cube(x0: u32, k: u32, t0_ns: i64) -> VoxelGrid {
+    let size = 12u32;
+    let mut data = vec![0u8; (size * size * size).div_ceil(8) as usize];
+    for z in 4..8 {
+        for y in 4..8 {
+            for x in (x0 + k)..(x0 + k + 3) {
+                let i = (x + size * (y + size * z)) as usize;
+                data[i / 8] |= 1 << (i % 8);
+            }
+        }
+    }
+    VoxelGrid {
+        header: Header {
+            stamp: Time::from_nanos(t0_ns + i64::from(k) * 100_000_000),
+            frame_id: "world".into(),
+        },
+        origin: Point::default(),
+        resolution: 0.01,
+        size_x: size,
+        size_y: size,
+        size_z: size,
+        encoding: VoxelGrid::ENCODING_BITS,
+        data,
+    }
+}
+
+fn two_cubes() -> LaunchConfig {
+    LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+        "test",
+    )
+    .unwrap()
+}
+
+/// Writes `frames` (topic, frame) with log times as given.
+fn bag_of(dir: &Path, name: &str, frames: &[(&str, u64, VoxelGrid)]) -> PathBuf {
+    let path = dir.join(name);
+    let mut w = BagWriter::create(&path).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    w.add_topic::<VoxelGrid>("/b/occupancy").unwrap();
+    for (t, log, g) in frames {
+        w.write(t, *log, g).unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
+#[test]
+fn a_body_whose_frames_come_late_is_checked_as_if_they_had_come_in_time() {
+    let d = tempfile::tempdir().unwrap();
+    let t0 = 1_000_000_000i64;
+    let mut in_time = Vec::new();
+    let mut late = Vec::new();
+    for k in 0..8u32 {
+        let log = (t0 + i64::from(k) * 100_000_000) as u64;
+        in_time.push(("/a/occupancy", log, cube(0, k, t0)));
+        in_time.push(("/b/occupancy", log, cube(6, 0, t0)));
+        in_time.last_mut().unwrap().2.header.stamp = cube(0, k, t0).header.stamp;
+    }
+    // /b's frames arrive 5 periods after /a's (same stamps, later log times).
+    for (t, log, g) in &in_time {
+        let delay = if *t == "/b/occupancy" { 500_000_000 } else { 0 };
+        late.push((*t, log + delay, g.clone()));
+    }
+    late.sort_by_key(|x| x.1);
+    let a = replay(
+        &bag_of(d.path(), "in_time.mcap", &in_time),
+        Some(&two_cubes()),
+        None,
+        false,
+    )
+    .unwrap();
+    let b = replay(
+        &bag_of(d.path(), "late.mcap", &late),
+        Some(&two_cubes()),
+        None,
+        false,
+    )
+    .unwrap();
+    assert!(a.report.pairs[0].interfering);
+    assert_eq!(answers(&a.report), answers(&b.report));
+    assert!(b.report.problems.is_empty(), "{:?}", b.report.problems);
+}
+
+#[test]
+fn a_stream_that_stops_and_restarts_is_checked_in_both_runs() {
+    let d = tempfile::tempdir().unwrap();
+    let t0 = 1_000_000_000i64;
+    let gap = 3_000_000_000i64;
+    let mut frames = Vec::new();
+    // /b stands still throughout; /a moves in, stops for 3 s (its stream ends: the mesher's
+    // idle timeout is 1 s), then comes back and moves in again.
+    for k in 0..8u32 {
+        for (x, start) in [(0u32, t0), (0u32, t0 + 800_000_000 + gap)] {
+            let g = cube(x, k, start);
+            let log = g.header.stamp.as_nanos() as u64;
+            frames.push(("/a/occupancy", log, g));
+        }
+    }
+    for k in 0..((8 + 30 + 8) as u32) {
+        let mut g = cube(6, 0, t0);
+        g.header.stamp = Time::from_nanos(t0 + i64::from(k) * 100_000_000);
+        let log = g.header.stamp.as_nanos() as u64;
+        frames.push(("/b/occupancy", log, g));
+    }
+    frames.sort_by_key(|x| x.1);
+    let r = replay(
+        &bag_of(d.path(), "restart.mcap", &frames),
+        Some(&two_cubes()),
+        None,
+        false,
+    )
+    .unwrap();
+    let p = &r.report.pairs[0];
+    assert_eq!(
+        p.intervals_s.len(),
+        2,
+        "one contact per run of /a: {:?}",
+        p.intervals_s
+    );
+    let a = r
+        .report
+        .bodies
+        .iter()
+        .find(|b| b.id == "/a/occupancy")
+        .unwrap();
+    assert_eq!(a.frames, 16, "both runs' frames count");
+    // Said, not silent: /a stopped while /b went on.
+    let said = r.nodes["/checker"].messages.join("\n");
+    assert!(said.contains("/a/occupancy: its frames end"), "{said}");
+}
