@@ -86,7 +86,7 @@ impl Default for RollingConfig {
             labels: true,
             slabs_done: false,
             max_intervals: 4096,
-            horizon_s: 0.5,
+            horizon_s: 1.0,
             max_episode_s: 4.0,
             max_resolutions: 1024,
             max_horizon_tets: 1_500_000,

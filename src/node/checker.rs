@@ -12,7 +12,7 @@
 //! `time_scale_m_per_s` (double, 0 = one voxel per frame period), `labels` (bool, default
 //! true), `markers` (bool, default false), `mesh_topic` (default `/mesher/mesh_slabs`),
 //! `max_lead_frames` (int, default 64: how many slabs one body may run ahead of a silent
-//! partner before they are checked without it), `resolve_horizon_s` (double, default 0.5: the
+//! partner before they are checked without it), `resolve_horizon_s` (double, default 1: the
 //! time around a contact episode its resolutions are checked over), `max_episode_s` (double,
 //! default 4: a longer contact is resolved over its first this many seconds),
 //! `resolve_max_tets` (int, default 1 500 000: most tets of slabs kept for resolutions alone,
@@ -110,7 +110,7 @@ impl CheckerNode {
         let markers = p.bool("markers", false)?;
         let mesh_topic = p.topic("mesh_topic", "/mesher/mesh_slabs")?;
         let max_lead = p.int("max_lead_frames", 64, 1..=100_000)?;
-        let horizon_s = p.double("resolve_horizon_s", 0.5, 0.0..=3600.0)?;
+        let horizon_s = p.double("resolve_horizon_s", 1.0, 0.0..=3600.0)?;
         let max_episode_s = p.double("max_episode_s", 4.0, 0.0..=86_400.0)?;
         let max_horizon_tets = p.int("resolve_max_tets", 1_500_000, 0..=1_000_000_000)?;
         let opts = mesher_options(&mut p)?;
