@@ -598,3 +598,114 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
         }
     );
 }
+
+/// The periodic scene (24³, 20 s at 20 Hz, a contact every 2 s) streamed by the Cyclone
+/// peer with its recorded timing into `chronotope launch`: every contact begins on
+/// `/checker/contacts` while the frames are still being played, and the final report holds
+/// all of them. The latency from the frame that completes a contact's slab to its event is
+/// printed (speed is a benchmark figure, not asserted here).
+#[test]
+fn periodic_contacts_are_published_while_the_stream_goes_on() {
+    if !cyclonedds_available() {
+        let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
+        assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
+        eprintln!("SKIPPED periodic_contacts_are_published_while_the_stream_goes_on: {why}");
+        return;
+    }
+    let root = env!("CARGO_MANIFEST_DIR");
+    let exe = env!("CARGO_BIN_EXE_chronotope");
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("periodic.mcap");
+    let duration = 20.0;
+    let out = Command::new(exe)
+        .args([
+            "scene",
+            "periodic",
+            "--grid",
+            "24",
+            "--duration",
+            "20",
+            "--out",
+        ])
+        .arg(&bag)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let domain = (100 + std::process::id() % 50).to_string();
+    let mut launch = KillOnDrop(
+        Some(
+            Command::new(exe)
+                .arg("launch")
+                .arg(Path::new(root).join("launch_configs/periodic.yaml"))
+                .args(["--duration", "90"])
+                .env("ROS_DOMAIN_ID", &domain)
+                .env("RUST_LOG", "warn")
+                .stdout(Stdio::null())
+                .stderr(Stdio::inherit())
+                .spawn()
+                .expect("chronotope launch starts"),
+        ),
+        "chronotope launch",
+    );
+    let json = dir.path().join("periodic.json");
+    let status = Command::new("python3")
+        .arg(Path::new(root).join("tests/py/cyclone_peer.py"))
+        .arg("--bag")
+        .arg(&bag)
+        .arg("--out")
+        .arg(&json)
+        .args([
+            "--domain",
+            &domain,
+            "--match-timeout",
+            "15",
+            "--timeout",
+            "30",
+        ])
+        .env("ROS_DOMAIN_ID", &domain)
+        .status()
+        .expect("python3 runs");
+    launch.stop();
+    assert!(status.success(), "cyclone_peer.py failed ({status})");
+    let live: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let want = chronotope::scene::periodic_contacts(duration);
+    // The final report: every contact.
+    let pair = &live["report"]["pairs"][0];
+    assert_eq!(
+        pair["interval_start_s"].as_array().map(Vec::len),
+        Some(want.len()),
+        "{pair}"
+    );
+    // Each contact began while the stream went on (the last one may be found only after the
+    // last frame: its period is checked once what follows it is known).
+    let contacts = live["contacts"].as_array().expect("contacts");
+    let begun_streaming = contacts
+        .iter()
+        .filter(|c| u(&c["event"]) == 0 && c["while_streaming"].as_bool() == Some(true))
+        .count();
+    assert!(
+        begun_streaming + 1 >= want.len(),
+        "{begun_streaming} of {} contacts began while streaming",
+        want.len()
+    );
+    let mut lat: Vec<f64> = contacts
+        .iter()
+        .filter_map(|c| c["latency_s"].as_f64())
+        .collect();
+    lat.sort_by(f64::total_cmp);
+    if !lat.is_empty() {
+        let p = |q: f64| lat[((lat.len() - 1) as f64 * q).round() as usize];
+        eprintln!(
+            "periodic live: {} contact events; latency from the completing frame p50 {:.3} s, \
+             p99 {:.3} s, max {:.3} s (frame period 0.05 s)",
+            lat.len(),
+            p(0.5),
+            p(0.99),
+            lat[lat.len() - 1]
+        );
+    }
+}

@@ -1167,7 +1167,7 @@ impl labels::InsideTest for TetInside<'_> {
 /// `f(0..n)` computed on rayon's pool, results in index order.
 pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
     use rayon::prelude::*;
-    (0..n).into_par_iter().map(|i| f(i)).collect()
+    (0..n).into_par_iter().map(&f).collect()
 }
 
 /// Sorts closed ranges and merges those that overlap or touch.

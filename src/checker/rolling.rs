@@ -32,6 +32,8 @@ use std::sync::Arc;
 
 use super::bounds;
 use super::labels::{Label, LabelCounts};
+use rayon::prelude::*;
+
 use super::window::{check_window, prepare_window, TakenLabels, WindowBody, WindowResult};
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
@@ -237,7 +239,7 @@ struct Run {
     frontier: i64,
     next_index: u32,
     /// The closing cap came (stamp, cap), or the run was closed without one.
-    end: Option<(i64, Option<(Arc<TetMesh>, u64)>)>,
+    end: Option<RunEnd>,
     tets: u64,
     acc: StatsAccumulator,
     /// The run's statistics, once it ended.
@@ -300,6 +302,10 @@ struct Totals {
     closed: bool,
     runs: u64,
 }
+
+/// How a run ended: the stamp of its last frame, and its last cap with its occupied voxels
+/// (`None`: closed without one).
+type RunEnd = (i64, Option<(Arc<TetMesh>, u64)>);
 
 #[derive(Debug, Default)]
 struct BodyStream {
@@ -920,10 +926,8 @@ impl RollingChecker {
         other: &str,
         s: i64,
         k: i64,
-        base: i64,
-        per: i64,
-        shift: [i64; 3],
-        ratio: i64,
+        (base, per): (i64, i64),
+        (shift, ratio): ([i64; 3], i64),
     ) -> Option<WindowSpec> {
         let body = &self.bodies[me];
         let centre_slab = body.slabs.get(&s)?;
@@ -1035,8 +1039,22 @@ impl RollingChecker {
             }
         };
         let specs = (
-            self.window_spec(&a, &b, s, k, base, per, lattice.shift_a, lattice.ratio_a),
-            self.window_spec(&b, &a, s, k, base, per, lattice.shift_b, lattice.ratio_b),
+            self.window_spec(
+                &a,
+                &b,
+                s,
+                k,
+                (base, per),
+                (lattice.shift_a, lattice.ratio_a),
+            ),
+            self.window_spec(
+                &b,
+                &a,
+                s,
+                k,
+                (base, per),
+                (lattice.shift_b, lattice.ratio_b),
+            ),
         );
         self.rebase(i, base, per);
         let (Some(wa), Some(wb)) = specs else {
@@ -1512,7 +1530,7 @@ impl RollingChecker {
         let named: Vec<(&str, &BodyMesh)> = meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
         let result = CommonLattice::of(&named).and_then(|lat| {
             let prepared = named
-                .iter()
+                .par_iter()
                 .map(|(id, b)| lat.prepare(id, b))
                 .collect::<Result<Vec<_>, _>>()?;
             Ok((lat, prepared))

@@ -474,6 +474,7 @@ def main() -> int:
     got_labels: list = []
     got_markers: list = []
     got_contacts: list = []
+    written: dict = {}
     playing = [True]
 
     def drain() -> None:
@@ -482,9 +483,14 @@ def main() -> int:
         for l in readers["labels"].take(N=256):
             got_labels.append(l)
         for c in readers["contacts"].take(N=256):
+            taken = time.monotonic()
             got_contacts.append(contact_json(c))
             # Taken while frames were still being played: published while streaming.
             got_contacts[-1]["while_streaming"] = playing[0]
+            # From writing the last frame of the period that found it (the frame that
+            # completes the contact's slab) to taking the event.
+            w = written.get((int(c.header.stamp.sec), int(c.header.stamp.nanosec)))
+            got_contacts[-1]["latency_s"] = None if w is None else round(taken - w, 6)
         if "markers" in readers:
             for m in readers["markers"].take(N=64):
                 got_markers.append(markers_json(m))
@@ -499,8 +505,11 @@ def main() -> int:
             now = time.monotonic()
             if now >= due:
                 break
-            time.sleep(min(due - now, 0.01))
+            time.sleep(min(due - now, 0.005))
+            drain()
         writers[topic].write(msg)
+        stamp = (int(msg.header.stamp.sec), int(msg.header.stamp.nanosec))
+        written[stamp] = time.monotonic()
         drain()
     drain()
     playing[0] = False
