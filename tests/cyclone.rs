@@ -63,6 +63,37 @@ fn cyclonedds_available() -> bool {
 }
 
 /// A float the peer wrote as the hex of its bits.
+/// `chronotope launch CONFIG` on `domain`, stopped when dropped.
+fn launch_on(config: &Path, domain: &str, duration_s: &str) -> KillOnDrop {
+    KillOnDrop(
+        Some(
+            Command::new(env!("CARGO_BIN_EXE_chronotope"))
+                .arg("launch")
+                .arg(config)
+                .args(["--duration", duration_s])
+                .env("ROS_DOMAIN_ID", domain)
+                .env("RUST_LOG", "warn")
+                .stdout(Stdio::null())
+                .stderr(Stdio::inherit())
+                .spawn()
+                .expect("chronotope launch starts"),
+        ),
+        "chronotope launch",
+    )
+}
+
+/// Whether the test can run: `false` (said) where python3 cannot import cyclonedds, which
+/// fails the test under CI.
+fn cyclone_or_skip(test: &str) -> bool {
+    if cyclonedds_available() {
+        return true;
+    }
+    let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
+    assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
+    eprintln!("SKIPPED {test}: {why}");
+    false
+}
+
 fn f(v: &Value) -> f64 {
     let s = v
         .as_str()
@@ -455,10 +486,7 @@ fn hex(bytes: &[u8]) -> String {
 
 #[test]
 fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
-    if !cyclonedds_available() {
-        let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
-        assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
-        eprintln!("SKIPPED live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does: {why}");
+    if !cyclone_or_skip("live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does") {
         return;
     }
     let root = env!("CARGO_MANIFEST_DIR");
@@ -502,21 +530,7 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
 
     // A domain of our own, so that parallel runs and other tests do not meet.
     let domain = (150 + std::process::id() % 50).to_string();
-    let mut launch_child = KillOnDrop(
-        Some(
-            Command::new(exe)
-                .arg("launch")
-                .arg(&launch)
-                .args(["--duration", "45"])
-                .env("ROS_DOMAIN_ID", &domain)
-                .env("RUST_LOG", "warn")
-                .stdout(Stdio::null())
-                .stderr(Stdio::inherit())
-                .spawn()
-                .expect("chronotope launch starts"),
-        ),
-        "chronotope launch",
-    );
+    let mut launch_child = launch_on(&launch, &domain, "45");
 
     let json = dir.path().join("cyclone.json");
     let markers = std::env::var_os("CHRONOTOPE_CYCLONE_NO_MARKERS").is_none();
@@ -606,10 +620,7 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
 /// printed (speed is a benchmark figure, not asserted here).
 #[test]
 fn periodic_contacts_are_published_while_the_stream_goes_on() {
-    if !cyclonedds_available() {
-        let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
-        assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
-        eprintln!("SKIPPED periodic_contacts_are_published_while_the_stream_goes_on: {why}");
+    if !cyclone_or_skip("periodic_contacts_are_published_while_the_stream_goes_on") {
         return;
     }
     let root = env!("CARGO_MANIFEST_DIR");
@@ -636,21 +647,8 @@ fn periodic_contacts_are_published_while_the_stream_goes_on() {
         String::from_utf8_lossy(&out.stderr)
     );
     let domain = (100 + std::process::id() % 50).to_string();
-    let mut launch = KillOnDrop(
-        Some(
-            Command::new(exe)
-                .arg("launch")
-                .arg(Path::new(root).join("launch_configs/periodic.yaml"))
-                .args(["--duration", "90"])
-                .env("ROS_DOMAIN_ID", &domain)
-                .env("RUST_LOG", "warn")
-                .stdout(Stdio::null())
-                .stderr(Stdio::inherit())
-                .spawn()
-                .expect("chronotope launch starts"),
-        ),
-        "chronotope launch",
-    );
+    let config = Path::new(root).join("launch_configs/periodic.yaml");
+    let mut launch = launch_on(&config, &domain, "90");
     let json = dir.path().join("periodic.json");
     let status = Command::new("python3")
         .arg(Path::new(root).join("tests/py/cyclone_peer.py"))

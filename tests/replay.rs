@@ -1,38 +1,18 @@
 //! `chronotope replay` on bad input: every problem is counted in the report, nothing else is
 //! lost, nothing panics.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use chronotope::bag::{BagWriteOptions, BagWriter};
 use chronotope::cli::replay::replay;
-use chronotope::msg::{Header, Point, PoseStamped, Time, VoxelGrid};
+use chronotope::msg::{PoseStamped, Time, VoxelGrid};
 use chronotope::node::launch::LaunchConfig;
 
-/// A `n`-voxel-wide cube moving +x one voxel per frame, frames at 0.1 s.
+/// A box moving +x one voxel per frame, frames at 0.1 s from 1 s.
 fn frame(topic_x0: u32, k: u32) -> VoxelGrid {
-    let size = 12u32;
-    let mut data = vec![0u8; (size * size * size).div_ceil(8) as usize];
-    for z in 4..8 {
-        for y in 4..8 {
-            for x in (topic_x0 + k)..(topic_x0 + k + 3) {
-                let i = (x + size * (y + size * z)) as usize;
-                data[i / 8] |= 1 << (i % 8);
-            }
-        }
-    }
-    VoxelGrid {
-        header: Header {
-            stamp: Time::from_nanos(1_000_000_000 + i64::from(k) * 100_000_000),
-            frame_id: "world".into(),
-        },
-        origin: Point::default(),
-        resolution: 0.01,
-        size_x: size,
-        size_y: size,
-        size_z: size,
-        encoding: VoxelGrid::ENCODING_BITS,
-        data,
-    }
+    common::moving_box(topic_x0, k, 1_000_000_000)
 }
 
 /// Two bodies, /a (moving into /b's place) and /b (static), with the faults asked for.

@@ -7,13 +7,15 @@
 //!   the stream; what the checker keeps does not grow with it.
 //! - Streams that lag behind one another, stop while others go on, and restart.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use chronotope::bag::BagWriter;
 use chronotope::cli::check::check_bag;
 use chronotope::cli::replay::replay;
 use chronotope::mesh::MesherOptions;
-use chronotope::msg::{Header, Point, Time, VoxelGrid};
+use chronotope::msg::{Time, VoxelGrid};
 use chronotope::node::launch::LaunchConfig;
 use chronotope::report::Report;
 use chronotope::scene::{build_scene, periodic_contacts, Rasterizer, SceneName, SceneOptions};
@@ -145,32 +147,10 @@ fn every_periodic_contact_is_found_within_its_bound() {
     assert!(r.problems.is_empty(), "{:?}", r.problems);
 }
 
-/// A cube moving +x one voxel per frame (body /a) into a still cube (/b), frames at 0.1 s
+/// A box moving +x one voxel per frame (body /a) into a still box (/b), frames at 0.1 s
 /// from `t0_ns`.
 fn cube(x0: u32, k: u32, t0_ns: i64) -> VoxelGrid {
-    let size = 12u32;
-    let mut data = vec![0u8; (size * size * size).div_ceil(8) as usize];
-    for z in 4..8 {
-        for y in 4..8 {
-            for x in (x0 + k)..(x0 + k + 3) {
-                let i = (x + size * (y + size * z)) as usize;
-                data[i / 8] |= 1 << (i % 8);
-            }
-        }
-    }
-    VoxelGrid {
-        header: Header {
-            stamp: Time::from_nanos(t0_ns + i64::from(k) * 100_000_000),
-            frame_id: "world".into(),
-        },
-        origin: Point::default(),
-        resolution: 0.01,
-        size_x: size,
-        size_y: size,
-        size_z: size,
-        encoding: VoxelGrid::ENCODING_BITS,
-        data,
-    }
+    common::moving_box(x0, k, t0_ns)
 }
 
 fn two_cubes() -> LaunchConfig {

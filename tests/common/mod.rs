@@ -153,3 +153,26 @@ pub fn closed_slab(r: &Run, k: usize, frame_grids: &[chronotope::mesh::Occupancy
     m.append_welded(&hi);
     m
 }
+
+/// A 3×4×4-voxel box in a 12³ BITS frame at 1 cm voxels, its x range starting at voxel
+/// `x0 + k` (a body moving +x one voxel per frame), stamped `t0_ns + k · 0.1 s`.
+pub fn moving_box(x0: u32, k: u32, t0_ns: i64) -> chronotope::msg::VoxelGrid {
+    use chronotope::msg::{Header, Point, Time, VoxelGrid};
+    let size = 12u32;
+    let data = bits_data([size; 3], |x, y, z| {
+        (4..8).contains(&z) && (4..8).contains(&y) && (x0 + k..x0 + k + 3).contains(&(x as u32))
+    });
+    VoxelGrid {
+        header: Header {
+            stamp: Time::from_nanos(t0_ns + i64::from(k) * 100_000_000),
+            frame_id: "world".into(),
+        },
+        origin: Point::default(),
+        resolution: 0.01,
+        size_x: size,
+        size_y: size,
+        size_z: size,
+        encoding: VoxelGrid::ENCODING_BITS,
+        data,
+    }
+}

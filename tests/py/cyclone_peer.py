@@ -535,12 +535,14 @@ def main() -> int:
     ok = complete()
     t_done = time.monotonic()
     if ok:
-        # Contact events travel on their own topic: take what is still on its way.
+        # Contact events and reports travel on their own topics, and the report is
+        # republished as answers change: take what is still on its way, until nothing new
+        # came for a second.
         quiet = time.monotonic()
         while time.monotonic() - quiet < 1.0:
-            n = len(got_contacts)
+            n = (len(got_contacts), len(got_report))
             drain()
-            if len(got_contacts) != n:
+            if (len(got_contacts), len(got_report)) != n:
                 quiet = time.monotonic()
             time.sleep(0.02)
     if ok and "markers" in readers and a.expect_markers is None:
