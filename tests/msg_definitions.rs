@@ -358,6 +358,14 @@ fn the_interface_package_declares_what_the_definition_uses() {
     assert!(package.contains(&format!("<name>{pkg_name}</name>")));
     assert!(cmake.contains(&format!("project({pkg_name})")));
     assert!(cmake.contains("\"msg/VoxelGrid.msg\""));
+    // Every message of the package is generated (so `ros2 topic echo` knows them all).
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("msgs/msg");
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let name = e.unwrap().file_name().into_string().unwrap();
+        if name.ends_with(".msg") {
+            assert!(cmake.contains(&format!("\"msg/{name}\"")), "{name} in CMakeLists.txt");
+        }
+    }
     assert!(package.contains("<member_of_group>rosidl_interface_packages</member_of_group>"));
     assert!(package.contains("<buildtool_depend>rosidl_default_generators</buildtool_depend>"));
     // Every package the definitions refer to is a dependency of the interface package.
