@@ -32,7 +32,6 @@ use std::sync::Arc;
 
 use super::bounds;
 use super::labels::{Label, LabelCounts};
-use rayon::prelude::*;
 
 use super::window::{check_window, prepare_window, TakenLabels, WindowBody, WindowResult};
 use super::{check_pair, CommonLattice, PairResult};
@@ -1529,8 +1528,10 @@ impl RollingChecker {
         }
         let named: Vec<(&str, &BodyMesh)> = meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
         let result = CommonLattice::of(&named).and_then(|lat| {
+            // One body at a time: preparing them side by side saved 7 % of a periodic
+            // replay's time for 15 % more peak memory.
             let prepared = named
-                .par_iter()
+                .iter()
                 .map(|(id, b)| lat.prepare(id, b))
                 .collect::<Result<Vec<_>, _>>()?;
             Ok((lat, prepared))
