@@ -363,7 +363,10 @@ fn the_interface_package_declares_what_the_definition_uses() {
     for e in std::fs::read_dir(&dir).unwrap() {
         let name = e.unwrap().file_name().into_string().unwrap();
         if name.ends_with(".msg") {
-            assert!(cmake.contains(&format!("\"msg/{name}\"")), "{name} in CMakeLists.txt");
+            assert!(
+                cmake.contains(&format!("\"msg/{name}\"")),
+                "{name} in CMakeLists.txt"
+            );
         }
     }
     assert!(package.contains("<member_of_group>rosidl_interface_packages</member_of_group>"));

@@ -250,6 +250,8 @@ impl CheckerNode {
     /// Publishes what the rolling checker gave, then the report if an answer changed.
     fn emit(&mut self, rolled: Vec<RollOut>, out: &mut Vec<Message>) {
         let before = out.len();
+        // The answer after this step, built once for its contact events and its report.
+        let mut report: Option<Report> = None;
         for r in rolled {
             match r {
                 RollOut::Labels(l) => {
@@ -283,8 +285,12 @@ impl CheckerNode {
                 }
                 RollOut::Contact(c) => {
                     self.dirty = true;
-                    let report = self.engine.report();
+                    let report = report.get_or_insert_with(|| self.engine.report());
                     let pair = report.pairs.iter().find(|p| p.a == c.a && p.b == c.b);
+                    let time_origin = Time::from_nanos(report.time_origin_ns);
+                    let first_contact_s = nan_if_none(pair.and_then(|p| p.first_contact_s));
+                    let overlap_hypervolume_m3s =
+                        nan_if_none(pair.and_then(|p| p.overlap_hypervolume_m3s));
                     let m = ContactEvent {
                         header: self.header(c.stamp_ns),
                         body_a: c.a,
@@ -295,15 +301,13 @@ impl CheckerNode {
                             ContactPhase::End => ContactEvent::END,
                         },
                         contact_index: c.index,
-                        time_origin: Time::from_nanos(report.time_origin_ns),
+                        time_origin,
                         start_s: c.start_s,
                         end_s: c.end_s,
                         start_error_bound_s: nan_if_none(c.start_bound_s),
                         end_error_bound_s: nan_if_none(c.end_bound_s),
-                        first_contact_s: nan_if_none(pair.and_then(|p| p.first_contact_s)),
-                        overlap_hypervolume_m3s: nan_if_none(
-                            pair.and_then(|p| p.overlap_hypervolume_m3s),
-                        ),
+                        first_contact_s,
+                        overlap_hypervolume_m3s,
                     };
                     out.push(Message::new(
                         &self.contacts_topic,
@@ -316,15 +320,15 @@ impl CheckerNode {
             }
         }
         if self.dirty {
-            self.publish_report(out);
+            let report = report.unwrap_or_else(|| self.engine.report());
+            self.publish_report(report, out);
         }
         self.status.published += (out.len() - before) as u64;
     }
 
-    /// The report, and the suggestions if there are new ones.
-    fn publish_report(&mut self, out: &mut Vec<Message>) {
+    /// The report (the engine's answer now), and the suggestions if there are new ones.
+    fn publish_report(&mut self, report: Report, out: &mut Vec<Message>) {
         self.dirty = false;
-        let report = self.engine.report();
         let stamp = self.latest_ns;
         let voxel = report.pairs.first().map_or(0.0, |p| p.voxel_size_m);
         out.push(Message::new(
