@@ -260,3 +260,62 @@ fn a_stream_that_stops_and_restarts_is_checked_in_both_runs() {
     let said = r.nodes["/checker"].messages.join("\n");
     assert!(said.contains("/a/occupancy: its frames end"), "{said}");
 }
+
+#[test]
+fn a_stream_that_stalls_is_taken_as_ended_and_its_partner_goes_on() {
+    use chronotope::msg::MeshSlab;
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use std::sync::Arc;
+
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}, {name: max_lead_frames, value: 4}]}\n",
+        "test",
+    )
+    .unwrap();
+    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+    let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+    let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    let t0 = 1_000_000_000i64;
+    let mut results = Vec::new();
+    for k in 0..9u32 {
+        let mut out = Vec::new();
+        for (topic, g) in [
+            ("/a/occupancy", cube(0, k, t0)),
+            ("/b/occupancy", {
+                let mut g = cube(6, 0, t0);
+                g.header.stamp = Time::from_nanos(t0 + i64::from(k) * 100_000_000);
+                g
+            }),
+        ] {
+            let t = g.header.stamp.as_nanos();
+            mesher.on_message(
+                &Message::new(topic, t, Payload::VoxelGrid(Arc::new(g))),
+                &mut out,
+            );
+        }
+        for m in &out {
+            // /b's lateral piece 2 is lost on the way.
+            if let Payload::MeshSlab(p) = &m.payload {
+                if p.body_id == "/b/occupancy" && p.kind == MeshSlab::KIND_LATERAL && p.index == 2 {
+                    continue;
+                }
+            }
+            checker.on_message(m, &mut results);
+        }
+    }
+    let st = checker.status();
+    assert_eq!(st.problems.get("stream_stalled"), Some(&1), "{st:?}");
+    // /a's slabs were decided past the stall (not kept waiting): labels for /a beyond slab 2.
+    let a_slabs = results
+        .iter()
+        .filter_map(|m| match &m.payload {
+            Payload::TetLabels(l) if l.body_id == "/a/occupancy" => Some(l.index),
+            _ => None,
+        })
+        .max();
+    assert!(a_slabs.is_some_and(|i| i >= 3), "{a_slabs:?}");
+}

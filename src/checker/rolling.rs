@@ -379,6 +379,8 @@ struct Interval {
 
 #[derive(Debug, Default)]
 struct Overlap {
+    /// Overlap and bound of the runs of periods closed by a gap (see `overlap_push`).
+    closed: (f64, f64),
     mesher: Option<Mesher>,
     acc: StatsAccumulator,
     first_cap: Option<TetMesh>,
@@ -571,6 +573,29 @@ impl RollingChecker {
 
     fn accept(&mut self, p: &PieceIn) -> Result<(), (&'static str, String)> {
         let id = p.body.clone();
+        // What a window relies on: a lattice step that is a power of two (so two bodies'
+        // lattices map onto their common one exactly), and tets that name their vertices.
+        let scale = p.geometry.scale;
+        if scale < 1 || scale.count_ones() != 1 {
+            return Err((
+                "bad_piece",
+                format!(
+                    "{id}: a piece with lattice scale {scale} (a power of two is needed); ignored"
+                ),
+            ));
+        }
+        let nv = p.mesh.vertices.len();
+        if let Some(t) = p
+            .mesh
+            .tets
+            .iter()
+            .position(|t| t.iter().any(|&v| v as usize >= nv))
+        {
+            return Err((
+                "bad_piece",
+                format!("{id}: tet {t} of a piece names a vertex past its {nv}; ignored"),
+            ));
+        }
         let origin = &mut self.origin_ns;
         let union = &mut self.union;
         let b = self.bodies.get_mut(&id).expect("checked above");
@@ -1001,12 +1026,37 @@ impl RollingChecker {
             return false;
         }
         // What follows each slab must be known: the next slab, or the end of its stream.
-        let known = |id: &str| {
-            let body = &self.bodies[id];
+        let known = |me: &Self, id: &str| {
+            let body = &me.bodies[id];
             body.slabs.contains_key(&hi) || body.run(body.slabs[&s].run).is_some_and(|r| r.ended())
         };
-        if !known(&a) || !known(&b) {
-            return false;
+        if !known(self, &a) || !known(self, &b) {
+            // Nothing follows a slab while the other body runs far ahead: the stream stalled
+            // (a lost piece or cap). Its run is closed there, so that the pair goes on and
+            // the other body's slabs do not pile up.
+            if self.lead(&a, s).max(self.lead(&b, s)) <= self.cfg.max_lead_frames {
+                return false;
+            }
+            for id in [&a, &b] {
+                if known(self, id) {
+                    continue;
+                }
+                let why = format!(
+                    "{id}: nothing follows its slab at {:.3} s while its partner is more than \
+                     {} slabs ahead (a lost piece or cap); its stream is taken as ended there",
+                    self.seconds_of_stamp(s),
+                    self.cfg.max_lead_frames
+                );
+                let body = self.bodies.get_mut(id.as_str()).expect("a paired body");
+                let run = body.slabs[&s].run;
+                if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
+                    r.close(None);
+                }
+                self.problem(out, "stream_stalled", why);
+            }
+            if !known(self, &a) || !known(self, &b) {
+                return false;
+            }
         }
         let geometry = |id: &str| {
             let body = &self.bodies[id];
@@ -1351,6 +1401,28 @@ impl RollingChecker {
             body.run(body.slabs[&s].run).map(|r| r.geometry)
         };
         let (ga, gb) = (geometry(&a), geometry(&b));
+        // Periods left out since the last one (a partner absent or stopped): the intersection
+        // stream has a gap there. Its run so far is closed and counted, and a new one starts.
+        let gap = {
+            let ov = &self.pairs[i].overlap;
+            !ov.unknown && ov.last_pushed.is_some_and(|l| l != s)
+        };
+        if gap {
+            let ov = &mut self.pairs[i].overlap;
+            match run_overlap(ov) {
+                Some((hv, b)) => {
+                    ov.closed.0 += hv;
+                    ov.closed.1 += b;
+                    ov.mesher = None;
+                    ov.acc = StatsAccumulator::default();
+                    ov.first_cap = None;
+                    ov.sums = (0.0, 0.0);
+                    ov.last_pushed = None;
+                    ov.stamps = (0, 0, 0);
+                }
+                None => ov.unknown = true,
+            }
+        }
         for stamp in [s, hi] {
             let ov = &self.pairs[i].overlap;
             if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
@@ -1416,7 +1488,13 @@ impl RollingChecker {
         let movable: Vec<String> = self.resolved_until.keys().cloned().collect();
         for m in movable {
             while let Some(ep) = self.next_episode(&m) {
+                let until = self.resolved_until[&m];
                 self.resolve_episode(&m, ep, out);
+                // Every episode moves the resolved time on; one that cannot (an empty
+                // episode) ends the loop rather than repeat itself.
+                if self.resolved_until[&m] <= until {
+                    break;
+                }
             }
         }
     }
@@ -1681,6 +1759,9 @@ impl RollingChecker {
             let mut from = f64::INFINITY;
             for i in self.pairs_of(m) {
                 let p = &self.pairs[i];
+                if p.stopped.is_some() {
+                    continue;
+                }
                 let done = p
                     .next
                     .map_or(f64::NEG_INFINITY, |n| self.seconds_of_stamp(n));
@@ -2169,6 +2250,11 @@ fn pair_report(p: &PairRoll, tets_a: u64, tets_b: u64, resolution: f64) -> PairR
 
 /// The overlap hypervolume so far and its error bound (`None`: not measurable).
 fn overlap_so_far(o: &Overlap) -> Option<(f64, f64)> {
+    run_overlap(o).map(|(hv, b)| (hv + o.closed.0, b + o.closed.1))
+}
+
+/// The overlap of the current run of consecutive periods, and its bound.
+fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
     if o.unknown {
         return None;
     }

@@ -63,7 +63,9 @@ pub struct CheckerNode {
     latest_ns: i64,
     /// An answer changed since the report was last published.
     dirty: bool,
-    published_suggestions: usize,
+    /// Episodes resolved so far, and when the suggestions were last published (the report
+    /// keeps a bounded number of resolutions, so their count stops telling).
+    resolved: (u64, u64),
     status: NodeStatus,
 }
 
@@ -111,7 +113,7 @@ impl CheckerNode {
         let mesh_topic = p.topic("mesh_topic", "/mesher/mesh_slabs")?;
         let max_lead = p.int("max_lead_frames", 64, 1..=100_000)?;
         let horizon_s = p.double("resolve_horizon_s", 1.0, 0.0..=3600.0)?;
-        let max_episode_s = p.double("max_episode_s", 4.0, 0.0..=86_400.0)?;
+        let max_episode_s = p.double("max_episode_s", 4.0, 0.001..=86_400.0)?;
         let max_horizon_tets = p.int("resolve_max_tets", 1_500_000, 0..=1_000_000_000)?;
         let opts = mesher_options(&mut p)?;
         let report_topic = p.resolve("~/report", "~/report")?;
@@ -171,7 +173,7 @@ impl CheckerNode {
             frame_id: String::new(),
             latest_ns: 0,
             dirty: false,
-            published_suggestions: 0,
+            resolved: (0, 0),
             status: NodeStatus::default(),
         })
     }
@@ -315,7 +317,10 @@ impl CheckerNode {
                         Payload::Contact(Arc::new(m)),
                     ));
                 }
-                RollOut::Resolved => self.dirty = true,
+                RollOut::Resolved => {
+                    self.resolved.0 += 1;
+                    self.dirty = true;
+                }
                 RollOut::Problem(kind, text) => self.status.problem(&self.fqn, kind, text),
             }
         }
@@ -337,8 +342,8 @@ impl CheckerNode {
             Payload::Report(Arc::new(report_message(&report, voxel, self.header(stamp)))),
         ));
         if let Some(topic) = &self.suggestions_topic {
-            if report.resolutions.len() != self.published_suggestions {
-                self.published_suggestions = report.resolutions.len();
+            if self.resolved.0 != self.resolved.1 {
+                self.resolved.1 = self.resolved.0;
                 let m = ResolveSuggestions {
                     header: self.header(stamp),
                     suggestions: report.resolutions.iter().map(suggestion_message).collect(),
