@@ -82,6 +82,27 @@ fn launch_on(config: &Path, domain: &str, duration_s: &str) -> KillOnDrop {
     )
 }
 
+/// `python3 tests/py/cyclone_peer.py --bag BAG --out JSON` on `domain` (15 s to match,
+/// 30 s for the results after the last frame); more arguments go after these.
+fn peer_command(bag: &Path, json: &Path, domain: &str) -> Command {
+    let mut c = Command::new("python3");
+    c.arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/cyclone_peer.py"))
+        .arg("--bag")
+        .arg(bag)
+        .arg("--out")
+        .arg(json)
+        .args([
+            "--domain",
+            domain,
+            "--match-timeout",
+            "15",
+            "--timeout",
+            "30",
+        ])
+        .env("ROS_DOMAIN_ID", domain);
+    c
+}
+
 /// Whether the test can run: `false` (said) where python3 cannot import cyclonedds, which
 /// fails the test under CI.
 fn cyclone_or_skip(test: &str) -> bool {
@@ -534,23 +555,8 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
 
     let json = dir.path().join("cyclone.json");
     let markers = std::env::var_os("CHRONOTOPE_CYCLONE_NO_MARKERS").is_none();
-    let mut peer = Command::new("python3");
-    peer.arg(Path::new(root).join("tests/py/cyclone_peer.py"))
-        .arg("--bag")
-        .arg(&bag)
-        .arg("--out")
-        .arg(&json)
-        .args([
-            "--expect-labels",
-            &off.labels.len().to_string(),
-            "--domain",
-            &domain,
-            "--match-timeout",
-            "15",
-            "--timeout",
-            "30",
-        ])
-        .env("ROS_DOMAIN_ID", &domain)
+    let mut peer = peer_command(&bag, &json, &domain);
+    peer.args(["--expect-labels", &off.labels.len().to_string()])
         .stdout(Stdio::inherit())
         .stderr(Stdio::inherit());
     if markers {
@@ -650,21 +656,7 @@ fn periodic_contacts_are_published_while_the_stream_goes_on() {
     let config = Path::new(root).join("launch_configs/periodic.yaml");
     let mut launch = launch_on(&config, &domain, "90");
     let json = dir.path().join("periodic.json");
-    let status = Command::new("python3")
-        .arg(Path::new(root).join("tests/py/cyclone_peer.py"))
-        .arg("--bag")
-        .arg(&bag)
-        .arg("--out")
-        .arg(&json)
-        .args([
-            "--domain",
-            &domain,
-            "--match-timeout",
-            "15",
-            "--timeout",
-            "30",
-        ])
-        .env("ROS_DOMAIN_ID", &domain)
+    let status = peer_command(&bag, &json, &domain)
         .status()
         .expect("python3 runs");
     launch.stop();
