@@ -367,15 +367,15 @@ def markers_json(m: MarkerArray) -> dict:
     }
 
 
-def read_frames(bag: str) -> list[tuple[int, str, VoxelGrid]]:
-    """(log time ns, ROS topic, frame) of every VoxelGrid message, in log-time order."""
-    out = []
+def iter_frames(bag: str):
+    """(log time ns, ROS topic, frame) of every VoxelGrid message, in log-time order, read as
+    they are played (a recording of any length streams in constant memory)."""
     with open(bag, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for schema, channel, message, m in reader.iter_decoded_messages(log_time_order=True):
             if schema is None or schema.name != "chronotope_msgs/msg/VoxelGrid":
                 continue
-            out.append((
+            yield (
                 message.log_time,
                 channel.topic,
                 VoxelGrid(
@@ -389,7 +389,17 @@ def read_frames(bag: str) -> list[tuple[int, str, VoxelGrid]]:
                     encoding=m.encoding,
                     data=list(bytes(m.data)),
                 ),
-            ))
+            )
+
+
+def frame_index(bag: str) -> list[tuple[int, str]]:
+    """(log time ns, ROS topic) of every VoxelGrid message, in log-time order (no data)."""
+    out = []
+    with open(bag, "rb") as f:
+        reader = make_reader(f)
+        for schema, channel, message in reader.iter_messages(log_time_order=True):
+            if schema is not None and schema.name == "chronotope_msgs/msg/VoxelGrid":
+                out.append((message.log_time, channel.topic))
     return out
 
 
@@ -421,11 +431,11 @@ def main() -> int:
     domain = a.domain if a.domain is not None else int(os.environ.get("ROS_DOMAIN_ID") or 0)
     t_start = time.monotonic()
 
-    frames = read_frames(a.bag)
+    frames = frame_index(a.bag)
     if not frames:
         log(f"no VoxelGrid messages in {a.bag}")
         return 2
-    in_topics = sorted({t for _, t, _ in frames})
+    in_topics = sorted({t for _, t in frames})
     log(f"domain {domain}; {len(frames)} frames on {len(in_topics)} topics from {a.bag}")
 
     dp = DomainParticipant(domain)
@@ -499,7 +509,7 @@ def main() -> int:
     # Play with the recorded timing (log times), scaled by --rate.
     t0_log = frames[0][0]
     t0 = time.monotonic()
-    for log_ns, topic, msg in frames:
+    for log_ns, topic, msg in iter_frames(a.bag):
         due = t0 + (log_ns - t0_log) / 1e9 / a.rate
         while True:
             now = time.monotonic()
