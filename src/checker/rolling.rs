@@ -1793,7 +1793,6 @@ impl RollingChecker {
         let pairs = &self.pairs;
         let finishing = self.finishing;
         let max_frames = self.cfg.max_lead_frames + 2 * CONTEXT_SLABS + 2;
-        let mut dropped_frames = Vec::new();
         let mut oldest_of: BTreeMap<String, i64> = BTreeMap::new();
         for (id, b) in &mut self.bodies {
             // The oldest stamp a pair of this body has not decided.
@@ -1843,9 +1842,7 @@ impl RollingChecker {
             }
             // Frames of a stream no piece has come for yet: only the latest ones.
             while b.frames.len() > max_frames + b.slabs.len() {
-                if let Some((s, _)) = b.frames.pop_first() {
-                    dropped_frames.push((id.clone(), s));
-                }
+                b.frames.pop_first();
             }
             // Finished runs none of whose slabs are kept: their figures go to the totals.
             while let Some(r) = b.runs.first() {
@@ -1858,7 +1855,6 @@ impl RollingChecker {
                 add_run(&mut b.totals, r);
             }
         }
-        let _ = dropped_frames;
         self.cut_horizon(&oldest_of);
     }
 

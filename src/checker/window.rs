@@ -104,6 +104,11 @@ impl PreparedWindow {
     }
 
     /// Position of window tet `original` among the taken tets (piece order), if taken.
+    ///
+    /// Given a leaf index instead, it is the position in leaf order: each piece keeps its
+    /// range of indices in both orders, and its tets in leaf order are the order the full
+    /// check's streamed preparation gives them, so this position plus the piece's first tet
+    /// is the tet's leaf index in the full check.
     fn position(&self, original: u32) -> Option<u32> {
         let o = original as usize;
         let mut before = 0;
@@ -192,7 +197,7 @@ pub struct Crossing {
     /// Checker-time range of the section.
     pub t: (f64, f64),
     /// Positions of the two tets among their bodies' taken tets, in leaf order (see
-    /// `w_position`).
+    /// [`PreparedWindow::position`]).
     pub tets: (u32, u32),
     /// Their hyperplane normals (exact integers in `f64`, so sums are exact).
     pub normals: ([f64; 4], [f64; 4]),
@@ -256,7 +261,7 @@ pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
         };
     }
     for &(t0, t1, i, j) in &all.ranges {
-        let (Some(pa), Some(pb)) = (w_position(a, i), w_position(b, j)) else {
+        let (Some(pa), Some(pb)) = (a.position(i), b.position(j)) else {
             continue;
         };
         out.ranges.push((t0, t1));
@@ -342,12 +347,4 @@ impl InsideTest for Taken<'_> {
     fn point(&self, t: u32) -> LatticePoint {
         self.inner.point(self.leaves[t as usize])
     }
-}
-
-/// Position of leaf `i` of a window body among the taken tets in leaf order: each piece
-/// keeps its range of indices in both orders, and its tets in leaf order are the order the
-/// full check's streamed preparation gives them, so this position plus the piece's first
-/// tet is the tet's leaf index in the full check.
-fn w_position(w: &PreparedWindow, i: u32) -> Option<u32> {
-    w.position(i)
 }
