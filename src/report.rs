@@ -480,7 +480,7 @@ pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> O
         }
         if j < b.stamps_ns.len() && b.stamps_ns[j] == s {
             let both = a.frames.get(i)?.intersect(b.frames.get(j)?)?;
-            asm.push_decoded(s, ga, both).ok()?;
+            asm.push_derived(s, ga, both).ok()?;
         }
     }
     let body = asm.finish();

@@ -38,30 +38,57 @@ pub fn load_bodies(
     path: &Path,
     opts: MesherOptions,
 ) -> Result<BTreeMap<String, BodyMesh>, CliError> {
-    let mut asm: BTreeMap<String, (BodyAssembler, u64)> = BTreeMap::new();
+    Ok(load_bodies_with_frames(path, opts)?.0)
+}
+
+/// [`load_bodies`], with each body's `header.frame_id` (of its first accepted frame).
+///
+/// # Errors
+/// The bag cannot be read or has no VoxelGrid topic.
+pub fn load_bodies_with_frames(
+    path: &Path,
+    opts: MesherOptions,
+) -> Result<(BTreeMap<String, BodyMesh>, BTreeMap<String, String>), CliError> {
+    let mut asm: BTreeMap<String, (BodyAssembler, String)> = BTreeMap::new();
     for (topic, grid) in BagFrames::open(path)? {
-        let (a, undecodable) = match asm.entry(topic.clone()) {
+        let (a, frame_id) = match asm.entry(topic.clone()) {
             std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
             std::collections::btree_map::Entry::Vacant(e) => {
-                e.insert((BodyAssembler::new(opts)?.keep_frames(true), 0))
+                e.insert((BodyAssembler::new(opts)?.keep_frames(true), String::new()))
             }
         };
         let Some(grid) = grid else {
-            *undecodable += 1;
+            a.refuse(None, &crate::mesh::MeshError::Undecodable);
             continue;
         };
-        if let Err(e) = a.push(&frame_ref(&grid)) {
-            tracing::warn!(topic = %topic, stamp_ns = grid.header.stamp.as_nanos(), "skipping frame: {e}");
+        let stamp = grid.header.stamp.as_nanos();
+        if let Err(e) = grid.message_check(frame_id) {
+            tracing::warn!(topic = %topic, "skipping frame: {e}");
+            let at = matches!(e, crate::mesh::MeshError::FrameIdChanged { .. }).then_some(stamp);
+            a.refuse(at, &e);
+            continue;
+        }
+        match a.push(&frame_ref(&grid)) {
+            Err(e) => tracing::warn!(topic = %topic, stamp_ns = stamp, "skipping frame: {e}"),
+            Ok(gap) => {
+                if frame_id.is_empty() {
+                    *frame_id = grid.header.frame_id.clone();
+                }
+                if let Some(g) = gap {
+                    tracing::warn!(topic = %topic, "frames missing from {} to {} ns: {}", g.from_ns, g.to_ns, g.reason);
+                }
+            }
         }
     }
-    Ok(asm
+    let mut frames = BTreeMap::new();
+    let bodies = asm
         .into_iter()
-        .map(|(k, (a, undecodable))| {
-            let mut body = a.finish();
-            body.skipped += undecodable;
-            (k, body)
+        .map(|(k, (a, frame_id))| {
+            frames.insert(k.clone(), frame_id);
+            (k, a.finish())
         })
-        .collect())
+        .collect();
+    Ok((bodies, frames))
 }
 
 /// Checks every pair of bodies of a bag; resolutions for the body whose id sorts first.

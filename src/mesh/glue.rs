@@ -2,8 +2,9 @@
 //! end caps, for consumers that need the body at once (the interference checker).
 
 use super::march::{CapSide, TetMesh, Welder};
-use super::mesher::{GridGeometry, Mesher, MesherOptions, Slab};
+use super::mesher::{GridGeometry, MesherOptions, Slab};
 use super::stats::{BodyStats, LateralRef, StatsAccumulator};
+use super::stream::{BodyStream, LossLog, LossSpan};
 use super::{FrameRef, MeshError, OccupancyGrid};
 
 /// One body's closed 4D mesh over all its frames.
@@ -22,6 +23,8 @@ pub struct BodyMesh {
     pub frames: Vec<OccupancyGrid>,
     /// Frames refused by the mesher.
     pub skipped: u64,
+    /// What the stream lost (refused frames, filled and spanned gaps).
+    pub losses: LossLog,
     /// Streaming statistics (closedness, hypervolume in m³·s, counts).
     pub stats: BodyStats,
 }
@@ -98,10 +101,11 @@ impl BodyGluer {
     }
 }
 
-/// Builds a [`BodyMesh`] from a stream of frames.
+/// Builds a [`BodyMesh`] from a stream of frames, with the stream rules of
+/// [`BodyStream`] (refused frames change nothing; gaps between accepted frames filled).
 #[derive(Debug)]
 pub struct BodyAssembler {
-    mesher: Mesher,
+    stream: BodyStream,
     gluer: BodyGluer,
     stamps_ns: Vec<i64>,
     frames: Vec<OccupancyGrid>,
@@ -115,7 +119,7 @@ impl BodyAssembler {
     /// Bad mesher options.
     pub fn new(opts: MesherOptions) -> Result<Self, MeshError> {
         Ok(Self {
-            mesher: Mesher::new(opts)?,
+            stream: BodyStream::new(opts)?,
             gluer: BodyGluer::new(),
             stamps_ns: Vec::new(),
             frames: Vec::new(),
@@ -129,42 +133,62 @@ impl BodyAssembler {
         self
     }
 
-    /// Feeds one frame.
+    /// Feeds one frame (and the frames filling a gap before it, if any).
     ///
     /// # Errors
-    /// The mesher's reason for refusing the frame; it is skipped and counted.
-    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<(), MeshError> {
-        let slab = self.mesher.push(f)?;
-        self.after_accept(f.stamp_ns, slab);
-        Ok(())
+    /// Why the frame was refused; it is skipped and counted, nothing else changes.
+    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<Option<LossSpan>, MeshError> {
+        let accepted = self.stream.push(f)?;
+        let n = accepted.frames.len();
+        for (i, (stamp_ns, slab)) in accepted.frames.into_iter().enumerate() {
+            let grid = if i + 1 < n { accepted.fill.clone() } else { None };
+            self.after_accept(stamp_ns, slab, grid);
+        }
+        Ok(accepted.gap)
     }
 
-    /// Feeds an already decoded frame (see [`Mesher::push_decoded`]).
+    /// Feeds a derived frame (see [`BodyStream::push_derived`]): no gap filling.
     ///
     /// # Errors
     /// The mesher's reason for refusing the frame.
-    pub fn push_decoded(
+    pub fn push_derived(
         &mut self,
         stamp_ns: i64,
         geometry: GridGeometry,
         grid: OccupancyGrid,
     ) -> Result<(), MeshError> {
-        let slab = self.mesher.push_decoded(stamp_ns, geometry, grid)?;
-        self.after_accept(stamp_ns, slab);
+        let slab = self.stream.push_derived(stamp_ns, geometry, grid)?;
+        self.after_accept(stamp_ns, slab, None);
         Ok(())
     }
 
-    fn after_accept(&mut self, stamp_ns: i64, slab: Option<Slab>) {
+    /// Records a frame refused before it reached the mesher (see [`BodyStream::refuse`]).
+    pub fn refuse(&mut self, stamp_ns: Option<i64>, e: &MeshError) {
+        self.stream.refuse(stamp_ns, e);
+    }
+
+    /// What the stream lost so far.
+    pub fn losses(&self) -> &LossLog {
+        self.stream.losses()
+    }
+
+    fn after_accept(&mut self, stamp_ns: i64, slab: Option<Slab>, filled: Option<OccupancyGrid>) {
         self.stamps_ns.push(stamp_ns);
+        let mesher = self.stream.mesher();
         if self.keep_frames {
-            if let Some(k) = self.mesher.last_frame() {
-                self.frames.push(k.grid.clone());
+            match filled {
+                Some(g) => self.frames.push(g),
+                None => {
+                    if let Some(k) = mesher.last_frame() {
+                        self.frames.push(k.grid.clone());
+                    }
+                }
             }
         }
         if let Some(slab) = slab {
             if slab.index == 0 {
-                if let Some(k) = self.mesher.first_frame() {
-                    if let Some(cap) = self.mesher.cap(k, CapSide::Low) {
+                if let Some(k) = mesher.first_frame() {
+                    if let Some(cap) = mesher.cap(k, CapSide::Low) {
                         self.gluer.first_cap(&cap, k.grid.occupied);
                     }
                 }
@@ -181,20 +205,22 @@ impl BodyAssembler {
     /// Closes the mesh with the last frame's cap and returns the body. With fewer than two
     /// frames the mesh is empty (a body needs a time extent).
     pub fn finish(mut self) -> BodyMesh {
-        if self.mesher.frames() >= 2 {
-            if let Some(k) = self.mesher.last_frame() {
-                if let Some(cap) = self.mesher.cap(k, CapSide::High) {
+        let mesher = self.stream.mesher();
+        if mesher.frames() >= 2 {
+            if let Some(k) = mesher.last_frame() {
+                if let Some(cap) = mesher.cap(k, CapSide::High) {
                     self.gluer.last_cap(&cap, k.grid.occupied);
                 }
             }
         }
         let mut body = self.gluer.finish(
-            self.mesher.frames(),
+            mesher.frames(),
             self.stamps_ns,
-            self.mesher.geometry().copied(),
+            mesher.geometry().copied(),
         );
         body.frames = self.frames;
-        body.skipped = self.mesher.skipped();
+        body.skipped = self.stream.losses().refused_frames;
+        body.losses = self.stream.losses().clone();
         body
     }
 }

@@ -129,6 +129,15 @@ impl OccupancyGrid {
                 encoding,
             });
         }
+        if encoding == Encoding::Percent {
+            let bad = f.data.iter().filter(|&&v| (101..=254).contains(&v)).count();
+            if let Some(&value) = f.data.iter().find(|&&v| (101..=254).contains(&v)) {
+                return Err(MeshError::PercentOutOfRange {
+                    value,
+                    voxels: bad as u64,
+                });
+            }
+        }
         let (sx, sy, sz) = (sx as usize, sy as usize, sz as usize);
         let padded = [sx + 2, sy + 2, sz + 2];
         let words = (sx + 2) / 64 + 2;
@@ -157,7 +166,7 @@ impl OccupancyGrid {
                         for (x, &raw) in src.iter().enumerate() {
                             let val = match raw {
                                 255 => unknown,
-                                r => r.min(100),
+                                r => r,
                             };
                             v[base + x] = val;
                             if val >= opts.iso_percent {

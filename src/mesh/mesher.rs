@@ -109,6 +109,27 @@ pub struct KeptFrame {
     pub grid: OccupancyGrid,
 }
 
+/// A frame decoded and checked by [`Mesher::prepare`], ready for [`Mesher::push_prepared`].
+#[derive(Debug, Clone)]
+pub struct PreparedFrame {
+    /// Stamp (ns).
+    pub stamp_ns: i64,
+    /// Its lattice.
+    pub geometry: GridGeometry,
+    /// Decoded occupancy.
+    pub grid: OccupancyGrid,
+}
+
+/// What [`Mesher::restore`] puts back.
+#[derive(Debug, Clone)]
+pub struct MesherSnapshot {
+    geometry: Option<GridGeometry>,
+    first: Option<KeptFrame>,
+    prev: Option<KeptFrame>,
+    accepted: u64,
+    skipped: u64,
+}
+
 /// Rolling 4D mesher of one body.
 #[derive(Debug)]
 pub struct Mesher {
@@ -167,6 +188,17 @@ impl Mesher {
     }
 
     fn try_push(&mut self, f: &FrameRef<'_>) -> Result<Option<Slab>, MeshError> {
+        let p = self.prepare(f)?;
+        self.accept(p.stamp_ns, p.geometry, p.grid)
+    }
+
+    /// Decodes `f` and runs every check [`Self::push`] would (fields, lattice, stamp order,
+    /// frame count) without changing any state: a frame this refuses, `push` refuses too. Only
+    /// marching ([`MeshError::SlabTooComplex`]) is left for [`Self::push_prepared`].
+    ///
+    /// # Errors
+    /// Why the frame would be refused.
+    pub fn prepare(&self, f: &FrameRef<'_>) -> Result<PreparedFrame, MeshError> {
         let scale = if f.encoding == 1 {
             self.opts.percent_scale
         } else {
@@ -197,7 +229,68 @@ impl Mesher {
         // Field checks first (they refuse oversized frames before allocating), then the
         // stream checks.
         let grid = OccupancyGrid::decode(f, &self.opts.decode)?;
-        self.accept(f.stamp_ns, geometry, grid)
+        self.check_stream(f.stamp_ns, &geometry)?;
+        Ok(PreparedFrame {
+            stamp_ns: f.stamp_ns,
+            geometry,
+            grid,
+        })
+    }
+
+    /// Feeds a frame [`Self::prepare`] accepted. Returns the slab it completes, if any.
+    ///
+    /// # Errors
+    /// [`MeshError::SlabTooComplex`] (or a stream check, if other frames came in between);
+    /// the frame is then skipped and counted, the state unchanged.
+    pub fn push_prepared(&mut self, p: PreparedFrame) -> Result<Option<Slab>, MeshError> {
+        self.push_decoded(p.stamp_ns, p.geometry, p.grid)
+    }
+
+    /// The stream checks of a frame at `stamp_ns` on `geometry`: same lattice as the earlier
+    /// frames, stamp after the last one, room for one more frame.
+    fn check_stream(&self, stamp_ns: i64, geometry: &GridGeometry) -> Result<(), MeshError> {
+        if let Some(g) = &self.geometry {
+            if g != geometry {
+                return Err(MeshError::LatticeMismatch {
+                    expected: Box::new(*g),
+                    got: Box::new(*geometry),
+                });
+            }
+        }
+        if let Some(p) = &self.prev {
+            if stamp_ns <= p.stamp_ns {
+                return Err(MeshError::StampNotIncreasing {
+                    previous_ns: p.stamp_ns,
+                    got_ns: stamp_ns,
+                });
+            }
+        }
+        let limit = (i32::MAX / geometry.scale) as u64 - 1;
+        if self.accepted >= limit {
+            return Err(MeshError::TooManyFrames { limit });
+        }
+        Ok(())
+    }
+
+    /// The state a failed sequence of pushes can be rolled back to (see [`Self::restore`]).
+    /// Costs a copy of the last frame.
+    pub fn snapshot(&self) -> MesherSnapshot {
+        MesherSnapshot {
+            geometry: self.geometry,
+            first: self.first.clone(),
+            prev: self.prev.clone(),
+            accepted: self.accepted,
+            skipped: self.skipped,
+        }
+    }
+
+    /// Puts the mesher back to `s`, as if nothing had been pushed since [`Self::snapshot`].
+    pub fn restore(&mut self, s: MesherSnapshot) {
+        self.geometry = s.geometry;
+        self.first = s.first;
+        self.prev = s.prev;
+        self.accepted = s.accepted;
+        self.skipped = s.skipped;
     }
 
     /// Feeds an already decoded frame (e.g. the intersection of two bodies' frames).
@@ -225,26 +318,7 @@ impl Mesher {
         grid: OccupancyGrid,
     ) -> Result<Option<Slab>, MeshError> {
         let scale = geometry.scale;
-        if let Some(g) = &self.geometry {
-            if *g != geometry {
-                return Err(MeshError::LatticeMismatch {
-                    expected: Box::new(*g),
-                    got: Box::new(geometry),
-                });
-            }
-        }
-        if let Some(p) = &self.prev {
-            if stamp_ns <= p.stamp_ns {
-                return Err(MeshError::StampNotIncreasing {
-                    previous_ns: p.stamp_ns,
-                    got_ns: stamp_ns,
-                });
-            }
-        }
-        let limit = (i32::MAX / scale) as u64 - 1;
-        if self.accepted >= limit {
-            return Err(MeshError::TooManyFrames { limit });
-        }
+        self.check_stream(stamp_ns, &geometry)?;
         if grid.padded != geometry.size.map(|v| v as usize + 2) {
             return Err(MeshError::LatticeMismatch {
                 expected: Box::new(geometry),
@@ -298,6 +372,11 @@ impl Mesher {
         }
         self.prev = Some(kept);
         Ok(slab)
+    }
+
+    /// The options.
+    pub fn options(&self) -> &MesherOptions {
+        &self.opts
     }
 
     /// Frames accepted so far.

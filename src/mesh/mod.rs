@@ -13,6 +13,7 @@ pub mod grid;
 pub mod march;
 pub mod mesher;
 pub mod slice;
+pub mod stream;
 pub mod stats;
 pub mod table;
 pub mod table_gen;
@@ -32,7 +33,7 @@ pub enum MeshError {
         resolution: f64,
     },
     /// The origin has a NaN or infinite coordinate.
-    #[error("origin {origin:?} is not finite")]
+    #[error("origin ({}, {}, {}) m is not finite", origin[0], origin[1], origin[2])]
     BadOrigin {
         /// The value received.
         origin: [f64; 3],
@@ -44,13 +45,13 @@ pub enum MeshError {
         encoding: u8,
     },
     /// A size is zero.
-    #[error("size {size:?} has a zero dimension")]
+    #[error("size {}×{}×{} voxels has a zero dimension", size[0], size[1], size[2])]
     EmptySize {
         /// The sizes received.
         size: [u32; 3],
     },
     /// The voxel count exceeds the configured limit (refused before allocating).
-    #[error("size {size:?} is {voxels} voxels, over the limit of {limit} (raise max_voxels if this is intended)")]
+    #[error("size {}×{}×{} is {voxels} voxels, over the limit max_voxels = {limit} per frame", size[0], size[1], size[2])]
     TooLarge {
         /// The sizes received.
         size: [u32; 3],
@@ -61,7 +62,7 @@ pub enum MeshError {
     },
     /// Decoding the frame would take more memory than allowed (thin grids cost more per
     /// voxel than their data), or its lattice coordinates would overflow.
-    #[error("size {size:?} would need {bytes} bytes once decoded, over the limit of {limit}")]
+    #[error("size {}×{}×{} would need {bytes} bytes once decoded, over the limit max_decoded_bytes = {limit} per frame", size[0], size[1], size[2])]
     TooMuchMemory {
         /// The sizes received.
         size: [u32; 3],
@@ -71,7 +72,7 @@ pub enum MeshError {
         limit: u64,
     },
     /// A size is so large that lattice coordinates (scale × index) would overflow.
-    #[error("size {size:?} at lattice scale {scale} overflows the lattice coordinates (at most {max} voxels per axis)")]
+    #[error("size {}×{}×{} at lattice scale {scale} overflows the lattice coordinates (at most {max} voxels per axis)", size[0], size[1], size[2])]
     LatticeOverflow {
         /// The sizes received.
         size: [u32; 3],
@@ -81,7 +82,7 @@ pub enum MeshError {
         max: u32,
     },
     /// The data length does not match sizes and encoding.
-    #[error("data is {got} bytes but sizes and encoding {encoding:?} need {expected}")]
+    #[error("data is {got} bytes but the sizes and encoding {encoding:?} need {expected}")]
     DataLength {
         /// Bytes needed.
         expected: u64,
@@ -90,8 +91,16 @@ pub enum MeshError {
         /// The frame's encoding.
         encoding: Encoding,
     },
+    /// A PERCENT voxel holds a value outside 0..=100 and 255 (unknown).
+    #[error("{voxels} PERCENT voxel(s) hold values outside 0..=100 and 255 (unknown), e.g. {value}")]
+    PercentOutOfRange {
+        /// One such value.
+        value: u8,
+        /// How many voxels hold such values.
+        voxels: u64,
+    },
     /// The frame is not on the lattice of the body's earlier frames.
-    #[error("frame is on a different lattice than the previous frames: expected {expected:?}, got {got:?}")]
+    #[error("frame is on a different lattice than the body's earlier frames: {}", lattice_change(expected, got))]
     LatticeMismatch {
         /// The body's lattice.
         expected: Box<GridGeometry>,
@@ -119,6 +128,25 @@ pub enum MeshError {
         /// Frames accepted at most.
         limit: u64,
     },
+    /// The header stamp is not a valid time (`nanosec` must be below 10^9).
+    #[error("header.stamp nanosec {nanosec} is not below 1000000000 (sec {sec})")]
+    BadStamp {
+        /// The `sec` field.
+        sec: i32,
+        /// The `nanosec` field.
+        nanosec: u32,
+    },
+    /// The frame's `header.frame_id` is not the one of the body's earlier frames.
+    #[error("header.frame_id {got} where the body's earlier frames have {expected:?}")]
+    FrameIdChanged {
+        /// The body's frame.
+        expected: String,
+        /// This frame's, quoted and shortened.
+        got: String,
+    },
+    /// The message did not decode as a VoxelGrid.
+    #[error("the message does not decode as a chronotope_msgs/msg/VoxelGrid")]
+    Undecodable,
     /// A mesher option is out of range.
     #[error("option {name}: {reason}")]
     BadOption {
@@ -127,4 +155,79 @@ pub enum MeshError {
         /// Why.
         reason: String,
     },
+}
+
+impl MeshError {
+    /// A short stable name of the kind of refusal (for counters and merged loss spans).
+    pub fn code(&self) -> &'static str {
+        match self {
+            Self::BadResolution { .. } => "bad_resolution",
+            Self::BadOrigin { .. } => "bad_origin",
+            Self::UnknownEncoding { .. } => "unknown_encoding",
+            Self::EmptySize { .. } => "empty_size",
+            Self::TooLarge { .. } => "max_voxels",
+            Self::TooMuchMemory { .. } => "max_decoded_bytes",
+            Self::LatticeOverflow { .. } => "lattice_overflow",
+            Self::DataLength { .. } => "data_length",
+            Self::PercentOutOfRange { .. } => "percent_out_of_range",
+            Self::LatticeMismatch { .. } => "lattice_changed",
+            Self::StampNotIncreasing { .. } => "stamp_not_increasing",
+            Self::SlabTooComplex { .. } => "max_slab_tets",
+            Self::TooManyFrames { .. } => "too_many_frames",
+            Self::BadOption { .. } => "bad_option",
+            Self::BadStamp { .. } => "bad_stamp",
+            Self::Undecodable => "undecodable",
+            Self::FrameIdChanged { .. } => "frame_id_changed",
+        }
+    }
+}
+
+/// A user-supplied string for a message: quoted, at most 64 characters.
+pub fn quote(s: &str) -> String {
+    const MAX: usize = 64;
+    if s.chars().count() <= MAX {
+        format!("{s:?}")
+    } else {
+        let head: String = s.chars().take(MAX).collect();
+        format!("{head:?}… ({} bytes)", s.len())
+    }
+}
+
+/// What differs between two lattices, in user terms.
+fn lattice_change(expected: &GridGeometry, got: &GridGeometry) -> String {
+    let enc = |e: u8| match e {
+        0 => "BITS".to_owned(),
+        1 => "PERCENT".to_owned(),
+        e => format!("encoding {e}"),
+    };
+    let mut d = Vec::new();
+    if expected.resolution != got.resolution {
+        d.push(format!(
+            "resolution {} m where they have {} m",
+            got.resolution, expected.resolution
+        ));
+    }
+    if expected.origin != got.origin {
+        let o = |v: [f64; 3]| format!("({}, {}, {}) m", v[0], v[1], v[2]);
+        d.push(format!(
+            "origin {} where they have {}",
+            o(got.origin),
+            o(expected.origin)
+        ));
+    }
+    if expected.size != got.size {
+        let s = |v: [u32; 3]| format!("{}×{}×{} voxels", v[0], v[1], v[2]);
+        d.push(format!("size {} where they have {}", s(got.size), s(expected.size)));
+    }
+    if expected.encoding != got.encoding {
+        d.push(format!(
+            "{} where they are {}",
+            enc(got.encoding),
+            enc(expected.encoding)
+        ));
+    }
+    if d.is_empty() {
+        d.push("its decoded grid does not match its sizes".to_owned());
+    }
+    d.join("; ")
 }

@@ -101,6 +101,29 @@ pub struct VoxelGrid {
 }
 
 impl VoxelGrid {
+    /// The checks of a frame's message fields that its body's stream cannot make: `nanosec`
+    /// below 10^9, and `header.frame_id` the same as the body's earlier frames
+    /// (`body_frame_id`; empty before the body's first accepted frame).
+    ///
+    /// # Errors
+    /// [`MeshError::BadStamp`] or [`MeshError::FrameIdChanged`].
+    pub fn message_check(&self, body_frame_id: &str) -> Result<(), crate::mesh::MeshError> {
+        use crate::mesh::MeshError;
+        if self.header.stamp.nanosec >= 1_000_000_000 {
+            return Err(MeshError::BadStamp {
+                sec: self.header.stamp.sec,
+                nanosec: self.header.stamp.nanosec,
+            });
+        }
+        if !body_frame_id.is_empty() && self.header.frame_id != body_frame_id {
+            return Err(MeshError::FrameIdChanged {
+                expected: body_frame_id.to_owned(),
+                got: crate::mesh::quote(&self.header.frame_id),
+            });
+        }
+        Ok(())
+    }
+
     /// 1 bit per voxel, 1 = occupied; LSB first; x fastest, then y, then z.
     pub const ENCODING_BITS: u8 = 0;
     /// 1 byte per voxel: 0..100 occupied percent, 255 unknown.

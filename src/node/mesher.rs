@@ -14,21 +14,13 @@ use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
 use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::cli::frame_ref;
-use crate::mesh::{CapSide, GridGeometry, KeptFrame, Mesher, MesherOptions, Slab, TetMesh};
+use crate::mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
+use crate::mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
 use crate::msg::{Header, Marker, MeshSlab, RosMessage, Time, VoxelGrid};
 
-/// A frame period longer than this many times the body's median period so far is reported
-/// as frames missing from the stream.
-const GAP_FACTOR: f64 = 1.5;
-/// The median period is taken over this many latest periods (a long stream costs the same
-/// per frame as a short one).
-const PERIOD_WINDOW: usize = 64;
-
 struct Body {
-    mesher: Mesher,
+    stream: BodyStream,
     frame_id: String,
-    periods_ns: Vec<i64>,
-    last_stamp: Option<i64>,
     /// A frame came since the last tick.
     fresh: bool,
     /// Transport time of the last tick that saw a fresh frame.
@@ -40,10 +32,8 @@ struct Body {
 impl Body {
     fn new(opts: MesherOptions) -> Result<Self, crate::mesh::MeshError> {
         Ok(Self {
-            mesher: Mesher::new(opts)?,
+            stream: BodyStream::new(opts)?,
             frame_id: String::new(),
-            periods_ns: Vec::new(),
-            last_stamp: None,
             fresh: false,
             last_seen_ns: None,
             closed: false,
@@ -127,7 +117,14 @@ impl MesherNode {
 
     /// Frames of `body` the mesher refused.
     pub fn skipped(&self, body: &str) -> u64 {
-        self.bodies.get(body).map_or(0, |b| b.mesher.skipped())
+        self.bodies
+            .get(body)
+            .map_or(0, |b| b.stream.losses().refused_frames)
+    }
+
+    /// What `body`'s stream lost so far (refused frames, filled and spanned gaps).
+    pub fn losses(&self, body: &str) -> Option<&LossLog> {
+        self.bodies.get(body).map(|b| b.stream.losses())
     }
 
     /// The mesher options.
@@ -168,8 +165,8 @@ impl MesherNode {
     }
 
     fn cap(&self, body: &str, b: &Body, k: &KeptFrame, side: CapSide) -> Option<Message> {
-        let g = *b.mesher.geometry()?;
-        let Some(cap) = b.mesher.cap(k, side) else {
+        let g = *b.stream.mesher().geometry()?;
+        let Some(cap) = b.stream.mesher().cap(k, side) else {
             // Over the tet budget: the body's mesh stays open there and says so.
             return None;
         };
@@ -211,121 +208,109 @@ impl MesherNode {
         let Some(mut b) = self.bodies.remove(topic) else {
             return;
         };
-        if b.closed {
-            tracing::info!(
-                node = self.fqn,
-                "{topic}: frames again after going idle: a new stream"
+        let refused = |s: &mut NodeStatus, fqn: &str, e: &MeshError| {
+            s.problem(
+                fqn,
+                "frame_refused",
+                format!("{topic}: frame at {} skipped: {e}", stamp_text(grid)),
             );
-            match Body::new(self.opts) {
-                Ok(fresh) => b = fresh,
+        };
+        // Checks of the message itself, before the stream sees it.
+        let pre = grid
+            .message_check(if b.closed { "" } else { &b.frame_id })
+            .err();
+        if let Some(e) = pre {
+            let at = matches!(e, MeshError::FrameIdChanged { .. }).then_some(stamp);
+            b.stream.refuse(at, &e);
+            refused(&mut self.status, &self.fqn, &e);
+            self.bodies.insert(topic.to_owned(), b);
+            return;
+        }
+        // After an idle close the next accepted frame starts a new stream (the losses go on).
+        let mut next = None;
+        if b.closed {
+            match b.stream.restarted() {
+                Ok(s) => next = Some(s),
                 Err(e) => {
-                    self.status
-                        .problem(&self.fqn, "frame_refused", format!("{topic}: {e}"));
+                    refused(&mut self.status, &self.fqn, &e);
                     self.bodies.insert(topic.to_owned(), b);
                     return;
                 }
             }
         }
-        b.fresh = true;
-        if let (Some(prev), Some(median)) = (b.last_stamp, median(&b.periods_ns)) {
-            let dt = stamp - prev;
-            if dt as f64 > GAP_FACTOR * median as f64 {
-                self.fill_gap(topic, &mut b, grid, prev, dt, median, out);
+        let result = match next.as_mut() {
+            Some(s) => s.push(&frame_ref(grid)),
+            None => b.stream.push(&frame_ref(grid)),
+        };
+        match result {
+            Err(e) => {
+                if next.is_some() {
+                    // Refused as the first frame of a new stream: the old one stays closed.
+                    b.stream.refuse(Some(stamp), &e);
+                }
+                refused(&mut self.status, &self.fqn, &e);
             }
-        }
-        match b.mesher.push(&frame_ref(grid)) {
-            Err(e) => self.status.problem(
-                &self.fqn,
-                "frame_refused",
-                format!("{topic}: frame at {stamp} ns skipped: {e}"),
-            ),
-            Ok(slab) => {
+            Ok(accepted) => {
+                if let Some(s) = next {
+                    tracing::info!(
+                        node = self.fqn,
+                        "{topic}: frames again after going idle: a new stream"
+                    );
+                    b.stream = s;
+                    b.closed = false;
+                    b.frame_id.clear();
+                }
+                b.fresh = true;
                 if b.frame_id.is_empty() {
                     b.frame_id = grid.header.frame_id.clone();
                 }
-                self.accepted(topic, &mut b, stamp, slab, out);
+                self.after_push(topic, &mut b, accepted, out);
             }
         }
         self.bodies.insert(topic.to_owned(), b);
     }
 
-    /// Frames missing between `prev` and `grid`: counted, and when the gap is a whole number
-    /// of the body's usual periods, filled with the union of the two frames around it (where
-    /// the body may have been: the safe side for collision), so the body stays on the common
-    /// time lattice of the others.
-    #[allow(clippy::too_many_arguments)]
-    fn fill_gap(
-        &mut self,
-        topic: &str,
-        b: &mut Body,
-        grid: &VoxelGrid,
-        prev: i64,
-        dt: i64,
-        median: i64,
-        out: &mut Vec<Message>,
-    ) {
-        let stamp = grid.header.stamp.as_nanos();
-        let ratio = dt as f64 / median as f64;
-        let periods = ratio.round() as i64;
-        let whole = (ratio - periods as f64).abs() < 0.05 && (2..=1024).contains(&periods);
-        let filled = whole
-            && match (
-                crate::mesh::OccupancyGrid::decode(&frame_ref(grid), &self.opts.decode),
-                b.mesher.last_frame(),
-                b.mesher.geometry().copied(),
-            ) {
-                (Ok(next), Some(last), Some(g)) => match last.grid.union(&next) {
-                    Some(both) => {
-                        for j in 1..periods {
-                            let t = prev + dt * j / periods;
-                            match b.mesher.push_decoded(t, g, both.clone()) {
-                                Ok(slab) => self.accepted(topic, b, t, slab, out),
-                                Err(_) => return,
-                            }
-                        }
-                        true
-                    }
-                    None => false,
-                },
-                _ => false,
+    fn after_push(&mut self, topic: &str, b: &mut Body, a: Accepted, out: &mut Vec<Message>) {
+        if let Some(g) = &a.gap {
+            let how = match g.kind {
+                LossKind::Filled => format!(
+                    "{} frame(s) filled with the union of the two frames around the gap",
+                    g.frames
+                ),
+                _ => "one slab spans the gap".to_owned(),
             };
-        self.status.problem(
-            &self.fqn,
-            "frames_missing",
-            format!(
-                "{topic}: {:.3} s between frames at {prev} and {stamp} ns, about {} frame(s) missing; {}",
-                dt as f64 * 1e-9,
-                periods - 1,
-                if filled {
-                    "filled with the union of the frames around the gap"
-                } else {
-                    "the mesh spans the gap"
-                }
-            ),
-        );
+            self.status.problem(
+                &self.fqn,
+                "frames_missing",
+                format!(
+                    "{topic}: frames missing from {:.3} s to {:.3} s (stamps {} to {} ns): {}; {how}",
+                    g.from_ns as f64 * 1e-9,
+                    g.to_ns as f64 * 1e-9,
+                    g.from_ns,
+                    g.to_ns,
+                    g.reason
+                ),
+            );
+        }
+        for (stamp, slab) in a.frames {
+            self.accepted(topic, b, stamp, slab, out);
+        }
     }
 
     fn accepted(
         &mut self,
         topic: &str,
         b: &mut Body,
-        stamp: i64,
+        _stamp: i64,
         slab: Option<Slab>,
         out: &mut Vec<Message>,
     ) {
-        if let Some(prev) = b.last_stamp {
-            if b.periods_ns.len() == PERIOD_WINDOW {
-                b.periods_ns.remove(0);
-            }
-            b.periods_ns.push(stamp - prev);
-        }
-        b.last_stamp = Some(stamp);
         let Some(slab) = slab else {
             return;
         };
         if slab.index == 0 {
-            if let Some(m) = b
-                .mesher
+            if let Some(m) = b.stream
+                .mesher()
                 .first_frame()
                 .and_then(|k| self.cap(topic, b, k, CapSide::Low))
             {
@@ -335,7 +320,7 @@ impl MesherNode {
         if let Some(m) = self.slice_marker(topic, b, &slab) {
             out.push(m);
         }
-        let occupied = b.mesher.last_frame().map_or(0, |k| k.grid.occupied);
+        let occupied = b.stream.mesher().last_frame().map_or(0, |k| k.grid.occupied);
         out.push(self.piece(
             topic,
             b,
@@ -354,9 +339,9 @@ impl MesherNode {
     /// Publishes the closing cap of `b`'s mesh (or says why there is none).
     fn close(&mut self, topic: &str, b: &mut Body, out: &mut Vec<Message>) {
         b.closed = true;
-        if b.mesher.frames() >= 2 {
-            if let Some(m) = b
-                .mesher
+        if b.stream.mesher().frames() >= 2 {
+            if let Some(m) = b.stream
+                .mesher()
                 .last_frame()
                 .and_then(|k| self.cap(topic, b, k, CapSide::High))
             {
@@ -365,20 +350,21 @@ impl MesherNode {
         } else {
             let why = format!(
                 "{topic}: {} frame(s): a body needs two for a 4D mesh",
-                b.mesher.frames()
+                b.stream.mesher().frames()
             );
             self.status.problem(&self.fqn, "too_few_frames", why);
         }
     }
 }
 
-fn median(v: &[i64]) -> Option<i64> {
-    if v.is_empty() {
-        return None;
+/// A frame's stamp in words: seconds, and the raw fields when they are out of range.
+fn stamp_text(grid: &VoxelGrid) -> String {
+    let t = grid.header.stamp;
+    if t.nanosec >= 1_000_000_000 {
+        format!("sec {} nanosec {}", t.sec, t.nanosec)
+    } else {
+        format!("{:.3} s ({} ns)", t.as_nanos() as f64 * 1e-9, t.as_nanos())
     }
-    let mut s = v.to_vec();
-    s.sort_unstable();
-    Some(s[s.len() / 2])
 }
 
 /// The mesher options from a node's parameters (shared with the checker, which decodes the
@@ -534,7 +520,7 @@ impl Node for MesherNode {
                 let why = format!(
                     "{topic}: no frame for {quiet:.1} s after {} frame(s) while the other \
                      bodies go on: the stream stopped; its mesh is closed at its last frame",
-                    b.mesher.frames()
+                    b.stream.mesher().frames()
                 );
                 self.status.problem(&self.fqn, "stream_stopped", why);
             } else {

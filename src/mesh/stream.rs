@@ -1,0 +1,324 @@
+//! One body's stream of frames: which frames are accepted, where frames are missing or were
+//! refused, and how a gap between two accepted frames is filled. Shared by the mesher node
+//! (live and replay) and by `chronotope check`, so both accept the same frames.
+//!
+//! The rules:
+//! - A refused frame changes no mesh state. Its stamp (when it increases) only feeds the
+//!   estimate of the body's frame period, so that frames refused in a row are seen as missing
+//!   once an accepted frame follows.
+//! - A gap is filled only between two accepted frames: when the next accepted frame comes
+//!   a whole number (2..=1024) of periods after the last one, the frames in between are the
+//!   union of those two (where the body may have been: the safe side for collision), and the
+//!   span is reported as filled. Nothing is ever extended past the last accepted frame.
+//! - The fill and the frame after it are one step: if the frame is then refused (its slab
+//!   over `max_slab_tets`), the fill is undone.
+//! - What was lost is kept as spans (the latest [`MAX_LOSS_SPANS`], with totals for all).
+
+use std::collections::VecDeque;
+
+use serde::Serialize;
+
+use super::grid::{FrameRef, OccupancyGrid};
+use super::mesher::{Mesher, MesherOptions, Slab};
+use super::MeshError;
+
+/// A frame period longer than this many times the body's median period is frames missing.
+pub const GAP_FACTOR: f64 = 1.5;
+/// The median period is taken over this many latest periods.
+pub const PERIOD_WINDOW: usize = 64;
+/// Most frames one gap is filled with (a longer gap is spanned by one slab instead).
+pub const MAX_FILL_FRAMES: i64 = 1024;
+/// Loss spans kept per body (the latest; totals count every one).
+pub const MAX_LOSS_SPANS: usize = 64;
+
+/// What happened over a span of a body's stream.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LossKind {
+    /// Frames refused (the span runs from the first to the last refused stamp).
+    Refused,
+    /// Frames missing between two accepted frames, filled with their union.
+    Filled,
+    /// Frames missing between two accepted frames, not a whole number of periods (or too
+    /// many): one slab spans the gap.
+    Spanned,
+}
+
+/// A span of a body's stream where frames were refused or missing.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct LossSpan {
+    /// What happened.
+    pub kind: LossKind,
+    /// First stamp of the span (ns): the refused frame, or the accepted frame before the gap.
+    pub from_ns: i64,
+    /// Last stamp of the span (ns): the refused frame, or the accepted frame after the gap.
+    pub to_ns: i64,
+    /// Frames refused, filled or missing in the span.
+    pub frames: u64,
+    /// Why (the refusal's code, e.g. `lattice_changed`, or `frames_missing`).
+    pub code: &'static str,
+    /// The first refusal's reason, in words.
+    pub reason: String,
+}
+
+/// Everything a body lost, bounded.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize)]
+pub struct LossLog {
+    /// Frames refused in all.
+    pub refused_frames: u64,
+    /// Frames filled in all.
+    pub filled_frames: u64,
+    /// Gaps spanned by one slab.
+    pub spanned_gaps: u64,
+    /// The latest spans.
+    pub spans: VecDeque<LossSpan>,
+    /// Older spans dropped to keep [`MAX_LOSS_SPANS`].
+    pub spans_dropped: u64,
+}
+
+impl LossLog {
+    fn push(&mut self, span: LossSpan) {
+        if self.spans.len() == MAX_LOSS_SPANS {
+            self.spans.pop_front();
+            self.spans_dropped += 1;
+        }
+        self.spans.push_back(span);
+    }
+
+    fn refused(&mut self, stamp_ns: Option<i64>, e: &MeshError, run_open: bool) {
+        self.refused_frames += 1;
+        let code = e.code();
+        if let Some(last) = self.spans.back_mut() {
+            if run_open && last.kind == LossKind::Refused && last.code == code {
+                last.frames += 1;
+                if let Some(t) = stamp_ns {
+                    last.from_ns = last.from_ns.min(t);
+                    last.to_ns = last.to_ns.max(t);
+                }
+                return;
+            }
+        }
+        let t = stamp_ns.unwrap_or(0);
+        self.push(LossSpan {
+            kind: LossKind::Refused,
+            from_ns: t,
+            to_ns: t,
+            frames: 1,
+            code,
+            reason: e.to_string(),
+        });
+    }
+}
+
+/// What an accepted frame produced.
+#[derive(Debug, Default)]
+pub struct Accepted {
+    /// The slabs completed, in order, each with the stamp of the frame that completed it;
+    /// `None` for a frame that completes no slab (the first). Filled frames come first.
+    pub frames: Vec<(i64, Option<Slab>)>,
+    /// The gap before this frame, if there was one.
+    pub gap: Option<LossSpan>,
+    /// The frame the filled frames of `gap` are (the union of the two around it).
+    pub fill: Option<OccupancyGrid>,
+}
+
+/// One body's stream: a [`Mesher`] plus the rules of the module doc.
+#[derive(Debug)]
+pub struct BodyStream {
+    mesher: Mesher,
+    periods_ns: VecDeque<i64>,
+    last_seen_ns: Option<i64>,
+    /// A refused frame was the last thing seen (consecutive refusals merge into one span).
+    refusing: bool,
+    losses: LossLog,
+}
+
+impl BodyStream {
+    /// An empty stream.
+    ///
+    /// # Errors
+    /// Bad mesher options.
+    pub fn new(opts: MesherOptions) -> Result<Self, MeshError> {
+        Ok(Self {
+            mesher: Mesher::new(opts)?,
+            periods_ns: VecDeque::new(),
+            last_seen_ns: None,
+            refusing: false,
+            losses: LossLog::default(),
+        })
+    }
+
+    /// A new stream of the same body after this one ended (an idle close): empty, with the
+    /// same options, and this one's losses carried on.
+    ///
+    /// # Errors
+    /// Bad mesher options (not after a successful [`Self::new`]).
+    pub fn restarted(&self) -> Result<Self, MeshError> {
+        let mut s = Self::new(*self.mesher.options())?;
+        s.losses = self.losses.clone();
+        Ok(s)
+    }
+
+    /// The mesher (the accepted frames' state).
+    pub fn mesher(&self) -> &Mesher {
+        &self.mesher
+    }
+
+    /// What was lost so far.
+    pub fn losses(&self) -> &LossLog {
+        &self.losses
+    }
+
+    /// The body's frame period: the median of the latest periods between frames seen.
+    pub fn period_ns(&self) -> Option<i64> {
+        if self.periods_ns.is_empty() {
+            return None;
+        }
+        let mut s: Vec<i64> = self.periods_ns.iter().copied().collect();
+        s.sort_unstable();
+        Some(s[s.len() / 2])
+    }
+
+    fn saw(&mut self, stamp_ns: i64) {
+        match self.last_seen_ns {
+            Some(last) if stamp_ns <= last => {}
+            Some(last) => {
+                if self.periods_ns.len() == PERIOD_WINDOW {
+                    self.periods_ns.pop_front();
+                }
+                self.periods_ns.push_back(stamp_ns - last);
+                self.last_seen_ns = Some(stamp_ns);
+            }
+            None => self.last_seen_ns = Some(stamp_ns),
+        }
+    }
+
+    /// Records a frame the caller refused before it reached the mesher (e.g. a message that
+    /// did not decode, or a stamp out of its domain): counted, its stamp (if known) feeds the
+    /// period estimate only.
+    pub fn refuse(&mut self, stamp_ns: Option<i64>, e: &MeshError) {
+        if matches!(e, MeshError::StampNotIncreasing { .. }) {
+            // Not a new instant of the stream: no period from it.
+            self.losses.refused(stamp_ns, e, self.refusing);
+            self.refusing = true;
+            return;
+        }
+        self.losses.refused(stamp_ns, e, self.refusing);
+        self.refusing = true;
+        if let Some(t) = stamp_ns {
+            self.saw(t);
+        }
+    }
+
+    /// Feeds a frame derived from other streams' accepted frames (e.g. the intersection of
+    /// two bodies' frames), with none of the stream rules: no gap is filled.
+    ///
+    /// # Errors
+    /// The mesher's stream checks (lattice, stamp order, slab size).
+    pub fn push_derived(
+        &mut self,
+        stamp_ns: i64,
+        geometry: super::mesher::GridGeometry,
+        grid: OccupancyGrid,
+    ) -> Result<Option<Slab>, MeshError> {
+        self.mesher.push_decoded(stamp_ns, geometry, grid)
+    }
+
+    /// Feeds one frame.
+    ///
+    /// # Errors
+    /// Why the frame was refused; the mesh state is then unchanged.
+    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<Accepted, MeshError> {
+        let prepared = match self.mesher.prepare(f) {
+            Ok(p) => p,
+            Err(e) => {
+                self.refuse(Some(f.stamp_ns), &e);
+                return Err(e);
+            }
+        };
+        let mut out = Accepted::default();
+        let last = self.mesher.last_frame().map(|k| k.stamp_ns);
+        let gap = match (last, self.period_ns()) {
+            (Some(prev), Some(period)) if period > 0 => {
+                let dt = f.stamp_ns - prev;
+                (dt as f64 > GAP_FACTOR * period as f64).then_some((prev, dt, period))
+            }
+            _ => None,
+        };
+        let snapshot = gap.map(|_| self.mesher.snapshot());
+        if let Some((prev, dt, period)) = gap {
+            let ratio = dt as f64 / period as f64;
+            let periods = ratio.round() as i64;
+            let whole = (ratio - periods as f64).abs() < 0.05 && (2..=MAX_FILL_FRAMES).contains(&periods);
+            let union = self
+                .mesher
+                .last_frame()
+                .and_then(|k| k.grid.union(&prepared.grid));
+            let mut filled = 0;
+            if let (true, Some(both)) = (whole, union) {
+                out.fill = Some(both.clone());
+                for j in 1..periods {
+                    let t = prev + dt * j / periods;
+                    match self
+                        .mesher
+                        .push_decoded(t, prepared.geometry, both.clone())
+                    {
+                        Ok(slab) => {
+                            out.frames.push((t, slab));
+                            filled += 1;
+                        }
+                        Err(_) => break,
+                    }
+                }
+            }
+            let complete = filled == periods - 1 && filled > 0;
+            out.gap = Some(LossSpan {
+                kind: if complete {
+                    LossKind::Filled
+                } else {
+                    LossKind::Spanned
+                },
+                from_ns: prev,
+                to_ns: f.stamp_ns,
+                frames: (periods - 1).max(1) as u64,
+                code: "frames_missing",
+                reason: format!(
+                    "{:.3} s between accepted frames, about {} frame period(s) of {:.3} s",
+                    dt as f64 * 1e-9,
+                    periods,
+                    period as f64 * 1e-9
+                ),
+            });
+            if !complete && filled > 0 {
+                // A partial fill would leave uneven frame times: span the gap instead.
+                if let Some(s) = snapshot.clone() {
+                    self.mesher.restore(s);
+                }
+                out.frames.clear();
+                out.fill = None;
+            }
+        }
+        let stamp = prepared.stamp_ns;
+        match self.mesher.push_prepared(prepared) {
+            Ok(slab) => out.frames.push((stamp, slab)),
+            Err(e) => {
+                if let Some(s) = snapshot {
+                    self.mesher.restore(s);
+                }
+                // `restore` put the skip count back; count this frame once.
+                self.refuse(Some(f.stamp_ns), &e);
+                return Err(e);
+            }
+        }
+        if let Some(g) = &out.gap {
+            match g.kind {
+                LossKind::Filled => self.losses.filled_frames += g.frames,
+                _ => self.losses.spanned_gaps += 1,
+            }
+            self.losses.push(g.clone());
+        }
+        self.refusing = false;
+        self.saw(f.stamp_ns);
+        Ok(out)
+    }
+}

@@ -1,0 +1,214 @@
+//! Damaged frames in one body cost only that body's affected time span: a refused frame
+//! changes no state (no gap is filled towards it), every other body and pair is checked and
+//! reported in full, and `check` and `replay` agree.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+
+use chronotope::bag::BagWriter;
+use chronotope::cli::check::check_bag;
+use chronotope::cli::replay::replay;
+use chronotope::mesh::MesherOptions;
+use chronotope::msg::{Header, Point, Time, VoxelGrid};
+use chronotope::report::Report;
+
+const T0: i64 = 1_000_000_000;
+const PERIOD: i64 = 100_000_000;
+
+/// A 3×4×4-voxel box in a 12³ BITS frame, x from `x0 + k·vx`, y from `y0`, at frame `k`.
+fn boxf(x0: u32, vx: u32, y0: u32, k: u32) -> VoxelGrid {
+    let size = 12u32;
+    let data = common::bits_data([size; 3], |x, y, z| {
+        (4..8).contains(&z)
+            && (y0..y0 + 4).contains(&(y as u32))
+            && (x0 + k * vx..x0 + k * vx + 3).contains(&(x as u32))
+    });
+    VoxelGrid {
+        header: Header {
+            stamp: Time::from_nanos(T0 + i64::from(k) * PERIOD),
+            frame_id: "world".into(),
+        },
+        origin: Point::default(),
+        resolution: 0.01,
+        size_x: size,
+        size_y: size,
+        size_z: size,
+        encoding: VoxelGrid::ENCODING_BITS,
+        data,
+    }
+}
+
+/// Writes `frames` (topic, frame) in order.
+fn bag(dir: &Path, name: &str, frames: &[(&str, VoxelGrid)]) -> PathBuf {
+    let path = dir.join(name);
+    let mut w = BagWriter::create(&path).unwrap();
+    let mut topics: Vec<&str> = frames.iter().map(|(t, _)| *t).collect();
+    topics.sort_unstable();
+    topics.dedup();
+    for t in topics {
+        w.add_topic::<VoxelGrid>(t).unwrap();
+    }
+    for (t, f) in frames {
+        w.write(t, f.header.stamp.as_nanos() as u64, f).unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
+/// Both reports, after checking `check` and `replay` give the same verdicts and frame counts.
+fn both(bag: &Path) -> (Report, chronotope::cli::replay::ReplayReport) {
+    let c = check_bag(bag, MesherOptions::default(), None).expect("check reports");
+    let r = replay(bag, None, None, false).expect("replay reports");
+    let verdicts = |rep: &Report| {
+        rep.pairs
+            .iter()
+            .map(|p| (p.a.clone(), p.b.clone(), p.interfering, p.intervals_s.clone()))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(verdicts(&c), verdicts(&r.report), "check vs replay pairs");
+    let frames = |rep: &Report| {
+        rep.bodies
+            .iter()
+            .map(|b| (b.id.clone(), b.frames, b.skipped_frames))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(frames(&c), frames(&r.report), "check vs replay bodies");
+    (c, r)
+}
+
+fn pair<'a>(r: &'a Report, a: &str, b: &str) -> &'a chronotope::report::PairReport {
+    r.pairs
+        .iter()
+        .find(|p| p.a == a && p.b == b)
+        .unwrap_or_else(|| panic!("pair {a} x {b} in {:?}", r.pairs))
+}
+
+#[test]
+fn refused_frames_after_the_last_valid_one_invent_nothing() {
+    let d = tempfile::tempdir().unwrap();
+    let mut frames = Vec::new();
+    for k in 0..12 {
+        // /a: static at x 0..3; its frames 6..12 on another resolution (refused).
+        let mut a = boxf(0, 0, 4, k);
+        if k >= 6 {
+            a.resolution = 0.02;
+        }
+        frames.push(("/a/occupancy", a));
+        // /b: comes towards /a's place only after /a's last valid frame.
+        frames.push(("/b/occupancy", boxf(9, 0, 4, k).tap_x(if k >= 7 { 0 } else { 9 })));
+    }
+    let (c, r) = both(&bag(d.path(), "refused.mcap", &frames));
+    for rep in [&c, &r.report] {
+        let p = pair(rep, "/a/occupancy", "/b/occupancy");
+        assert!(!p.interfering, "/a has no valid frame after 0.5 s: {p:?}");
+        let a = rep.bodies.iter().find(|b| b.id == "/a/occupancy").unwrap();
+        assert_eq!((a.frames, a.skipped_frames), (6, 6), "{a:?}");
+    }
+}
+
+trait TapX {
+    fn tap_x(self, x0: u32) -> Self;
+}
+impl TapX for VoxelGrid {
+    /// The same frame with the box at x `x0..x0+3`.
+    fn tap_x(self, x0: u32) -> Self {
+        let size = self.size_x;
+        let data = common::bits_data([size; 3], |x, y, z| {
+            (4..8).contains(&z) && (4..8).contains(&y) && (x0..x0 + 3).contains(&(x as u32))
+        });
+        Self { data, ..self }
+    }
+}
+
+/// Three bodies: /a moves into /b; /c stays clear of both.
+fn three(k: u32) -> [(&'static str, VoxelGrid); 3] {
+    [
+        ("/a/occupancy", boxf(0, 1, 0, k)),
+        ("/b/occupancy", boxf(7, 0, 0, k)),
+        ("/c/occupancy", boxf(0, 0, 7, k)),
+    ]
+}
+
+fn scene(edit: impl Fn(&str, u32, &mut VoxelGrid) -> bool) -> Vec<(&'static str, VoxelGrid)> {
+    let mut v = Vec::new();
+    for k in 0..8 {
+        for (t, mut f) in three(k) {
+            if edit(t, k, &mut f) {
+                v.push((t, f));
+            }
+        }
+    }
+    v
+}
+
+fn clean_verdicts() -> Vec<(String, String, bool)> {
+    vec![
+        ("/a/occupancy".into(), "/b/occupancy".into(), true),
+        ("/a/occupancy".into(), "/c/occupancy".into(), false),
+        ("/b/occupancy".into(), "/c/occupancy".into(), false),
+    ]
+}
+
+fn verdicts(r: &Report) -> Vec<(String, String, bool)> {
+    r.pairs
+        .iter()
+        .map(|p| (p.a.clone(), p.b.clone(), p.interfering))
+        .collect()
+}
+
+#[test]
+fn the_clean_three_body_scene() {
+    let d = tempfile::tempdir().unwrap();
+    let (c, _) = both(&bag(d.path(), "clean.mcap", &scene(|_, _, _| true)));
+    assert_eq!(verdicts(&c), clean_verdicts());
+}
+
+#[test]
+fn one_skipped_frame_costs_only_its_body() {
+    let d = tempfile::tempdir().unwrap();
+    let b = bag(
+        d.path(),
+        "skip.mcap",
+        &scene(|t, k, _| !(t == "/c/occupancy" && k == 3)),
+    );
+    let (c, _) = both(&b);
+    assert_eq!(verdicts(&c), clean_verdicts());
+}
+
+#[test]
+fn a_body_on_another_lattice_costs_only_its_pairs() {
+    let d = tempfile::tempdir().unwrap();
+    for (name, edit) in [
+        ("half-voxel", 0),
+        ("resolution", 1),
+        ("stamps", 2),
+        ("several-bad", 3),
+    ] {
+        let b = bag(
+            d.path(),
+            &format!("{name}.mcap"),
+            &scene(|t, k, f| {
+                if t == "/c/occupancy" {
+                    match edit {
+                        0 => f.origin.x = 0.005,
+                        1 => f.resolution = 0.02,
+                        2 => f.header.stamp = Time::from_nanos(f.header.stamp.as_nanos() + PERIOD / 2),
+                        _ => {
+                            if k % 2 == 1 {
+                                f.data.truncate(3);
+                            }
+                        }
+                    }
+                }
+                true
+            }),
+        );
+        let c = check_bag(&b, MesherOptions::default(), None);
+        let r = replay(&b, None, None, false).expect("replay reports");
+        eprintln!("{name}: check {:?}", c.as_ref().map(verdicts));
+        eprintln!("{name}: replay {:?} bodies {:?}", verdicts(&r.report), r.report.bodies.iter().map(|b| (b.id.clone(), b.frames)).collect::<Vec<_>>());
+        let ab = pair(&r.report, "/a/occupancy", "/b/occupancy");
+        assert!(ab.interfering, "{name}: {ab:?}");
+    }
+}
