@@ -11,6 +11,7 @@ use crate::checker::{
     check_pair, check_pair_walked, CheckError, CommonLattice, PairResult, Prepared, StreamWalk,
 };
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
+use crate::mesh::stream::{LossKind, LossLog};
 use crate::mesh::MesherOptions;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -36,6 +37,62 @@ pub struct BodyReport {
     /// Slabs in which the body vanishes between its frames: the frame rate is too low for
     /// its motion and contacts there can be missed (extra field).
     pub vanishing_slabs: u64,
+    /// Frames filled in gaps between accepted frames (extra field; absent when none).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub filled_frames: u64,
+    /// Where the body's stream lost frames: refused, filled or spanned, in seconds since
+    /// `time_origin_ns` (extra field; the latest spans, absent when none).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub lost_spans: Vec<LostSpan>,
+}
+
+fn is_zero(v: &u64) -> bool {
+    *v == 0
+}
+
+/// A span of a body's stream where frames were refused or missing (extra field of a body).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct LostSpan {
+    /// `refused`, `filled` or `spanned`.
+    pub kind: LossKind,
+    /// Start and end (s since `time_origin_ns`).
+    pub span_s: [f64; 2],
+    /// Frames refused, filled or missing in it.
+    pub frames: u64,
+    /// Why (`lattice_changed`, `frames_missing`, ...).
+    pub code: &'static str,
+    /// The reason in words.
+    pub reason: String,
+}
+
+impl LostSpan {
+    /// The spans of `log`, in seconds since `origin_ns`.
+    pub fn of(log: &LossLog, origin_ns: i64) -> Vec<Self> {
+        log.spans
+            .iter()
+            .map(|s| Self {
+                kind: s.kind,
+                span_s: [
+                    (s.from_ns - origin_ns) as f64 * 1e-9,
+                    (s.to_ns - origin_ns) as f64 * 1e-9,
+                ],
+                frames: s.frames,
+                code: s.code,
+                reason: s.reason.clone(),
+            })
+            .collect()
+    }
+}
+
+/// A pair that could not be checked, and why (extra field of the report).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct UncheckedPair {
+    /// First body (a < b).
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// Why, in words.
+    pub reason: String,
 }
 
 /// Label counts of both bodies of a pair.
@@ -119,6 +176,10 @@ pub struct Report {
     /// What went wrong with the input and was skipped (extra field; empty when nothing did).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub problems: Vec<String>,
+    /// Pairs that were asked for but could not be checked, and why (extra field; absent when
+    /// none). Their bodies' other pairs are checked as usual.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub unchecked_pairs: Vec<UncheckedPair>,
 }
 
 /// A resolve suggestion (one entry of the report's `resolutions`).
@@ -167,6 +228,9 @@ pub struct CheckPlan {
     pub movable: Vec<String>,
     /// c (m/s) of the 4D metric; `None`: one voxel per frame period.
     pub time_scale: Option<f64>,
+    /// Each body's `header.frame_id`, where known: bodies in different frames are not
+    /// checked against each other (the pair is reported as unchecked).
+    pub frame_ids: BTreeMap<String, String>,
 }
 
 impl CheckPlan {
@@ -187,6 +251,7 @@ impl CheckPlan {
             pairs: None,
             movable: sorted.first().map(|s| s.to_string()).into_iter().collect(),
             time_scale,
+            frame_ids: BTreeMap::new(),
         }
     }
 }
@@ -272,6 +337,106 @@ pub fn check_streamed(
     }
     pair_ids.sort();
     pair_ids.dedup();
+    // A pair whose bodies cannot be compared costs only that pair.
+    let mut unchecked = Vec::new();
+    pair_ids.retain(|(a, b)| {
+        let frames = match (plan.frame_ids.get(a), plan.frame_ids.get(b)) {
+            (Some(fa), Some(fb)) if fa != fb => Some(format!(
+                "{a} is in frame {fa:?} and {b} in frame {fb:?}: bodies in different frames \
+                 are not compared (publish them in one frame)"
+            )),
+            _ => None,
+        };
+        let why = frames.or_else(|| {
+            CommonLattice::of(&[(a.as_str(), &bodies[a]), (b.as_str(), &bodies[b])])
+                .err()
+                .map(|e| e.to_string())
+        });
+        match why {
+            Some(reason) => {
+                let why = format!("pair {a} x {b}: not checked: {reason}");
+                tracing::warn!("{why}");
+                problems.push(why);
+                unchecked.push(UncheckedPair {
+                    a: a.clone(),
+                    b: b.clone(),
+                    reason,
+                });
+                false
+            }
+            None => true,
+        }
+    });
+    // Bodies that can all be compared are checked together; otherwise each group of
+    // pairs that can is checked on its own lattice.
+    if !pair_ids.is_empty() {
+        let mut named: Vec<(&str, &BodyMesh)> = Vec::new();
+        for (a, b) in &pair_ids {
+            for id in [a, b] {
+                if !named.iter().any(|(n, _)| *n == id.as_str()) {
+                    named.push((id.as_str(), &bodies[id]));
+                }
+            }
+        }
+        if CommonLattice::of(&named).is_err() {
+            let groups = lattice_groups(bodies, &pair_ids);
+            let mut merged: Option<CheckOutcome> = None;
+            for group in groups {
+                let sub = CheckPlan {
+                    pairs: Some(group.clone()),
+                    movable: plan
+                        .movable
+                        .iter()
+                        .filter(|m| group.iter().any(|(a, b)| a == *m || b == *m))
+                        .cloned()
+                        .collect(),
+                    time_scale: plan.time_scale,
+                    frame_ids: BTreeMap::new(),
+                };
+                let mut sub_preps = BTreeMap::new();
+                let mut sub_walks = BTreeMap::new();
+                for (a, b) in &group {
+                    for id in [a, b] {
+                        if let Some(p) = preps.remove(id) {
+                            sub_preps.insert(id.clone(), p);
+                        }
+                    }
+                    if let Some(w) = walks.remove(&(a.clone(), b.clone())) {
+                        sub_walks.insert((a.clone(), b.clone()), w);
+                    }
+                }
+                let o = check_streamed(bodies, sub_preps, sub_walks, &sub, opts)?;
+                merged = Some(match merged {
+                    None => o,
+                    Some(mut m) => {
+                        m.report.pairs.extend(o.report.pairs);
+                        m.report.resolutions.extend(o.report.resolutions);
+                        m.report.unchecked_pairs.extend(o.report.unchecked_pairs);
+                        for p in o.report.problems {
+                            if !m.report.problems.contains(&p) {
+                                m.report.problems.push(p);
+                            }
+                        }
+                        m.report.timings_ms.check += o.report.timings_ms.check;
+                        m.report.timings_ms.resolve += o.report.timings_ms.resolve;
+                        // One lattice per group: the outcome keeps the first group's.
+                        m
+                    }
+                });
+            }
+            let mut m = merged.expect("at least one group");
+            m.report.pairs.sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
+            for p in problems.into_iter().rev() {
+                if !m.report.problems.contains(&p) {
+                    m.report.problems.insert(0, p);
+                }
+            }
+            unchecked.extend(m.report.unchecked_pairs);
+            unchecked.sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
+            m.report.unchecked_pairs = unchecked;
+            return Ok(m);
+        }
+    }
     let mut ids: Vec<String> = pair_ids
         .iter()
         .flat_map(|(a, b)| [a.clone(), b.clone()])
@@ -299,12 +464,15 @@ pub fn check_streamed(
                 hypervolume_m3s: b.stats.hypervolume_m3s,
                 skipped_frames: b.skipped,
                 vanishing_slabs: b.stats.vanishing_slabs,
+                filled_frames: b.losses.filled_frames,
+                lost_spans: LostSpan::of(&b.losses, time_origin_ns),
             })
             .collect(),
         pairs: Vec::new(),
         resolutions: Vec::new(),
         timings_ms: Timings::default(),
         problems,
+        unchecked_pairs: unchecked,
     };
     if ids.is_empty() {
         report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;
@@ -461,6 +629,57 @@ pub fn resolve(
             verified_clear: ts.verified_clear,
             episode_s: episode,
         });
+    }
+    out
+}
+
+/// The checkable pairs split into groups whose bodies share one lattice: connected groups
+/// of pairs, each group's bodies checked for one common lattice; a group that has none is
+/// split into its single pairs (each checkable on its own).
+fn lattice_groups(
+    bodies: &BTreeMap<String, BodyMesh>,
+    pairs: &[(String, String)],
+) -> Vec<Vec<(String, String)>> {
+    // Connected components of the pair graph.
+    let mut comp: BTreeMap<String, usize> = BTreeMap::new();
+    let mut groups: Vec<Vec<(String, String)>> = Vec::new();
+    for (a, b) in pairs {
+        let (ca, cb) = (comp.get(a).copied(), comp.get(b).copied());
+        let g = match (ca, cb) {
+            (Some(x), Some(y)) if x != y => {
+                let moved = std::mem::take(&mut groups[y]);
+                for (p, q) in &moved {
+                    comp.insert(p.clone(), x);
+                    comp.insert(q.clone(), x);
+                }
+                groups[x].extend(moved);
+                x
+            }
+            (Some(x), _) | (None, Some(x)) => x,
+            (None, None) => {
+                groups.push(Vec::new());
+                groups.len() - 1
+            }
+        };
+        comp.insert(a.clone(), g);
+        comp.insert(b.clone(), g);
+        groups[g].push((a.clone(), b.clone()));
+    }
+    let mut out = Vec::new();
+    for g in groups.into_iter().filter(|g| !g.is_empty()) {
+        let mut named: Vec<(&str, &BodyMesh)> = Vec::new();
+        for (a, b) in &g {
+            for id in [a, b] {
+                if !named.iter().any(|(n, _)| *n == id.as_str()) {
+                    named.push((id.as_str(), &bodies[id]));
+                }
+            }
+        }
+        if CommonLattice::of(&named).is_ok() || g.len() == 1 {
+            out.push(g);
+        } else {
+            out.extend(g.into_iter().map(|p| vec![p]));
+        }
     }
     out
 }

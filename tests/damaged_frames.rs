@@ -177,38 +177,116 @@ fn one_skipped_frame_costs_only_its_body() {
 }
 
 #[test]
-fn a_body_on_another_lattice_costs_only_its_pairs() {
+fn a_body_that_cannot_be_compared_costs_only_its_pairs() {
     let d = tempfile::tempdir().unwrap();
     for (name, edit) in [
         ("half-voxel", 0),
         ("resolution", 1),
         ("stamps", 2),
-        ("several-bad", 3),
+        ("frame-id", 3),
     ] {
         let b = bag(
             d.path(),
             &format!("{name}.mcap"),
-            &scene(|t, k, f| {
+            &scene(|t, _, f| {
                 if t == "/c/occupancy" {
                     match edit {
                         0 => f.origin.x = 0.005,
                         1 => f.resolution = 0.02,
-                        2 => f.header.stamp = Time::from_nanos(f.header.stamp.as_nanos() + PERIOD / 2),
-                        _ => {
-                            if k % 2 == 1 {
-                                f.data.truncate(3);
-                            }
+                        2 => {
+                            f.header.stamp =
+                                Time::from_nanos(f.header.stamp.as_nanos() + PERIOD / 2)
                         }
+                        _ => f.header.frame_id = "tool".into(),
                     }
                 }
                 true
             }),
         );
-        let c = check_bag(&b, MesherOptions::default(), None);
-        let r = replay(&b, None, None, false).expect("replay reports");
-        eprintln!("{name}: check {:?}", c.as_ref().map(verdicts));
-        eprintln!("{name}: replay {:?} bodies {:?}", verdicts(&r.report), r.report.bodies.iter().map(|b| (b.id.clone(), b.frames)).collect::<Vec<_>>());
-        let ab = pair(&r.report, "/a/occupancy", "/b/occupancy");
-        assert!(ab.interfering, "{name}: {ab:?}");
+        let (c, r) = both(&b);
+        for rep in [&c, &r.report] {
+            assert_eq!(
+                verdicts(rep),
+                clean_verdicts()[..1].to_vec(),
+                "{name}: /a x /b checked, the pairs of /c not"
+            );
+            let unchecked: Vec<(&str, &str)> = rep
+                .unchecked_pairs
+                .iter()
+                .map(|p| (p.a.as_str(), p.b.as_str()))
+                .collect();
+            assert_eq!(
+                unchecked,
+                [("/a/occupancy", "/c/occupancy"), ("/b/occupancy", "/c/occupancy")],
+                "{name}: {:?}",
+                rep.unchecked_pairs
+            );
+            for p in &rep.unchecked_pairs {
+                assert!(!p.reason.contains("{ ") && !p.reason.is_empty(), "{name}: {}", p.reason);
+                // One body named twice is no explanation.
+                assert!(!p.reason.contains(&format!("{0} and {0}", p.a)), "{}", p.reason);
+            }
+            assert!(rep.bodies.iter().all(|b| b.frames == 8), "{name}: {:?}", rep.bodies);
+        }
     }
+}
+
+#[test]
+fn several_bad_frames_in_one_body_are_filled_between_accepted_ones_and_said() {
+    let d = tempfile::tempdir().unwrap();
+    let b = bag(
+        d.path(),
+        "several.mcap",
+        &scene(|t, k, f| {
+            if t == "/c/occupancy" && k % 2 == 1 {
+                f.data.truncate(3);
+            }
+            true
+        }),
+    );
+    let (c, r) = both(&b);
+    for rep in [&c, &r.report] {
+        assert_eq!(verdicts(rep), clean_verdicts());
+        let body = rep.bodies.iter().find(|b| b.id == "/c/occupancy").unwrap();
+        // Frames 1, 3, 5 filled between accepted ones; frame 7, the last, is refused and
+        // nothing follows it, so nothing is filled towards it.
+        assert_eq!((body.frames, body.skipped_frames, body.filled_frames), (7, 4, 3), "{body:?}");
+        let filled: Vec<[f64; 2]> = body
+            .lost_spans
+            .iter()
+            .filter(|s| format!("{:?}", s.kind) == "Filled")
+            .map(|s| s.span_s)
+            .collect();
+        assert_eq!(filled.len(), 3, "{:?}", body.lost_spans);
+        assert!((filled[0][0] - 0.0).abs() < 1e-9 && (filled[0][1] - 0.2).abs() < 1e-9, "{filled:?}");
+    }
+}
+
+#[test]
+fn out_of_domain_fields_are_refused_by_name() {
+    let d = tempfile::tempdir().unwrap();
+    let b = bag(
+        d.path(),
+        "fields.mcap",
+        &scene(|t, k, f| {
+            if t == "/c/occupancy" && k == 2 {
+                f.header.stamp.nanosec = 1_500_000_000;
+            }
+            if t == "/c/occupancy" && k == 4 {
+                // PERCENT values above 100 (and not 255).
+                f.encoding = VoxelGrid::ENCODING_PERCENT;
+                f.data = vec![150; 12 * 12 * 12];
+            }
+            true
+        }),
+    );
+    let (c, r) = both(&b);
+    assert_eq!(verdicts(&c), clean_verdicts());
+    let body = c.bodies.iter().find(|b| b.id == "/c/occupancy").unwrap();
+    assert_eq!(body.skipped_frames, 2, "{body:?}");
+    let codes: Vec<&str> = body.lost_spans.iter().map(|s| s.code).collect();
+    assert!(codes.contains(&"bad_stamp") && codes.contains(&"percent_out_of_range"), "{codes:?}");
+    let problems = format!("{:?}", r.nodes);
+    assert!(problems.contains("nanosec 1500000000"), "{problems}");
+    assert!(problems.contains("PERCENT voxel(s) hold values outside 0..=100"), "{problems}");
 }

@@ -63,7 +63,7 @@ pub enum CheckError {
         reason: String,
     },
     /// The frame stamps do not share one time lattice.
-    #[error("bodies {a} and {b} have frames at different times: {reason}")]
+    #[error("{a}: its frames are not at the frame times of {b}: {reason}")]
     TimeMismatch {
         /// First body.
         a: String,
@@ -326,12 +326,20 @@ impl CommonLattice {
             let start = stamps.binary_search(&b.stamps_ns[0]).unwrap_or(0);
             let run = &stamps[start..(start + b.stamps_ns.len()).min(stamps.len())];
             if run != b.stamps_ns.as_slice() {
+                let others: Vec<&str> = bodies
+                    .iter()
+                    .map(|(o, _)| *o)
+                    .filter(|o| o != id)
+                    .collect();
                 return Err(CheckError::TimeMismatch {
-                    a: bodies[0].0.to_string(),
-                    b: id.to_string(),
-                    reason: "a body's frames are not a contiguous run of the common frame times \
-                             (different frame rates or phases are not resampled yet)"
-                        .into(),
+                    a: id.to_string(),
+                    b: others.join(", "),
+                    reason: format!(
+                        "its {} frames from {:.3} s are not a contiguous run of the common frame \
+                         times (different frame rates or phases are not resampled)",
+                        b.stamps_ns.len(),
+                        b.stamps_ns[0] as f64 * 1e-9
+                    ),
                 });
             }
         }

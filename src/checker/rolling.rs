@@ -125,6 +125,8 @@ pub struct PieceIn {
     pub vanishes: bool,
     /// The tets, in the body's lattice.
     pub mesh: Arc<TetMesh>,
+    /// The body's `header.frame_id`: bodies in different frames are not compared.
+    pub frame_id: String,
 }
 
 /// A slab's labels against one other body.
@@ -320,6 +322,8 @@ struct BodyStream {
     pairs: usize,
     /// End stamp of the latest slab dropped for `max_horizon_tets` (0: none).
     horizon_cut_until: i64,
+    /// `header.frame_id` of its latest piece.
+    frame_id: String,
 }
 
 impl BodyStream {
@@ -599,6 +603,9 @@ impl RollingChecker {
         let origin = &mut self.origin_ns;
         let union = &mut self.union;
         let b = self.bodies.get_mut(&id).expect("checked above");
+        if b.frame_id != p.frame_id {
+            b.frame_id.clone_from(&p.frame_id);
+        }
         match p.kind {
             PieceKind::CapStart => {
                 let mut restarted = None;
@@ -1065,6 +1072,16 @@ impl RollingChecker {
         let (Some(ga), Some(gb)) = (geometry(&a), geometry(&b)) else {
             return false;
         };
+        let (fa, fb) = (&self.bodies[&a].frame_id, &self.bodies[&b].frame_id);
+        if fa != fb {
+            let why = format!(
+                "pair {a} x {b}: not checked: {a} is in frame {fa:?} and {b} in frame {fb:?}: \
+                 bodies in different frames are not compared (publish them in one frame)"
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "frame_mismatch", why);
+            return false;
+        }
         let lattice = match pair_lattice(&ga, &gb) {
             Ok(l) => l,
             Err(reason) => {
@@ -1935,6 +1952,19 @@ impl RollingChecker {
             .filter(|p| p.checked)
             .map(|p| pair_report(p, tets(&p.a), tets(&p.b), resolution))
             .collect();
+        let unchecked_pairs = self
+            .pairs
+            .iter()
+            .filter(|p| !p.checked)
+            .filter_map(|p| {
+                let why = p.stopped.as_ref()?;
+                Some(crate::report::UncheckedPair {
+                    a: p.a.clone(),
+                    b: p.b.clone(),
+                    reason: why.clone(),
+                })
+            })
+            .collect();
         Report {
             schema: "chronotope.report/1",
             time_origin_ns: origin,
@@ -1944,6 +1974,7 @@ impl RollingChecker {
             resolutions: self.resolutions.iter().cloned().collect(),
             timings_ms: Timings::default(),
             problems,
+            unchecked_pairs,
         }
     }
 }
@@ -2191,6 +2222,8 @@ fn body_report(id: &str, b: &BodyStream) -> BodyReport {
         hypervolume_m3s: t.hypervolume_m3s,
         skipped_frames: 0,
         vanishing_slabs: t.vanishing,
+        filled_frames: 0,
+        lost_spans: Vec::new(),
     }
 }
 

@@ -101,14 +101,15 @@ pub fn check_bag(
     time_scale: Option<f64>,
 ) -> Result<Report, CliError> {
     let start = Instant::now();
-    let bodies = load_bodies(path, opts)?;
+    let (bodies, frame_ids) = load_bodies_with_frames(path, opts)?;
     let t_mesh = start.elapsed();
     let ids: Vec<&str> = bodies
         .iter()
         .filter(|(_, b)| b.stamps_ns.len() >= 2)
         .map(|(k, _)| k.as_str())
         .collect();
-    let plan = CheckPlan::all_pairs_first_movable(&ids, time_scale);
+    let mut plan = CheckPlan::all_pairs_first_movable(&ids, time_scale);
+    plan.frame_ids = frame_ids;
     let mut report = check_bodies(&bodies, &plan, opts)?.report;
     report.timings_ms.mesh = t_mesh.as_secs_f64() * 1e3;
     report.timings_ms.total = start.elapsed().as_secs_f64() * 1e3;

@@ -139,7 +139,8 @@ pub(crate) fn build_nodes(
     let mut checkers = Vec::new();
     for spec in config.of_kind(NodeKind::Checker) {
         let mut spec = spec.clone();
-        if default_movable_first && !spec.params.contains_key("movable") {
+        // (With one body there is no pair, so no movable body by default.)
+        if default_movable_first && meshed.len() >= 2 && !spec.params.contains_key("movable") {
             let mut sorted = meshed.clone();
             sorted.sort();
             if let Some(first) = sorted.first() {
@@ -178,14 +179,16 @@ pub(crate) fn build_nodes(
                 .filter(|b| !used.contains(*b))
                 .map(str::to_owned)
                 .collect();
-            if !dropped.is_empty() {
+            if !dropped.is_empty() && !used.is_empty() {
                 tracing::info!(
                     node = m.name(),
                     "not meshed (in no checked pair): {}",
                     dropped.join(", ")
                 );
             }
-            m.retain_bodies(|b| used.contains(b));
+            if !used.is_empty() {
+                m.retain_bodies(|b| used.contains(b));
+            }
         }
     }
     nodes.extend(meshers.into_iter().map(|m| Box::new(m) as Box<dyn Node>));
@@ -387,15 +390,28 @@ pub fn replay(
             resolutions: Vec::new(),
             timings_ms: Default::default(),
             problems: Vec::new(),
+            unchecked_pairs: Vec::new(),
         });
+    let origin = report.time_origin_ns;
     for b in &mut report.bodies {
         for n in bus.nodes() {
             if let Some(m) = n.as_any().downcast_ref::<MesherNode>() {
-                b.skipped_frames += m.skipped(&b.id);
+                if let Some(l) = m.losses(&b.id) {
+                    b.skipped_frames += l.refused_frames;
+                    b.filled_frames += l.filled_frames;
+                    b.lost_spans
+                        .extend(crate::report::LostSpan::of(l, origin));
+                }
             }
         }
         b.skipped_frames += input.undecodable.get(&b.id).copied().unwrap_or(0)
             + input.wrong_type.get(&b.id).copied().unwrap_or(0);
+    }
+    if bag_bodies.len() == 1 && report.pairs.is_empty() && report.unchecked_pairs.is_empty() {
+        report.problems.push(format!(
+            "the bag has one body ({}): no pair to check; its frames were meshed only",
+            bag_bodies[0]
+        ));
     }
     let total = start.elapsed().as_secs_f64() * 1e3;
     report.timings_ms.total = total;

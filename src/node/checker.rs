@@ -148,6 +148,7 @@ impl CheckerNode {
             pairs: Some(pairs),
             movable,
             time_scale: (c > 0.0).then_some(c),
+            frame_ids: Default::default(),
         };
         let cfg = RollingConfig {
             max_lead_frames: max_lead as usize,
@@ -223,6 +224,7 @@ impl CheckerNode {
             occupied: s.occupied_voxels,
             vanishes: s.vanishes,
             mesh: Arc::new(s.mesh.clone()),
+            frame_id: s.header.frame_id.clone(),
         };
         let mut rolled = Vec::new();
         self.engine.on_piece(piece, &mut rolled);
