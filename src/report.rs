@@ -688,18 +688,22 @@ fn lattice_groups(
 /// like a body, with its error bound (see `checker::bounds`).
 pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> Option<(f64, f64)> {
     let (ga, gb) = (a.geometry?, b.geometry?);
-    if ga != gb {
-        return None;
-    }
     let mut asm = BodyAssembler::new(opts).ok()?;
+    let mut geometry = None;
     let mut j = 0;
     for (i, &s) in a.stamps_ns.iter().enumerate() {
         while j < b.stamps_ns.len() && b.stamps_ns[j] < s {
             j += 1;
         }
         if j < b.stamps_ns.len() && b.stamps_ns[j] == s {
-            let both = a.frames.get(i)?.intersect(b.frames.get(j)?)?;
-            asm.push_derived(s, ga, both).ok()?;
+            let (both, g) = crate::mesh::grid::intersect_across(
+                a.frames.get(i)?,
+                &ga,
+                b.frames.get(j)?,
+                &gb,
+            )?;
+            geometry = Some(g);
+            asm.push_derived(s, g, both).ok()?;
         }
     }
     let body = asm.finish();
@@ -709,7 +713,7 @@ pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> O
     } else {
         0.0
     };
-    let bound = bounds::hypervolume_bound(&body.mesh, &ga, period);
+    let bound = bounds::hypervolume_bound(&body.mesh, &geometry.unwrap_or(ga), period);
     Some((body.stats.hypervolume_m3s, bound))
 }
 

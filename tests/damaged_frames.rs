@@ -290,3 +290,62 @@ fn out_of_domain_fields_are_refused_by_name() {
     assert!(problems.contains("nanosec 1500000000"), "{problems}");
     assert!(problems.contains("PERCENT voxel(s) hold values outside 0..=100"), "{problems}");
 }
+
+/// The overlap of /a x /b in a report.
+fn overlap(r: &Report) -> Option<f64> {
+    pair(r, "/a/occupancy", "/b/occupancy").overlap_hypervolume_m3s
+}
+
+#[test]
+fn the_overlap_is_measured_across_whole_voxel_offsets_mixed_encodings_and_gaps() {
+    let d = tempfile::tempdir().unwrap();
+    let (clean, _) = both(&bag(d.path(), "clean.mcap", &scene(|_, _, _| true)));
+    let want = overlap(&clean).expect("the clean overlap is measured");
+    assert!(want > 0.0);
+    for (name, edit) in [("offset", 0), ("percent", 1), ("skip", 2)] {
+        let b = bag(
+            d.path(),
+            &format!("ov-{name}.mcap"),
+            &scene(|t, k, f| {
+                if t != "/b/occupancy" {
+                    return true;
+                }
+                match edit {
+                    0 => {
+                        // The same box on a grid one voxel further along x.
+                        f.origin.x = 0.01;
+                        *f = boxf(6, 0, 0, k).with_origin_x(0.01);
+                        true
+                    }
+                    1 => {
+                        let bits = f.data.clone();
+                        f.encoding = VoxelGrid::ENCODING_PERCENT;
+                        f.data = (0..12 * 12 * 12)
+                            .map(|i| if bits[i / 8] >> (i % 8) & 1 == 1 { 100 } else { 0 })
+                            .collect();
+                        true
+                    }
+                    _ => k != 3,
+                }
+            }),
+        );
+        let (c, r) = both(&b);
+        for rep in [&c, &r.report] {
+            let got = overlap(rep).unwrap_or_else(|| panic!("{name}: overlap measured"));
+            assert!(got.is_finite() && got > 0.0, "{name}: {got}");
+            if edit != 2 {
+                assert!((got - want).abs() <= 1e-9 * want, "{name}: {got} vs {want}");
+            }
+        }
+    }
+}
+
+trait WithOrigin {
+    fn with_origin_x(self, x: f64) -> Self;
+}
+impl WithOrigin for VoxelGrid {
+    fn with_origin_x(mut self, x: f64) -> Self {
+        self.origin.x = x;
+        self
+    }
+}

@@ -313,7 +313,7 @@ struct BodyStream {
     runs: Vec<Run>,
     next_run: u64,
     slabs: BTreeMap<i64, RSlab>,
-    frames: BTreeMap<i64, Arc<OccupancyGrid>>,
+    frames: BTreeMap<i64, KeptGrid>,
     totals: Totals,
     /// The lattice of its latest stream.
     geometry: Option<GridGeometry>,
@@ -326,7 +326,36 @@ struct BodyStream {
     frame_id: String,
 }
 
+/// A decoded frame of a body and the lattice it came on.
+#[derive(Debug, Clone)]
+struct KeptGrid {
+    geometry: GridGeometry,
+    grid: Arc<OccupancyGrid>,
+}
+
 impl BodyStream {
+    /// The body's frame at `stamp` on lattice `g`, as its mesher accepted it: the frame
+    /// received there if it is on `g`; otherwise (a frame the mesher filled in, the received
+    /// one refused) the union of the nearest frames on `g` around it, which is what the mesher
+    /// filled the gap with.
+    fn frame_at(&self, stamp: i64, g: &GridGeometry) -> Option<Arc<OccupancyGrid>> {
+        if let Some(k) = self.frames.get(&stamp) {
+            if k.geometry == *g {
+                return Some(k.grid.clone());
+            }
+        }
+        let below = self
+            .frames
+            .range(..stamp)
+            .rev()
+            .find(|(_, k)| k.geometry == *g)?;
+        let above = self
+            .frames
+            .range(stamp + 1..)
+            .find(|(_, k)| k.geometry == *g)?;
+        below.1.grid.union(&above.1.grid).map(Arc::new)
+    }
+
     fn current(&self) -> Option<&Run> {
         self.runs.last()
     }
@@ -554,13 +583,18 @@ impl RollingChecker {
         &mut self,
         body: &str,
         stamp_ns: i64,
+        geometry: GridGeometry,
         grid: OccupancyGrid,
         out: &mut Vec<RollOut>,
     ) {
         let Some(b) = self.bodies.get_mut(body) else {
             return;
         };
-        b.frames.insert(stamp_ns, Arc::new(grid));
+        // The first frame at a stamp is the one a mesher keeps (a repeated stamp is refused).
+        b.frames.entry(stamp_ns).or_insert(KeptGrid {
+            geometry,
+            grid: Arc::new(grid),
+        });
         self.pump(out);
     }
 
@@ -1445,23 +1479,27 @@ impl RollingChecker {
             if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
                 continue;
             }
+            let (Some(ga), Some(gb)) = (ga, gb) else {
+                self.pairs[i].overlap.unknown = true;
+                continue;
+            };
             let (fa, fb) = (
-                self.bodies[&a].frames.get(&stamp).cloned(),
-                self.bodies[&b].frames.get(&stamp).cloned(),
+                self.bodies[&a].frame_at(stamp, &ga),
+                self.bodies[&b].frame_at(stamp, &gb),
             );
             let ov = &mut self.pairs[i].overlap;
-            let (Some(fa), Some(fb), Some(ga), Some(gb)) = (fa, fb, ga, gb) else {
+            let (Some(fa), Some(fb)) = (fa, fb) else {
                 ov.unknown = true;
                 continue;
             };
-            if ga != gb || ov.geometry.is_some_and(|g| g != ga) {
+            let Some((both, ga)) = crate::mesh::grid::intersect_across(&fa, &ga, &fb, &gb) else {
+                ov.unknown = true;
+                continue;
+            };
+            if ov.geometry.is_some_and(|g| g != ga) {
                 ov.unknown = true;
                 continue;
             }
-            let Some(both) = fa.intersect(&fb) else {
-                ov.unknown = true;
-                continue;
-            };
             if ov.mesher.is_none() {
                 match Mesher::new(opts) {
                     Ok(m) => ov.mesher = Some(m),
@@ -1711,7 +1749,8 @@ impl RollingChecker {
             Some(out)
         };
         let frame_cap = |stamp: i64, local: u32, side: CapSide| -> Option<TetMesh> {
-            let f = b.frames.get(&stamp)?;
+            let f = b.frame_at(stamp, &g)?;
+            let f = f.as_ref();
             let mut out = TetMesh::default();
             let at = crate::mesh::SlabPlacement {
                 scale: g.scale,

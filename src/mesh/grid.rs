@@ -255,6 +255,80 @@ impl OccupancyGrid {
     }
 }
 
+/// The voxels occupied in both of two frames of bodies whose lattices differ by a whole
+/// number of voxels in origin and/or by encoding (same resolution), on `ga`'s grid as a BITS
+/// frame (PERCENT frames count at their iso level, as their bits say). Frames on the same
+/// lattice use [`OccupancyGrid::intersect`] instead (it keeps percent values).
+///
+/// `None` if the resolutions differ or the origins are not a whole number of voxels apart.
+pub fn intersect_across(
+    a: &OccupancyGrid,
+    ga: &super::mesher::GridGeometry,
+    b: &OccupancyGrid,
+    gb: &super::mesher::GridGeometry,
+) -> Option<(OccupancyGrid, super::mesher::GridGeometry)> {
+    if ga == gb {
+        return a.intersect(b).map(|g| (g, *ga));
+    }
+    if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
+        return None;
+    }
+    let mut off = [0i64; 3];
+    for k in 0..3 {
+        let v = (gb.origin[k] - ga.origin[k]) / ga.resolution;
+        let r = v.round();
+        if (v - r).abs() > 1e-6 || !r.is_finite() || r.abs() > 1e9 {
+            return None;
+        }
+        off[k] = r as i64;
+    }
+    let [sx, sy, sz] = ga.size.map(|v| v as usize);
+    let [bx, by, bz] = gb.size.map(|v| v as i64);
+    let n = sx.checked_mul(sy)?.checked_mul(sz)?;
+    let mut data = vec![0u8; n.div_ceil(8)];
+    for z in 0..sz {
+        let zb = z as i64 - off[2];
+        if !(0..bz).contains(&zb) {
+            continue;
+        }
+        for y in 0..sy {
+            let yb = y as i64 - off[1];
+            if !(0..by).contains(&yb) {
+                continue;
+            }
+            for x in 0..sx {
+                let xb = x as i64 - off[0];
+                if (0..bx).contains(&xb)
+                    && a.get(x + 1, y + 1, z + 1)
+                    && b.get(xb as usize + 1, yb as usize + 1, zb as usize + 1)
+                {
+                    let i = x + sx * (y + sy * z);
+                    data[i / 8] |= 1 << (i % 8);
+                }
+            }
+        }
+    }
+    let g = super::mesher::GridGeometry {
+        encoding: 0,
+        scale: 2,
+        ..*ga
+    };
+    let f = FrameRef {
+        stamp_ns: 0,
+        origin: g.origin,
+        resolution: g.resolution,
+        size: g.size,
+        encoding: 0,
+        data: &data,
+    };
+    let opts = DecodeOptions {
+        max_voxels: u64::MAX,
+        max_decoded_bytes: u64::MAX,
+        ..DecodeOptions::default()
+    };
+    OccupancyGrid::decode(&f, &opts).ok().map(|grid| (grid, g))
+}
+
 /// Bytes a decoded frame and its share of the marcher's workspace take (saturating).
 pub fn decoded_bytes(size: [u32; 3], encoding: Encoding) -> u64 {
     let [px, py, pz] = size.map(|v| u64::from(v) + 2);

@@ -82,7 +82,7 @@ pub enum MeshError {
         max: u32,
     },
     /// The data length does not match sizes and encoding.
-    #[error("data is {got} bytes but the sizes and encoding {encoding:?} need {expected}")]
+    #[error("data is {got} bytes but sizes and encoding {encoding:?} need {expected}")]
     DataLength {
         /// Bytes needed.
         expected: u64,

@@ -32,6 +32,7 @@ use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
 use crate::cli::frame_ref;
+use crate::mesh::GridGeometry;
 use crate::mesh::{MesherOptions, OccupancyGrid};
 use crate::msg::{
     BodySummary, ColorRGBA, ContactEvent, Header, InterferenceReport, MarkerArray, MeshSlab,
@@ -235,11 +236,27 @@ impl CheckerNode {
         if !self.bodies.contains(topic) {
             return;
         }
-        // Frames the mesher refuses are refused here too (and counted there).
+        // Frames the mesher refuses for their own fields are refused here too (and counted
+        // there); a frame refused for the stream (another lattice, a repeated stamp) is told
+        // apart when it is used (`frame_at`).
+        if g.message_check("").is_err() {
+            return;
+        }
         if let Ok(grid) = OccupancyGrid::decode(&frame_ref(g), &self.opts.decode) {
+            let geometry = GridGeometry {
+                origin: [g.origin.x, g.origin.y, g.origin.z],
+                resolution: g.resolution,
+                size: [g.size_x, g.size_y, g.size_z],
+                encoding: g.encoding,
+                scale: if g.encoding == VoxelGrid::ENCODING_PERCENT {
+                    self.opts.percent_scale
+                } else {
+                    2
+                },
+            };
             let mut rolled = Vec::new();
             self.engine
-                .on_frame(topic, g.header.stamp.as_nanos(), grid, &mut rolled);
+                .on_frame(topic, g.header.stamp.as_nanos(), geometry, grid, &mut rolled);
             self.emit(rolled, out);
         }
     }
