@@ -305,7 +305,20 @@ pub fn check_streamed(
     let meshed = |id: &str| bodies.get(id).is_some_and(|b| b.stamps_ns.len() >= 2);
     for (id, b) in bodies {
         if b.stamps_ns.len() < 2 {
-            let why = format!("{id}: fewer than two frames: no 4D mesh, not checked");
+            let why = match b.losses.spans.iter().find(|s| s.kind == LossKind::Refused) {
+                Some(first) => format!(
+                    "{id}: {} frame(s) accepted and {} refused (the first refused at {:.3} s: {}): \
+                     a body needs two accepted frames for a 4D mesh; not checked",
+                    b.stamps_ns.len(),
+                    b.losses.refused_frames,
+                    first.from_ns as f64 * 1e-9,
+                    first.reason
+                ),
+                None => format!(
+                    "{id}: {} frame(s): a body needs two for a 4D mesh; not checked",
+                    b.stamps_ns.len()
+                ),
+            };
             tracing::warn!("{why}");
             problems.push(why);
         }

@@ -78,6 +78,8 @@ pub struct RollingConfig {
     /// slabs are dropped first, and an episode is then resolved over the horizon that is
     /// left (said as a problem, `resolution_horizon_cut`).
     pub max_horizon_tets: usize,
+    /// Most bytes of decoded frames kept per body (for overlaps and resolution caps).
+    pub max_frame_bytes: u64,
 }
 
 impl Default for RollingConfig {
@@ -91,6 +93,7 @@ impl Default for RollingConfig {
             max_episode_s: 4.0,
             max_resolutions: 1024,
             max_horizon_tets: 1_500_000,
+            max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
         }
     }
 }
@@ -325,6 +328,9 @@ struct BodyStream {
     /// `header.frame_id` of its latest piece.
     frame_id: String,
 }
+
+/// Default of [`RollingConfig::max_frame_bytes`]: 1 GiB of decoded frames per body.
+pub const DEFAULT_MAX_FRAME_BYTES: u64 = 1 << 30;
 
 /// A decoded frame of a body and the lattice it came on.
 #[derive(Debug, Clone)]
@@ -1899,6 +1905,15 @@ impl RollingChecker {
             // Frames of a stream no piece has come for yet: only the latest ones.
             while b.frames.len() > max_frames + b.slabs.len() {
                 b.frames.pop_first();
+            }
+            // And never more than `max_frame_bytes` of decoded frames per body (the oldest
+            // go first; an overlap that needed one is then not measured, and says so).
+            let mut bytes: u64 = b.frames.values().map(|k| k.grid.heap_bytes()).sum();
+            while bytes > self.cfg.max_frame_bytes {
+                let Some((_, k)) = b.frames.pop_first() else {
+                    break;
+                };
+                bytes -= k.grid.heap_bytes();
             }
             // Finished runs none of whose slabs are kept: their figures go to the totals.
             while let Some(r) = b.runs.first() {

@@ -275,6 +275,16 @@ pub fn replay(
         }
         Err(e) => return Err(e.into()),
     };
+    // As `check`: at most MAX_BODIES bodies (the first in sorted order); the rest are not read.
+    let mut bag_bodies = bag_bodies;
+    let over_limit = bag_bodies.len().saturating_sub(super::MAX_BODIES);
+    if over_limit > 0 {
+        tracing::warn!(
+            "{over_limit} VoxelGrid topic(s) not read: more than {} in one bag",
+            super::MAX_BODIES
+        );
+        bag_bodies.truncate(super::MAX_BODIES);
+    }
     let default = default_config();
     let (nodes, selection) = build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none())
         .map_err(|e| CliError::Usage(e.to_string()))?;
@@ -406,6 +416,13 @@ pub fn replay(
         }
         b.skipped_frames += input.undecodable.get(&b.id).copied().unwrap_or(0)
             + input.wrong_type.get(&b.id).copied().unwrap_or(0);
+    }
+    if over_limit > 0 {
+        report.problems.push(format!(
+            "{over_limit} VoxelGrid topic(s) not read: more than {} (MAX_BODIES) in one bag; \
+             their messages are counted as unused",
+            super::MAX_BODIES
+        ));
     }
     if bag_bodies.len() == 1 && report.pairs.is_empty() && report.unchecked_pairs.is_empty() {
         report.problems.push(format!(

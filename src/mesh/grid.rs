@@ -31,6 +31,11 @@ pub struct FrameRef<'a> {
     pub data: &'a [u8],
 }
 
+/// Default of [`DecodeOptions::max_decoded_bytes`]: 512 MiB per decoded frame. A body keeps
+/// at most four decoded frames at once in the mesher (first, previous, the new one, and the
+/// union filling a gap), so 2 GiB per body at worst.
+pub const DEFAULT_MAX_DECODED_BYTES: u64 = 512 << 20;
+
 /// Options for decoding frames.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DecodeOptions {
@@ -51,7 +56,7 @@ impl Default for DecodeOptions {
             max_voxels: 1 << 30,
             iso_percent: 50,
             unknown_occupied: true,
-            max_decoded_bytes: 4 << 30,
+            max_decoded_bytes: DEFAULT_MAX_DECODED_BYTES,
         }
     }
 }
@@ -74,6 +79,11 @@ pub struct OccupancyGrid {
 }
 
 impl OccupancyGrid {
+    /// Heap bytes the decoded frame takes.
+    pub fn heap_bytes(&self) -> u64 {
+        (self.bits.len() * 8 + self.values.as_ref().map_or(0, Vec::len)) as u64
+    }
+
     /// Decodes a frame after checking its fields.
     ///
     /// # Errors
