@@ -71,10 +71,16 @@ impl Default for ForceParams {
     }
 }
 
-/// Integration step of the virtual coupling (s): a tenth of the 1 kHz haptic period. A
-/// move `dt` after the previous one is integrated in `ceil(dt / COUPLING_STEP_S)` equal
-/// substeps of at most this length.
+/// Shortest integration substep of the virtual coupling (s): a tenth of the 1 kHz haptic
+/// period. A move `dt` after the previous one is integrated in equal substeps short
+/// enough for accuracy (`ω h ≤ 0.2`, `ω = sqrt(k/m)`) and for stability (`h ≤ h*`, the
+/// largest step meeting the condition of [`ForceParams::validate`]), at most
+/// [`MAX_MOVE_DT_S`] / `COUPLING_STEP_S` = 1000 of them; parameters are accepted when
+/// `h* ≥ COUPLING_STEP_S`, so the stable step always fits in that budget.
 pub const COUPLING_STEP_S: f64 = 1e-4;
+
+/// Most coupling substeps of one move ([`MAX_MOVE_DT_S`] / [`COUPLING_STEP_S`]).
+const MAX_COUPLING_SUBSTEPS: f64 = 1000.0;
 
 /// Longest time (s) one move integrates the filter and the coupling over: a pose after a
 /// longer pause is taken as this long after the previous one, so a pause costs at most
@@ -98,6 +104,25 @@ impl ForceParams {
     pub fn coupling_stability(&self) -> f64 {
         let h = COUPLING_STEP_S;
         (self.coupling_stiffness * h * h + 2.0 * self.coupling_damping * h) / self.proxy_mass
+    }
+
+    /// The largest integration step (s) with `k h²/m + 2 b h/m ≤ 2`
+    /// ([`COUPLING_STABILITY_MARGIN`]), or infinity without a coupling.
+    pub fn stable_step(&self) -> f64 {
+        let (k, b, m) = (
+            self.coupling_stiffness,
+            self.coupling_damping,
+            self.proxy_mass,
+        );
+        let c = COUPLING_STABILITY_MARGIN;
+        if k > 0.0 {
+            // The positive root of k h² + 2 b h - c m = 0.
+            (-b + (b * b + c * k * m).sqrt()) / k
+        } else if b > 0.0 {
+            c * m / (2.0 * b)
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// Checks the parameters: every number finite and not negative, and the virtual
@@ -136,8 +161,9 @@ impl ForceParams {
                 param: "proxy_mass_kg",
                 reason: format!(
                     "proxy_mass_kg {} with coupling_stiffness_n_per_m {} and \
-                 coupling_damping_ns_per_m {} makes the virtual coupling unstable: its \
-                 integration step h = {} ms needs k·h²/m + 2·b·h/m ≤ {} (stable below 4, \
+                 coupling_damping_ns_per_m {} makes the virtual coupling unstable: \
+                 integrated by semi-implicit Euler in substeps down to h = {} ms (at most \
+                 1000 in a move), it needs k·h²/m + 2·b·h/m ≤ {} there (stable below 4, \
                  half of it for margin), got {s:.3}; use proxy_mass_kg ≥ {need:.3e}, or a \
                  smaller stiffness or damping",
                     self.proxy_mass,
@@ -264,9 +290,18 @@ impl ForceRenderer {
             self.filtered = f;
         }
         let out = if p.coupling_stiffness > 0.0 && p.proxy_mass > 0.0 {
-            // Semi-implicit Euler in equal substeps of at most COUPLING_STEP_S (at most
-            // MAX_MOVE_DT_S / COUPLING_STEP_S of them); stable for validated parameters.
-            let n = (dt / COUPLING_STEP_S).ceil().max(1.0) as usize;
+            // Semi-implicit Euler in equal substeps: ω h ≤ 0.2 for accuracy and h ≤ h* for
+            // stability, at most MAX_COUPLING_SUBSTEPS (enough for h* for validated
+            // parameters: h* ≥ COUPLING_STEP_S).
+            let w = (p.coupling_stiffness / p.proxy_mass).sqrt();
+            let accurate = (dt * w / 0.2).ceil();
+            let stable = (dt / p.stable_step()).ceil();
+            let n = accurate.max(stable);
+            let n = if n.is_finite() {
+                n.clamp(1.0, MAX_COUPLING_SUBSTEPS) as usize
+            } else {
+                MAX_COUPLING_SUBSTEPS as usize
+            };
             let h = dt / n as f64;
             for _ in 0..n {
                 for a in 0..3 {
