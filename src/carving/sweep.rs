@@ -22,13 +22,16 @@ pub const MAX_SUBSTEPS: u64 = 4096;
 
 /// Most grid rows the sweeps of one pose may visit: the rows crossing the bounding box of
 /// each rotation substep's sweep, plus the layer ahead of the tool. Each row costs the
-/// constraint elimination of the tool's faces (a few hundred flops), so 2^22 rows bound a
-/// pose's row work to well under a second (an estimate from the flop count, not measured).
+/// constraint elimination of the tool's faces: about 90 ns a row including the points it
+/// removes (measured in the test profile, opt-level 2, with a 0.3 m knife turning through a
+/// 64³ grid: 2040 substeps, at most 8.4M rows, 0.73 s), so 2^22 rows bound a pose to about
+/// 0.4 s.
 /// A 20 × 10 spacing knife moving a few spacings visits a few hundred rows.
 pub const MAX_SWEEP_ROWS_PER_POSE: u64 = 1 << 22;
 
 /// Most grid points in the bounding boxes of one pose's sweeps (the points a pose may
-/// test): 2^27 ≈ 134M, eight 256³ blocks, about a nanosecond each.
+/// test): 2^27 ≈ 134M, eight 256³ blocks; at about a nanosecond a point (an estimate, not
+/// measured alone) some 0.1 s.
 pub const MAX_SWEEP_POINTS_PER_POSE: u64 = 1 << 27;
 
 /// Index ranges `[(lo, hi); 3]` (inclusive) of the grid points in a sweep's bounding box.
