@@ -23,7 +23,7 @@ pub const BYTES_PER_POINT_EIGHTHS: u64 = 8 * (1 + 4 + 4 + 32 + 4 + 32 + 32) + 1 
 pub const BYTES_PER_POINT: f64 = BYTES_PER_POINT_EIGHTHS as f64 / 8.0;
 
 /// Most grid points of a workpiece: [`WORKPIECE_MEMORY_BYTES`] / [`BYTES_PER_POINT`]
-/// = 19 656 601 (256³ = 16.8M fits; 270³ does not).
+/// = 19 656 600 (256³ = 16.8M fits; 270³ does not).
 pub const MAX_POINTS: u64 = WORKPIECE_MEMORY_BYTES * 8 / BYTES_PER_POINT_EIGHTHS;
 
 /// A vector of `n` copies of `v`, or a typed error if the memory cannot be had.
