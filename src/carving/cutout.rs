@@ -15,6 +15,10 @@ use super::CutStats;
 /// Largest image side (pixels).
 pub const MAX_IMAGE_SIDE: usize = 8192;
 
+/// Largest image file read (bytes): 256 MiB holds an 8192² 16-bit P5 (128 MiB) or a P2
+/// of one-digit pixels (128 MiB); anything larger is refused before it is read.
+pub const MAX_IMAGE_FILE_BYTES: u64 = 256 << 20;
+
 /// Why an image could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum ImageError {
@@ -25,6 +29,27 @@ pub enum ImageError {
         path: PathBuf,
         /// The I/O error.
         source: std::io::Error,
+    },
+    /// The path is not a regular file (a FIFO, a device, a directory): it is refused
+    /// before it is opened, since reading a FIFO or a device may block forever.
+    #[error("{path}: not a regular file ({kind}); a cut-out image must be a file")]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is.
+        kind: &'static str,
+    },
+    /// The file is larger than [`MAX_IMAGE_FILE_BYTES`].
+    #[error(
+        "{path}: {bytes} bytes, over the {max}-byte limit of an image file (MAX_IMAGE_FILE_BYTES)"
+    )]
+    TooLarge {
+        /// The path.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        max: u64,
     },
     /// The file is not an image this reads, or is malformed.
     #[error("{path}: {reason}")]
@@ -51,13 +76,34 @@ impl BinaryImage {
     /// Reads a PGM or PNG file (by its magic bytes).
     ///
     /// # Errors
-    /// [`ImageError::Io`] if it cannot be read, [`ImageError::Format`] if it is neither a
-    /// well-formed PGM nor a PNG, or larger than [`MAX_IMAGE_SIDE`] on a side.
+    /// [`ImageError::Io`] if it cannot be read, [`ImageError::NotAFile`] for anything but a
+    /// regular file (checked before opening: a FIFO would block),
+    /// [`ImageError::TooLarge`] above [`MAX_IMAGE_FILE_BYTES`], [`ImageError::Format`] if it
+    /// is neither a well-formed PGM nor a PNG, or larger than [`MAX_IMAGE_SIDE`] on a side.
     pub fn load(path: &Path) -> Result<Self, ImageError> {
-        let bytes = std::fs::read(path).map_err(|source| ImageError::Io {
+        use std::io::Read;
+        let io = |source| ImageError::Io {
             path: path.to_owned(),
             source,
-        })?;
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        check_regular(path, &meta)?;
+        let file = std::fs::File::open(path).map_err(io)?;
+        // The file opened may not be the one looked at (replaced in between): check again.
+        let meta = file.metadata().map_err(io)?;
+        check_regular(path, &meta)?;
+        let mut bytes = Vec::new();
+        // Read at most one byte past the limit: a file growing while read is caught too.
+        file.take(MAX_IMAGE_FILE_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(io)?;
+        if bytes.len() as u64 > MAX_IMAGE_FILE_BYTES {
+            return Err(ImageError::TooLarge {
+                path: path.to_owned(),
+                bytes: meta.len().max(bytes.len() as u64),
+                max: MAX_IMAGE_FILE_BYTES,
+            });
+        }
         let r = if bytes.starts_with(b"\x89PNG") {
             Self::from_png(&bytes)
         } else {
@@ -198,6 +244,51 @@ impl BinaryImage {
     pub fn is_black(&self, col: usize, row: usize) -> bool {
         self.black[row * self.width + col]
     }
+}
+
+/// A regular file no larger than [`MAX_IMAGE_FILE_BYTES`], or the error naming it.
+fn check_regular(path: &Path, meta: &std::fs::Metadata) -> Result<(), ImageError> {
+    let ft = meta.file_type();
+    if !ft.is_file() {
+        let kind = if ft.is_dir() {
+            "a directory"
+        } else {
+            special_kind(&ft)
+        };
+        return Err(ImageError::NotAFile {
+            path: path.to_owned(),
+            kind,
+        });
+    }
+    if meta.len() > MAX_IMAGE_FILE_BYTES {
+        return Err(ImageError::TooLarge {
+            path: path.to_owned(),
+            bytes: meta.len(),
+            max: MAX_IMAGE_FILE_BYTES,
+        });
+    }
+    Ok(())
+}
+
+#[cfg(unix)]
+fn special_kind(ft: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if ft.is_fifo() {
+        "a FIFO"
+    } else if ft.is_socket() {
+        "a socket"
+    } else if ft.is_char_device() {
+        "a character device"
+    } else if ft.is_block_device() {
+        "a block device"
+    } else {
+        "not a regular file"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_: &std::fs::FileType) -> &'static str {
+    "not a regular file"
 }
 
 fn check_size(w: usize, h: usize) -> Result<(), String> {

@@ -37,11 +37,14 @@ mod sweep;
 mod tool;
 mod workpiece;
 
-pub use force::{ForceModel, ForceParams, ForceRenderer};
+pub use force::{
+    ForceModel, ForceParams, ForceRenderer, COUPLING_STABILITY_MARGIN, COUPLING_STEP_S,
+    MAX_MOVE_DT_S,
+};
 pub use math::{Quat, Vec3};
-pub use sweep::CutStats;
+pub use sweep::{CutStats, MAX_SUBSTEPS, MAX_SWEEP_POINTS_PER_POSE, MAX_SWEEP_ROWS_PER_POSE};
 pub use tool::{Tool, ToolKind};
-pub use workpiece::{Flag, Surfel, Workpiece, MAX_POINTS};
+pub use workpiece::{Flag, Surfel, Workpiece, BYTES_PER_POINT, MAX_POINTS, WORKPIECE_MEMORY_BYTES};
 
 /// Why a workpiece, tool or pose was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -58,6 +61,32 @@ pub enum CarveError {
     /// A pose with a non-finite position or a quaternion that cannot be normalised.
     #[error("pose: {0}")]
     Pose(String),
+    /// Force parameters outside their domain, or a virtual coupling that would be unstable.
+    #[error("{reason}")]
+    Force {
+        /// The parameter to change (its launch name).
+        param: &'static str,
+        /// Why, with the condition and the values.
+        reason: String,
+    },
+    /// A move whose sweep would visit more grid rows or points than one pose may.
+    #[error("the move sweeps {what} {got} grid {unit}: at most {max} per pose ({limit}); the tool moved {travel_m:.4} m and turned {angle_deg:.1} deg since the last pose")]
+    TooMuchWork {
+        /// What was counted ("rows of" or "points in bounding boxes of").
+        what: &'static str,
+        /// Its count.
+        got: u64,
+        /// "rows" or "points".
+        unit: &'static str,
+        /// The limit.
+        max: u64,
+        /// The limit's name.
+        limit: &'static str,
+        /// Distance the tool origin moved (m).
+        travel_m: f64,
+        /// Rotation of the move (degrees).
+        angle_deg: f64,
+    },
     /// A move needing more rotation substeps than allowed.
     #[error("the move rotates by {angle_deg:.1} deg: {substeps} substeps needed, at most {max}")]
     TooManySubsteps {

@@ -4,8 +4,45 @@
 use super::math::{add, scale, Vec3};
 use super::CarveError;
 
-/// Most grid points of a workpiece (2^25 ≈ 33.5M: 5 bytes each plus the surfels).
-pub const MAX_POINTS: u64 = 1 << 25;
+/// Memory a workpiece may need at worst (bytes): 2 GiB, the budget of the carving node on
+/// the documented machine (2 cores, 8 GB, shared with the mesher and the checker).
+pub const WORKPIECE_MEMORY_BYTES: u64 = 2 << 30;
+
+/// Bytes one grid point costs at worst, in eighths of a byte (874 = 109.25 bytes):
+/// - its flag (1), surfel slot (4) and occupancy bit (1/8);
+/// - a slot in the scratch list of points removed by one substep (4): one substep can
+///   remove every point;
+/// - a surfel, reserved for every point since every material point can be BOUND (a comb
+///   of one-spacing slabs): the `Surfel` (32), its owner (4) and its PointCloud2 bytes (32);
+/// - a published frame's copies of the bits (1/8) and of the surfel bytes (32).
+///
+/// Everything is reserved when the workpiece is built, so a run never grows past it.
+pub const BYTES_PER_POINT_EIGHTHS: u64 = 8 * (1 + 4 + 4 + 32 + 4 + 32 + 32) + 1 + 1;
+
+/// [`BYTES_PER_POINT_EIGHTHS`] in bytes (109.25).
+pub const BYTES_PER_POINT: f64 = BYTES_PER_POINT_EIGHTHS as f64 / 8.0;
+
+/// Most grid points of a workpiece: [`WORKPIECE_MEMORY_BYTES`] / [`BYTES_PER_POINT`]
+/// = 19 656 600 (256³ = 16.8M fits; 270³ does not).
+pub const MAX_POINTS: u64 = WORKPIECE_MEMORY_BYTES * 8 / BYTES_PER_POINT_EIGHTHS;
+
+/// A vector of `n` copies of `v`, or a typed error if the memory cannot be had.
+fn filled<T: Clone>(n: usize, v: T, what: &str) -> Result<Vec<T>, CarveError> {
+    let mut out = Vec::new();
+    reserve(&mut out, n, what)?;
+    out.resize(n, v);
+    Ok(out)
+}
+
+/// Reserves room for exactly `n` more items of `out`, or a typed error.
+fn reserve<T>(out: &mut Vec<T>, n: usize, what: &str) -> Result<(), CarveError> {
+    out.try_reserve_exact(n).map_err(|_| {
+        CarveError::Workpiece(format!(
+            "cannot reserve {:.1} MB for the {what} of {n} items",
+            (n as f64) * std::mem::size_of::<T>() as f64 / 1e6
+        ))
+    })
+}
 
 /// Surfel colour of the block's faces (RGB, wood).
 pub(crate) const COLOUR_BLOCK: u32 = 0xd8b07a;
@@ -102,7 +139,10 @@ impl Workpiece {
     ///
     /// # Errors
     /// [`CarveError::Workpiece`] for a non-finite or non-positive size or spacing, fewer than
-    /// one or more than 4096 points along an axis, or more than [`MAX_POINTS`] points.
+    /// one or more than 4096 points along an axis, more than [`MAX_POINTS`] points (checked
+    /// before anything is allocated), or memory that cannot be reserved. Everything the
+    /// workpiece will ever hold is reserved here ([`BYTES_PER_POINT`] per point but the
+    /// frame copies): cutting never allocates.
     pub fn block(lo: Vec3, hi: Vec3, spacing: f64) -> Result<Self, CarveError> {
         if !(spacing.is_finite() && spacing > 0.0) {
             return Err(CarveError::Workpiece(format!(
@@ -123,8 +163,15 @@ impl Workpiece {
         let count = dims.iter().map(|&d| d as u64).product::<u64>();
         if count > MAX_POINTS {
             return Err(CarveError::Workpiece(format!(
-                "{}x{}x{} = {count} points: at most {MAX_POINTS}; use a coarser spacing",
-                dims[0], dims[1], dims[2]
+                "{}x{}x{} = {count} points at spacing {spacing} m: at most {MAX_POINTS} \
+                 (MAX_POINTS: {BYTES_PER_POINT} bytes per point at worst within the \
+                 {} GiB workpiece budget, {:.2} GB needed); use a coarser spacing_m or a \
+                 smaller block",
+                dims[0],
+                dims[1],
+                dims[2],
+                WORKPIECE_MEMORY_BYTES >> 30,
+                count as f64 * BYTES_PER_POINT / 1e9
             )));
         }
         let n = count as usize;
@@ -133,14 +180,14 @@ impl Workpiece {
             origin: lo.map(|v| v + spacing / 2.0),
             h: spacing,
             dims,
-            flags: vec![INSIDE; n],
-            surfel_of: vec![NO_SURFEL; n],
+            flags: filled(n, INSIDE, "point flags")?,
+            surfel_of: filled(n, NO_SURFEL, "surfel slots")?,
             surfels: Vec::new(),
             owners: Vec::new(),
             material: count,
             bits: {
-                let mut b = vec![0xFFu8; n.div_ceil(8)];
-                if n % 8 != 0 {
+                let mut b = filled(n.div_ceil(8), 0xFFu8, "occupancy bits")?;
+                if !n.is_multiple_of(8) {
                     if let Some(last) = b.last_mut() {
                         *last = (1u8 << (n % 8)) - 1;
                     }
@@ -153,13 +200,14 @@ impl Workpiece {
             removed: Vec::new(),
             spans: Vec::new(),
         };
-        // Room for the surfels of cuts: growing a vector of a million surfels would copy it
-        // inside one pose's update (milliseconds).
-        let faces = 2 * (dims[0] * dims[1] + dims[1] * dims[2] + dims[0] * dims[2]);
-        let room = (4 * faces).min(n);
-        w.surfels.reserve_exact(room);
-        w.owners.reserve_exact(room);
-        w.cloud.reserve_exact(room * SURFEL_BYTES);
+        // Room for every surfel the workpiece can have (one per point) and for a substep
+        // removing every point: cutting never grows a vector, so neither a pose's update
+        // (growing a million surfels would copy them) nor the run's memory depends on
+        // what is cut. Pages not written are never touched.
+        reserve(&mut w.surfels, n, "surfels")?;
+        reserve(&mut w.owners, n, "surfel owners")?;
+        reserve(&mut w.cloud, n * SURFEL_BYTES, "surfel bytes")?;
+        reserve(&mut w.removed, n, "removed-point scratch")?;
         // The six faces: BOUND points with the block's normals, surfels on the true faces.
         for k in 0..dims[2] {
             for j in 0..dims[1] {

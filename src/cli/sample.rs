@@ -5,12 +5,18 @@
 //! second cloud on `/sampler/yzt` holds the seed's YZT projection (x ← y, y ← z, z ← t) so
 //! that rviz2 or Foxglove shows it as the seed's Fig. 3. `--ply` also writes a
 //! binary_little_endian PLY (vertex x, y, z[, t] as float32).
+//!
+//! Samples are written as they are drawn, so memory does not grow with `--samples`: the
+//! clouds go out in messages of at most [`CLOUD_POINTS`] points each (all stamped with
+//! the scene's start; together they are the samples, in the order drawn), and the PLY is
+//! written point by point. The run's steps are bounded by
+//! [`crate::sampler::MAX_TOTAL_STEPS`].
 
 use super::CliError;
 use crate::bag::BagWriter;
 use crate::msg::{Header, PointCloud2, PointField, Time};
 use crate::sampler::scene_file::{SceneFile, SceneFileError};
-use crate::sampler::{sample, LambdaPolicy, Scheme, Q};
+use crate::sampler::{LambdaPolicy, Sampler, Scheme, Q};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -19,6 +25,8 @@ use std::path::{Path, PathBuf};
 pub const POINTS_TOPIC: &str = "/sampler/points";
 /// Topic of the YZT projection of a 4D scene's samples.
 pub const YZT_TOPIC: &str = "/sampler/yzt";
+/// Most points in one PointCloud2 message: 2^20, 16 MiB of float32 x, y, z, t.
+pub const CLOUD_POINTS: usize = 1 << 20;
 /// Stamp of the clouds (the scenes' start time, 1 700 000 000 s).
 const STAMP_NS: i64 = crate::scene::SCENE_START_NS;
 
@@ -95,16 +103,65 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
         o.on_unstable = LambdaPolicy::Clamp;
     }
     let t0 = std::time::Instant::now();
-    let s = sample(&scene.figure, &o).map_err(SceneFileError::from)?;
+    let fig = &scene.figure;
+    let dim = fig.dim();
+    let mut sampler = Sampler::new(fig, &o).map_err(SceneFileError::from)?;
+    let mut w = BagWriter::create(&a.out)?;
+    w.add_topic::<PointCloud2>(POINTS_TOPIC)?;
+    if dim == 4 {
+        w.add_topic::<PointCloud2>(YZT_TOPIC)?;
+    }
+    let mut ply = match &a.ply {
+        Some(p) => Some(
+            PlyWriter::create(p, o.samples, dim).map_err(|source| CliError::Io {
+                path: p.clone(),
+                source,
+            })?,
+        ),
+        None => None,
+    };
+    // One chunk of samples at a time: drawn, then written to the bag and the PLY.
+    let mut chunk: Vec<Q> = Vec::with_capacity(o.samples.min(CLOUD_POINTS));
+    let mut drawn = 0usize;
+    while drawn < o.samples {
+        let n = (o.samples - drawn).min(CLOUD_POINTS);
+        chunk.clear();
+        chunk.extend((0..n).map(|_| sampler.draw()));
+        drawn += n;
+        w.write(
+            POINTS_TOPIC,
+            STAMP_NS as u64,
+            &point_cloud(&chunk, dim, None),
+        )?;
+        if dim == 4 {
+            let yzt = point_cloud(&chunk, 3, Some([1, 2, 3]));
+            w.write(YZT_TOPIC, STAMP_NS as u64, &yzt)?;
+        }
+        if let (Some(f), Some(p)) = (ply.as_mut(), &a.ply) {
+            f.points(&chunk).map_err(|source| CliError::Io {
+                path: p.clone(),
+                source,
+            })?;
+        }
+    }
+    if o.samples == 0 {
+        // An empty cloud still says the run happened.
+        w.write(POINTS_TOPIC, STAMP_NS as u64, &point_cloud(&[], dim, None))?;
+    }
+    w.finish()?;
+    if let (Some(f), Some(p)) = (ply, &a.ply) {
+        f.finish().map_err(|source| CliError::Io {
+            path: p.clone(),
+            source,
+        })?;
+    }
     let secs = t0.elapsed().as_secs_f64();
-    let dim = scene.figure.dim();
-    let st = &s.stats;
+    let st = sampler.stats();
     if let Some(l) = st.clamped_lambda {
         tracing::warn!("λ = {l} ≥ 2 clamped to 1");
     }
     println!(
-        "{} samples ({} scheme, dt {}, {} walkers) in {secs:.3} s: {} steps, {} function evaluations, max |F|/|∇F| {:.2e}",
-        s.points.len(),
+        "{drawn} samples ({} scheme, dt {}, {} walkers) in {secs:.3} s: {} steps, {} function evaluations, max |F|/|∇F| {:.2e}",
         o.scheme.as_str(),
         o.dt,
         o.walkers,
@@ -121,22 +178,6 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
         st.singular,
         st.guarded
     );
-    let mut w = BagWriter::create(&a.out)?;
-    w.add_topic::<PointCloud2>(POINTS_TOPIC)?;
-    let cloud = point_cloud(&s.points, dim, None);
-    w.write(POINTS_TOPIC, STAMP_NS as u64, &cloud)?;
-    if dim == 4 {
-        w.add_topic::<PointCloud2>(YZT_TOPIC)?;
-        let yzt = point_cloud(&s.points, 3, Some([1, 2, 3]));
-        w.write(YZT_TOPIC, STAMP_NS as u64, &yzt)?;
-    }
-    w.finish()?;
-    if let Some(p) = &a.ply {
-        write_ply(p, &s.points, dim).map_err(|source| CliError::Io {
-            path: p.clone(),
-            source,
-        })?;
-    }
     Ok(())
 }
 
@@ -177,20 +218,74 @@ pub fn point_cloud(points: &[Q], dim: usize, pick: Option<[usize; 3]>) -> PointC
 /// # Errors
 /// The file cannot be written.
 pub fn write_ply(path: &Path, points: &[Q], dim: usize) -> std::io::Result<()> {
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
-    write!(
-        f,
-        "ply\nformat binary_little_endian 1.0\ncomment chronotope sample (seed 001 stochastic sampler)\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\n",
-        points.len()
-    )?;
-    if dim == 4 {
-        writeln!(f, "property float t")?;
-    }
-    writeln!(f, "end_header")?;
-    for q in points {
-        for c in q.iter().take(dim.clamp(3, 4)) {
-            f.write_all(&(*c as f32).to_le_bytes())?;
+    let mut f = PlyWriter::create(path, points.len(), dim)?;
+    f.points(points)?;
+    f.finish()
+}
+
+/// A binary_little_endian PLY written point by point: the count goes in the header, so it
+/// is given first.
+pub struct PlyWriter {
+    f: std::io::BufWriter<std::fs::File>,
+    dim: usize,
+    left: usize,
+}
+
+impl PlyWriter {
+    /// Creates the file and writes the header for `count` vertices of `dim` (3 or 4)
+    /// float32 coordinates.
+    ///
+    /// # Errors
+    /// The file cannot be written.
+    pub fn create(path: &Path, count: usize, dim: usize) -> std::io::Result<Self> {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+        write!(
+            f,
+            "ply\nformat binary_little_endian 1.0\ncomment chronotope sample (seed 001 stochastic sampler)\nelement vertex {count}\nproperty float x\nproperty float y\nproperty float z\n"
+        )?;
+        if dim == 4 {
+            writeln!(f, "property float t")?;
         }
+        writeln!(f, "end_header")?;
+        Ok(Self {
+            f,
+            dim: dim.clamp(3, 4),
+            left: count,
+        })
     }
-    f.flush()
+
+    /// Appends vertices.
+    ///
+    /// # Errors
+    /// The file cannot be written, or more points than the header's count.
+    pub fn points(&mut self, points: &[Q]) -> std::io::Result<()> {
+        if points.len() > self.left {
+            return Err(std::io::Error::other(format!(
+                "{} points given, {} left of the header's count",
+                points.len(),
+                self.left
+            )));
+        }
+        self.left -= points.len();
+        for q in points {
+            for c in q.iter().take(self.dim) {
+                self.f.write_all(&(*c as f32).to_le_bytes())?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Flushes the file.
+    ///
+    /// # Errors
+    /// The file cannot be written, or fewer points than the header's count.
+    pub fn finish(mut self) -> std::io::Result<()> {
+        if self.left != 0 {
+            return Err(std::io::Error::other(format!(
+                "{} points missing from the header's count",
+                self.left
+            )));
+        }
+        self.f.flush()
+    }
 }

@@ -10,6 +10,19 @@
 //! force of each move is computed and published before any workpiece frame that falls due,
 //! so the display rate never holds up the force.
 //!
+//! Work is scheduled by the next due time, never by catching up: a pose publishes at most
+//! one workpiece frame, at the latest due time on the `occupancy_period_s` grid (periods in
+//! which no pose arrived get no frame: the workpiece did not change), and the force
+//! integrates at most 0.1 s of a pause. A pause in the pose stream (over 0.1 s) is counted
+//! (`pose_pause`) and costs one pose's work. Frames are also held to
+//! [`MAX_FRAME_BYTES_PER_S`]: when a frame of the workpiece is too big for the period, the
+//! next due time moves by whole periods and the frames left out are counted
+//! (`occupancy_throttled`).
+//!
+//! A parameter set whose virtual coupling would be unstable is refused at launch
+//! ([`crate::carving::ForceParams::validate`], naming the condition); a force that still
+//! comes out non-finite is replaced by the last finite one and counted (`non_finite_force`).
+//!
 //! Bad input never stops the node: a pose with a non-finite position or a zero quaternion, a
 //! stamp older than the last, a pose in another frame are refused (counted problems, the
 //! workpiece unchanged); a non-unit quaternion is normalised (counted); an image that does not
@@ -25,6 +38,16 @@ use crate::msg::{
     Header, Point, PointCloud2, PointField, PoseStamped, RosMessage, Time, Vector3, VoxelGrid,
     Wrench, WrenchStamped,
 };
+
+/// Most bytes of workpiece frames (occupancy bits plus surfel cloud) the node publishes per
+/// second of pose time: 512 MiB/s, a third of the ~1.5 GB/s a frame's copy was measured at
+/// (README, carving speed: 10 ms for 15 MB at 256³), so frames take at most about a third
+/// of the node's core and the 1 kHz force loop keeps the rest.
+pub const MAX_FRAME_BYTES_PER_S: f64 = 512.0 * 1024.0 * 1024.0;
+
+/// A gap between two poses longer than this (ns) is a pause: counted, and integrated by the
+/// force as [`crate::carving::MAX_MOVE_DT_S`] only.
+const PAUSE_NS: i64 = 100_000_000;
 
 /// The carving node.
 pub struct CarvingNode {
@@ -46,6 +69,8 @@ pub struct CarvingNode {
     last: Option<(i64, ToolPose, ToolKind)>,
     next_publish: Option<i64>,
     last_force: [f64; 3],
+    /// Due times on the period grid that got no frame (no pose in them, or throttled).
+    skipped_periods: u64,
     status: NodeStatus,
 }
 
@@ -112,6 +137,9 @@ impl CarvingNode {
             proxy_mass: p.double("proxy_mass_kg", defaults.proxy_mass, 1e-6..=100.0)?,
             max_force: p.double("max_force_n", defaults.max_force, 0.0..=1e4)?,
         };
+        if let Err(crate::carving::CarveError::Force { param, reason }) = force.validate() {
+            return Err(bad(param, reason));
+        }
         let period = p.double("occupancy_period_s", 1.0 / 30.0, 1e-3..=3600.0)?;
         let wrench_topic = p.resolve("~/wrench", "~/wrench")?;
         let occupancy_topic = p.resolve("~/occupancy", "~/occupancy")?;
@@ -166,6 +194,7 @@ impl CarvingNode {
             last: None,
             next_publish: None,
             last_force: [0.0; 3],
+            skipped_periods: 0,
             status,
         };
         for t in [&me.knife, &me.chisel] {
@@ -221,6 +250,79 @@ impl CarvingNode {
     /// The force published with the last pose (N).
     pub fn last_force(&self) -> [f64; 3] {
         self.last_force
+    }
+
+    /// Due times of the occupancy period grid that got no frame: periods in which no pose
+    /// arrived (the workpiece did not change), or frames left out by
+    /// [`MAX_FRAME_BYTES_PER_S`].
+    pub fn skipped_periods(&self) -> u64 {
+        self.skipped_periods
+    }
+
+    /// Bytes of one workpiece frame now (occupancy bits and surfel cloud).
+    pub fn frame_bytes(&self) -> usize {
+        self.work.occupancy_bits().len() + self.work.surfel_bytes().len()
+    }
+
+    /// Counts a problem of `kind`, logging (and keeping the text of) only its first one:
+    /// for kinds that may recur at the pose rate.
+    fn count_quietly(&mut self, kind: &str, n: u64, text: impl FnOnce() -> String) {
+        if n == 0 {
+            return;
+        }
+        if let Some(c) = self.status.problems.get_mut(kind) {
+            *c += n;
+        } else {
+            self.status.problem(&self.fqn, kind, text());
+            if let Some(c) = self.status.problems.get_mut(kind) {
+                *c += n - 1;
+            }
+        }
+    }
+
+    /// Publishes the frame due at or before `stamp`, if any: one frame, at the latest due
+    /// time on the period grid; the due times before it are skipped (nothing to catch up).
+    /// The next due time is the next grid time, or later by whole periods if this frame's
+    /// bytes need longer at [`MAX_FRAME_BYTES_PER_S`].
+    fn publish_due(&mut self, stamp: i64, out: &mut Vec<Message>) {
+        let next = *self.next_publish.get_or_insert(stamp);
+        if stamp < next {
+            return;
+        }
+        let period = i128::from(self.period_ns.max(1));
+        let k = (i128::from(stamp) - i128::from(next)) / period;
+        let due = i128::from(next) + k * period;
+        self.skipped_periods = self
+            .skipped_periods
+            .saturating_add(u64::try_from(k).unwrap_or(u64::MAX));
+        let due = i64::try_from(due).unwrap_or(stamp);
+        self.publish_workpiece(due, out);
+        // Whole periods covering the time this frame's bytes take at the budget.
+        let bytes = self.frame_bytes() as f64;
+        let need_ns = bytes / MAX_FRAME_BYTES_PER_S * 1e9;
+        let periods = (need_ns / period as f64).ceil().max(1.0);
+        let periods = if periods.is_finite() && periods < 1e12 {
+            periods as i128
+        } else {
+            1
+        };
+        if periods > 1 {
+            let left_out = (periods - 1) as u64;
+            self.skipped_periods = self.skipped_periods.saturating_add(left_out);
+            let period_s = self.period_ns as f64 * 1e-9;
+            self.count_quietly("occupancy_throttled", left_out, || {
+                format!(
+                    "a workpiece frame is {:.1} MB: at most {:.0} MiB/s of frames \
+                     (MAX_FRAME_BYTES_PER_S), so frames go out every {:.4} s instead of every \
+                     occupancy_period_s {period_s} s; the periods left out are counted",
+                    bytes / 1e6,
+                    MAX_FRAME_BYTES_PER_S / 1048576.0,
+                    periods as f64 * period_s
+                )
+            });
+        }
+        let after = i128::from(due) + periods * period;
+        self.next_publish = Some(i64::try_from(after).unwrap_or(i64::MAX));
     }
 
     /// Occupied grid points left.
@@ -356,8 +458,34 @@ impl CarvingNode {
             }
         };
         self.last = Some((stamp, pose, kind));
+        if let Some(t) = last_stamp.filter(|&t| stamp.saturating_sub(t) > PAUSE_NS) {
+            let gap = (i128::from(stamp) - i128::from(t)) as f64 * 1e-9;
+            self.status.problem(
+                &self.fqn,
+                "pose_pause",
+                format!(
+                    "no pose for {gap:.3} s before the pose at {stamp} ns: the force filter \
+                     and coupling integrate {} s of it, and one workpiece frame is published \
+                     for the pause",
+                    crate::carving::MAX_MOVE_DT_S
+                ),
+            );
+        }
         let motion = [0, 1, 2].map(|a| pose.position[a] - from.position[a]);
+        let bad_before = self.force.non_finite_steps();
         let f = self.force.step(&cut, self.work.spacing(), motion, dt);
+        if self.force.non_finite_steps() > bad_before {
+            self.status.problem(
+                &self.fqn,
+                "non_finite_force",
+                format!(
+                    "pose at {stamp} ns: the rendered force came out non-finite; the last \
+                     finite force ({:.3}, {:.3}, {:.3}) N is sent instead and the filter \
+                     and coupling are reset to rest",
+                    f[0], f[1], f[2]
+                ),
+            );
+        }
         self.last_force = f;
         // The force first: the workpiece frames due are published after it.
         out.push(Message::new(
@@ -374,14 +502,8 @@ impl CarvingNode {
                 },
             })),
         ));
-        let next = *self.next_publish.get_or_insert(stamp);
-        // Frames on the period grid up to this pose, showing the workpiece after it.
-        let mut t = next;
-        while t <= stamp {
-            self.publish_workpiece(t, out);
-            t += self.period_ns;
-        }
-        self.next_publish = Some(t);
+        // The frame due, if any, showing the workpiece after this pose.
+        self.publish_due(stamp, out);
     }
 }
 

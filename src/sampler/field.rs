@@ -142,69 +142,91 @@ fn unit3(a: [f64; 3]) -> [f64; 3] {
     }
 }
 
+/// `shape: field [x, y, z] m: the y coordinate is NaN; must be finite`, if a coordinate of
+/// `p` is not finite.
+fn point(shape: &str, field: &str, p: [f64; 3]) -> Option<String> {
+    let axis = p.iter().position(|v| !v.is_finite())?;
+    Some(format!(
+        "{shape}: {field} ({}, {}, {}) m has a non-finite {} coordinate; all must be finite",
+        p[0],
+        p[1],
+        p[2],
+        ["x", "y", "z"][axis]
+    ))
+}
+
+/// `shape: field v m must be a finite number > 0`, unless it is one.
+fn positive(shape: &str, field: &str, v: f64) -> Option<String> {
+    (!(v > 0.0 && v.is_finite()))
+        .then(|| format!("{shape}: {field} {} m must be a finite number > 0", v))
+}
+
 impl Shape {
     /// The default box edge radius: 5% of the smallest half-edge.
     pub fn box_rounding(half: [f64; 3], rounding: Option<f64>) -> f64 {
         rounding.unwrap_or(0.05 * half[0].min(half[1]).min(half[2]))
     }
 
-    /// What is wrong with the parameters, if anything.
+    /// What is wrong with the parameters, if anything: the shape, the field and its value
+    /// (lengths in metres, angles in radians).
     pub fn problem(&self) -> Option<String> {
-        let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
         match *self {
-            Self::Sphere { centre, radius } => {
-                if !finite(&centre) || !(radius > 0.0 && radius.is_finite()) {
-                    return Some(format!(
-                        "sphere: centre must be finite and radius > 0 (got {radius})"
-                    ));
-                }
-            }
+            Self::Sphere { centre, radius } => point("sphere", "centre", centre)
+                .or_else(|| positive("sphere", "radius", radius)),
             Self::Box {
                 centre,
                 half,
                 rounding,
-            } => {
-                if !finite(&centre) || !half.iter().all(|h| *h > 0.0 && h.is_finite()) {
-                    return Some("box: centre must be finite and every half-edge > 0".into());
-                }
-                let r = Self::box_rounding(half, rounding);
-                let m = half[0].min(half[1]).min(half[2]);
-                if !(r >= 0.0 && r < m) {
-                    return Some(format!("box: rounding {r} must be in [0, {m})"));
-                }
-            }
+            } => point("box", "centre", centre)
+                .or_else(|| {
+                    half.iter().zip(["x", "y", "z"]).find_map(|(&h, axis)| {
+                        (!(h > 0.0 && h.is_finite())).then(|| {
+                            format!(
+                                "box: half[{axis}] = {} m (half the edge along {axis}) must be a finite number > 0",
+                                h
+                            )
+                        })
+                    })
+                })
+                .or_else(|| {
+                    let r = Self::box_rounding(half, rounding);
+                    let m = half[0].min(half[1]).min(half[2]);
+                    (!(r >= 0.0 && r < m)).then(|| {
+                        format!(
+                            "box: rounding {} m must be in [0, {m}) (below the smallest half-edge)",
+                            r
+                        )
+                    })
+                }),
             Self::Torus {
                 centre,
                 major,
                 minor,
                 ..
-            } => {
-                if !finite(&centre) || !(minor > 0.0 && minor < major && major.is_finite()) {
-                    return Some(format!(
-                        "torus: need 0 < minor < major (got minor {minor}, major {major})"
-                    ));
-                }
-            }
-            Self::Capsule { a, b, radius } => {
-                if !finite(&a) || !finite(&b) || !(radius > 0.0 && radius.is_finite()) {
-                    return Some("capsule: ends must be finite and radius > 0".into());
-                }
-            }
+            } => point("torus", "centre", centre)
+                .or_else(|| positive("torus", "minor", minor))
+                .or_else(|| positive("torus", "major", major))
+                .or_else(|| {
+                    (minor >= major).then(|| {
+                        format!("torus: minor {minor} m must be below major {major} m")
+                    })
+                }),
+            Self::Capsule { a, b, radius } => point("capsule", "a", a)
+                .or_else(|| point("capsule", "b", b))
+                .or_else(|| positive("capsule", "radius", radius)),
             Self::Cone {
                 apex, half_angle, ..
-            } => {
-                if !finite(&apex) || !(half_angle > 0.0 && half_angle < std::f64::consts::FRAC_PI_2)
-                {
-                    return Some(format!("cone: half_angle {half_angle} must be in (0, π/2)"));
-                }
-            }
-            Self::SeedSaddle { centre } | Self::SeedHoles { centre } => {
-                if !finite(&centre) {
-                    return Some("seed surface: centre must be finite".into());
-                }
-            }
+            } => point("cone", "apex", apex).or_else(|| {
+                (!(half_angle > 0.0 && half_angle < std::f64::consts::FRAC_PI_2)).then(|| {
+                    format!(
+                        "cone: half_angle {} rad must be in (0, π/2)",
+                        half_angle
+                    )
+                })
+            }),
+            Self::SeedSaddle { centre } => point("seed_saddle", "centre", centre),
+            Self::SeedHoles { centre } => point("seed_holes", "centre", centre),
         }
-        None
     }
 
     /// `f(p)` and `∇f(p)` in the rest pose.
@@ -367,6 +389,31 @@ impl Body {
     pub fn warped(mut self, k: [f64; 3]) -> Self {
         self.warp = k;
         self
+    }
+}
+
+impl Body {
+    /// What is wrong with the body, if anything: its shape ([`Shape::problem`]), or a
+    /// velocity, warp or `t_ref` that is not finite, named with its value.
+    pub fn problem(&self) -> Option<String> {
+        if let Some(p) = self.shape.problem() {
+            return Some(p);
+        }
+        for (field, v, unit) in [
+            ("velocity", self.velocity, "m/s"),
+            ("warp", self.warp, "1/m"),
+        ] {
+            if let Some(axis) = v.iter().position(|x| !x.is_finite()) {
+                return Some(format!(
+                    "{field} ({}, {}, {}) {unit} has a non-finite {} component; all must be finite",
+                    v[0],
+                    v[1],
+                    v[2],
+                    ["x", "y", "z"][axis]
+                ));
+            }
+        }
+        (!self.t_ref.is_finite()).then(|| format!("t_ref {} s must be finite", self.t_ref))
     }
 }
 

@@ -84,19 +84,39 @@ impl Wall {
     fn problem(&self, n: usize) -> Option<String> {
         match self {
             Self::Box { min, max } => (0..n)
-                .any(|i| !(min[i].is_finite() && max[i].is_finite() && min[i] < max[i]))
-                .then(|| {
-                    format!("box wall: need finite min < max on every axis (got {min:?}, {max:?})")
+                .find(|&i| !(min[i].is_finite() && max[i].is_finite() && min[i] < max[i]))
+                .map(|i| {
+                    let axis = ["x", "y", "z", "t"][i];
+                    let unit = if i == 3 { "s" } else { "m" };
+                    format!(
+                        "box wall: along {axis}, min {} {unit} and max {} {unit}: need finite min < max",
+                        min[i],
+                        max[i]
+                    )
                 }),
             Self::Shell {
                 centre,
                 inner,
                 outer,
-            } => (!(centre.iter().all(|c| c.is_finite())
-                && *inner >= 0.0
-                && inner < outer
-                && outer.is_finite()))
-            .then(|| format!("shell wall: need 0 ≤ inner < outer (got {inner}, {outer})")),
+            } => {
+                if let Some(i) = centre.iter().position(|c| !c.is_finite()) {
+                    Some(format!(
+                        "shell wall: centre ({}, {}, {}) m has a non-finite {} coordinate",
+                        centre[0],
+                        centre[1],
+                        centre[2],
+                        ["x", "y", "z"][i]
+                    ))
+                } else {
+                    (!(*inner >= 0.0 && inner < outer && outer.is_finite())).then(|| {
+                        format!(
+                            "shell wall: inner radius {} m, outer radius {} m: need 0 ≤ inner < outer, finite",
+                            *inner,
+                            *outer
+                        )
+                    })
+                }
+            }
         }
     }
 }

@@ -67,6 +67,15 @@ pub const LAMBDA_LIMIT: f64 = 2.0;
 pub const MAX_SAMPLES: usize = 100_000_000;
 /// Most walkers.
 pub const MAX_WALKERS: usize = 100_000;
+/// Most steps of one run, all walkers together: `walkers × burn_in + samples × thin`.
+/// 3e8 steps take about 10 minutes at the slowest rate measured, 0.5M steps/s (Metropolis
+/// on the torus, docs/sampler-error.md: 128 000 samples × 2 steps + 32 × 200 burn-in steps
+/// in 0.499 s, release build, one core of a 2-core AMD EPYC), with the default 20 Newton
+/// iterations per projection.
+pub const MAX_TOTAL_STEPS: u64 = 300_000_000;
+/// Most samples [`sample`] collects in memory (32 bytes each: 1 GiB). Draw more with
+/// [`Sampler::draw`] and write them as they come (`chronotope sample` does).
+pub const MAX_COLLECTED_SAMPLES: usize = 1 << 25;
 
 /// Why sampling could not start.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -87,6 +96,24 @@ pub enum SamplerError {
         value: f64,
         /// The accepted range.
         expected: &'static str,
+    },
+    /// The run would take more steps than [`MAX_TOTAL_STEPS`].
+    #[error("walkers × burn_in + samples × thin = {walkers} × {burn_in} + {samples} × {thin} = {total} steps ({per_walker} per walker): at most {max} in one run (MAX_TOTAL_STEPS, about 10 minutes at 0.5M steps/s); lower burn_in, thin or samples")]
+    TooManySteps {
+        /// Walkers.
+        walkers: usize,
+        /// Burn-in steps per walker.
+        burn_in: usize,
+        /// Samples.
+        samples: usize,
+        /// Steps between samples of one walker.
+        thin: usize,
+        /// Steps of the whole run.
+        total: u128,
+        /// Steps of the busiest walker.
+        per_walker: u128,
+        /// The limit.
+        max: u64,
     },
     /// The figure is malformed (dimensions, walls, shapes).
     #[error("bad figure: {0}")]
@@ -273,6 +300,24 @@ impl SamplerOptions {
         if self.samples > MAX_SAMPLES {
             return bad("samples", self.samples as f64, "≤ 1e8");
         }
+        let (w, b, n, t) = (
+            self.walkers as u128,
+            self.burn_in as u128,
+            self.samples as u128,
+            self.thin as u128,
+        );
+        let total = w * b + n * t;
+        if total > u128::from(MAX_TOTAL_STEPS) {
+            return Err(SamplerError::TooManySteps {
+                walkers: self.walkers,
+                burn_in: self.burn_in,
+                samples: self.samples,
+                thin: self.thin,
+                total,
+                per_walker: b + n.div_ceil(w) * t,
+                max: MAX_TOTAL_STEPS,
+            });
+        }
         if !(self.tol >= 1e-14 && self.tol <= 1e-2) {
             return bad("tol", self.tol, "1e-14 ≤ tol ≤ 1e-2");
         }
@@ -328,13 +373,30 @@ pub struct Samples {
     pub stats: SampleStats,
 }
 
-/// Draws `opts.samples` points uniformly on `fig`.
+/// Draws `opts.samples` points uniformly on `fig`, collected in memory.
 ///
 /// # Errors
-/// See [`Sampler::new`].
+/// See [`Sampler::new`]; [`SamplerError::BadParameter`] for more than
+/// [`MAX_COLLECTED_SAMPLES`] samples (checked before anything is drawn or allocated).
 pub fn sample(fig: &Figure, opts: &SamplerOptions) -> Result<Samples, SamplerError> {
+    if opts.samples > MAX_COLLECTED_SAMPLES {
+        return Err(SamplerError::BadParameter {
+            name: "samples",
+            value: opts.samples as f64,
+            expected: "≤ 33554432 (MAX_COLLECTED_SAMPLES, 1 GiB) when collected in memory; \
+                       draw more with Sampler::draw and write them as they come",
+        });
+    }
     let mut s = Sampler::new(fig, opts)?;
-    let points = (0..opts.samples).map(|_| s.draw()).collect();
+    let mut points = Vec::new();
+    points
+        .try_reserve_exact(opts.samples)
+        .map_err(|_| SamplerError::BadParameter {
+            name: "samples",
+            value: opts.samples as f64,
+            expected: "as many as memory holds (32 bytes each)",
+        })?;
+    points.extend((0..opts.samples).map(|_| s.draw()));
     Ok(Samples {
         points,
         stats: s.stats().clone(),
