@@ -117,9 +117,13 @@ fn parse_launch(text: &str) -> Vec<String> {
         Ok(c) => c,
         Err(e) => return vec![e.to_string()],
     };
-    let mut bodies: Vec<String> = ["/spindle/occupancy", "/table/occupancy", "/fixture/occupancy"]
-        .map(String::from)
-        .to_vec();
+    let mut bodies: Vec<String> = [
+        "/spindle/occupancy",
+        "/table/occupancy",
+        "/fixture/occupancy",
+    ]
+    .map(String::from)
+    .to_vec();
     let mut errors = Vec::new();
     for spec in config.of_kind(NodeKind::Carving) {
         match CarvingNode::from_spec(spec) {
@@ -230,8 +234,7 @@ fn message_problem(message: &str) -> Option<&'static str> {
             .split(':')
             .next()
             .filter(|f| f.chars().all(|c| c.is_ascii_lowercase() || c == '_'));
-        if word.last().is_some_and(u8::is_ascii_uppercase) && field.is_some_and(|f| !f.is_empty())
-        {
+        if word.last().is_some_and(u8::is_ascii_uppercase) && field.is_some_and(|f| !f.is_empty()) {
             return Some("debug dump `Type { field: .. }` in an error message");
         }
     }
@@ -277,8 +280,14 @@ fn messages() -> &'static [(String, Vec<u8>)] {
             .map(|(name, _)| repo("bags").join(name))
             .collect();
         for (bag, cfg) in [
-            ("machine-tool-32-bits.mcap", "launch_configs/machine_tool.yaml"),
-            ("carving-session.mcap", "launch_configs/carving_session.yaml"),
+            (
+                "machine-tool-32-bits.mcap",
+                "launch_configs/machine_tool.yaml",
+            ),
+            (
+                "carving-session.mcap",
+                "launch_configs/carving_session.yaml",
+            ),
         ] {
             let out = dir.path().join(bag);
             replay_to(&repo("bags").join(bag), &repo(cfg), &out);
@@ -378,7 +387,12 @@ fn png_bytes(
         png::ColorType::Rgb => 3,
         _ => 4,
     };
-    let bytes_per = channels * if depth == png::BitDepth::Sixteen { 2 } else { 1 };
+    let bytes_per = channels
+        * if depth == png::BitDepth::Sixteen {
+            2
+        } else {
+            1
+        };
     let data: Vec<u8> = (0..(w * h) as usize * bytes_per)
         .map(|i| if (i / bytes_per) % 3 == 0 { 0 } else { 255 })
         .collect();
@@ -424,7 +438,11 @@ fn crc32(bytes: &[u8]) -> u32 {
     for &b in bytes {
         crc ^= u32::from(b);
         for _ in 0..8 {
-            crc = if crc & 1 != 0 { (crc >> 1) ^ 0xEDB8_8320 } else { crc >> 1 };
+            crc = if crc & 1 != 0 {
+                (crc >> 1) ^ 0xEDB8_8320
+            } else {
+                crc >> 1
+            };
         }
     }
     !crc
@@ -597,9 +615,7 @@ fn edit_text(text: &str, edits: &[TextEdit]) -> String {
                     .collect();
                 if let Some(&(i, j)) = spots.get(index(*at, spots.len().saturating_sub(1))) {
                     let l = &lines[i];
-                    let end = l[j + 2..]
-                        .find([',', '}'])
-                        .map_or(l.len(), |k| j + 2 + k);
+                    let end = l[j + 2..].find([',', '}']).map_or(l.len(), |k| j + 2 + k);
                     lines[i] = format!("{}{}{}", &l[..j + 2], value, &l[end..]);
                 }
             }
@@ -781,10 +797,19 @@ fn message_check_catches_debug_dumps() {
 #[test]
 fn mutations_change_the_input() {
     let base: Vec<u8> = (0..100).collect();
-    let flipped = mutate(base.clone(), &[Mutation::Flip { at: 0.5, mask: 0xff }]);
+    let flipped = mutate(
+        base.clone(),
+        &[Mutation::Flip {
+            at: 0.5,
+            mask: 0xff,
+        }],
+    );
     assert_eq!(flipped.len(), 100);
     assert_ne!(flipped, base);
-    assert_eq!(mutate(base.clone(), &[Mutation::Truncate { at: 0.25 }]).len(), 25);
+    assert_eq!(
+        mutate(base.clone(), &[Mutation::Truncate { at: 0.25 }]).len(),
+        25
+    );
     let dup = mutate(
         base.clone(),
         &[Mutation::Duplicate {
