@@ -187,14 +187,6 @@ fn config(default: u32) -> Config {
     }
 }
 
-/// Error messages the image loader passes on from the `png` crate, which formats some of its
-/// errors with `Debug` (`ChunkType { type: IHDR, .. }`): a known problem, exempt from the
-/// debug-dump check until `BinaryImage::from_png` words its own messages;
-/// `png_errors_are_sentences` (ignored until then) is its regression test.
-fn known_png_dump(message: &str) -> bool {
-    message.contains("PNG: ") && message.contains("ChunkType {")
-}
-
 /// Runs `f`, failing if it takes longer than [`TIME_BOUND`] or returns a bad message.
 fn check(what: &str, f: impl FnOnce() -> Vec<String>) -> Result<(), TestCaseError> {
     let start = Instant::now();
@@ -204,7 +196,7 @@ fn check(what: &str, f: impl FnOnce() -> Vec<String>) -> Result<(), TestCaseErro
         took <= TIME_BOUND,
         "{what}: took {took:?}, more than {TIME_BOUND:?}"
     );
-    for e in errors.iter().filter(|e| !known_png_dump(e)) {
+    for e in errors.iter() {
         if let Some(problem) = message_problem(e) {
             return Err(TestCaseError::fail(format!("{what}: {problem}: {e:?}")));
         }
@@ -847,7 +839,6 @@ fn cut_png_keeps_crcs_valid() {
 /// `image_loader_survives_damaged_images`; fails on the loader as it is (the fix belongs in
 /// `BinaryImage::from_png`, which passes the decoder's `Display` text on).
 #[test]
-#[ignore = "known: BinaryImage::from_png passes on the png crate's Debug-formatted chunk type"]
 fn png_errors_are_sentences() {
     let mut png = png_bytes(12, 9, png::ColorType::Rgb, png::BitDepth::Eight, None);
     // Zero the IHDR chunk's length field (bytes 8..12).

@@ -200,7 +200,7 @@ impl BinaryImage {
     pub fn from_png(bytes: &[u8]) -> Result<Self, String> {
         let mut dec = png::Decoder::new(std::io::Cursor::new(bytes));
         dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
-        let mut reader = dec.read_info().map_err(|e| format!("PNG: {e}"))?;
+        let mut reader = dec.read_info().map_err(png_error)?;
         let (w, h) = {
             let info = reader.info();
             (info.width as usize, info.height as usize)
@@ -212,7 +212,7 @@ impl BinaryImage {
         let mut buf = vec![0u8; size];
         let info = reader
             .next_frame(&mut buf)
-            .map_err(|e| format!("PNG: {e}"))?;
+            .map_err(png_error)?;
         let channels = match info.color_type {
             png::ColorType::Grayscale => 1,
             png::ColorType::GrayscaleAlpha => 2,
@@ -409,5 +409,20 @@ impl Workpiece {
         self.flags[idx] = BOUND;
         let pos = add(p, scale(dir, self.h / 2.0 / len.max(1.0)));
         self.set_surfel(idx, pos, scale(dir, 1.0 / len), COLOUR_CUTOUT);
+    }
+}
+
+/// A PNG decoding error in words (the png crate's own text can embed a debug dump of the
+/// chunk type).
+fn png_error(e: png::DecodingError) -> String {
+    match e {
+        png::DecodingError::IoError(e) => format!("PNG: truncated or unreadable ({e})"),
+        png::DecodingError::Format(_) => {
+            "PNG: malformed or damaged (a chunk length, CRC or header field is wrong)".into()
+        }
+        png::DecodingError::Parameter(_) => "PNG: the decoder was misused (a bug)".into(),
+        png::DecodingError::LimitsExceeded => {
+            "PNG: the image is larger than the decoder's memory limit".into()
+        }
     }
 }
