@@ -295,6 +295,16 @@ fn probe(path: &Path) -> Result<(), BagError> {
         .map(|c| c.topic)
         .chain(frames.refused.keys().cloned())
         .collect();
+    let only_cut = recovery
+        .losses
+        .iter()
+        .all(|l| l.kind == super::recovery::LossKind::Truncated);
+    if !any_message && voxel_topics.is_empty() && frames.refused.is_empty() && only_cut {
+        if let Some(err) = fatal {
+            // Cut before anything: the truncation itself is the answer.
+            return Err(err);
+        }
+    }
     let mut why: Vec<String> = frames
         .refused
         .values()
@@ -308,6 +318,11 @@ fn probe(path: &Path) -> Result<(), BagError> {
     }
     if let Some(err) = &fatal {
         why.push(format!("reading stopped: {err}"));
+    }
+    if !any_message && why.is_empty() {
+        return Err(BagError::EmptyBag {
+            path: path.to_path_buf(),
+        });
     }
     if !voxel_topics.is_empty() {
         if why.is_empty() {

@@ -1084,7 +1084,18 @@ impl BagReader {
             }
             op::FOOTER => {
                 self.done = true;
-                Ok(None)
+                if self.tail_ok && self.pos + MAGIC.len() as u64 == self.len {
+                    Ok(None)
+                } else if self.pos + MAGIC.len() as u64 > self.len {
+                    Err(self.truncated())
+                } else {
+                    Err(BagError::Corrupt {
+                        path: self.path.clone(),
+                        offset: pos,
+                        reason: "the footer is not followed by the MCAP magic that ends the file"
+                            .to_owned(),
+                    })
+                }
             }
             _ => {
                 self.end_awaiting();

@@ -142,11 +142,6 @@ impl Recovery {
         }
     }
 
-    /// The last listed loss, to complete its counts from the Message Index records after it.
-    pub(crate) fn last_mut(&mut self) -> Option<&mut BagLoss> {
-        self.losses.last_mut()
-    }
-
     /// Marks the last listed loss as costing no message (a chunk the index says is empty, a
     /// duplicate).
     pub(crate) fn last_costs_nothing(&mut self) {
