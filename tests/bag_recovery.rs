@@ -53,7 +53,9 @@ fn write_bag(path: &Path, options: BagWriteOptions, frames: u64) -> u64 {
 }
 
 fn small_chunks(compression: Option<BagCompression>) -> BagWriteOptions {
-    BagWriteOptions::new().compression(compression).chunk_size(300)
+    BagWriteOptions::new()
+        .compression(compression)
+        .chunk_size(300)
 }
 
 /// The (offset, length) of every chunk record, from the summary.
@@ -135,7 +137,10 @@ fn assert_genuine(messages: &[BagMessage]) {
         assert!(TOPICS.contains(&m.topic.as_str()), "{}", m.topic);
         let k = (m.log_time_ns - T0) / DT;
         assert_eq!(m.data, encode_cdr(&grid(k)).unwrap());
-        assert!(seen.insert((m.topic.clone(), m.log_time_ns)), "twice: {m:?}");
+        assert!(
+            seen.insert((m.topic.clone(), m.log_time_ns)),
+            "twice: {m:?}"
+        );
     }
 }
 
@@ -178,7 +183,11 @@ fn a_corrupt_chunk_costs_only_its_own_messages() {
                     .map(|i| T0 + i * DT)
                     .filter(|t| r.messages.iter().filter(|m| m.log_time_ns == *t).count() < 2)
                     .collect();
-                assert_eq!((a, b), (lost_times[0], *lost_times.last().unwrap()), "{case}");
+                assert_eq!(
+                    (a, b),
+                    (lost_times[0], *lost_times.last().unwrap()),
+                    "{case}"
+                );
             }
             if k == 1 {
                 assert!(lost > 0, "{case}");
@@ -217,7 +226,9 @@ fn without_an_index_a_bad_length_loses_only_that_chunk() {
         assert!(r.messages.len() as u64 >= total - 10, "{compression:?}");
         assert!(r.errors.iter().all(|e| !e.is_fatal()), "{:?}", r.errors);
         assert!(
-            r.errors.iter().any(|e| e.to_string().contains(&format!("{start}"))),
+            r.errors
+                .iter()
+                .any(|e| e.to_string().contains(&format!("{start}"))),
             "{:?}",
             r.errors
         );
@@ -276,7 +287,9 @@ fn a_zero_filled_chunk_is_an_error_naming_its_offset() {
             "{zero:?}"
         );
         assert!(
-            r.errors.iter().any(|e| e.to_string().contains(&format!("{start}"))),
+            r.errors
+                .iter()
+                .any(|e| e.to_string().contains(&format!("{start}"))),
             "{:?}",
             r.errors
         );
@@ -306,7 +319,10 @@ fn the_only_chunk_failing_its_crc_is_named_with_what_it_cost() {
     assert!(!text.contains("no messages of type"), "{text}");
     assert!(text.contains("/a/occupancy"), "{text}");
     assert!(text.contains(&format!("byte {start}")), "{text}");
-    assert!(text.contains("CRC") || text.contains("decompress"), "{text}");
+    assert!(
+        text.contains("CRC") || text.contains("decompress"),
+        "{text}"
+    );
     assert!(text.contains("12 messages lost"), "{text}");
 
     // Without the summary: the channels are only known from the summary section's copies
@@ -358,7 +374,9 @@ fn a_duplicated_chunk_is_not_delivered_twice() {
 fn raw_bag(path: &Path, channels: &[(&str, Option<String>, &str)]) {
     let mut w = mcap::WriteOptions::new()
         .profile("ros2")
-        .create(std::io::BufWriter::new(std::fs::File::create(path).unwrap()))
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(path).unwrap(),
+        ))
         .unwrap();
     let mut ids = Vec::new();
     for (topic, schema, encoding) in channels {
@@ -422,7 +440,9 @@ fn voxel_channels_that_cannot_be_read_as_such_are_refused_by_name() {
     assert_eq!(good, 3);
     // Each refused channel once, by name, with the reason in the user's terms.
     assert_eq!(refused.len(), 3, "{refused:?}");
-    assert!(refused.iter().any(|e| e.contains("/json/occupancy") && e.contains("\"json\"")));
+    assert!(refused
+        .iter()
+        .any(|e| e.contains("/json/occupancy") && e.contains("\"json\"")));
     assert!(refused
         .iter()
         .any(|e| e.contains("/other/occupancy") && e.contains("float32 resolution")));
@@ -441,7 +461,10 @@ fn voxel_channels_that_cannot_be_read_as_such_are_refused_by_name() {
     // With only a refused channel, opening says why there are no frames.
     raw_bag(&path, &[("/json/occupancy", Some(ours), "json")]);
     let text = voxel_frames(&path).err().unwrap().to_string();
-    assert!(text.contains("/json/occupancy") && text.contains("\"json\""), "{text}");
+    assert!(
+        text.contains("/json/occupancy") && text.contains("\"json\""),
+        "{text}"
+    );
 }
 
 #[test]
@@ -478,7 +501,9 @@ fn unchunked_bags_resynchronise_after_a_bad_record_length() {
     let mut w = mcap::WriteOptions::new()
         .profile("ros2")
         .use_chunks(false)
-        .create(std::io::BufWriter::new(std::fs::File::create(&path).unwrap()))
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap(),
+        ))
         .unwrap();
     let schema = ros2msg_schema::<VoxelGrid>();
     let sid = w
@@ -539,7 +564,10 @@ fn from_bytes_reads_what_open_reads_and_recovery_serialises() {
         .map(|i| i.map_err(|e| e.to_string()))
         .collect();
     let r = read(bytes);
-    assert_eq!(from_file.iter().filter(|i| i.is_ok()).count(), r.messages.len());
+    assert_eq!(
+        from_file.iter().filter(|i| i.is_ok()).count(),
+        r.messages.len()
+    );
     let json = serde_json::to_value(r.reader.recovery()).unwrap();
     assert_eq!(json["losses"][0]["kind"], "chunk_crc");
     assert_eq!(json["losses"][0]["offset"], start as u64);

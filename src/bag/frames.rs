@@ -311,7 +311,9 @@ fn probe(path: &Path) -> Result<(), BagError> {
         .map(|r| format!("{}: {} ({} messages)", r.topic, r.reason, r.messages))
         .collect();
     if decode_errors > 0 {
-        why.push(format!("{decode_errors} messages do not decode as VoxelGrid"));
+        why.push(format!(
+            "{decode_errors} messages do not decode as VoxelGrid"
+        ));
     }
     if !recovery.is_clean() {
         why.push(recovery.describe());

@@ -832,7 +832,14 @@ impl BagReader {
                 } else {
                     format!("malformed chunk header: {reason}")
                 };
-                self.lose(offset, record_len, kind, reason.clone(), index_span, HashMap::new());
+                self.lose(
+                    offset,
+                    record_len,
+                    kind,
+                    reason.clone(),
+                    index_span,
+                    HashMap::new(),
+                );
                 if indexed_empty {
                     self.recovery.last_costs_nothing();
                 }
@@ -878,7 +885,14 @@ impl BagReader {
             });
         }
         let fail = |this: &mut Self, kind: LossKind, reason: String| {
-            this.lose(offset, record_len, kind, reason.clone(), span, HashMap::new());
+            this.lose(
+                offset,
+                record_len,
+                kind,
+                reason.clone(),
+                span,
+                HashMap::new(),
+            );
             if indexed_empty {
                 this.recovery.last_costs_nothing();
             }
@@ -1324,8 +1338,9 @@ impl BagReader {
             op::FOOTER => return Ok(next + MAGIC.len() as u64 == self.len),
             op::SCHEMA => records::schema(&body).is_ok(),
             op::CHANNEL => records::channel(&body).is_ok(),
-            op::MESSAGE => records::message(&body)
-                .is_ok_and(|m| self.channels.contains_key(&m.channel_id)),
+            op::MESSAGE => {
+                records::message(&body).is_ok_and(|m| self.channels.contains_key(&m.channel_id))
+            }
             op::MESSAGE_INDEX => records::message_index(&body).is_ok(),
             op::CHUNK_INDEX => records::chunk_index(&body).is_ok(),
             op::STATISTICS => records::statistics(&body).is_ok(),
@@ -1335,7 +1350,13 @@ impl BagReader {
     }
 
     /// True if a record starts at `next` (or `next` is the end of the data).
-    fn successor_ok(&mut self, next: u64, block: &[u8], q: u64, i: usize) -> Result<bool, BagError> {
+    fn successor_ok(
+        &mut self,
+        next: u64,
+        block: &[u8],
+        q: u64,
+        i: usize,
+    ) -> Result<bool, BagError> {
         if next == self.data_end {
             return Ok(true);
         }

@@ -154,7 +154,13 @@ impl Recovery {
     }
 
     /// Adds `n` lost messages of `topic` (log times `first..=last`) to the last listed loss.
-    pub(crate) fn add_to_last(&mut self, topic: &str, n: u64, first: Option<u64>, last: Option<u64>) {
+    pub(crate) fn add_to_last(
+        &mut self,
+        topic: &str,
+        n: u64,
+        first: Option<u64>,
+        last: Option<u64>,
+    ) {
         let Some(loss) = self.losses.last_mut() else {
             return;
         };

@@ -142,14 +142,11 @@ pub(crate) fn read_summary(
     summary.chunk_indexes.retain(|c| {
         c.chunk_start_offset >= MAGIC.len() as u64
             && c.chunk_length >= 9
-            && c
-                .chunk_start_offset
+            && c.chunk_start_offset
                 .checked_add(c.chunk_length)
                 .is_some_and(|end| end <= data_end)
     });
-    summary
-        .chunk_indexes
-        .sort_by_key(|c| c.chunk_start_offset);
+    summary.chunk_indexes.sort_by_key(|c| c.chunk_start_offset);
     let mut end = 0;
     summary.chunk_indexes.retain(|c| {
         let keep = c.chunk_start_offset >= end;
