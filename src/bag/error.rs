@@ -94,11 +94,12 @@ pub enum BagError {
         /// What was wrong.
         reason: String,
     },
-    /// A record is larger than the reader is configured to accept.
+    /// A record is larger than the reader is configured to accept; it is skipped and
+    /// reading goes on with the next readable record.
     #[error(
         "{}: record at byte {offset} (opcode {opcode:#04x}) is {len} bytes, more than the \
-         reader's limit of {limit} bytes; if the file is trusted, raise the limit with \
-         BagReadOptions::max_record_bytes",
+         reader's limit of {limit} bytes; it is skipped (if the file is trusted, raise the \
+         limit with BagReadOptions::max_record_bytes)",
         path.display()
     )]
     RecordTooLarge {
@@ -139,10 +140,12 @@ pub enum BagError {
         /// What was wrong.
         reason: String,
     },
-    /// A message refers to a channel that no earlier Channel record defined; it is skipped.
+    /// A message refers to a channel that no Channel record (in the data before it, or in
+    /// the summary) defines; it is skipped, and so are further messages of that channel
+    /// (counted in the reader's recovery, reported once).
     #[error(
-        "{}: message at {location} is on channel {channel_id}, which no Channel record before \
-         it defines",
+        "{}: message at {location} is on channel {channel_id}, which no Channel record defines \
+         (neither before it nor in the summary); this channel's messages are skipped",
         path.display()
     )]
     UnknownChannel {
@@ -157,7 +160,7 @@ pub enum BagError {
     /// skipped.
     #[error(
         "{}: message at {location} is on channel {topic:?}, whose schema {schema_id} no Schema \
-         record before it defines",
+         record defines; this channel's messages are skipped",
         path.display()
     )]
     UnknownSchema {
@@ -170,11 +173,97 @@ pub enum BagError {
         /// The schema id it names.
         schema_id: u16,
     },
-    /// The bag holds no messages at all.
+    /// Bytes where no record can be framed (zeroes, an unknown opcode, a length running past
+    /// the data) were skipped up to the next readable record; reading goes on.
+    #[error(
+        "{}: bytes {offset}-{} hold no readable record ({reason}); {}",
+        path.display(),
+        offset + bytes,
+        match next {
+            Some(n) => format!("skipped to the next readable record at byte {n}"),
+            None => "nothing readable follows".to_owned(),
+        }
+    )]
+    Skipped {
+        /// The file.
+        path: PathBuf,
+        /// Where the damage starts.
+        offset: u64,
+        /// Bytes skipped.
+        bytes: u64,
+        /// What was found there.
+        reason: String,
+        /// Where reading goes on, if anywhere.
+        next: Option<u64>,
+    },
+    /// A copy of a chunk (or unchunked message) already read; its messages are not delivered
+    /// twice, and reading goes on.
+    #[error(
+        "{}: the {what} at byte {offset} is a copy of one already read; its messages are not \
+         delivered twice",
+        path.display()
+    )]
+    Duplicate {
+        /// The file.
+        path: PathBuf,
+        /// Where the copy is.
+        offset: u64,
+        /// "chunk" or "message".
+        what: &'static str,
+    },
+    /// The bag defines more channels than [`MAX_CHANNELS`](super::MAX_CHANNELS); the first
+    /// ones are read, the others' messages are counted as lost. Reported once.
+    #[error(
+        "{}: the bag has more than MAX_CHANNELS = {limit} channels; {topic} and every further \
+         channel are not read (their messages are counted as lost)",
+        path.display()
+    )]
+    TooManyChannels {
+        /// The file.
+        path: PathBuf,
+        /// The limit.
+        limit: usize,
+        /// The first channel refused.
+        topic: String,
+    },
+    /// A VoxelGrid channel that cannot be read as one (its encoding, its schema); its messages
+    /// are counted as skipped and reading goes on. Reported once per channel.
+    #[error("{}: topic {topic}: {reason}; its messages are skipped", path.display())]
+    RefusedChannel {
+        /// The file.
+        path: PathBuf,
+        /// The channel's topic.
+        topic: String,
+        /// Why, in the user's terms.
+        reason: String,
+    },
+    /// The bag holds no messages at all, and nothing in it is damaged.
     #[error("{}: the bag holds no messages", path.display())]
     EmptyBag {
         /// The file.
         path: PathBuf,
+    },
+    /// The bag has messages, but none could be read: every one was in a damaged region.
+    #[error("{}: no message could be read: {detail}", path.display())]
+    NothingReadable {
+        /// The file.
+        path: PathBuf,
+        /// The damaged regions and what they cost.
+        detail: String,
+    },
+    /// The bag has VoxelGrid topics, but no frame of them could be read.
+    #[error(
+        "{}: the bag has VoxelGrid topics ({}), but no frame of them could be read: {detail}",
+        path.display(),
+        topics.join(", ")
+    )]
+    NoVoxelFrames {
+        /// The file.
+        path: PathBuf,
+        /// The VoxelGrid topics.
+        topics: Vec<String>,
+        /// Why: refused channels, damaged regions, or no messages.
+        detail: String,
     },
     /// The bag holds messages, but none on a `chronotope_msgs/msg/VoxelGrid` channel.
     #[error(
@@ -250,6 +339,11 @@ impl BagError {
         !matches!(
             self,
             BagError::CorruptChunk { .. }
+                | BagError::RecordTooLarge { .. }
+                | BagError::Skipped { .. }
+                | BagError::Duplicate { .. }
+                | BagError::TooManyChannels { .. }
+                | BagError::RefusedChannel { .. }
                 | BagError::BadRecord { .. }
                 | BagError::UnknownChannel { .. }
                 | BagError::UnknownSchema { .. }

@@ -9,20 +9,28 @@
 //! crate writes them. The Python readers `rosbags` and `mcap-ros2-support` read them
 //! (`tests/py/read_bags.py`).
 //!
-//! Reading relies on the `mcap` crate's sans-I/O linear reader for framing and decompression
-//! only, and parses the records it needs itself with every length checked, so that no file
-//! content can cause a panic or an allocation larger than the data present (or than
+//! Reading frames the records itself with every length checked, and relies on the `mcap`
+//! crate's sans-I/O reader only to decompress and CRC-check one chunk at a time, so that no
+//! file content can cause a panic or an allocation larger than the data present (or than
 //! [`BagReadOptions::max_record_bytes`] for decompressed chunks). Memory stays at about one
-//! chunk whatever the size of the file.
+//! chunk (compressed plus decompressed) whatever the size of the file. Damaged bags are read
+//! as far as their structure allows, through the summary and chunk indexes when they are
+//! intact, by scanning for the next record when they are not; [`BagReader::recovery`] says
+//! what was lost (`docs/bag-recovery.md`).
 
 mod error;
 mod frames;
 mod reader;
 mod records;
+mod recovery;
 mod summary;
 mod writer;
 
 pub use error::{BagError, FrameError, RecordLocation};
-pub use frames::{voxel_frames, voxel_topics, VoxelFrames};
-pub use reader::{BagMessage, BagReadOptions, BagReader, DEFAULT_MAX_RECORD_BYTES};
+pub use frames::{voxel_frames, voxel_topics, RefusedTopic, VoxelFrames};
+pub use reader::{
+    BagChannel, BagMessage, BagReadOptions, BagReader, BagSchema, DEFAULT_MAX_RECORD_BYTES,
+    MAX_CHANNELS, MAX_SCHEMA_BYTES,
+};
+pub use recovery::{BagLoss, LossKind, Recovery, MAX_LISTED_LOSSES};
 pub use writer::{BagCompression, BagWriteOptions, BagWriter, OFFERED_QOS_PROFILES};

@@ -5,8 +5,6 @@
 //! up to 4 GiB for a corrupt `u32`; here a bad length is an error string instead.) Layouts are
 //! those of the MCAP specification, little endian throughout.
 
-use std::collections::BTreeMap;
-
 /// MCAP opcodes used here.
 pub(crate) mod op {
     pub const HEADER: u8 = 0x01;
@@ -15,7 +13,17 @@ pub(crate) mod op {
     pub const CHANNEL: u8 = 0x04;
     pub const MESSAGE: u8 = 0x05;
     pub const CHUNK: u8 = 0x06;
+    pub const MESSAGE_INDEX: u8 = 0x07;
+    pub const CHUNK_INDEX: u8 = 0x08;
     pub const STATISTICS: u8 = 0x0B;
+    pub const DATA_END: u8 = 0x0F;
+}
+
+/// True for the opcodes the MCAP specification defines (0x01-0x0F) and for private records
+/// (0x80 and above); 0x00 and 0x10-0x7F never occur in a sound file, so meeting one means the
+/// reader is not at a record boundary.
+pub(crate) fn known_opcode(opcode: u8) -> bool {
+    matches!(opcode, 0x01..=0x0F | 0x80..=0xFF)
 }
 
 /// Why a record body could not be parsed.
@@ -115,22 +123,29 @@ pub(crate) fn footer(body: &[u8]) -> Result<FooterRecord, ParseError> {
     })
 }
 
-/// Schema record, without its data.
-pub(crate) struct SchemaRecord {
+/// Schema record.
+pub(crate) struct SchemaRecord<'a> {
     pub id: u16,
     pub name: String,
+    pub encoding: String,
+    pub data: &'a [u8],
 }
 
-pub(crate) fn schema(body: &[u8]) -> Result<SchemaRecord, ParseError> {
+pub(crate) fn schema(body: &[u8]) -> Result<SchemaRecord<'_>, ParseError> {
     let mut c = Cursor::new(body);
     let id = c.u16("schema id")?;
     let name = c.string("schema name")?;
-    c.string("schema encoding")?;
-    c.bytes("schema data")?;
+    let encoding = c.string("schema encoding")?;
+    let data = c.bytes("schema data")?;
     if id == 0 {
         return Err("schema id 0 is reserved for \"no schema\"".to_owned());
     }
-    Ok(SchemaRecord { id, name })
+    Ok(SchemaRecord {
+        id,
+        name,
+        encoding,
+        data,
+    })
 }
 
 /// Channel record.
@@ -184,26 +199,111 @@ pub(crate) fn message(body: &[u8]) -> Result<MessageRecord<'_>, ParseError> {
 
 /// Chunk record header; `records` are the (possibly compressed) records it holds.
 pub(crate) struct ChunkRecord<'a> {
+    pub message_start_time: u64,
+    pub message_end_time: u64,
     pub uncompressed_size: u64,
+    pub uncompressed_crc: u32,
     pub compression: String,
     pub records: &'a [u8],
 }
 
 pub(crate) fn chunk(body: &[u8]) -> Result<ChunkRecord<'_>, ParseError> {
     let mut c = Cursor::new(body);
-    c.u64("message start time")?;
-    c.u64("message end time")?;
+    let message_start_time = c.u64("message start time")?;
+    let message_end_time = c.u64("message end time")?;
     let uncompressed_size = c.u64("uncompressed size")?;
-    c.u32("uncompressed CRC")?;
+    let uncompressed_crc = c.u32("uncompressed CRC")?;
     let compression = c.string("compression")?;
     let compressed_size = c.u64("compressed size")?;
     let compressed_size = usize::try_from(compressed_size)
         .map_err(|_| format!("compressed size {compressed_size} is too large"))?;
     let records = c.take(compressed_size, "chunk records")?;
+    if c.pos != body.len() {
+        return Err(format!(
+            "the chunk record is {} bytes, but its header and records take {}",
+            body.len(),
+            c.pos
+        ));
+    }
     Ok(ChunkRecord {
+        message_start_time,
+        message_end_time,
         uncompressed_size,
+        uncompressed_crc,
         compression,
         records,
+    })
+}
+
+/// Message Index record: how many messages of one channel a chunk holds, and their log times.
+pub(crate) struct MessageIndexRecord {
+    pub channel_id: u16,
+    pub count: u64,
+    pub first_time: Option<u64>,
+    pub last_time: Option<u64>,
+}
+
+pub(crate) fn message_index(body: &[u8]) -> Result<MessageIndexRecord, ParseError> {
+    let mut c = Cursor::new(body);
+    let channel_id = c.u16("channel id")?;
+    let entries = c.bytes("message index entries")?;
+    if entries.len() % 16 != 0 {
+        return Err(format!(
+            "message index entries take {} bytes, not a multiple of 16",
+            entries.len()
+        ));
+    }
+    let mut first_time: Option<u64> = None;
+    let mut last_time: Option<u64> = None;
+    for entry in entries.chunks_exact(16) {
+        let mut t = [0u8; 8];
+        t.copy_from_slice(&entry[..8]);
+        let t = u64::from_le_bytes(t);
+        first_time = Some(first_time.map_or(t, |f| f.min(t)));
+        last_time = Some(last_time.map_or(t, |l| l.max(t)));
+    }
+    Ok(MessageIndexRecord {
+        channel_id,
+        count: (entries.len() / 16) as u64,
+        first_time,
+        last_time,
+    })
+}
+
+/// Chunk Index record (summary section): where a chunk is and what it covers.
+#[derive(Debug, Clone)]
+pub(crate) struct ChunkIndexRecord {
+    pub message_start_time: u64,
+    pub message_end_time: u64,
+    pub chunk_start_offset: u64,
+    pub chunk_length: u64,
+    /// Channels with a Message Index record after the chunk (0: the chunk has no messages).
+    pub message_index_channels: usize,
+}
+
+pub(crate) fn chunk_index(body: &[u8]) -> Result<ChunkIndexRecord, ParseError> {
+    let mut c = Cursor::new(body);
+    let message_start_time = c.u64("message start time")?;
+    let message_end_time = c.u64("message end time")?;
+    let chunk_start_offset = c.u64("chunk start offset")?;
+    let chunk_length = c.u64("chunk length")?;
+    let map = c.bytes("message index offsets")?;
+    if map.len() % 10 != 0 {
+        return Err(format!(
+            "message index offsets take {} bytes, not a multiple of 10",
+            map.len()
+        ));
+    }
+    c.u64("message index length")?;
+    c.string("compression")?;
+    c.u64("compressed size")?;
+    c.u64("uncompressed size")?;
+    Ok(ChunkIndexRecord {
+        message_start_time,
+        message_end_time,
+        chunk_start_offset,
+        chunk_length,
+        message_index_channels: map.len() / 10,
     })
 }
 
@@ -229,7 +329,6 @@ pub(crate) fn check_framing(records: &[u8]) -> Result<(), ParseError> {
 /// Statistics record: message counts.
 pub(crate) struct StatisticsRecord {
     pub message_count: u64,
-    pub channel_message_counts: BTreeMap<u16, u64>,
 }
 
 pub(crate) fn statistics(body: &[u8]) -> Result<StatisticsRecord, ParseError> {
@@ -243,15 +342,11 @@ pub(crate) fn statistics(body: &[u8]) -> Result<StatisticsRecord, ParseError> {
     c.u64("message start time")?;
     c.u64("message end time")?;
     let map = c.bytes("channel message counts")?;
-    let mut m = Cursor::new(map);
-    let mut channel_message_counts = BTreeMap::new();
-    while m.pos < map.len() {
-        let id = m.u16("channel id")?;
-        let count = m.u64("message count")?;
-        channel_message_counts.insert(id, count);
+    if map.len() % 10 != 0 {
+        return Err(format!(
+            "channel message counts take {} bytes, not a multiple of 10",
+            map.len()
+        ));
     }
-    Ok(StatisticsRecord {
-        message_count,
-        channel_message_counts,
-    })
+    Ok(StatisticsRecord { message_count })
 }
