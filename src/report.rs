@@ -156,6 +156,29 @@ pub struct Timings {
     pub total: f64,
 }
 
+/// What was read from the bag (extra field of the report of `check` and `replay`).
+#[derive(Debug, Clone, Default, Serialize, PartialEq)]
+pub struct InputCounts {
+    /// Messages read.
+    pub messages: u64,
+    /// Messages given to a node.
+    pub delivered: u64,
+    /// Messages on topics no node reads.
+    pub unused: u64,
+    /// Per topic: messages that did not decode as the subscribed type.
+    pub undecodable: BTreeMap<String, u64>,
+    /// Per topic: messages of another type than the node subscribed to expects.
+    pub wrong_type: BTreeMap<String, u64>,
+    /// Problems with the bag itself (a corrupt chunk, a truncated file), in reading order.
+    pub bag_errors: Vec<String>,
+    /// VoxelGrid topics whose channel was refused (message encoding, schema), with why and
+    /// how many messages were skipped.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub refused_topics: Vec<crate::bag::RefusedTopic>,
+    /// What reading the bag cost: damaged regions, messages lost and their time spans.
+    pub recovery: Option<crate::bag::Recovery>,
+}
+
 /// The report (CONTRACT.md).
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -180,6 +203,9 @@ pub struct Report {
     /// none). Their bodies' other pairs are checked as usual.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub unchecked_pairs: Vec<UncheckedPair>,
+    /// What was read from the bag (extra field, set by `check`; `replay` reports it beside).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub input: Option<InputCounts>,
 }
 
 /// A resolve suggestion (one entry of the report's `resolutions`).
@@ -486,6 +512,7 @@ pub fn check_streamed(
         timings_ms: Timings::default(),
         problems,
         unchecked_pairs: unchecked,
+        input: None,
     };
     if ids.is_empty() {
         report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;

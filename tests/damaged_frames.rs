@@ -349,3 +349,35 @@ impl WithOrigin for VoxelGrid {
         self
     }
 }
+
+#[test]
+fn a_refused_channel_is_named_in_the_input_by_check_and_replay() {
+    use chronotope::msg::RosMessage;
+    let d = tempfile::tempdir().unwrap();
+    let path = d.path().join("schema.mcap");
+    let mut w = BagWriter::create(&path).unwrap();
+    w.add_topic::<VoxelGrid>("/a/occupancy").unwrap();
+    w.add_topic::<VoxelGrid>("/b/occupancy").unwrap();
+    // /c: recorded with a schema text that is not ours (a field of another type).
+    let ours = chronotope::msg::ros2msg_schema::<VoxelGrid>();
+    let schema = ours.replacen("float64 resolution", "float32 resolution", 1);
+    assert_ne!(schema, ours);
+    w.add_topic_with_schema("/c/occupancy", VoxelGrid::TYPE_NAME, &schema)
+        .unwrap();
+    for (t, f) in scene(|_, _, _| true) {
+        let bytes = chronotope::msg::encode_cdr(&f).unwrap();
+        w.write_cdr(t, f.header.stamp.as_nanos() as u64, &bytes).unwrap();
+    }
+    w.finish().unwrap();
+    let (c, r) = both(&path);
+    assert_eq!(verdicts(&c), clean_verdicts()[..1].to_vec());
+    for input in [c.input.as_ref().unwrap(), &r.input] {
+        let refused: Vec<(&str, u64)> = input
+            .refused_topics
+            .iter()
+            .map(|t| (t.topic.as_str(), t.messages))
+            .collect();
+        assert_eq!(refused, [("/c/occupancy", 8)], "{input:?}");
+        assert!(input.refused_topics[0].reason.contains("resolution"), "{input:?}");
+    }
+}

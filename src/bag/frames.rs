@@ -147,6 +147,16 @@ impl Iterator for VoxelFrames {
     }
 }
 
+/// Why a channel whose schema is named `chronotope_msgs/msg/VoxelGrid` cannot be read as
+/// VoxelGrid frames (message encoding, schema encoding or schema text), if it cannot; `None`
+/// for a readable one and for channels of other types.
+pub fn voxel_channel_refusal(schema: Option<&BagSchema>, message_encoding: &str) -> Option<String> {
+    match verdict(schema, message_encoding) {
+        Verdict::Refused(reason) => Some(reason),
+        _ => None,
+    }
+}
+
 /// Whether a channel with this schema and message encoding carries VoxelGrid frames.
 fn verdict(schema: Option<&BagSchema>, message_encoding: &str) -> Verdict {
     let Some(schema) = schema else {

@@ -27,7 +27,7 @@ mod summary;
 mod writer;
 
 pub use error::{BagError, FrameError, RecordLocation};
-pub use frames::{voxel_frames, voxel_topics, RefusedTopic, VoxelFrames};
+pub use frames::{voxel_channel_refusal, voxel_frames, voxel_topics, RefusedTopic, VoxelFrames};
 pub use reader::{
     BagChannel, BagMessage, BagReadOptions, BagReader, BagSchema, DEFAULT_MAX_RECORD_BYTES,
     MAX_CHANNELS, MAX_SCHEMA_BYTES,

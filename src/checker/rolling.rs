@@ -2029,6 +2029,7 @@ impl RollingChecker {
             timings_ms: Timings::default(),
             problems,
             unchecked_pairs,
+            input: None,
         }
     }
 }

@@ -41,16 +41,18 @@ pub fn load_bodies(
     Ok(load_bodies_with_frames(path, opts)?.0)
 }
 
-/// [`load_bodies`], with each body's `header.frame_id` (of its first accepted frame).
+/// [`load_bodies`], with each body's `header.frame_id` (of its first accepted frame) and what
+/// was read from the bag.
 ///
 /// # Errors
 /// The bag cannot be read or has no VoxelGrid topic.
 pub fn load_bodies_with_frames(
     path: &Path,
     opts: MesherOptions,
-) -> Result<(BTreeMap<String, BodyMesh>, BTreeMap<String, String>), CliError> {
+) -> Result<(BTreeMap<String, BodyMesh>, BTreeMap<String, String>, crate::report::InputCounts), CliError> {
     let mut asm: BTreeMap<String, (BodyAssembler, String)> = BTreeMap::new();
-    for (topic, grid) in BagFrames::open(path)? {
+    let mut frames_in = BagFrames::open(path)?;
+    for (topic, grid) in frames_in.by_ref() {
         let (a, frame_id) = match asm.entry(topic.clone()) {
             std::collections::btree_map::Entry::Occupied(e) => e.into_mut(),
             std::collections::btree_map::Entry::Vacant(e) => {
@@ -88,7 +90,7 @@ pub fn load_bodies_with_frames(
             (k, a.finish())
         })
         .collect();
-    Ok((bodies, frames))
+    Ok((bodies, frames, frames_in.input()))
 }
 
 /// Checks every pair of bodies of a bag; resolutions for the body whose id sorts first.
@@ -101,7 +103,7 @@ pub fn check_bag(
     time_scale: Option<f64>,
 ) -> Result<Report, CliError> {
     let start = Instant::now();
-    let (bodies, frame_ids) = load_bodies_with_frames(path, opts)?;
+    let (bodies, frame_ids, input) = load_bodies_with_frames(path, opts)?;
     let t_mesh = start.elapsed();
     let ids: Vec<&str> = bodies
         .iter()
@@ -111,6 +113,7 @@ pub fn check_bag(
     let mut plan = CheckPlan::all_pairs_first_movable(&ids, time_scale);
     plan.frame_ids = frame_ids;
     let mut report = check_bodies(&bodies, &plan, opts)?.report;
+    report.input = Some(input);
     report.timings_ms.mesh = t_mesh.as_secs_f64() * 1e3;
     report.timings_ms.total = start.elapsed().as_secs_f64() * 1e3;
     Ok(report)

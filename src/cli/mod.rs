@@ -95,6 +95,10 @@ pub enum CliError {
 /// refused topic is logged once and listed in [`Self::errors`].
 pub struct BagFrames {
     inner: crate::bag::VoxelFrames,
+    /// Messages yielded (frames and undecodable ones).
+    pub messages: u64,
+    /// Per topic: messages that did not decode.
+    pub undecodable: std::collections::BTreeMap<String, u64>,
     /// Problems with the bag itself, in reading order.
     pub errors: Vec<String>,
     done: bool,
@@ -113,11 +117,29 @@ impl BagFrames {
     pub fn open(path: &std::path::Path) -> Result<Self, CliError> {
         Ok(Self {
             inner: crate::bag::voxel_frames(path)?,
+            messages: 0,
+            undecodable: Default::default(),
             errors: Vec::new(),
             done: false,
             topics: Default::default(),
             refused: Default::default(),
         })
+    }
+}
+
+impl BagFrames {
+    /// What was read, for the report's `input` (complete once iteration has ended).
+    pub fn input(&self) -> crate::report::InputCounts {
+        crate::report::InputCounts {
+            messages: self.messages,
+            delivered: self.messages - self.undecodable.values().sum::<u64>(),
+            unused: 0,
+            undecodable: self.undecodable.clone(),
+            wrong_type: Default::default(),
+            bag_errors: self.errors.clone(),
+            refused_topics: self.inner.refused(),
+            recovery: Some(self.inner.recovery().clone()),
+        }
     }
 }
 
@@ -146,13 +168,18 @@ impl Iterator for BagFrames {
                 }
             }
             match item {
-                Ok((topic, grid)) => return Some((topic, Some(grid))),
+                Ok((topic, grid)) => {
+                    self.messages += 1;
+                    return Some((topic, Some(grid)));
+                }
                 Err(FrameError::Decode {
                     topic,
                     log_time_ns,
                     reason,
                 }) => {
                     tracing::warn!(topic = %topic, log_time_ns, "skipping frame: does not decode: {reason}");
+                    self.messages += 1;
+                    *self.undecodable.entry(topic.clone()).or_default() += 1;
                     return Some((topic, None));
                 }
                 Err(FrameError::Bag(e)) => {

@@ -40,22 +40,7 @@ pub struct ReplayArgs {
     pub out: Option<PathBuf>,
 }
 
-/// What the replay read from the bag.
-#[derive(Debug, Clone, Default, Serialize, PartialEq)]
-pub struct InputCounts {
-    /// Messages read.
-    pub messages: u64,
-    /// Messages given to a node.
-    pub delivered: u64,
-    /// Messages on topics no node reads.
-    pub unused: u64,
-    /// Per topic: messages that did not decode as the subscribed type.
-    pub undecodable: BTreeMap<String, u64>,
-    /// Per topic: messages of another type than the node subscribed to expects.
-    pub wrong_type: BTreeMap<String, u64>,
-    /// Problems with the bag itself (a corrupt chunk, a truncated file), in reading order.
-    pub bag_errors: Vec<String>,
-}
+pub use crate::report::InputCounts;
 
 /// The replay's report: CONTRACT.md's fields, then the input counts and node statuses.
 #[derive(Debug, Clone, Serialize)]
@@ -324,7 +309,9 @@ pub fn replay(
     };
     let mut misrouted = Vec::new();
     let mut last_tick: Option<i64> = None;
-    for item in BagReader::open(bag)? {
+    let mut reader = BagReader::open(bag)?;
+    let mut refused: BTreeMap<String, crate::bag::RefusedTopic> = BTreeMap::new();
+    for item in reader.by_ref() {
         let m = match item {
             Ok(m) => m,
             Err(e) => {
@@ -344,6 +331,29 @@ pub fn replay(
         };
         input.messages += 1;
         bar.inc(1);
+        // The channel rules of `check` (bag::voxel_frames): a VoxelGrid channel is read only
+        // in CDR with our schema text.
+        if m.schema_name == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME {
+            if let Some(reason) =
+                crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
+            {
+                let t = m.log_time_ns;
+                let e = refused.entry(m.topic.clone()).or_insert_with(|| {
+                    tracing::error!(topic = %m.topic, "channel refused: {reason}");
+                    crate::bag::RefusedTopic {
+                        topic: m.topic.clone(),
+                        reason,
+                        messages: 0,
+                        start_ns: t,
+                        end_ns: t,
+                    }
+                });
+                e.messages += 1;
+                e.start_ns = e.start_ns.min(t);
+                e.end_ns = e.end_ns.max(t);
+                continue;
+            }
+        }
         let Some(ty) = bus.expected_type(&m.topic) else {
             input.unused += 1;
             continue;
@@ -371,6 +381,8 @@ pub fn replay(
         }
         misrouted.extend(bus.deliver(Message::new(&m.topic, log_ns, payload), &mut sink));
     }
+    input.refused_topics = refused.into_values().collect();
+    input.recovery = Some(reader.recovery().clone());
     bar.set_message("checking");
     misrouted.extend(bus.finish(&mut sink));
     bar.finish_and_clear();
@@ -401,6 +413,7 @@ pub fn replay(
             timings_ms: Default::default(),
             problems: Vec::new(),
             unchecked_pairs: Vec::new(),
+            input: None,
         });
     let origin = report.time_origin_ns;
     for b in &mut report.bodies {
