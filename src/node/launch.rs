@@ -244,7 +244,10 @@ pub enum LaunchError {
 }
 
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a launch config: a mapping with `launch:`, a list of nodes"
+)]
 struct FileYaml {
     launch: Option<Vec<serde_yaml_ng::Value>>,
 }
@@ -252,7 +255,10 @@ struct FileYaml {
 // Scalars are taken as YAML values and typed by hand, so that a wrong type is reported with
 // its field's name (serde_yaml_ng's `from_value` does not name it).
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a node: a mapping with pkg, exec, name, namespace, param, remap"
+)]
 struct NodeYaml {
     pkg: serde_yaml_ng::Value,
     exec: serde_yaml_ng::Value,
@@ -267,14 +273,17 @@ struct NodeYaml {
 }
 
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a parameter: `{name: ..., value: ...}`"
+)]
 struct ParamYaml {
     name: serde_yaml_ng::Value,
     value: serde_yaml_ng::Value,
 }
 
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, expecting = "a remapping: `{from: ..., to: ...}`")]
 struct RemapYaml {
     from: serde_yaml_ng::Value,
     to: serde_yaml_ng::Value,

@@ -75,7 +75,10 @@ pub enum SceneFileError {
 
 /// One body of a scene file.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a body: a mapping with name, shape, and optionally velocity, t_ref, warp"
+)]
 pub struct BodyEntry {
     /// Unique name.
     pub name: String,
@@ -94,7 +97,12 @@ pub struct BodyEntry {
 
 /// A wall of a scene file.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+#[serde(
+    tag = "kind",
+    rename_all = "snake_case",
+    deny_unknown_fields,
+    expecting = "a wall: `{kind: box, min: [x, y, z], max: [x, y, z]}` or `{kind: shell, centre: [x, y, z], inner: r, outer: r}`"
+)]
 pub enum WallEntry {
     /// An axis-aligned box in space.
     Box {
@@ -116,7 +124,10 @@ pub enum WallEntry {
 
 /// Sampler defaults a scene may carry (the command line overrides them).
 #[derive(Debug, Clone, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "sampler defaults: a mapping with scheme, dt, samples, walkers, burn_in, thin"
+)]
 pub struct SamplerEntry {
     /// Scheme.
     pub scheme: Option<Scheme>,
@@ -134,7 +145,10 @@ pub struct SamplerEntry {
 
 /// A scene file as written.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a scene: a mapping with dim, bodies, sample, and optionally walls, time, sampler"
+)]
 pub struct SceneFile {
     /// 3 or 4.
     pub dim: usize,
