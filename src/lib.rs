@@ -8,6 +8,7 @@
 //! - [`msg`]: ROS 2 message types mirrored from `msgs/`, CDR encoding.
 //! - [`bag`]: rosbag2 MCAP reading and writing.
 //! - [`cli`]: the `chronotope` command line.
+//! - [`yaml`]: bounded YAML loading for launch configs and scene files.
 #![warn(missing_docs)]
 
 pub mod bag;
@@ -22,3 +23,4 @@ pub mod node;
 pub mod report;
 pub mod sampler;
 pub mod scene;
+pub mod yaml;

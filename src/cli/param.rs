@@ -121,11 +121,19 @@ pub fn run(a: &ParamArgs) -> Result<(), CliError> {
             Ok(())
         }
         ParamAction::Set { name, value, .. } => {
-            let yaml: serde_yaml_ng::Value = serde_yaml_ng::from_str(value)
-                .map_err(|e| CliError::Usage(format!("{value:?}: not a YAML value: {e}")))?;
+            // The same bounds as a launch config: a hostile argument is refused by the
+            // limit's name before it is parsed.
+            let yaml: serde_yaml_ng::Value =
+                crate::yaml::from_str(value, &crate::yaml::CONFIG_LIMITS).map_err(|e| {
+                    CliError::Usage(format!(
+                        "{name} {}: not a YAML value: {e}",
+                        crate::yaml::quote(value)
+                    ))
+                })?;
             let mut v = ParamValue::from_yaml(&yaml).ok_or_else(|| {
                 CliError::Usage(format!(
-                    "{value:?}: not a parameter value (a number, bool, string or a list of one kind)"
+                    "{name} {}: not a parameter value (a number, bool, string or a list of one kind)",
+                    crate::yaml::quote(value)
                 ))
             })?;
             if let ParamValue::Integer(i) = v {

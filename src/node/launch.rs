@@ -24,6 +24,15 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use super::names::{node_fqn, resolve_topic, NameError};
+use crate::yaml::{self, YamlError, CONFIG_LIMITS};
+
+/// Most nodes one launch config may start (`nodes_per_launch`). Live, each node is a ROS
+/// node with about 16 DDS endpoints (rosout, parameter events, six parameter services, its
+/// topics) announced to every peer, and each keeps its own state (a mesher's window, a
+/// checker's resolution budget of up to 1.5 M tets, a carving workpiece); 64 is four times
+/// the largest cell the suite was written for and keeps discovery to about a thousand
+/// endpoints.
+pub const MAX_NODES: usize = 64;
 
 /// A parameter value.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,6 +66,28 @@ impl ParamValue {
             Self::IntegerArray(_) => "integer array",
             Self::DoubleArray(_) => "double array",
             Self::StringArray(_) => "string array",
+        }
+    }
+
+    /// The value as a message shows it: YAML-like, user text and long lists shortened
+    /// (`"mesher"`, `1e300`, `[1, 2, 3, … 40 items]`), never a Rust debug dump.
+    pub fn shown(&self) -> String {
+        fn list<T>(items: &[T], one: impl Fn(&T) -> String) -> String {
+            let mut parts: Vec<String> = items.iter().take(4).map(one).collect();
+            if items.len() > 4 {
+                parts.push(format!("… {} items", items.len()));
+            }
+            format!("[{}]", parts.join(", "))
+        }
+        match self {
+            Self::Bool(b) => b.to_string(),
+            Self::Integer(i) => i.to_string(),
+            Self::Double(d) => yaml::number(*d),
+            Self::String(s) => yaml::quote(s),
+            Self::BoolArray(v) => list(v, bool::to_string),
+            Self::IntegerArray(v) => list(v, i64::to_string),
+            Self::DoubleArray(v) => list(v, |d| yaml::number(*d)),
+            Self::StringArray(v) => list(v, |s| yaml::quote(s)),
         }
     }
 
@@ -148,6 +179,15 @@ pub enum LaunchError {
         /// Why.
         source: std::io::Error,
     },
+    /// The text is refused before parsing (a limit of [`crate::yaml::CONFIG_LIMITS`], an
+    /// alias, not a regular file) or does not parse.
+    #[error("{origin}: {source}")]
+    Yaml {
+        /// The file.
+        origin: String,
+        /// Why.
+        source: YamlError,
+    },
     /// The YAML does not parse or has the wrong shape.
     #[error("{where_}: {reason}")]
     Format {
@@ -155,6 +195,22 @@ pub enum LaunchError {
         where_: String,
         /// What is wrong.
         reason: String,
+    },
+    /// `launch:` is missing, empty or null.
+    #[error("{origin}: the config launches no node (`launch:` is empty); list nodes as `- node: {{pkg: chronotope, exec: mesher}}`")]
+    NoNodes {
+        /// The file.
+        origin: String,
+    },
+    /// More nodes than [`MAX_NODES`].
+    #[error("{origin}: {count} nodes; limit nodes_per_launch = {limit}")]
+    TooManyNodes {
+        /// The file.
+        origin: String,
+        /// Nodes in the config.
+        count: usize,
+        /// [`MAX_NODES`].
+        limit: usize,
     },
     /// A malformed name.
     #[error("{where_}: {source}")]
@@ -165,7 +221,7 @@ pub enum LaunchError {
         source: NameError,
     },
     /// A parameter is undeclared, mistyped or out of range.
-    #[error("{node}: parameter {param}: {reason}")]
+    #[error("{node}: parameter {}: {reason}", yaml::cut(.param))]
     Param {
         /// Node name.
         node: String,
@@ -174,101 +230,220 @@ pub enum LaunchError {
         /// What is wrong.
         reason: String,
     },
+    /// One topic carries two message types: two nodes (or a node and the bag) mean two
+    /// different things by it.
+    #[error("topic {topic} is used with two message types: {first}, but {second}; give one of them another topic")]
+    TopicTypes {
+        /// The topic.
+        topic: String,
+        /// The first use (node, direction, type, parameter).
+        first: String,
+        /// The conflicting use.
+        second: String,
+    },
 }
 
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a launch config: a mapping with `launch:`, a list of nodes"
+)]
 struct FileYaml {
-    launch: Vec<serde_yaml_ng::Value>,
+    launch: Option<Vec<serde_yaml_ng::Value>>,
 }
 
+// Scalars are taken as YAML values and typed by hand, so that a wrong type is reported with
+// its field's name (serde_yaml_ng's `from_value` does not name it).
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a node: a mapping with pkg, exec, name, namespace, param, remap"
+)]
 struct NodeYaml {
-    pkg: String,
-    exec: String,
-    name: Option<String>,
-    namespace: Option<String>,
+    pkg: serde_yaml_ng::Value,
+    exec: serde_yaml_ng::Value,
     #[serde(default)]
-    param: Vec<ParamYaml>,
+    name: serde_yaml_ng::Value,
     #[serde(default)]
-    remap: Vec<RemapYaml>,
+    namespace: serde_yaml_ng::Value,
+    #[serde(default)]
+    param: serde_yaml_ng::Value,
+    #[serde(default)]
+    remap: serde_yaml_ng::Value,
 }
 
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a parameter: `{name: ..., value: ...}`"
+)]
 struct ParamYaml {
-    name: String,
+    name: serde_yaml_ng::Value,
     value: serde_yaml_ng::Value,
 }
 
 #[derive(serde::Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(deny_unknown_fields, expecting = "a remapping: `{from: ..., to: ...}`")]
 struct RemapYaml {
-    from: String,
-    to: String,
+    from: serde_yaml_ng::Value,
+    to: serde_yaml_ng::Value,
 }
 
-/// Largest launch file read (bytes).
-const MAX_FILE_BYTES: u64 = 1 << 20;
+/// A YAML value as a message shows it.
+fn shown(v: &serde_yaml_ng::Value) -> String {
+    use serde_yaml_ng::Value as Y;
+    match v {
+        Y::Null => "nothing".into(),
+        Y::Mapping(_) => "a mapping".into(),
+        Y::Tagged(_) => "a tagged value".into(),
+        Y::Sequence(_) => "a list".into(),
+        v => ParamValue::from_yaml(v).map_or_else(|| "a value".into(), |p| p.shown()),
+    }
+}
+
+/// Field `field` of a launch entry as text (`None` when left out).
+fn text_field(
+    where_: &str,
+    field: &str,
+    v: &serde_yaml_ng::Value,
+) -> Result<Option<String>, LaunchError> {
+    match v {
+        serde_yaml_ng::Value::Null => Ok(None),
+        serde_yaml_ng::Value::String(s) => Ok(Some(s.clone())),
+        v => Err(LaunchError::Format {
+            where_: where_.to_owned(),
+            reason: format!("{field}: expected text, got {}", shown(v)),
+        }),
+    }
+}
+
+/// Field `field` of a launch entry as a list of `T` (empty when left out).
+fn list<T: serde::de::DeserializeOwned>(
+    where_: &str,
+    field: &str,
+    v: &serde_yaml_ng::Value,
+) -> Result<Vec<T>, LaunchError> {
+    let err = |reason: String| LaunchError::Format {
+        where_: where_.to_owned(),
+        reason,
+    };
+    match v {
+        serde_yaml_ng::Value::Null => Ok(Vec::new()),
+        serde_yaml_ng::Value::Sequence(items) => items
+            .iter()
+            .enumerate()
+            .map(|(i, item)| {
+                serde_yaml_ng::from_value(item.clone()).map_err(|e| {
+                    err(format!(
+                        "{field} item {}: {}",
+                        i + 1,
+                        yaml::shorten(&e.to_string())
+                    ))
+                })
+            })
+            .collect(),
+        v => Err(err(format!("{field}: expected a list, got {}", shown(v)))),
+    }
+}
 
 impl LaunchConfig {
-    /// Reads a launch config file.
+    /// Reads a launch config file (a regular file of at most `config_bytes`).
     ///
     /// # Errors
     /// The file cannot be read or is not a valid config.
     pub fn read(path: &Path) -> Result<Self, LaunchError> {
-        let io = |source| LaunchError::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let len = std::fs::metadata(path).map_err(io)?.len();
-        if len > MAX_FILE_BYTES {
-            return Err(LaunchError::Format {
-                where_: path.display().to_string(),
-                reason: format!("{len} bytes: a launch config is at most {MAX_FILE_BYTES}"),
-            });
-        }
-        let text = std::fs::read_to_string(path).map_err(io)?;
-        let mut c = Self::parse(&text, &path.display().to_string())?;
+        let origin = path.display().to_string();
+        let text = yaml::read_text(path, &CONFIG_LIMITS).map_err(|source| match source {
+            YamlError::Io { source, .. } => LaunchError::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+            source => LaunchError::Yaml {
+                origin: origin.clone(),
+                source,
+            },
+        })?;
+        let mut c = Self::parse(&text, &origin)?;
         c.path = Some(path.to_path_buf());
         Ok(c)
     }
 
-    /// Parses launch config text (`origin` names it in errors).
+    /// Parses launch config text (`origin` names it in errors). The text is checked against
+    /// [`CONFIG_LIMITS`] before it is parsed, and the config against [`MAX_NODES`].
     ///
     /// # Errors
     /// Not a valid config.
     pub fn parse(text: &str, origin: &str) -> Result<Self, LaunchError> {
         let fmt = |where_: String, reason: String| LaunchError::Format { where_, reason };
         let file: FileYaml =
-            serde_yaml_ng::from_str(text).map_err(|e| fmt(origin.to_owned(), e.to_string()))?;
+            yaml::from_str(text, &CONFIG_LIMITS).map_err(|source| LaunchError::Yaml {
+                origin: origin.to_owned(),
+                source,
+            })?;
+        let entries = file.launch.unwrap_or_default();
+        if entries.is_empty() {
+            return Err(LaunchError::NoNodes {
+                origin: origin.to_owned(),
+            });
+        }
+        if entries.len() > MAX_NODES {
+            return Err(LaunchError::TooManyNodes {
+                origin: origin.to_owned(),
+                count: entries.len(),
+                limit: MAX_NODES,
+            });
+        }
         let mut nodes = Vec::new();
         let mut seen = BTreeSet::new();
-        for (i, entry) in file.launch.into_iter().enumerate() {
+        for (i, entry) in entries.into_iter().enumerate() {
             let where_ = format!("{origin}: launch entry {}", i + 1);
             let serde_yaml_ng::Value::Mapping(m) = entry else {
                 return Err(fmt(where_, "expected a mapping like `node: {...}`".into()));
             };
             let (key, value) = match m.into_iter().collect::<Vec<_>>().as_slice() {
-                [(k, v)] => (k.as_str().unwrap_or_default().to_owned(), v.clone()),
+                [(k, v)] => (k.as_str().map(str::to_owned), v.clone()),
                 _ => return Err(fmt(where_, "expected exactly one key (`node`)".into())),
             };
-            if key != "node" {
+            match key.as_deref() {
+                Some("node") => {}
+                Some(key) => {
+                    return Err(fmt(
+                        where_,
+                        format!(
+                            "{} entries are not supported; only `node`",
+                            yaml::quote(key)
+                        ),
+                    ))
+                }
+                None => return Err(fmt(where_, "the key is not text; only `node`".into())),
+            }
+            if let Some(k) = value
+                .as_mapping()
+                .and_then(|m| m.keys().find(|k| !k.is_string()))
+            {
                 return Err(fmt(
                     where_,
-                    format!("`{key}` entries are not supported; only `node`"),
+                    format!(
+                        "node: a key that is not text ({}); the keys are pkg, exec, name, \
+                         namespace, param, remap",
+                        shown(k)
+                    ),
                 ));
             }
-            let n: NodeYaml =
-                serde_yaml_ng::from_value(value).map_err(|e| fmt(where_.clone(), e.to_string()))?;
-            if n.pkg != "chronotope" {
+            let n: NodeYaml = serde_yaml_ng::from_value(value)
+                .map_err(|e| fmt(where_.clone(), yaml::shorten(&e.to_string())))?;
+            let pkg = text_field(&where_, "pkg", &n.pkg)?.unwrap_or_default();
+            let exec = text_field(&where_, "exec", &n.exec)?.unwrap_or_default();
+            if pkg != "chronotope" {
                 return Err(fmt(
                     where_,
-                    format!("pkg {:?}: only chronotope's nodes run here", n.pkg),
+                    format!(
+                        "pkg {}: only chronotope's nodes run here",
+                        yaml::quote(&pkg)
+                    ),
                 ));
             }
-            let kind = match n.exec.as_str() {
+            let kind = match exec.as_str() {
                 "mesher" => NodeKind::Mesher,
                 "checker" => NodeKind::Checker,
                 "carving" => NodeKind::Carving,
@@ -276,45 +451,74 @@ impl LaunchConfig {
                 other => {
                     return Err(fmt(
                         where_,
-                        format!("exec {other:?}: one of mesher, checker, carving, recorder"),
+                        format!(
+                            "exec {}: one of mesher, checker, carving, recorder",
+                            yaml::quote(other)
+                        ),
                     ))
                 }
             };
-            let name = n.name.unwrap_or_else(|| n.exec.clone());
-            let fqn = node_fqn(n.namespace.as_deref().unwrap_or("/"), &name).map_err(|source| {
+            let name = text_field(&where_, "name", &n.name)?.unwrap_or_else(|| exec.clone());
+            let namespace = text_field(&where_, "namespace", &n.namespace)?;
+            let fqn = node_fqn(namespace.as_deref().unwrap_or("/"), &name).map_err(|source| {
                 LaunchError::Name {
                     where_: where_.clone(),
                     source,
                 }
             })?;
             if !seen.insert(fqn.clone()) {
-                return Err(fmt(where_, format!("two nodes are named {fqn}")));
+                return Err(fmt(
+                    where_,
+                    format!("two nodes are named {fqn}; give one a `name` or a `namespace`"),
+                ));
             }
             let mut params = BTreeMap::new();
-            for p in n.param {
+            for (i, p) in list::<ParamYaml>(&where_, "param", &n.param)?
+                .into_iter()
+                .enumerate()
+            {
+                let field = format!("param item {} name", i + 1);
+                let pname = text_field(&where_, &field, &p.name)?
+                    .ok_or_else(|| fmt(where_.clone(), format!("{field}: missing")))?;
                 let v = ParamValue::from_yaml(&p.value).ok_or_else(|| LaunchError::Param {
                     node: fqn.clone(),
-                    param: p.name.clone(),
-                    reason: "not a bool, number, string, or a list of one of them".into(),
+                    param: pname.clone(),
+                    reason: format!(
+                        "{}: not a bool, number, string, or a list of one of them",
+                        shown(&p.value)
+                    ),
                 })?;
-                if params.insert(p.name.clone(), v).is_some() {
+                if params.insert(pname.clone(), v).is_some() {
                     return Err(LaunchError::Param {
                         node: fqn.clone(),
-                        param: p.name,
+                        param: pname,
                         reason: "given twice".into(),
                     });
                 }
             }
             let mut remaps = BTreeMap::new();
-            for r in n.remap {
+            for (i, r) in list::<RemapYaml>(&where_, "remap", &n.remap)?
+                .into_iter()
+                .enumerate()
+            {
+                let field = |end: &str| format!("remap item {} {end}", i + 1);
+                let missing = |f: String| fmt(where_.clone(), format!("{f}: missing"));
+                let r_from = text_field(&where_, &field("from"), &r.from)?
+                    .ok_or_else(|| missing(field("from")))?;
+                let r_to = text_field(&where_, &field("to"), &r.to)?
+                    .ok_or_else(|| missing(field("to")))?;
                 let name_err = |source| LaunchError::Name {
                     where_: where_.clone(),
                     source,
                 };
-                remaps.insert(
-                    resolve_topic(&r.from, &fqn).map_err(name_err)?,
-                    resolve_topic(&r.to, &fqn).map_err(name_err)?,
-                );
+                let from = resolve_topic(&r_from, &fqn).map_err(name_err)?;
+                let to = resolve_topic(&r_to, &fqn).map_err(name_err)?;
+                if let Some(before) = remaps.insert(from.clone(), to.clone()) {
+                    return Err(fmt(
+                        where_,
+                        format!("{from} is remapped twice (to {before} and to {to})"),
+                    ));
+                }
             }
             nodes.push(NodeSpec {
                 kind,
@@ -368,7 +572,10 @@ impl<'a> Params<'a> {
     }
 
     fn wrong(&self, name: &str, want: &str, got: &ParamValue) -> LaunchError {
-        self.err(name, format!("expected {want}, got {} {got:?}", got.kind()))
+        self.err(
+            name,
+            format!("expected {want}, got {} {}", got.kind(), got.shown()),
+        )
     }
 
     /// A bool parameter.
@@ -429,7 +636,17 @@ impl<'a> Params<'a> {
         } else {
             Err(self.err(
                 name,
-                format!("{v} is not in {}..={}", range.start(), range.end()),
+                format!(
+                    "{} is not in [{}, {}]{}",
+                    yaml::number(v),
+                    yaml::number(*range.start()),
+                    yaml::number(*range.end()),
+                    if v.is_finite() {
+                        ""
+                    } else {
+                        " (a finite number is needed)"
+                    }
+                ),
             ))
         }
     }
@@ -453,10 +670,16 @@ impl<'a> Params<'a> {
             .clone()
             .try_into()
             .map_err(|_| self.err(name, format!("expected {N} numbers, got {}", v.len())))?;
-        if arr.iter().all(|x| x.is_finite()) {
-            Ok(arr)
-        } else {
-            Err(self.err(name, "numbers must be finite".into()))
+        match arr.iter().position(|x| !x.is_finite()) {
+            None => Ok(arr),
+            Some(i) => Err(self.err(
+                name,
+                format!(
+                    "number {} is {}: numbers must be finite",
+                    i + 1,
+                    yaml::number(arr[i])
+                ),
+            )),
         }
     }
 

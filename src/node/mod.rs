@@ -13,6 +13,7 @@ pub mod launch;
 pub mod markers;
 pub mod mesher;
 pub mod names;
+pub mod routes;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;

@@ -4,11 +4,15 @@
 //! - `b` is relative to the node's namespace (`/ns/b`);
 //! - `~/b` is private to the node (`/ns/node/b`), `~` the node itself.
 //!
-//! Tokens are `[A-Za-z_][A-Za-z0-9_]*`, separated by single `/`; no trailing `/`.
+//! Tokens are `[A-Za-z_][A-Za-z0-9_]*`, separated by single `/`; no trailing `/`. A name is
+//! at most [`MAX_NAME_CHARS`] characters, as ROS 2 allows.
+
+/// Longest name, node or topic, resolved (ROS 2's `RMW_TOPIC_MAX_NAME_LENGTH`).
+pub const MAX_NAME_CHARS: usize = 255;
 
 /// A malformed name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{what} {name:?}: {why}")]
+#[error("{what} {}: {why}", crate::yaml::quote(.name))]
 pub struct NameError {
     /// What the name is (`node name`, `namespace`, `topic`).
     pub what: &'static str,
@@ -24,6 +28,9 @@ fn check_tokens(what: &'static str, name: &str, tokens: &str) -> Result<(), Name
         name: name.to_owned(),
         why,
     };
+    if name.len() > MAX_NAME_CHARS {
+        return Err(err("longer than the 255 characters ROS 2 allows a name"));
+    }
     if tokens.is_empty() {
         return Ok(());
     }
@@ -68,7 +75,15 @@ pub fn node_fqn(ns: &str, name: &str) -> Result<String, NameError> {
         });
     }
     check_tokens("node name", name, name)?;
-    Ok(join(&ns, name))
+    let fqn = join(&ns, name);
+    if fqn.len() > MAX_NAME_CHARS {
+        return Err(NameError {
+            what: "node name",
+            name: fqn,
+            why: "longer than the 255 characters ROS 2 allows a name, with its namespace",
+        });
+    }
+    Ok(fqn)
 }
 
 fn join(ns: &str, rest: &str) -> String {
@@ -121,6 +136,13 @@ pub fn resolve_topic(topic: &str, node_fqn: &str) -> Result<String, NameError> {
         check_tokens("topic", topic, topic)?;
         join(ns, topic)
     };
+    if resolved.len() > MAX_NAME_CHARS {
+        return Err(NameError {
+            what: "topic",
+            name: topic.to_owned(),
+            why: "longer than the 255 characters ROS 2 allows a name, once resolved",
+        });
+    }
     Ok(resolved)
 }
 
@@ -152,5 +174,9 @@ mod tests {
         assert!(node_fqn("/", "a/b").is_err());
         assert!(node_fqn("/", "").is_err());
         assert!(namespace("a//b").is_err());
+        let long = "a".repeat(300);
+        let e = resolve_topic(&long, "/m").unwrap_err().to_string();
+        assert!(e.contains("255") && e.len() < 120, "{e}");
+        assert!(node_fqn(&"n".repeat(200), &"m".repeat(60)).is_err());
     }
 }

@@ -31,13 +31,16 @@
 use super::field::{Body, Shape, Q};
 use super::figure::{Figure, Wall};
 use super::{SamplerError, SamplerOptions, Scheme};
+use crate::yaml::{number, quote};
 use serde::Deserialize;
 use std::sync::Arc;
 
 /// Most bodies in one scene file.
 pub const MAX_BODIES: usize = 64;
-/// Largest scene file read (bytes).
-pub const MAX_FILE_BYTES: u64 = 1 << 20;
+/// Largest scene file read (bytes): `config_bytes` of [`crate::yaml::CONFIG_LIMITS`].
+pub const MAX_FILE_BYTES: u64 = crate::yaml::CONFIG_LIMITS.max_bytes as u64;
+/// Most walls in one scene file.
+pub const MAX_WALLS: usize = 64;
 
 /// What is wrong with a scene file.
 #[derive(Debug, thiserror::Error)]
@@ -58,9 +61,10 @@ pub enum SceneFileError {
         /// Its size.
         bytes: u64,
     },
-    /// Not valid YAML for a scene.
+    /// Refused before parsing (a limit of [`crate::yaml::CONFIG_LIMITS`], an alias, not a
+    /// regular file), or not valid YAML for a scene.
     #[error("scene file: {0}")]
-    Yaml(#[from] serde_yaml_ng::Error),
+    Yaml(#[from] crate::yaml::YamlError),
     /// Valid YAML, invalid scene.
     #[error("scene file: {0}")]
     Invalid(String),
@@ -71,7 +75,10 @@ pub enum SceneFileError {
 
 /// One body of a scene file.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a body: a mapping with name, shape, and optionally velocity, t_ref, warp"
+)]
 pub struct BodyEntry {
     /// Unique name.
     pub name: String,
@@ -90,7 +97,12 @@ pub struct BodyEntry {
 
 /// A wall of a scene file.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+#[serde(
+    tag = "kind",
+    rename_all = "snake_case",
+    deny_unknown_fields,
+    expecting = "a wall: `{kind: box, min: [x, y, z], max: [x, y, z]}` or `{kind: shell, centre: [x, y, z], inner: r, outer: r}`"
+)]
 pub enum WallEntry {
     /// An axis-aligned box in space.
     Box {
@@ -112,7 +124,10 @@ pub enum WallEntry {
 
 /// Sampler defaults a scene may carry (the command line overrides them).
 #[derive(Debug, Clone, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "sampler defaults: a mapping with scheme, dt, samples, walkers, burn_in, thin"
+)]
 pub struct SamplerEntry {
     /// Scheme.
     pub scheme: Option<Scheme>,
@@ -130,7 +145,10 @@ pub struct SamplerEntry {
 
 /// A scene file as written.
 #[derive(Debug, Clone, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a scene: a mapping with dim, bodies, sample, and optionally walls, time, sampler"
+)]
 pub struct SceneFile {
     /// 3 or 4.
     pub dim: usize,
@@ -163,31 +181,33 @@ pub struct ImplicitScene {
 }
 
 impl SceneFile {
-    /// Parses YAML text.
+    /// Parses YAML text, checked against [`crate::yaml::CONFIG_LIMITS`] first.
     ///
     /// # Errors
     /// [`SceneFileError::Yaml`].
     pub fn parse(text: &str) -> Result<Self, SceneFileError> {
-        Ok(serde_yaml_ng::from_str(text)?)
+        Ok(crate::yaml::from_str(text, &crate::yaml::CONFIG_LIMITS)?)
     }
 
-    /// Reads and parses a file (at most [`MAX_FILE_BYTES`]).
+    /// Reads and parses a regular file of at most [`MAX_FILE_BYTES`].
     ///
     /// # Errors
     /// [`SceneFileError::Io`], [`SceneFileError::TooLarge`], [`SceneFileError::Yaml`].
     pub fn read(path: &std::path::Path) -> Result<Self, SceneFileError> {
-        let io = |source| SceneFileError::Io {
-            path: path.display().to_string(),
-            source,
-        };
-        let bytes = std::fs::metadata(path).map_err(io)?.len();
-        if bytes > MAX_FILE_BYTES {
-            return Err(SceneFileError::TooLarge {
-                path: path.display().to_string(),
-                bytes,
-            });
-        }
-        Self::parse(&std::fs::read_to_string(path).map_err(io)?)
+        use crate::yaml::{read_text, YamlError, CONFIG_LIMITS};
+        let shown = path.display().to_string();
+        let text = read_text(path, &CONFIG_LIMITS).map_err(|e| match e {
+            YamlError::Io { source, .. } => SceneFileError::Io {
+                path: shown.clone(),
+                source,
+            },
+            YamlError::TooLarge { .. } => SceneFileError::TooLarge {
+                path: shown.clone(),
+                bytes: std::fs::metadata(path).map_or(MAX_FILE_BYTES + 1, |m| m.len()),
+            },
+            e => SceneFileError::Invalid(format!("{shown}: {e}")),
+        })?;
+        Self::parse(&text)
     }
 
     /// Checks everything and builds the figure.
@@ -208,20 +228,28 @@ impl SceneFile {
                 self.bodies.len()
             ));
         }
+        if self.walls.len() > MAX_WALLS {
+            return bad(format!("{} walls: at most {MAX_WALLS}", self.walls.len()));
+        }
         for (i, b) in self.bodies.iter().enumerate() {
+            let name = quote(&b.name);
             if self.bodies[..i].iter().any(|o| o.name == b.name) {
-                return bad(format!("body `{}` is defined twice", b.name));
+                return bad(format!("body {name} is defined twice"));
             }
             if let Some(p) = b.shape.problem() {
-                return bad(format!("body `{}`: {p}", b.name));
+                return bad(format!("body {name}: {p}"));
             }
-            let finite =
-                b.velocity.iter().chain(&b.warp).all(|x| x.is_finite()) && b.t_ref.is_finite();
-            if !finite {
-                return bad(format!(
-                    "body `{}`: velocity, warp and t_ref must be finite",
-                    b.name
-                ));
+            for (field, values) in [
+                ("velocity (m/s)", &b.velocity[..]),
+                ("warp (1/m)", &b.warp[..]),
+                ("t_ref (s)", std::slice::from_ref(&b.t_ref)),
+            ] {
+                if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+                    return bad(format!(
+                        "body {name}: {field} is {}: it must be finite",
+                        number(*v)
+                    ));
+                }
             }
             if self.dim == 3 && b.velocity != [0.0; 3] {
                 tracing::warn!(
@@ -231,9 +259,14 @@ impl SceneFile {
             }
         }
         let mut bodies = Vec::new();
+        for (i, w) in self.walls.iter().enumerate() {
+            if let Some(p) = w.problem() {
+                return bad(format!("wall {}: {p}", i + 1));
+            }
+        }
         for name in &self.sample {
             let Some(b) = self.bodies.iter().find(|b| &b.name == name) else {
-                return bad(format!("sample: no body named `{name}`"));
+                return bad(format!("sample: no body named {}", quote(name)));
             };
             let mut body = Body::fixed(b.shape).warped(b.warp);
             if self.dim == 4 {
@@ -254,6 +287,13 @@ impl SceneFile {
         }
         let time = match (self.dim, self.time) {
             (4, Some([t0, t1])) if t0.is_finite() && t1.is_finite() && t0 < t1 => Some([t0, t1]),
+            (4, Some([t0, t1])) => {
+                return bad(format!(
+                    "time: [{}, {}] s: dim 4 needs finite t0 < t1",
+                    number(t0),
+                    number(t1)
+                ))
+            }
             (4, _) => return bad("dim 4 needs `time: [t0, t1]` with t0 < t1".into()),
             (_, Some(_)) => return bad("`time` is only for dim 4".into()),
             _ => None,
@@ -323,6 +363,12 @@ impl SceneFile {
             o.scheme = v;
         }
         if let Some(v) = s.dt {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!(
+                    "sampler.dt is {}: a positive, finite time step is needed",
+                    number(v)
+                ));
+            }
             o.dt = v;
         }
         if let Some(v) = s.samples {
@@ -344,6 +390,44 @@ impl SceneFile {
             options: o,
             time,
         })
+    }
+}
+
+impl WallEntry {
+    /// What is wrong with the wall, if anything (finite corners with min < max; a finite
+    /// centre with 0 ≤ inner < outer).
+    pub fn problem(&self) -> Option<String> {
+        let all_finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+        match *self {
+            Self::Box { min, max } => {
+                if !all_finite(&min) || !all_finite(&max) {
+                    return Some("box min and max must be finite (m)".into());
+                }
+                let axis = (0..3).find(|&i| min[i] >= max[i])?;
+                Some(format!(
+                    "box min {} ≥ max {} m on {}: min must be below max",
+                    number(min[axis]),
+                    number(max[axis]),
+                    ["x", "y", "z"][axis]
+                ))
+            }
+            Self::Shell {
+                centre,
+                inner,
+                outer,
+            } => {
+                if !all_finite(&centre) || !inner.is_finite() || !outer.is_finite() {
+                    return Some("shell centre, inner and outer must be finite (m)".into());
+                }
+                (!(0.0 <= inner && inner < outer)).then(|| {
+                    format!(
+                        "shell inner {} m, outer {} m: need 0 ≤ inner < outer",
+                        number(inner),
+                        number(outer)
+                    )
+                })
+            }
+        }
     }
 }
 
@@ -417,7 +501,7 @@ mod tests {
             .unwrap()
             .build()
             .unwrap_err();
-        assert!(e.to_string().contains("no body named `x`"), "{e}");
+        assert!(e.to_string().contains("no body named \"x\""), "{e}");
         let e = SceneFile::parse("dim: 3\nbodies:\n  - name: a\n    shape: {kind: sphere, centre: [0,0,0], radius: -1}\nsample: [a]\n")
             .unwrap()
             .build()
