@@ -330,3 +330,27 @@ fn the_mesher_idle_timeout_changes_while_it_runs() {
         .unwrap_err();
     assert!(e.contains("at start only"), "{e}");
 }
+
+#[test]
+fn a_pose_topic_routed_onto_a_body_topic_is_refused_with_the_reason() {
+    let d = tempfile::tempdir().unwrap();
+    let path = d.path().join("fixture.mcap");
+    let mut w = BagWriter::create(&path).unwrap();
+    w.add_topic::<VoxelGrid>("/fixture/occupancy").unwrap();
+    for k in 0..3u32 {
+        let f = frame(0, k);
+        w.write("/fixture/occupancy", f.header.stamp.as_nanos() as u64, &f)
+            .unwrap();
+    }
+    w.finish().unwrap();
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: carving, param: [{name: pose_topic, value: /fixture/occupancy}]}\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/carving/occupancy, /fixture/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker}\n",
+        "test",
+    )
+    .unwrap();
+    let e = replay(&path, Some(&cfg), None, false).unwrap_err().to_string();
+    assert!(e.contains("two message types") && e.contains("pose_topic"), "{e}");
+}

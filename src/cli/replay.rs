@@ -178,6 +178,9 @@ pub(crate) fn build_nodes(
     }
     nodes.extend(meshers.into_iter().map(|m| Box::new(m) as Box<dyn Node>));
     nodes.extend(checkers.into_iter().map(|c| Box::new(c) as Box<dyn Node>));
+    // One topic, one message type: a config that routes a topic to two meanings is refused.
+    let uses = crate::node::routes::topic_uses(config, &nodes);
+    crate::node::routes::check_topic_types(&uses)?;
     let selection = match config.of_kind(NodeKind::Recorder).next() {
         Some(spec) => Selection::from_spec(spec)?,
         None => Selection::default(),
@@ -273,6 +276,19 @@ pub fn replay(
     let default = default_config();
     let (nodes, selection) = build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none())
         .map_err(|e| CliError::Usage(e.to_string()))?;
+    // The bag's bodies are VoxelGrid topics: a node that reads one as anything else is
+    // refused (a carving `pose_topic` set to a body's topic, say).
+    let uses = crate::node::routes::topic_uses(config.unwrap_or(&default), &nodes);
+    crate::node::routes::check_bag_types(
+        &uses,
+        bag_bodies.iter().map(|t| {
+            (
+                t.as_str(),
+                <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME,
+            )
+        }),
+    )
+    .map_err(|e| CliError::Usage(e.to_string()))?;
     let mut bus = Bus::new(nodes);
     let mut output = match out {
         Some(p) => {
