@@ -9,7 +9,8 @@ use super::CliError;
 use super::{frame_ref, BagFrames};
 use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
 use crate::mesh::stats::{BodyStats, StatsAccumulator};
-use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, Slab, TetMesh};
+use crate::mesh::stream::BodyStream;
+use crate::mesh::{CapSide, GridGeometry, MeshError, Mesher, MesherOptions, Slab, TetMesh};
 use crate::msg::VoxelGrid;
 use clap::Args;
 use serde::Serialize;
@@ -241,10 +242,10 @@ fn body_worker(
     opts: MesherOptions,
     slices: &[SliceSpec],
 ) -> BodyResult {
-    let mut mesher = Mesher::new(opts).expect("options checked before spawning");
+    let mut stream = BodyStream::new(opts).expect("options checked before spawning");
     let mut acc = StatsAccumulator::new();
     let mut first_cap: Option<TetMesh> = None;
-    let mut undecodable = 0u64;
+    let mut frame_id = String::new();
     let mut states: Vec<SliceState> = slices
         .iter()
         .map(|&spec| SliceState { spec, pair: None })
@@ -254,51 +255,66 @@ fn body_worker(
         let grid = match job {
             Job::Frame(g) => g,
             Job::Undecodable => {
-                undecodable += 1;
+                stream.refuse(None, &MeshError::Undecodable);
                 continue;
             }
         };
         let f = frame_ref(&grid);
+        // The same rules as the mesher node and `check` (mesh::stream).
+        if let Err(e) = grid.message_check(&frame_id) {
+            tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "skipping frame: {e}");
+            let at = matches!(e, MeshError::FrameIdChanged { .. }).then_some(f.stamp_ns);
+            stream.refuse(at, &e);
+            continue;
+        }
         let t0 = Instant::now();
-        let slab = match mesher.push(&f) {
-            Ok(Some(slab)) => {
-                stamps_ns.push(f.stamp_ns);
-                slab
-            }
-            Ok(None) => {
-                stamps_ns.push(f.stamp_ns);
-                continue;
-            }
+        let accepted = match stream.push(&f) {
+            Ok(a) => a,
             Err(e) => {
                 tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "skipping frame: {e}");
                 continue;
             }
         };
-        acc.record_time(t0.elapsed().as_secs_f64() * 1e3);
-        let first_stamp = mesher
-            .first_frame()
-            .map_or(slab.stamp_lo_ns, |k| k.stamp_ns);
-        if first_cap.is_none() {
-            first_cap = mesher
-                .first_frame()
-                .and_then(|k| mesher.cap(k, CapSide::Low));
+        if frame_id.is_empty() {
+            frame_id = grid.header.frame_id.clone();
         }
-        acc.add_slab(&slab, first_cap.as_ref());
-        for st in &mut states {
-            let g = &slab.geometry;
-            if st.spec.axis < 3 {
-                let c = spatial_plane(&st.spec, g);
-                if st.pair.is_none() {
-                    if let Some(cap) = &first_cap {
-                        st.add(c, cap);
+        if let Some(g) = &accepted.gap {
+            tracing::warn!(topic = %topic, "frames missing from {} to {} ns: {}", g.from_ns, g.to_ns, g.reason);
+        }
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        for (stamp, slab) in accepted.frames {
+            stamps_ns.push(stamp);
+            let Some(slab) = slab else {
+                continue;
+            };
+            acc.record_time(ms);
+            let mesher = stream.mesher();
+            let first_stamp = mesher
+                .first_frame()
+                .map_or(slab.stamp_lo_ns, |k| k.stamp_ns);
+            if first_cap.is_none() {
+                first_cap = mesher
+                    .first_frame()
+                    .and_then(|k| mesher.cap(k, CapSide::Low));
+            }
+            acc.add_slab(&slab, first_cap.as_ref());
+            for st in &mut states {
+                let g = &slab.geometry;
+                if st.spec.axis < 3 {
+                    let c = spatial_plane(&st.spec, g);
+                    if st.pair.is_none() {
+                        if let Some(cap) = &first_cap {
+                            st.add(c, cap);
+                        }
                     }
+                    st.add(c, &slab.mesh);
+                } else if let Some(c) = time_plane(st.spec.value, g, &slab, first_stamp) {
+                    st.add(c, &slab.mesh);
                 }
-                st.add(c, &slab.mesh);
-            } else if let Some(c) = time_plane(st.spec.value, g, &slab, first_stamp) {
-                st.add(c, &slab.mesh);
             }
         }
     }
+    let mesher = stream.mesher();
     let has_slabs = mesher.frames() >= 2;
     let last_cap = if has_slabs {
         mesher
@@ -322,7 +338,7 @@ fn body_worker(
     BodyResult {
         id: topic,
         stats,
-        skipped: mesher.skipped() + undecodable,
+        skipped: stream.losses().refused_frames,
         geometry: mesher.geometry().copied(),
         slices: states.into_iter().map(SliceState::finish).collect(),
         stamps_ns,

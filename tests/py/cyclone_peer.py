@@ -545,6 +545,15 @@ def main() -> int:
     ok = complete()
     t_done = time.monotonic()
     if ok:
+        # The streams ended: the answer is final once the checker has closed every body (the
+        # mesher closes a stream after its idle timeout, which can take a while on a loaded
+        # machine). Wait for that within the same deadline.
+        def all_closed() -> bool:
+            return bool(got_report) and all(b.closed for b in got_report[-1].bodies)
+        while not all_closed() and time.monotonic() < deadline:
+            drain()
+            time.sleep(0.02)
+    if ok:
         # Contact events and reports travel on their own topics, and the report is
         # republished as answers change: take what is still on its way, until nothing new
         # came for a second.
