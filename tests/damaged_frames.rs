@@ -263,19 +263,23 @@ fn several_bad_frames_in_one_body_are_filled_between_accepted_ones_and_said() {
 }
 
 #[test]
-fn out_of_domain_fields_are_refused_by_name() {
+fn out_of_domain_fields_are_refused_or_clamped_by_name() {
     let d = tempfile::tempdir().unwrap();
     let b = bag(
         d.path(),
         "fields.mcap",
         &scene(|t, k, f| {
-            if t == "/c/occupancy" && k == 2 {
-                f.header.stamp.nanosec = 1_500_000_000;
-            }
-            if t == "/c/occupancy" && k == 4 {
-                // PERCENT values above 100 (and not 255).
+            if t == "/c/occupancy" {
+                // /c in PERCENT; at frame 4 its occupied voxels say 150 (outside 0..=100).
+                let bits = f.data.clone();
+                let on = if k == 4 { 150 } else { 100 };
                 f.encoding = VoxelGrid::ENCODING_PERCENT;
-                f.data = vec![150; 12 * 12 * 12];
+                f.data = (0..12 * 12 * 12)
+                    .map(|i| if bits[i / 8] >> (i % 8) & 1 == 1 { on } else { 0 })
+                    .collect();
+                if k == 2 {
+                    f.header.stamp.nanosec = 1_500_000_000;
+                }
             }
             true
         }),
@@ -283,12 +287,16 @@ fn out_of_domain_fields_are_refused_by_name() {
     let (c, r) = both(&b);
     assert_eq!(verdicts(&c), clean_verdicts());
     let body = c.bodies.iter().find(|b| b.id == "/c/occupancy").unwrap();
-    assert_eq!(body.skipped_frames, 2, "{body:?}");
+    // Frame 2 refused (its stamp) and filled between 1 and 3; frame 4 accepted, counted.
+    assert_eq!((body.frames, body.skipped_frames, body.filled_frames), (8, 1, 1), "{body:?}");
     let codes: Vec<&str> = body.lost_spans.iter().map(|s| s.code).collect();
-    assert!(codes.contains(&"bad_stamp") && codes.contains(&"percent_out_of_range"), "{codes:?}");
+    assert_eq!(codes, ["bad_stamp", "frames_missing", "percent_out_of_range"], "{body:?}");
     let problems = format!("{:?}", r.nodes);
     assert!(problems.contains("nanosec 1500000000"), "{problems}");
     assert!(problems.contains("PERCENT voxel(s) hold values outside 0..=100"), "{problems}");
+    // The resolution has a domain: 10^-300 m is refused by name, in a short number.
+    let e = chronotope::mesh::MeshError::BadResolution { resolution: 1e-300 }.to_string();
+    assert!(e.contains("1e-300") && e.len() < 120, "{e}");
 }
 
 /// The overlap of /a x /b in a report.

@@ -76,6 +76,9 @@ pub struct OccupancyGrid {
     pub values: Option<Vec<u8>>,
     /// Number of occupied voxels.
     pub occupied: u64,
+    /// PERCENT voxels whose value was outside the domain (101..=254) and was read as 100
+    /// (occupied, the safe side); the stream counts and names them.
+    pub clamped: u64,
 }
 
 impl OccupancyGrid {
@@ -91,12 +94,16 @@ impl OccupancyGrid {
     /// whose product exceeds `opts.max_voxels` (checked before allocating), data length not
     /// matching the sizes and encoding.
     pub fn decode(f: &FrameRef<'_>, opts: &DecodeOptions) -> Result<Self, MeshError> {
-        if !(f.resolution.is_finite() && f.resolution > 0.0) {
+        if !(super::MIN_RESOLUTION_M..=super::MAX_RESOLUTION_M).contains(&f.resolution) {
             return Err(MeshError::BadResolution {
                 resolution: f.resolution,
             });
         }
-        if f.origin.iter().any(|v| !v.is_finite()) {
+        if f
+            .origin
+            .iter()
+            .any(|v| !(v.is_finite() && v.abs() <= super::MAX_ORIGIN_M))
+        {
             return Err(MeshError::BadOrigin { origin: f.origin });
         }
         let encoding = match f.encoding {
@@ -139,20 +146,12 @@ impl OccupancyGrid {
                 encoding,
             });
         }
-        if encoding == Encoding::Percent {
-            let bad = f.data.iter().filter(|&&v| (101..=254).contains(&v)).count();
-            if let Some(&value) = f.data.iter().find(|&&v| (101..=254).contains(&v)) {
-                return Err(MeshError::PercentOutOfRange {
-                    value,
-                    voxels: bad as u64,
-                });
-            }
-        }
         let (sx, sy, sz) = (sx as usize, sy as usize, sz as usize);
         let padded = [sx + 2, sy + 2, sz + 2];
         let words = (sx + 2) / 64 + 2;
         let mut bits = vec![0u64; words * padded[1] * padded[2]];
         let mut occupied = 0u64;
+        let mut clamped = 0u64;
         let mut values = None;
         match encoding {
             Encoding::Bits => {
@@ -176,6 +175,10 @@ impl OccupancyGrid {
                         for (x, &raw) in src.iter().enumerate() {
                             let val = match raw {
                                 255 => unknown,
+                                101..=254 => {
+                                    clamped += 1;
+                                    100
+                                }
                                 r => r,
                             };
                             v[base + x] = val;
@@ -195,6 +198,7 @@ impl OccupancyGrid {
             bits,
             values,
             occupied,
+            clamped,
         })
     }
 
@@ -240,6 +244,7 @@ impl OccupancyGrid {
             bits,
             values,
             occupied,
+            clamped: 0,
         })
     }
 

@@ -26,14 +26,15 @@ pub use mesher::{GridGeometry, KeptFrame, Mesher, MesherOptions, Slab};
 /// Why a frame (or an option) was refused by the mesher.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MeshError {
-    /// The voxel edge is zero, negative or not finite.
-    #[error("resolution {resolution} is not a positive finite number of metres")]
+    /// The voxel edge is not a finite number of metres in [`MIN_RESOLUTION_M`,
+    /// `MAX_RESOLUTION_M`].
+    #[error("resolution {} m is not a finite number of metres from {MIN_RESOLUTION_M} to {MAX_RESOLUTION_M}", num(*resolution))]
     BadResolution {
         /// The value received.
         resolution: f64,
     },
-    /// The origin has a NaN or infinite coordinate.
-    #[error("origin ({}, {}, {}) m is not finite", origin[0], origin[1], origin[2])]
+    /// The origin has a coordinate that is not finite or beyond [`MAX_ORIGIN_M`].
+    #[error("origin ({}, {}, {}) m is not finite or beyond ±{MAX_ORIGIN_M} m", num(origin[0]), num(origin[1]), num(origin[2]))]
     BadOrigin {
         /// The value received.
         origin: [f64; 3],
@@ -91,11 +92,10 @@ pub enum MeshError {
         /// The frame's encoding.
         encoding: Encoding,
     },
-    /// A PERCENT voxel holds a value outside 0..=100 and 255 (unknown).
-    #[error("{voxels} PERCENT voxel(s) hold values outside 0..=100 and 255 (unknown), e.g. {value}")]
+    /// PERCENT voxels hold values outside 0..=100 and 255 (unknown): not a refusal, the frame is
+/// accepted with them read as 100; this names what the stream counts.
+    #[error("{voxels} PERCENT voxel(s) hold values outside 0..=100 and 255 (unknown); read as 100 (occupied)")]
     PercentOutOfRange {
-        /// One such value.
-        value: u8,
         /// How many voxels hold such values.
         voxels: u64,
     },
@@ -182,6 +182,24 @@ impl MeshError {
     }
 }
 
+/// Smallest voxel edge accepted (1 µm).
+pub const MIN_RESOLUTION_M: f64 = 1e-6;
+/// Largest voxel edge accepted (1 km).
+pub const MAX_RESOLUTION_M: f64 = 1e3;
+/// Largest origin coordinate accepted, in metres from the frame's origin.
+pub const MAX_ORIGIN_M: f64 = 1e6;
+
+/// A number for a message: plain when it is short, in exponent form otherwise (never 300
+/// digits).
+pub fn num(v: f64) -> String {
+    let plain = format!("{v}");
+    if plain.len() <= 16 {
+        plain
+    } else {
+        format!("{v:e}")
+    }
+}
+
 /// A user-supplied string for a message: quoted, at most 64 characters.
 pub fn quote(s: &str) -> String {
     const MAX: usize = 64;
@@ -204,11 +222,12 @@ fn lattice_change(expected: &GridGeometry, got: &GridGeometry) -> String {
     if expected.resolution != got.resolution {
         d.push(format!(
             "resolution {} m where they have {} m",
-            got.resolution, expected.resolution
+            num(got.resolution),
+            num(expected.resolution)
         ));
     }
     if expected.origin != got.origin {
-        let o = |v: [f64; 3]| format!("({}, {}, {}) m", v[0], v[1], v[2]);
+        let o = |v: [f64; 3]| format!("({}, {}, {}) m", num(v[0]), num(v[1]), num(v[2]));
         d.push(format!(
             "origin {} where they have {}",
             o(got.origin),

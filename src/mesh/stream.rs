@@ -42,6 +42,8 @@ pub enum LossKind {
     /// Frames missing between two accepted frames, not a whole number of periods (or too
     /// many): one slab spans the gap.
     Spanned,
+    /// A frame accepted with PERCENT values outside the domain (101..=254) read as 100.
+    Clamped,
 }
 
 /// A span of a body's stream where frames were refused or missing.
@@ -70,6 +72,8 @@ pub struct LossLog {
     pub filled_frames: u64,
     /// Gaps spanned by one slab.
     pub spanned_gaps: u64,
+    /// Frames accepted with PERCENT values outside the domain read as 100.
+    pub clamped_frames: u64,
     /// The latest spans.
     pub spans: VecDeque<LossSpan>,
     /// Older spans dropped to keep [`MAX_LOSS_SPANS`].
@@ -120,6 +124,8 @@ pub struct Accepted {
     pub gap: Option<LossSpan>,
     /// The frame the filled frames of `gap` are (the union of the two around it).
     pub fill: Option<OccupancyGrid>,
+    /// PERCENT voxels of this frame outside the domain, read as 100.
+    pub clamped: u64,
 }
 
 /// One body's stream: a [`Mesher`] plus the rules of the module doc.
@@ -130,6 +136,8 @@ pub struct BodyStream {
     last_seen_ns: Option<i64>,
     /// A refused frame was the last thing seen (consecutive refusals merge into one span).
     refusing: bool,
+    /// The last accepted frame had clamped values (consecutive ones merge into one span).
+    last_accept_clamped: bool,
     losses: LossLog,
 }
 
@@ -144,6 +152,7 @@ impl BodyStream {
             periods_ns: VecDeque::new(),
             last_seen_ns: None,
             refusing: false,
+            last_accept_clamped: false,
             losses: LossLog::default(),
         })
     }
@@ -237,6 +246,7 @@ impl BodyStream {
             }
         };
         let mut out = Accepted::default();
+        let clamped = prepared.grid.clamped;
         let last = self.mesher.last_frame().map(|k| k.stamp_ns);
         let gap = match (last, self.period_ns()) {
             (Some(prev), Some(period)) if period > 0 => {
@@ -317,6 +327,32 @@ impl BodyStream {
             }
             self.losses.push(g.clone());
         }
+        if clamped > 0 {
+            self.losses.clamped_frames += 1;
+            let e = MeshError::PercentOutOfRange { voxels: clamped };
+            let previous_clamped = self.last_accept_clamped;
+            let merge = self
+                .losses
+                .spans
+                .back_mut()
+                .filter(|s| s.kind == LossKind::Clamped && previous_clamped);
+            match merge {
+                Some(s) => {
+                    s.to_ns = f.stamp_ns;
+                    s.frames += 1;
+                }
+                None => self.losses.push(LossSpan {
+                    kind: LossKind::Clamped,
+                    from_ns: f.stamp_ns,
+                    to_ns: f.stamp_ns,
+                    frames: 1,
+                    code: e.code(),
+                    reason: e.to_string(),
+                }),
+            }
+        }
+        self.last_accept_clamped = clamped > 0;
+        out.clamped = clamped;
         self.refusing = false;
         self.saw(f.stamp_ns);
         Ok(out)

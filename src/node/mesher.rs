@@ -271,6 +271,18 @@ impl MesherNode {
     }
 
     fn after_push(&mut self, topic: &str, b: &mut Body, a: Accepted, out: &mut Vec<Message>) {
+        if a.clamped > 0 {
+            let stamp = a.frames.last().map_or(0, |f| f.0);
+            self.status.problem(
+                &self.fqn,
+                "percent_out_of_range",
+                format!(
+                    "{topic}: frame at {:.3} s: {}",
+                    stamp as f64 * 1e-9,
+                    MeshError::PercentOutOfRange { voxels: a.clamped }
+                ),
+            );
+        }
         if let Some(g) = &a.gap {
             let how = match g.kind {
                 LossKind::Filled => format!(
