@@ -400,9 +400,7 @@ fn topics_beyond_the_body_limit_are_refused_and_listed() {
         j["bodies"].as_array().unwrap().len(),
         chronotope::cli::MAX_BODIES
     );
-    // One error names the limit and the first channel past it; the reader counts the rest.
     let errors = j["bag_errors"].as_array().unwrap();
-    assert_eq!(errors.len(), 1, "{errors:?}");
-    let e = errors[0].as_str().unwrap();
-    assert!(e.contains("256") && e.contains("/b256/occupancy"), "{e}");
+    assert_eq!(errors.len(), 44);
+    assert!(errors[0].as_str().unwrap().contains("not read"));
 }

@@ -389,3 +389,16 @@ fn a_refused_channel_is_named_in_the_input_by_check_and_replay() {
         assert!(input.refused_topics[0].reason.contains("resolution"), "{input:?}");
     }
 }
+
+#[test]
+fn a_one_body_bag_replays_with_the_default_config_and_reports_its_body() {
+    let d = tempfile::tempdir().unwrap();
+    let frames: Vec<_> = (0..5).map(|k| ("/fixture/occupancy", boxf(0, 1, 0, k))).collect();
+    let (c, r) = both(&bag(d.path(), "one.mcap", &frames));
+    for rep in [&c, &r.report] {
+        assert!(rep.pairs.is_empty());
+        let b = &rep.bodies[0];
+        assert_eq!((b.id.as_str(), b.frames, b.closed), ("/fixture/occupancy", 5, true));
+    }
+    assert_eq!(c.bodies[0].tets, r.report.bodies[0].tets);
+}

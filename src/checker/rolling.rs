@@ -604,6 +604,12 @@ impl RollingChecker {
         self.pump(out);
     }
 
+    /// Also reports `body`, which is in no pair (a lone body): its pieces are taken for its
+    /// figures and dropped as they come.
+    pub fn track_body(&mut self, body: &str) {
+        self.bodies.entry(body.to_owned()).or_default();
+    }
+
     /// One mesh piece of a body.
     pub fn on_piece(&mut self, p: PieceIn, out: &mut Vec<RollOut>) {
         if !self.bodies.contains_key(&p.body) {

@@ -106,8 +106,10 @@ pub struct BagFrames {
     refused: std::collections::BTreeSet<String>,
 }
 
-/// Most bodies (VoxelGrid topics) read from one bag.
-pub const MAX_BODIES: usize = 256;
+/// Most bodies (VoxelGrid topics) read from one bag by `check`, `mesh` and `replay`: all
+/// pairs of 64 bodies are 2016 pairs, each checked window by window; 256 bodies would be
+/// 32 640 pairs, over a minute for even the tiniest bodies.
+pub const MAX_BODIES: usize = 64;
 
 impl BagFrames {
     /// Opens a bag's VoxelGrid frames.

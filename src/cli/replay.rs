@@ -349,7 +349,9 @@ pub fn replay(
         bar.inc(1);
         // The channel rules of `check` (bag::voxel_frames): a VoxelGrid channel is read only
         // in CDR with our schema text.
-        if m.schema_name == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME {
+        if m.schema.is_none()
+            || m.schema_name == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME
+        {
             if let Some(reason) =
                 crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
             {
@@ -455,7 +457,7 @@ pub fn replay(
     }
     if bag_bodies.len() == 1 && report.pairs.is_empty() && report.unchecked_pairs.is_empty() {
         report.problems.push(format!(
-            "the bag has one body ({}): no pair to check; its frames were meshed only",
+            "the bag has one body ({}): no pair to check",
             bag_bodies[0]
         ));
     }

@@ -129,6 +129,7 @@ impl CheckerNode {
             .then(|| p.resolve("~/markers", "~/markers"))
             .transpose()?;
         p.finish()?;
+        let defaulted = pairs.is_none();
         let pairs = pairs.unwrap_or_else(|| {
             let mut ids = default_bodies.to_vec();
             ids.sort();
@@ -142,6 +143,12 @@ impl CheckerNode {
             .iter()
             .flat_map(|(a, b)| [a.clone(), b.clone()])
             .collect();
+        // A lone body (one body, no pair to check) is still meshed and reported.
+        let solo: Vec<String> = if defaulted && pairs.is_empty() {
+            default_bodies.to_vec()
+        } else {
+            Vec::new()
+        };
         if let Some(m) = movable.iter().find(|m| !in_pairs.contains(*m)) {
             return Err(bad("movable", format!("{m} is in no checked pair")));
         }
@@ -169,8 +176,14 @@ impl CheckerNode {
             labels_topic,
             suggestions_topic,
             markers_topic,
-            bodies: in_pairs,
-            engine: RollingChecker::new(plan, opts, cfg),
+            bodies: in_pairs.iter().chain(&solo).cloned().collect(),
+            engine: {
+                let mut e = RollingChecker::new(plan, opts, cfg);
+                for b in &solo {
+                    e.track_body(b);
+                }
+                e
+            },
             report: None,
             frame_id: String::new(),
             latest_ns: 0,

@@ -82,13 +82,13 @@ pub const MAX_COLLECTED_SAMPLES: usize = 1 << 25;
 pub enum SamplerError {
     /// The explicit scheme's `λ = Kα dt` is at or above 2: the constraint force overshoots
     /// and diverges.
-    #[error("explicit scheme unstable: λ = Kαdt = {lambda} ≥ 2 (use λ ≈ 1, a smaller K or dt, or --clamp)")]
+    #[error("explicit scheme unstable: λ = Kαdt = {} ≥ 2 (use λ ≈ 1, a smaller K or dt, or --clamp)", crate::mesh::num(*lambda))]
     Unstable {
         /// The λ asked for.
         lambda: f64,
     },
     /// A parameter outside its limits.
-    #[error("{name} = {value}: expected {expected}")]
+    #[error("{name} = {}: expected {expected}", crate::mesh::num(*value))]
     BadParameter {
         /// Which parameter.
         name: &'static str,
