@@ -63,19 +63,19 @@ use std::sync::Arc;
 
 /// λ = Kα dt at or above which the explicit scheme is unstable (F ← (1-λ) F).
 pub const LAMBDA_LIMIT: f64 = 2.0;
-/// Most samples one call draws.
-pub const MAX_SAMPLES: usize = 100_000_000;
+/// Most samples one call draws (at thin 1 that is the whole step budget).
+pub const MAX_SAMPLES: usize = 30_000_000;
 /// Most walkers.
 pub const MAX_WALKERS: usize = 100_000;
 /// Most steps of one run, all walkers together: `walkers × burn_in + samples × thin`.
-/// 3e8 steps take about 10 minutes at the slowest rate measured, 0.5M steps/s (Metropolis
+/// 3e7 steps take about a minute at the slowest rate measured, 0.5M steps/s (Metropolis
 /// on the torus, docs/sampler-error.md: 128 000 samples × 2 steps + 32 × 200 burn-in steps
 /// in 0.499 s, release build, one core of a 2-core AMD EPYC), with the default 20 Newton
 /// iterations per projection.
-pub const MAX_TOTAL_STEPS: u64 = 300_000_000;
-/// Most samples [`sample`] collects in memory (32 bytes each: 1 GiB). Draw more with
+pub const MAX_TOTAL_STEPS: u64 = 30_000_000;
+/// Most samples [`sample`] collects in memory (32 bytes each: 512 MiB). Draw more with
 /// [`Sampler::draw`] and write them as they come (`chronotope sample` does).
-pub const MAX_COLLECTED_SAMPLES: usize = 1 << 25;
+pub const MAX_COLLECTED_SAMPLES: usize = 1 << 24;
 
 /// Why sampling could not start.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -98,7 +98,7 @@ pub enum SamplerError {
         expected: &'static str,
     },
     /// The run would take more steps than [`MAX_TOTAL_STEPS`].
-    #[error("walkers × burn_in + samples × thin = {walkers} × {burn_in} + {samples} × {thin} = {total} steps ({per_walker} per walker): at most {max} in one run (MAX_TOTAL_STEPS, about 10 minutes at 0.5M steps/s); lower burn_in, thin or samples")]
+    #[error("walkers × burn_in + samples × thin = {walkers} × {burn_in} + {samples} × {thin} = {total} steps ({per_walker} per walker): at most {max} in one run (MAX_TOTAL_STEPS, about a minute at 0.5M steps/s); lower burn_in, thin or samples")]
     TooManySteps {
         /// Walkers.
         walkers: usize,
@@ -294,11 +294,11 @@ impl SamplerOptions {
         if self.thin == 0 || self.thin > 1_000_000 {
             return bad("thin", self.thin as f64, "1..=1000000");
         }
-        if self.burn_in > 100_000_000 {
-            return bad("burn_in", self.burn_in as f64, "≤ 1e8");
+        if self.burn_in > MAX_TOTAL_STEPS as usize {
+            return bad("burn_in", self.burn_in as f64, "≤ 3e7 (MAX_TOTAL_STEPS)");
         }
         if self.samples > MAX_SAMPLES {
-            return bad("samples", self.samples as f64, "≤ 1e8");
+            return bad("samples", self.samples as f64, "≤ 3e7 (MAX_SAMPLES)");
         }
         let (w, b, n, t) = (
             self.walkers as u128,
