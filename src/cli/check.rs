@@ -72,11 +72,14 @@ pub fn load_bodies_with_frames(
         }
         match a.push(&frame_ref(&grid)) {
             Err(e) => tracing::warn!(topic = %topic, stamp_ns = stamp, "skipping frame: {e}"),
-            Ok(gap) => {
+            Ok(pushed) => {
                 if frame_id.is_empty() {
                     *frame_id = grid.header.frame_id.clone();
                 }
-                if let Some(g) = gap {
+                if pushed.clamped > 0 {
+                    tracing::warn!(topic = %topic, stamp_ns = stamp, "{}", crate::mesh::MeshError::PercentOutOfRange { voxels: pushed.clamped });
+                }
+                if let Some(g) = pushed.gap {
                     tracing::warn!(topic = %topic, "frames missing from {} to {} ns: {}", g.from_ns, g.to_ns, g.reason);
                 }
             }

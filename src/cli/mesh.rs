@@ -278,6 +278,9 @@ fn body_worker(
         if frame_id.is_empty() {
             frame_id = grid.header.frame_id.clone();
         }
+        if accepted.clamped > 0 {
+            tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "{}", MeshError::PercentOutOfRange { voxels: accepted.clamped });
+        }
         if let Some(g) = &accepted.gap {
             tracing::warn!(topic = %topic, "frames missing from {} to {} ns: {}", g.from_ns, g.to_ns, g.reason);
         }

@@ -101,6 +101,15 @@ impl BodyGluer {
     }
 }
 
+/// What [`BodyAssembler::push`] did besides accepting the frame.
+#[derive(Debug, Clone, Default)]
+pub struct Pushed {
+    /// The gap before the frame, filled or spanned, if there was one.
+    pub gap: Option<LossSpan>,
+    /// PERCENT voxels of the frame outside the domain, read as 100.
+    pub clamped: u64,
+}
+
 /// Builds a [`BodyMesh`] from a stream of frames, with the stream rules of
 /// [`BodyStream`] (refused frames change nothing; gaps between accepted frames filled).
 #[derive(Debug)]
@@ -137,14 +146,17 @@ impl BodyAssembler {
     ///
     /// # Errors
     /// Why the frame was refused; it is skipped and counted, nothing else changes.
-    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<Option<LossSpan>, MeshError> {
+    pub fn push(&mut self, f: &FrameRef<'_>) -> Result<Pushed, MeshError> {
         let accepted = self.stream.push(f)?;
         let n = accepted.frames.len();
         for (i, (stamp_ns, slab)) in accepted.frames.into_iter().enumerate() {
             let grid = if i + 1 < n { accepted.fill.clone() } else { None };
             self.after_accept(stamp_ns, slab, grid);
         }
-        Ok(accepted.gap)
+        Ok(Pushed {
+            gap: accepted.gap,
+            clamped: accepted.clamped,
+        })
     }
 
     /// Feeds a derived frame (see [`BodyStream::push_derived`]): no gap filling.
