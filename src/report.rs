@@ -464,7 +464,9 @@ pub fn check_streamed(
                 });
             }
             let mut m = merged.expect("at least one group");
-            m.report.pairs.sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
+            m.report
+                .pairs
+                .sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
             for p in problems.into_iter().rev() {
                 if !m.report.problems.contains(&p) {
                     m.report.problems.insert(0, p);
@@ -736,12 +738,8 @@ pub fn overlap_hypervolume(a: &BodyMesh, b: &BodyMesh, opts: MesherOptions) -> O
             j += 1;
         }
         if j < b.stamps_ns.len() && b.stamps_ns[j] == s {
-            let (both, g) = crate::mesh::grid::intersect_across(
-                a.frames.get(i)?,
-                &ga,
-                b.frames.get(j)?,
-                &gb,
-            )?;
+            let (both, g) =
+                crate::mesh::grid::intersect_across(a.frames.get(i)?, &ga, b.frames.get(j)?, &gb)?;
             geometry = Some(g);
             asm.push_derived(s, g, both).ok()?;
         }

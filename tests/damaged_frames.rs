@@ -63,7 +63,14 @@ fn both(bag: &Path) -> (Report, chronotope::cli::replay::ReplayReport) {
     let verdicts = |rep: &Report| {
         rep.pairs
             .iter()
-            .map(|p| (p.a.clone(), p.b.clone(), p.interfering, p.intervals_s.clone()))
+            .map(|p| {
+                (
+                    p.a.clone(),
+                    p.b.clone(),
+                    p.interfering,
+                    p.intervals_s.clone(),
+                )
+            })
             .collect::<Vec<_>>()
     };
     assert_eq!(verdicts(&c), verdicts(&r.report), "check vs replay pairs");
@@ -96,7 +103,10 @@ fn refused_frames_after_the_last_valid_one_invent_nothing() {
         }
         frames.push(("/a/occupancy", a));
         // /b: comes towards /a's place only after /a's last valid frame.
-        frames.push(("/b/occupancy", boxf(9, 0, 4, k).tap_x(if k >= 7 { 0 } else { 9 })));
+        frames.push((
+            "/b/occupancy",
+            boxf(9, 0, 4, k).tap_x(if k >= 7 { 0 } else { 9 }),
+        ));
     }
     let (c, r) = both(&bag(d.path(), "refused.mcap", &frames));
     for rep in [&c, &r.report] {
@@ -217,16 +227,31 @@ fn a_body_that_cannot_be_compared_costs_only_its_pairs() {
                 .collect();
             assert_eq!(
                 unchecked,
-                [("/a/occupancy", "/c/occupancy"), ("/b/occupancy", "/c/occupancy")],
+                [
+                    ("/a/occupancy", "/c/occupancy"),
+                    ("/b/occupancy", "/c/occupancy")
+                ],
                 "{name}: {:?}",
                 rep.unchecked_pairs
             );
             for p in &rep.unchecked_pairs {
-                assert!(!p.reason.contains("{ ") && !p.reason.is_empty(), "{name}: {}", p.reason);
+                assert!(
+                    !p.reason.contains("{ ") && !p.reason.is_empty(),
+                    "{name}: {}",
+                    p.reason
+                );
                 // One body named twice is no explanation.
-                assert!(!p.reason.contains(&format!("{0} and {0}", p.a)), "{}", p.reason);
+                assert!(
+                    !p.reason.contains(&format!("{0} and {0}", p.a)),
+                    "{}",
+                    p.reason
+                );
             }
-            assert!(rep.bodies.iter().all(|b| b.frames == 8), "{name}: {:?}", rep.bodies);
+            assert!(
+                rep.bodies.iter().all(|b| b.frames == 8),
+                "{name}: {:?}",
+                rep.bodies
+            );
         }
     }
 }
@@ -250,7 +275,11 @@ fn several_bad_frames_in_one_body_are_filled_between_accepted_ones_and_said() {
         let body = rep.bodies.iter().find(|b| b.id == "/c/occupancy").unwrap();
         // Frames 1, 3, 5 filled between accepted ones; frame 7, the last, is refused and
         // nothing follows it, so nothing is filled towards it.
-        assert_eq!((body.frames, body.skipped_frames, body.filled_frames), (7, 4, 3), "{body:?}");
+        assert_eq!(
+            (body.frames, body.skipped_frames, body.filled_frames),
+            (7, 4, 3),
+            "{body:?}"
+        );
         let filled: Vec<[f64; 2]> = body
             .lost_spans
             .iter()
@@ -258,7 +287,10 @@ fn several_bad_frames_in_one_body_are_filled_between_accepted_ones_and_said() {
             .map(|s| s.span_s)
             .collect();
         assert_eq!(filled.len(), 3, "{:?}", body.lost_spans);
-        assert!((filled[0][0] - 0.0).abs() < 1e-9 && (filled[0][1] - 0.2).abs() < 1e-9, "{filled:?}");
+        assert!(
+            (filled[0][0] - 0.0).abs() < 1e-9 && (filled[0][1] - 0.2).abs() < 1e-9,
+            "{filled:?}"
+        );
     }
 }
 
@@ -275,7 +307,13 @@ fn out_of_domain_fields_are_refused_or_clamped_by_name() {
                 let on = if k == 4 { 150 } else { 100 };
                 f.encoding = VoxelGrid::ENCODING_PERCENT;
                 f.data = (0..12 * 12 * 12)
-                    .map(|i| if bits[i / 8] >> (i % 8) & 1 == 1 { on } else { 0 })
+                    .map(|i| {
+                        if bits[i / 8] >> (i % 8) & 1 == 1 {
+                            on
+                        } else {
+                            0
+                        }
+                    })
                     .collect();
                 if k == 2 {
                     f.header.stamp.nanosec = 1_500_000_000;
@@ -288,12 +326,23 @@ fn out_of_domain_fields_are_refused_or_clamped_by_name() {
     assert_eq!(verdicts(&c), clean_verdicts());
     let body = c.bodies.iter().find(|b| b.id == "/c/occupancy").unwrap();
     // Frame 2 refused (its stamp) and filled between 1 and 3; frame 4 accepted, counted.
-    assert_eq!((body.frames, body.skipped_frames, body.filled_frames), (8, 1, 1), "{body:?}");
+    assert_eq!(
+        (body.frames, body.skipped_frames, body.filled_frames),
+        (8, 1, 1),
+        "{body:?}"
+    );
     let codes: Vec<&str> = body.lost_spans.iter().map(|s| s.code).collect();
-    assert_eq!(codes, ["bad_stamp", "frames_missing", "percent_out_of_range"], "{body:?}");
+    assert_eq!(
+        codes,
+        ["bad_stamp", "frames_missing", "percent_out_of_range"],
+        "{body:?}"
+    );
     let problems = format!("{:?}", r.nodes);
     assert!(problems.contains("nanosec 1500000000"), "{problems}");
-    assert!(problems.contains("PERCENT voxel(s) hold values outside 0..=100"), "{problems}");
+    assert!(
+        problems.contains("PERCENT voxel(s) hold values outside 0..=100"),
+        "{problems}"
+    );
     // The resolution has a domain: 10^-300 m is refused by name, in a short number.
     let e = chronotope::mesh::MeshError::BadResolution { resolution: 1e-300 }.to_string();
     assert!(e.contains("1e-300") && e.len() < 120, "{e}");
@@ -329,7 +378,13 @@ fn the_overlap_is_measured_across_whole_voxel_offsets_mixed_encodings_and_gaps()
                         let bits = f.data.clone();
                         f.encoding = VoxelGrid::ENCODING_PERCENT;
                         f.data = (0..12 * 12 * 12)
-                            .map(|i| if bits[i / 8] >> (i % 8) & 1 == 1 { 100 } else { 0 })
+                            .map(|i| {
+                                if bits[i / 8] >> (i % 8) & 1 == 1 {
+                                    100
+                                } else {
+                                    0
+                                }
+                            })
                             .collect();
                         true
                     }
@@ -374,7 +429,8 @@ fn a_refused_channel_is_named_in_the_input_by_check_and_replay() {
         .unwrap();
     for (t, f) in scene(|_, _, _| true) {
         let bytes = chronotope::msg::encode_cdr(&f).unwrap();
-        w.write_cdr(t, f.header.stamp.as_nanos() as u64, &bytes).unwrap();
+        w.write_cdr(t, f.header.stamp.as_nanos() as u64, &bytes)
+            .unwrap();
     }
     w.finish().unwrap();
     let (c, r) = both(&path);
@@ -386,19 +442,27 @@ fn a_refused_channel_is_named_in_the_input_by_check_and_replay() {
             .map(|t| (t.topic.as_str(), t.messages))
             .collect();
         assert_eq!(refused, [("/c/occupancy", 8)], "{input:?}");
-        assert!(input.refused_topics[0].reason.contains("resolution"), "{input:?}");
+        assert!(
+            input.refused_topics[0].reason.contains("resolution"),
+            "{input:?}"
+        );
     }
 }
 
 #[test]
 fn a_one_body_bag_replays_with_the_default_config_and_reports_its_body() {
     let d = tempfile::tempdir().unwrap();
-    let frames: Vec<_> = (0..5).map(|k| ("/fixture/occupancy", boxf(0, 1, 0, k))).collect();
+    let frames: Vec<_> = (0..5)
+        .map(|k| ("/fixture/occupancy", boxf(0, 1, 0, k)))
+        .collect();
     let (c, r) = both(&bag(d.path(), "one.mcap", &frames));
     for rep in [&c, &r.report] {
         assert!(rep.pairs.is_empty());
         let b = &rep.bodies[0];
-        assert_eq!((b.id.as_str(), b.frames, b.closed), ("/fixture/occupancy", 5, true));
+        assert_eq!(
+            (b.id.as_str(), b.frames, b.closed),
+            ("/fixture/occupancy", 5, true)
+        );
     }
     assert_eq!(c.bodies[0].tets, r.report.bodies[0].tets);
 }

@@ -351,6 +351,11 @@ fn a_pose_topic_routed_onto_a_body_topic_is_refused_with_the_reason() {
         "test",
     )
     .unwrap();
-    let e = replay(&path, Some(&cfg), None, false).unwrap_err().to_string();
-    assert!(e.contains("two message types") && e.contains("pose_topic"), "{e}");
+    let e = replay(&path, Some(&cfg), None, false)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("two message types") && e.contains("pose_topic"),
+        "{e}"
+    );
 }

@@ -210,9 +210,7 @@ impl BinaryImage {
             .output_buffer_size()
             .ok_or_else(|| "PNG: image too large".to_string())?;
         let mut buf = vec![0u8; size];
-        let info = reader
-            .next_frame(&mut buf)
-            .map_err(png_error)?;
+        let info = reader.next_frame(&mut buf).map_err(png_error)?;
         let channels = match info.color_type {
             png::ColorType::Grayscale => 1,
             png::ColorType::GrayscaleAlpha => 2,

@@ -326,11 +326,8 @@ impl CommonLattice {
             let start = stamps.binary_search(&b.stamps_ns[0]).unwrap_or(0);
             let run = &stamps[start..(start + b.stamps_ns.len()).min(stamps.len())];
             if run != b.stamps_ns.as_slice() {
-                let others: Vec<&str> = bodies
-                    .iter()
-                    .map(|(o, _)| *o)
-                    .filter(|o| o != id)
-                    .collect();
+                let others: Vec<&str> =
+                    bodies.iter().map(|(o, _)| *o).filter(|o| o != id).collect();
                 return Err(CheckError::TimeMismatch {
                     a: id.to_string(),
                     b: others.join(", "),

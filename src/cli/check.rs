@@ -38,18 +38,25 @@ pub fn load_bodies(
     path: &Path,
     opts: MesherOptions,
 ) -> Result<BTreeMap<String, BodyMesh>, CliError> {
-    Ok(load_bodies_with_frames(path, opts)?.0)
+    Ok(load_bodies_with_frames(path, opts)?.bodies)
 }
 
-/// [`load_bodies`], with each body's `header.frame_id` (of its first accepted frame) and what
-/// was read from the bag.
+/// A bag's bodies with what `check` needs besides their meshes.
+#[derive(Debug)]
+pub struct LoadedBag {
+    /// Whole-body meshes, by id.
+    pub bodies: BTreeMap<String, BodyMesh>,
+    /// Each body's `header.frame_id` (of its first accepted frame).
+    pub frame_ids: BTreeMap<String, String>,
+    /// What was read from the bag.
+    pub input: crate::report::InputCounts,
+}
+
+/// [`load_bodies`], with each body's frame and what was read from the bag.
 ///
 /// # Errors
 /// The bag cannot be read or has no VoxelGrid topic.
-pub fn load_bodies_with_frames(
-    path: &Path,
-    opts: MesherOptions,
-) -> Result<(BTreeMap<String, BodyMesh>, BTreeMap<String, String>, crate::report::InputCounts), CliError> {
+pub fn load_bodies_with_frames(path: &Path, opts: MesherOptions) -> Result<LoadedBag, CliError> {
     let mut asm: BTreeMap<String, (BodyAssembler, String)> = BTreeMap::new();
     let mut frames_in = BagFrames::open(path)?;
     for (topic, grid) in frames_in.by_ref() {
@@ -93,7 +100,11 @@ pub fn load_bodies_with_frames(
             (k, a.finish())
         })
         .collect();
-    Ok((bodies, frames, frames_in.input()))
+    Ok(LoadedBag {
+        bodies,
+        frame_ids: frames,
+        input: frames_in.input(),
+    })
 }
 
 /// Checks every pair of bodies of a bag; resolutions for the body whose id sorts first.
@@ -106,7 +117,11 @@ pub fn check_bag(
     time_scale: Option<f64>,
 ) -> Result<Report, CliError> {
     let start = Instant::now();
-    let (bodies, frame_ids, input) = load_bodies_with_frames(path, opts)?;
+    let LoadedBag {
+        bodies,
+        frame_ids,
+        input,
+    } = load_bodies_with_frames(path, opts)?;
     let t_mesh = start.elapsed();
     let ids: Vec<&str> = bodies
         .iter()

@@ -440,8 +440,7 @@ pub fn replay(
                 if let Some(l) = m.losses(&b.id) {
                     b.skipped_frames += l.refused_frames;
                     b.filled_frames += l.filled_frames;
-                    b.lost_spans
-                        .extend(crate::report::LostSpan::of(l, origin));
+                    b.lost_spans.extend(crate::report::LostSpan::of(l, origin));
                 }
             }
         }

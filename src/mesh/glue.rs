@@ -150,7 +150,11 @@ impl BodyAssembler {
         let accepted = self.stream.push(f)?;
         let n = accepted.frames.len();
         for (i, (stamp_ns, slab)) in accepted.frames.into_iter().enumerate() {
-            let grid = if i + 1 < n { accepted.fill.clone() } else { None };
+            let grid = if i + 1 < n {
+                accepted.fill.clone()
+            } else {
+                None
+            };
             self.after_accept(stamp_ns, slab, grid);
         }
         Ok(Pushed {
@@ -225,11 +229,9 @@ impl BodyAssembler {
                 }
             }
         }
-        let mut body = self.gluer.finish(
-            mesher.frames(),
-            self.stamps_ns,
-            mesher.geometry().copied(),
-        );
+        let mut body =
+            self.gluer
+                .finish(mesher.frames(), self.stamps_ns, mesher.geometry().copied());
         body.frames = self.frames;
         body.skipped = self.stream.losses().refused_frames;
         body.losses = self.stream.losses().clone();

@@ -99,8 +99,7 @@ impl OccupancyGrid {
                 resolution: f.resolution,
             });
         }
-        if f
-            .origin
+        if f.origin
             .iter()
             .any(|v| !(v.is_finite() && v.abs() <= super::MAX_ORIGIN_M))
         {
@@ -289,13 +288,13 @@ pub fn intersect_across(
         return None;
     }
     let mut off = [0i64; 3];
-    for k in 0..3 {
-        let v = (gb.origin[k] - ga.origin[k]) / ga.resolution;
+    for (o, (b, a)) in off.iter_mut().zip(gb.origin.iter().zip(&ga.origin)) {
+        let v = (b - a) / ga.resolution;
         let r = v.round();
         if (v - r).abs() > 1e-6 || !r.is_finite() || r.abs() > 1e9 {
             return None;
         }
-        off[k] = r as i64;
+        *o = r as i64;
     }
     let [sx, sy, sz] = ga.size.map(|v| v as usize);
     let [bx, by, bz] = gb.size.map(|v| v as i64);

@@ -13,8 +13,8 @@ pub mod grid;
 pub mod march;
 pub mod mesher;
 pub mod slice;
-pub mod stream;
 pub mod stats;
+pub mod stream;
 pub mod table;
 pub mod table_gen;
 pub mod validate;
@@ -93,14 +93,17 @@ pub enum MeshError {
         encoding: Encoding,
     },
     /// PERCENT voxels hold values outside 0..=100 and 255 (unknown): not a refusal, the frame is
-/// accepted with them read as 100; this names what the stream counts.
+    /// accepted with them read as 100; this names what the stream counts.
     #[error("{voxels} PERCENT voxel(s) hold values outside 0..=100 and 255 (unknown); read as 100 (occupied)")]
     PercentOutOfRange {
         /// How many voxels hold such values.
         voxels: u64,
     },
     /// The frame is not on the lattice of the body's earlier frames.
-    #[error("frame is on a different lattice than the body's earlier frames: {}", lattice_change(expected, got))]
+    #[error(
+        "frame is on a different lattice than the body's earlier frames: {}",
+        lattice_change(expected, got)
+    )]
     LatticeMismatch {
         /// The body's lattice.
         expected: Box<GridGeometry>,
@@ -236,7 +239,11 @@ fn lattice_change(expected: &GridGeometry, got: &GridGeometry) -> String {
     }
     if expected.size != got.size {
         let s = |v: [u32; 3]| format!("{}×{}×{} voxels", v[0], v[1], v[2]);
-        d.push(format!("size {} where they have {}", s(got.size), s(expected.size)));
+        d.push(format!(
+            "size {} where they have {}",
+            s(got.size),
+            s(expected.size)
+        ));
     }
     if expected.encoding != got.encoding {
         d.push(format!(

@@ -259,7 +259,8 @@ impl BodyStream {
         if let Some((prev, dt, period)) = gap {
             let ratio = dt as f64 / period as f64;
             let periods = ratio.round() as i64;
-            let whole = (ratio - periods as f64).abs() < 0.05 && (2..=MAX_FILL_FRAMES).contains(&periods);
+            let whole =
+                (ratio - periods as f64).abs() < 0.05 && (2..=MAX_FILL_FRAMES).contains(&periods);
             let union = self
                 .mesher
                 .last_frame()
@@ -269,10 +270,7 @@ impl BodyStream {
                 out.fill = Some(both.clone());
                 for j in 1..periods {
                     let t = prev + dt * j / periods;
-                    match self
-                        .mesher
-                        .push_decoded(t, prepared.geometry, both.clone())
-                    {
+                    match self.mesher.push_decoded(t, prepared.geometry, both.clone()) {
                         Ok(slab) => {
                             out.frames.push((t, slab));
                             filled += 1;

@@ -268,8 +268,13 @@ impl CheckerNode {
                 },
             };
             let mut rolled = Vec::new();
-            self.engine
-                .on_frame(topic, g.header.stamp.as_nanos(), geometry, grid, &mut rolled);
+            self.engine.on_frame(
+                topic,
+                g.header.stamp.as_nanos(),
+                geometry,
+                grid,
+                &mut rolled,
+            );
             self.emit(rolled, out);
         }
     }

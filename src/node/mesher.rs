@@ -321,7 +321,8 @@ impl MesherNode {
             return;
         };
         if slab.index == 0 {
-            if let Some(m) = b.stream
+            if let Some(m) = b
+                .stream
                 .mesher()
                 .first_frame()
                 .and_then(|k| self.cap(topic, b, k, CapSide::Low))
@@ -332,7 +333,11 @@ impl MesherNode {
         if let Some(m) = self.slice_marker(topic, b, &slab) {
             out.push(m);
         }
-        let occupied = b.stream.mesher().last_frame().map_or(0, |k| k.grid.occupied);
+        let occupied = b
+            .stream
+            .mesher()
+            .last_frame()
+            .map_or(0, |k| k.grid.occupied);
         out.push(self.piece(
             topic,
             b,
@@ -352,7 +357,8 @@ impl MesherNode {
     fn close(&mut self, topic: &str, b: &mut Body, out: &mut Vec<Message>) {
         b.closed = true;
         if b.stream.mesher().frames() >= 2 {
-            if let Some(m) = b.stream
+            if let Some(m) = b
+                .stream
                 .mesher()
                 .last_frame()
                 .and_then(|k| self.cap(topic, b, k, CapSide::High))
