@@ -11,7 +11,7 @@ use crate::checker::{
     check_pair, check_pair_walked, CheckError, CommonLattice, PairResult, Prepared, StreamWalk,
 };
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
-use crate::mesh::stream::{LossKind, LossLog};
+use crate::mesh::stream::{LossKind, LossLog, UNKNOWN_STAMP};
 use crate::mesh::MesherOptions;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -55,8 +55,9 @@ fn is_zero(v: &u64) -> bool {
 pub struct LostSpan {
     /// `refused`, `filled` or `spanned`.
     pub kind: LossKind,
-    /// Start and end (s since `time_origin_ns`).
-    pub span_s: [f64; 2],
+    /// Start and end (s since `time_origin_ns`); `null` for frames whose stamp is not known
+    /// (they did not decode).
+    pub span_s: Option<[f64; 2]>,
     /// Frames refused, filled or missing in it.
     pub frames: u64,
     /// Why (`lattice_changed`, `frames_missing`, ...).
@@ -72,10 +73,12 @@ impl LostSpan {
             .iter()
             .map(|s| Self {
                 kind: s.kind,
-                span_s: [
-                    (s.from_ns - origin_ns) as f64 * 1e-9,
-                    (s.to_ns - origin_ns) as f64 * 1e-9,
-                ],
+                span_s: (s.from_ns != UNKNOWN_STAMP && s.to_ns != UNKNOWN_STAMP).then(|| {
+                    [
+                        (s.from_ns - origin_ns) as f64 * 1e-9,
+                        (s.to_ns - origin_ns) as f64 * 1e-9,
+                    ]
+                }),
                 frames: s.frames,
                 code: s.code,
                 reason: s.reason.clone(),

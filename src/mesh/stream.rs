@@ -31,6 +31,9 @@ pub const MAX_FILL_FRAMES: i64 = 1024;
 /// Loss spans kept per body (the latest; totals count every one).
 pub const MAX_LOSS_SPANS: usize = 64;
 
+/// `from_ns`/`to_ns` of a refusal whose frame's stamp is not known (it did not decode).
+pub const UNKNOWN_STAMP: i64 = i64::MIN;
+
 /// What happened over a span of a body's stream.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -51,7 +54,8 @@ pub enum LossKind {
 pub struct LossSpan {
     /// What happened.
     pub kind: LossKind,
-    /// First stamp of the span (ns): the refused frame, or the accepted frame before the gap.
+    /// First stamp of the span (ns): the refused frame, or the accepted frame before the gap;
+    /// [`UNKNOWN_STAMP`] for frames that did not decode.
     pub from_ns: i64,
     /// Last stamp of the span (ns): the refused frame, or the accepted frame after the gap.
     pub to_ns: i64,
@@ -96,13 +100,16 @@ impl LossLog {
             if run_open && last.kind == LossKind::Refused && last.code == code {
                 last.frames += 1;
                 if let Some(t) = stamp_ns {
+                    if last.from_ns == UNKNOWN_STAMP {
+                        last.from_ns = t;
+                    }
                     last.from_ns = last.from_ns.min(t);
                     last.to_ns = last.to_ns.max(t);
                 }
                 return;
             }
         }
-        let t = stamp_ns.unwrap_or(0);
+        let t = stamp_ns.unwrap_or(UNKNOWN_STAMP);
         self.push(LossSpan {
             kind: LossKind::Refused,
             from_ns: t,
@@ -269,7 +276,8 @@ impl BodyStream {
             if let (true, Some(both)) = (whole, union) {
                 out.fill = Some(both.clone());
                 for j in 1..periods {
-                    let t = prev + dt * j / periods;
+                    // In i128: dt · j can exceed i64 for stamps years apart.
+                    let t = prev + (i128::from(dt) * i128::from(j) / i128::from(periods)) as i64;
                     match self.mesher.push_decoded(t, prepared.geometry, both.clone()) {
                         Ok(slab) => {
                             out.frames.push((t, slab));
@@ -354,5 +362,54 @@ impl BodyStream {
         self.refusing = false;
         self.saw(f.stamp_ns);
         Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn frame(stamp_ns: i64, data: &[u8]) -> FrameRef<'_> {
+        FrameRef {
+            stamp_ns,
+            origin: [0.0; 3],
+            resolution: 0.01,
+            size: [2, 2, 2],
+            encoding: 0,
+            data,
+        }
+    }
+
+    #[test]
+    fn a_long_gap_years_into_the_stamps_is_filled_without_overflow() {
+        let data = [0b0000_0001u8];
+        let mut s = BodyStream::new(MesherOptions::default()).unwrap();
+        let p = 10_000_000_000_000i64; // 2.8 h between frames
+        s.push(&frame(0, &data)).unwrap();
+        s.push(&frame(p, &data)).unwrap();
+        // 1000 periods later: 999 frames filled, at exact multiples of the period.
+        let a = s.push(&frame(1001 * p, &data)).unwrap();
+        assert_eq!(a.frames.len(), 1000);
+        assert_eq!(a.frames[998].0, 1000 * p);
+        assert_eq!(s.losses().filled_frames, 999);
+    }
+
+    #[test]
+    fn a_refused_frame_changes_nothing_and_a_gap_after_it_is_filled_between_accepted_ones() {
+        let data = [0b0000_0001u8];
+        let mut s = BodyStream::new(MesherOptions::default()).unwrap();
+        s.push(&frame(0, &data)).unwrap();
+        s.push(&frame(10, &data)).unwrap();
+        // Frame 20 on another resolution: refused; its stamp only feeds the period.
+        let mut other = frame(20, &data);
+        other.resolution = 0.02;
+        assert!(s.push(&other).is_err());
+        assert_eq!(s.mesher().frames(), 2);
+        assert_eq!(s.mesher().last_frame().unwrap().stamp_ns, 10);
+        let a = s.push(&frame(30, &data)).unwrap();
+        let stamps: Vec<i64> = a.frames.iter().map(|f| f.0).collect();
+        assert_eq!(stamps, [20, 30]);
+        let kinds: Vec<LossKind> = s.losses().spans.iter().map(|s| s.kind).collect();
+        assert_eq!(kinds, [LossKind::Refused, LossKind::Filled]);
     }
 }
