@@ -412,15 +412,7 @@ pub fn check_streamed(
     // Bodies that can all be compared are checked together; otherwise each group of
     // pairs that can is checked on its own lattice.
     if !pair_ids.is_empty() {
-        let mut named: Vec<(&str, &BodyMesh)> = Vec::new();
-        for (a, b) in &pair_ids {
-            for id in [a, b] {
-                if !named.iter().any(|(n, _)| *n == id.as_str()) {
-                    named.push((id.as_str(), &bodies[id]));
-                }
-            }
-        }
-        if CommonLattice::of(&named).is_err() {
+        if CommonLattice::of(&pair_bodies(bodies, &pair_ids)).is_err() {
             let groups = lattice_groups(bodies, &pair_ids);
             let mut merged: Option<CheckOutcome> = None;
             for group in groups {
@@ -678,6 +670,20 @@ pub fn resolve(
     out
 }
 
+/// The bodies of `pairs`, each once, in order of first appearance.
+fn pair_bodies<'a>(
+    bodies: &'a BTreeMap<String, BodyMesh>,
+    pairs: &'a [(String, String)],
+) -> Vec<(&'a str, &'a BodyMesh)> {
+    let mut named: Vec<(&str, &BodyMesh)> = Vec::new();
+    for id in pairs.iter().flat_map(|(a, b)| [a, b]) {
+        if !named.iter().any(|(n, _)| *n == id.as_str()) {
+            named.push((id.as_str(), &bodies[id]));
+        }
+    }
+    named
+}
+
 /// The checkable pairs split into groups whose bodies share one lattice: connected groups
 /// of pairs, each group's bodies checked for one common lattice; a group that has none is
 /// split into its single pairs (each checkable on its own).
@@ -712,15 +718,7 @@ fn lattice_groups(
     }
     let mut out = Vec::new();
     for g in groups.into_iter().filter(|g| !g.is_empty()) {
-        let mut named: Vec<(&str, &BodyMesh)> = Vec::new();
-        for (a, b) in &g {
-            for id in [a, b] {
-                if !named.iter().any(|(n, _)| *n == id.as_str()) {
-                    named.push((id.as_str(), &bodies[id]));
-                }
-            }
-        }
-        if CommonLattice::of(&named).is_ok() || g.len() == 1 {
+        if g.len() == 1 || CommonLattice::of(&pair_bodies(bodies, &g)).is_ok() {
             out.push(g);
         } else {
             out.extend(g.into_iter().map(|p| vec![p]));

@@ -10,7 +10,7 @@ use chronotope::bag::BagWriter;
 use chronotope::cli::check::check_bag;
 use chronotope::cli::replay::replay;
 use chronotope::mesh::MesherOptions;
-use chronotope::msg::{Header, Point, Time, VoxelGrid};
+use chronotope::msg::{Time, VoxelGrid};
 use chronotope::report::Report;
 
 const T0: i64 = 1_000_000_000;
@@ -18,25 +18,7 @@ const PERIOD: i64 = 100_000_000;
 
 /// A 3×4×4-voxel box in a 12³ BITS frame, x from `x0 + k·vx`, y from `y0`, at frame `k`.
 fn boxf(x0: u32, vx: u32, y0: u32, k: u32) -> VoxelGrid {
-    let size = 12u32;
-    let data = common::bits_data([size; 3], |x, y, z| {
-        (4..8).contains(&z)
-            && (y0..y0 + 4).contains(&(y as u32))
-            && (x0 + k * vx..x0 + k * vx + 3).contains(&(x as u32))
-    });
-    VoxelGrid {
-        header: Header {
-            stamp: Time::from_nanos(T0 + i64::from(k) * PERIOD),
-            frame_id: "world".into(),
-        },
-        origin: Point::default(),
-        resolution: 0.01,
-        size_x: size,
-        size_y: size,
-        size_z: size,
-        encoding: VoxelGrid::ENCODING_BITS,
-        data,
-    }
+    common::box_frame(x0, vx, y0, k, T0)
 }
 
 /// Writes `frames` (topic, frame) in order.

@@ -34,6 +34,33 @@ pub struct RefusedTopic {
     pub end_ns: u64,
 }
 
+impl RefusedTopic {
+    /// Counts one more message of `topic`, refused for `reason`, logged at `log_time_ns`, in
+    /// `refused` (by topic). True for the topic's first.
+    pub fn count(
+        refused: &mut BTreeMap<String, RefusedTopic>,
+        topic: &str,
+        reason: impl FnOnce() -> String,
+        log_time_ns: u64,
+    ) -> bool {
+        let first = !refused.contains_key(topic);
+        let t = log_time_ns;
+        let e = refused
+            .entry(topic.to_owned())
+            .or_insert_with(|| RefusedTopic {
+                topic: topic.to_owned(),
+                reason: reason(),
+                messages: 0,
+                start_ns: t,
+                end_ns: t,
+            });
+        e.messages += 1;
+        e.start_ns = e.start_ns.min(t);
+        e.end_ns = e.end_ns.max(t);
+        first
+    }
+}
+
 /// What to do with the messages of one channel.
 #[derive(Debug, Clone)]
 enum Verdict {
@@ -114,20 +141,12 @@ impl Iterator for VoxelFrames {
             match v {
                 Verdict::NotVoxelGrid => continue,
                 Verdict::Refused(reason) => {
-                    let t = message.log_time_ns;
-                    let entry = self
-                        .refused
-                        .entry(message.topic.clone())
-                        .or_insert_with(|| RefusedTopic {
-                            topic: message.topic.clone(),
-                            reason,
-                            messages: 0,
-                            start_ns: t,
-                            end_ns: t,
-                        });
-                    entry.messages += 1;
-                    entry.start_ns = entry.start_ns.min(t);
-                    entry.end_ns = entry.end_ns.max(t);
+                    RefusedTopic::count(
+                        &mut self.refused,
+                        &message.topic,
+                        || reason,
+                        message.log_time_ns,
+                    );
                     match first_refusal {
                         Some(err) => return Some(Err(FrameError::Bag(err))),
                         None => continue,

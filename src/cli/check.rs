@@ -73,8 +73,7 @@ pub fn load_bodies_with_frames(path: &Path, opts: MesherOptions) -> Result<Loade
         let stamp = grid.header.stamp.as_nanos();
         if let Err(e) = grid.message_check(frame_id) {
             tracing::warn!(topic = %topic, "skipping frame: {e}");
-            let at = matches!(e, crate::mesh::MeshError::FrameIdChanged { .. }).then_some(stamp);
-            a.refuse(at, &e);
+            a.refuse(Some(stamp), &e);
             continue;
         }
         match a.push(&frame_ref(&grid)) {

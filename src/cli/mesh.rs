@@ -263,8 +263,7 @@ fn body_worker(
         // The same rules as the mesher node and `check` (mesh::stream).
         if let Err(e) = grid.message_check(&frame_id) {
             tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "skipping frame: {e}");
-            let at = matches!(e, MeshError::FrameIdChanged { .. }).then_some(f.stamp_ns);
-            stream.refuse(at, &e);
+            stream.refuse(Some(f.stamp_ns), &e);
             continue;
         }
         let t0 = Instant::now();

@@ -355,20 +355,15 @@ pub fn replay(
             if let Some(reason) =
                 crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
             {
-                let t = m.log_time_ns;
-                let e = refused.entry(m.topic.clone()).or_insert_with(|| {
+                let first = crate::bag::RefusedTopic::count(
+                    &mut refused,
+                    &m.topic,
+                    || reason.clone(),
+                    m.log_time_ns,
+                );
+                if first {
                     tracing::error!(topic = %m.topic, "channel refused: {reason}");
-                    crate::bag::RefusedTopic {
-                        topic: m.topic.clone(),
-                        reason,
-                        messages: 0,
-                        start_ns: t,
-                        end_ns: t,
-                    }
-                });
-                e.messages += 1;
-                e.start_ns = e.start_ns.min(t);
-                e.end_ns = e.end_ns.max(t);
+                }
                 continue;
             }
         }

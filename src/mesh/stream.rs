@@ -210,18 +210,15 @@ impl BodyStream {
     }
 
     /// Records a frame the caller refused before it reached the mesher (e.g. a message that
-    /// did not decode, or a stamp out of its domain): counted, its stamp (if known) feeds the
-    /// period estimate only.
+    /// did not decode, or a stamp out of its domain): counted, its stamp (if known and valid)
+    /// feeds the period estimate only.
     pub fn refuse(&mut self, stamp_ns: Option<i64>, e: &MeshError) {
-        if matches!(e, MeshError::StampNotIncreasing { .. }) {
-            // Not a new instant of the stream: no period from it.
-            self.losses.refused(stamp_ns, e, self.refusing);
-            self.refusing = true;
-            return;
-        }
+        // A stamp out of its domain is no time.
+        let stamp_ns = stamp_ns.filter(|_| !matches!(e, MeshError::BadStamp { .. }));
         self.losses.refused(stamp_ns, e, self.refusing);
         self.refusing = true;
-        if let Some(t) = stamp_ns {
+        // A stamp that does not increase is no new instant of the stream: no period from it.
+        if let Some(t) = stamp_ns.filter(|_| !matches!(e, MeshError::StampNotIncreasing { .. })) {
             self.saw(t);
         }
     }

@@ -220,8 +220,7 @@ impl MesherNode {
             .message_check(if b.closed { "" } else { &b.frame_id })
             .err();
         if let Some(e) = pre {
-            let at = matches!(e, MeshError::FrameIdChanged { .. }).then_some(stamp);
-            b.stream.refuse(at, &e);
+            b.stream.refuse(Some(stamp), &e);
             refused(&mut self.status, &self.fqn, &e);
             self.bodies.insert(topic.to_owned(), b);
             return;

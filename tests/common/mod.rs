@@ -157,10 +157,18 @@ pub fn closed_slab(r: &Run, k: usize, frame_grids: &[chronotope::mesh::Occupancy
 /// A 3×4×4-voxel box in a 12³ BITS frame at 1 cm voxels, its x range starting at voxel
 /// `x0 + k` (a body moving +x one voxel per frame), stamped `t0_ns + k · 0.1 s`.
 pub fn moving_box(x0: u32, k: u32, t0_ns: i64) -> chronotope::msg::VoxelGrid {
+    box_frame(x0, 1, 4, k, t0_ns)
+}
+
+/// Frame `k` of a 3×4×4-voxel box in a 12³ BITS frame at 1 cm voxels (frame "world"): x from
+/// `x0 + k·vx`, y from `y0`, z 4..8, stamped `t0_ns + k · 0.1 s`.
+pub fn box_frame(x0: u32, vx: u32, y0: u32, k: u32, t0_ns: i64) -> chronotope::msg::VoxelGrid {
     use chronotope::msg::{Header, Point, Time, VoxelGrid};
     let size = 12u32;
     let data = bits_data([size; 3], |x, y, z| {
-        (4..8).contains(&z) && (4..8).contains(&y) && (x0 + k..x0 + k + 3).contains(&(x as u32))
+        (4..8).contains(&z)
+            && (y0..y0 + 4).contains(&(y as u32))
+            && (x0 + k * vx..x0 + k * vx + 3).contains(&(x as u32))
     });
     VoxelGrid {
         header: Header {
