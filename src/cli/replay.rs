@@ -327,6 +327,8 @@ pub fn replay(
     let mut last_tick: Option<i64> = None;
     let mut reader = BagReader::open(bag)?;
     let mut refused: BTreeMap<String, crate::bag::RefusedTopic> = BTreeMap::new();
+    // Each channel's verdict, decided at its first message (the schema text is compared once).
+    let mut verdicts: std::collections::HashMap<u16, Option<String>> = Default::default();
     for item in reader.by_ref() {
         let m = match item {
             Ok(m) => m,
@@ -352,9 +354,10 @@ pub fn replay(
         if m.schema.is_none()
             || m.schema_name == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME
         {
-            if let Some(reason) =
+            let verdict = verdicts.entry(m.channel_id).or_insert_with(|| {
                 crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
-            {
+            });
+            if let Some(reason) = verdict {
                 let first = crate::bag::RefusedTopic::count(
                     &mut refused,
                     &m.topic,
