@@ -197,6 +197,15 @@ pub trait Node: Send + std::any::Any {
     fn publications(&self) -> Vec<TopicRef>;
     /// Handles one message on a subscribed topic; pushes what it publishes.
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>);
+    /// Handles several messages that were waiting at once, in order, pushing what they
+    /// publish in the order one-by-one handling would. A node whose messages are independent
+    /// (a mesher's bodies) may handle them in parallel; the result must be the same as
+    /// calling [`Node::on_message`] on each in turn. The default does exactly that.
+    fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
+        for m in msgs {
+            self.on_message(m, out);
+        }
+    }
     /// The inputs have ended (a replay's bag is read, or the node shuts down): publishes
     /// what it has left (the closing mesh caps, the final report).
     fn finish(&mut self, out: &mut Vec<Message>);
