@@ -189,10 +189,16 @@ fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<
     let summary = run_nodes(local, &specs, &opts, stop_on_signal())?;
     for (name, s) in &summary.nodes {
         eprintln!(
-            "{name}: received {}, published {}, problems {}",
-            s.received,
-            s.published,
-            s.problem_count()
+            "{name}: received {}, published {}, problems {}, dropped {}, CPU {:.2} s{}",
+            s.status.received,
+            s.status.published,
+            s.status.problem_count(),
+            s.dropped.values().sum::<u64>(),
+            s.cpu_s,
+            s.stopped
+                .as_ref()
+                .map(|w| format!(", STOPPED: {w}"))
+                .unwrap_or_default()
         );
     }
     let t = &summary.transport;

@@ -6,17 +6,17 @@
 //! cross the wire only when a node that reads them runs in another process.
 //!
 //! Threads: RustDDS runs its own event loop; a small tokio runtime drives the readers and
-//! the ros2-client spinners; the nodes run on one thread of their own, fed through one
-//! bounded queue. When the queue is full a new sample is dropped and counted on its topic
-//! (a publisher faster than the checker costs messages, never unbounded memory). Every
-//! second the transport publishes a `diagnostic_msgs/DiagnosticArray` on `/diagnostics`
-//! with each node's counters and problems and its own.
+//! the ros2-client spinners; every node runs on a thread of its own, fed through its own
+//! bounded queue ([`executor`]: drops counted per node and topic, real-time nodes, faults
+//! isolated). Every second the transport publishes a `diagnostic_msgs/DiagnosticArray` on
+//! `/diagnostics` with each node's counters, problems and CPU use, and its own.
 
+pub mod executor;
 pub mod wire;
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::mpsc::{sync_channel, Receiver, RecvTimeoutError, SyncSender, TrySendError};
+use std::sync::mpsc::{sync_channel, SyncSender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant, SystemTime};
 
@@ -25,10 +25,10 @@ use rustdds::no_key::{DataWriter, SimpleDataReader};
 use rustdds::{DomainParticipant, DomainParticipantBuilder, TopicKind};
 use serde::Serialize;
 
-use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, Time};
-use crate::node::bus::Bus;
+use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time};
 use crate::node::launch::{NodeSpec, ParamValue};
-use crate::node::{Message, Node, NodeStatus, Payload, TopicRef};
+use crate::node::{Message, Node, NodeStatus, TopicRef};
+use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut};
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
 
 /// A writer of serialised messages.
@@ -228,7 +228,7 @@ impl Participant {
         &self,
         fqn: &str,
         params: &BTreeMap<String, ParamValue>,
-        setter: Option<SyncSender<ParamRequest>>,
+        setter: Option<crossbeam_channel::Sender<Input>>,
     ) -> Result<ros2_client::Node, LiveError> {
         let (ns, name) = match fqn.rsplit_once('/') {
             Some(("", n)) => ("/", n),
@@ -258,16 +258,16 @@ impl Participant {
             })?;
             let (reply, answer) = sync_channel(1);
             setter
-                .try_send(ParamRequest {
+                .try_send(Input::Param(ParamRequest {
                     node: node.clone(),
                     name: name.to_owned(),
                     value,
                     reply,
-                })
+                }))
                 .map_err(|_| format!("{name}: {node} is busy or stopping; try again"))?;
             let wait = || answer.recv_timeout(Duration::from_secs(5));
             // The spinner runs on the transport's runtime: let its other tasks (the readers)
-            // go on while this waits for the nodes' thread.
+            // go on while this waits for the node's thread.
             let answer = match tokio::runtime::Handle::try_current() {
                 Ok(h) if h.runtime_flavor() == tokio::runtime::RuntimeFlavor::MultiThread => {
                     tokio::task::block_in_place(wait)
@@ -290,7 +290,7 @@ impl Participant {
     }
 }
 
-/// A parameter change asked for over ROS, on its way to the node (the nodes' thread
+/// A parameter change asked for over ROS, on its way to the node (the node's thread
 /// answers on `reply`).
 pub struct ParamRequest {
     /// The node's fully qualified name.
@@ -338,8 +338,8 @@ pub fn ros_param(v: &ParamValue) -> ros2_client::ParameterValue {
 pub struct LiveOptions {
     /// DDS domain.
     pub domain_id: u16,
-    /// Received messages waiting for the nodes, all topics together; beyond it new samples
-    /// are dropped and counted.
+    /// Messages waiting for one node, all its topics together (unless its `queue_depth`
+    /// says otherwise); beyond it new samples are dropped and counted.
     pub queue_capacity: usize,
     /// How often the nodes see the clock (idle streams are closed on a tick).
     pub tick: Duration,
@@ -369,7 +369,8 @@ impl Default for LiveOptions {
 pub struct TransportStatus {
     /// Samples received from the wire.
     pub received: BTreeMap<String, u64>,
-    /// Samples dropped because the nodes' queue was full.
+    /// Samples dropped because a node's queue was full (summed over the nodes reading the
+    /// topic; each node's own count is in its [`NodeRun`]).
     pub dropped: BTreeMap<String, u64>,
     /// Samples that did not decode as the topic's type.
     pub undecodable: BTreeMap<String, u64>,
@@ -383,7 +384,8 @@ pub struct TransportStatus {
     /// The first problems' texts.
     pub messages: Vec<String>,
     /// Per input topic: how long a sample took from the reader to the end of its handling
-    /// (queue wait, decoding, the nodes' work, writing what they published).
+    /// (queue wait, decoding, the node's work, writing what it published); of the node
+    /// reading it with the largest p99.
     pub lag: BTreeMap<String, LagStats>,
 }
 
@@ -407,52 +409,6 @@ pub struct LagStats {
 impl LagStats {
     /// Samples the percentiles are taken over (the latest ones).
     pub const WINDOW: usize = 1024;
-}
-
-/// The recent lags of one topic (a bounded ring), from which [`LagStats`] are computed.
-#[derive(Debug, Default)]
-struct LagWindow {
-    handled: u64,
-    lag: Vec<f64>,
-    busy: Vec<f64>,
-    next: usize,
-    max: f64,
-    busy_total: f64,
-}
-
-impl LagWindow {
-    fn add(&mut self, lag_s: f64, busy_s: f64) {
-        self.handled += 1;
-        self.max = self.max.max(lag_s);
-        self.busy_total += busy_s;
-        if self.lag.len() < LagStats::WINDOW {
-            self.lag.push(lag_s);
-            self.busy.push(busy_s);
-        } else {
-            self.lag[self.next] = lag_s;
-            self.busy[self.next] = busy_s;
-            self.next = (self.next + 1) % LagStats::WINDOW;
-        }
-    }
-
-    fn stats(&self) -> LagStats {
-        let pct = |v: &[f64], q: f64| {
-            let mut v = v.to_vec();
-            v.sort_by(f64::total_cmp);
-            v.get(((v.len() as f64 - 1.0) * q).round() as usize)
-                .copied()
-                .unwrap_or(0.0)
-                * 1e3
-        };
-        LagStats {
-            handled: self.handled,
-            p50_ms: pct(&self.lag, 0.5),
-            p99_ms: pct(&self.lag, 0.99),
-            max_ms: self.max * 1e3,
-            busy_p50_ms: pct(&self.busy, 0.5),
-            busy_total_s: self.busy_total,
-        }
-    }
 }
 
 /// What went wrong with a sample, for [`TransportStatus`].
@@ -483,110 +439,228 @@ impl TransportStatus {
 /// What a live run did, when it ends.
 #[derive(Debug, Clone, Serialize)]
 pub struct LiveSummary {
-    /// Each node's counters and problems.
-    pub nodes: BTreeMap<String, NodeStatus>,
+    /// Each node's counters and problems, CPU use, drops and lags.
+    pub nodes: BTreeMap<String, NodeRun>,
     /// The transport's.
     pub transport: TransportStatus,
 }
 
-struct Sample {
-    topic: usize,
-    bytes: RawCdr,
-    /// When the reader took it from DDS.
-    at: Instant,
+/// Types whose messages can be large (frames, clouds, meshes, markers): a real-time node
+/// hands them to a writer thread on the process's main participant instead of writing them
+/// on its own.
+fn is_bulk(type_name: &str) -> bool {
+    [
+        crate::msg::VoxelGrid::TYPE_NAME,
+        crate::msg::PointCloud2::TYPE_NAME,
+        crate::msg::MeshSlab::TYPE_NAME,
+        crate::msg::MarkerArray::TYPE_NAME,
+        TetLabels::TYPE_NAME,
+    ]
+    .contains(&type_name)
 }
 
-/// Runs `nodes` on the wire until `stop` is set (Ctrl-C) or `opts.run_for` has passed, then
-/// finishes them (closing meshes, a last check) and publishes what that gives.
-///
-/// `specs` are the nodes' launch specs (for their ROS names and parameters).
-///
-/// # Errors
-/// The participant, a reader or a writer cannot be created.
-pub fn run_nodes(
-    nodes: Vec<Box<dyn Node>>,
-    specs: &[NodeSpec],
-    opts: &LiveOptions,
-    stop: Arc<AtomicBool>,
-) -> Result<LiveSummary, LiveError> {
-    if nodes.is_empty() {
-        return Err(LiveError::Nothing("no node to run".into()));
-    }
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
-        .enable_all()
-        .build()?;
-    let participant = Arc::new(Participant::new(opts.domain_id)?);
-    tracing::info!(domain = participant.domain_id(), "joined the DDS domain");
+/// Writes a node's messages to DDS on the thread that publishes them.
+struct DdsOut {
+    writers: BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    status: Arc<Mutex<TransportStatus>>,
+}
 
-    let mut ros_nodes = Vec::new();
-    let (param_tx, param_rx) = sync_channel::<ParamRequest>(16);
-    for spec in specs {
-        // The launch's parameters, and those the node can change while it runs.
-        let mut params = spec.params.clone();
-        if let Some(node) = nodes.iter().find(|n| n.name() == spec.fqn) {
-            for (k, v) in node.runtime_parameters() {
-                params.entry(k).or_insert(v);
-            }
-        }
-        let mut n = participant.ros_node(&spec.fqn, &params, Some(param_tx.clone()))?;
-        let spinner = n
-            .spinner()
+impl DdsOut {
+    fn write(&self, m: &Message) {
+        let Some(w) = self.writers.get(&*m.topic) else {
+            return;
+        };
+        let r = m
+            .payload
+            .encode()
             .map_err(|e| e.to_string())
-            .map_err(dds_err(format!("the spinner of {}", spec.fqn)))?;
-        runtime.spawn(async move {
-            if let Err(e) = spinner.spin().await {
-                tracing::warn!("a ROS node's spinner stopped: {e:?}");
+            .and_then(|bytes| write_stamped(&w.lock().unwrap_or_else(|p| p.into_inner()), bytes));
+        let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
+        match r {
+            Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
+            Err(e) => st.problem(
+                Fault::NotSent,
+                &m.topic,
+                format!("{}: not sent: {e}", m.topic),
+            ),
+        }
+    }
+}
+
+impl WireOut for DdsOut {
+    fn send(&self, m: &Message) {
+        self.write(m);
+    }
+}
+
+/// A real-time node's wire: small messages written at once on its own participant, large
+/// ones handed (never waiting: dropped and counted when the hand-off is full) to a writer
+/// thread on the main participant.
+struct RealtimeOut {
+    own: DdsOut,
+    bulk: crossbeam_channel::Sender<Message>,
+    status: Arc<Mutex<TransportStatus>>,
+}
+
+impl WireOut for RealtimeOut {
+    fn send(&self, m: &Message) {
+        if self.own.writers.contains_key(&*m.topic) {
+            self.own.write(m);
+        } else if let Err(e) = self.bulk.try_send(m.clone()) {
+            let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
+            let why = match e {
+                crossbeam_channel::TrySendError::Full(_) => "the writer thread is behind",
+                crossbeam_channel::TrySendError::Disconnected(_) => "the writer thread has ended",
+            };
+            st.problem(
+                Fault::Dropped,
+                &m.topic,
+                format!("{}: not sent: {why} (a real-time node never waits)", m.topic),
+            );
+        }
+    }
+}
+
+/// Messages a real-time node's large outputs may queue for the writer thread.
+const BULK_QUEUE: usize = 8;
+
+/// A real-time node's own participant: created on a SCHED_FIFO thread, so RustDDS's threads
+/// inherit the policy; then that thread reads the node's input topics.
+struct RealtimeIo {
+    participant: Arc<Participant>,
+    own: DdsOut,
+    start: crossbeam_channel::Sender<executor::Injector>,
+    thread: std::thread::JoinHandle<()>,
+}
+
+fn start_realtime_io(
+    domain_id: u16,
+    index: usize,
+    inputs: Vec<TopicRef>,
+    outputs: Vec<TopicRef>,
+    status: Arc<Mutex<TransportStatus>>,
+    stop: Arc<AtomicBool>,
+) -> Result<RealtimeIo, LiveError> {
+    let (ready_tx, ready_rx) = crossbeam_channel::bounded(1);
+    let (start_tx, start_rx) = crossbeam_channel::bounded::<executor::Injector>(1);
+    let status_out = status.clone();
+    let thread = std::thread::Builder::new()
+        .name(format!("rt-io {index}"))
+        .spawn(move || {
+            if let Err(e) = executor::make_realtime(executor::REALTIME_PRIORITY) {
+                tracing::warn!("real-time I/O: {e}");
             }
-        });
-        ros_nodes.push(n);
+            let setup = (|| -> Result<_, LiveError> {
+                let participant = Arc::new(Participant::new(domain_id)?);
+                let mut writers = BTreeMap::new();
+                for t in &outputs {
+                    let qos = TopicQos::for_type(t.type_name);
+                    let w = participant.writer(&t.topic, t.type_name, qos)?;
+                    writers.insert(t.topic.clone(), Arc::new(Mutex::new(w)));
+                }
+                let mut readers = Vec::new();
+                for t in &inputs {
+                    let qos = TopicQos::for_type(t.type_name);
+                    readers.push((t.clone(), participant.reader(&t.topic, t.type_name, qos)?));
+                }
+                Ok((participant, writers, readers))
+            })();
+            let (participant, writers, readers) = match setup {
+                Ok(s) => s,
+                Err(e) => {
+                    let _ = ready_tx.send(Err(e));
+                    return;
+                }
+            };
+            let _ = ready_tx.send(Ok((participant.clone(), writers)));
+            let Ok(injector) = start_rx.recv() else {
+                return;
+            };
+            let Ok(rt) = tokio::runtime::Builder::new_current_thread()
+                .enable_all()
+                .build()
+            else {
+                tracing::error!("real-time I/O: cannot start its runtime");
+                return;
+            };
+            rt.block_on(async move {
+                for (t, reader) in readers {
+                    tokio::spawn(read_into(
+                        reader,
+                        t,
+                        participant.clone(),
+                        status.clone(),
+                        injector.clone(),
+                        vec![index],
+                    ));
+                }
+                while !stop.load(Ordering::Relaxed) {
+                    tokio::time::sleep(Duration::from_millis(50)).await;
+                }
+            });
+        })
+        .map_err(LiveError::Runtime)?;
+    match ready_rx.recv() {
+        Ok(Ok((participant, writers))) => Ok(RealtimeIo {
+            participant,
+            own: DdsOut {
+                writers,
+                status: status_out,
+            },
+            start: start_tx,
+            thread,
+        }),
+        Ok(Err(e)) => Err(e),
+        Err(_) => Err(LiveError::Nothing("the real-time I/O thread ended".into())),
     }
+}
 
-    let (inputs, outputs) = wire_topics(&nodes, &opts.remote_subscribed);
-    let status = Arc::new(Mutex::new(TransportStatus::default()));
-    let (tx, rx) = sync_channel::<Sample>(opts.queue_capacity.max(1));
-    for (i, t) in inputs.iter().enumerate() {
-        let reader = participant.reader(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
-        tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
-        runtime.spawn(read_topic(
-            reader,
-            i,
-            t.topic.clone(),
-            participant.clone(),
-            tx.clone(),
-            status.clone(),
-        ));
+/// Reads `topic` from DDS and hands each sample to the nodes `targets` (queued, or dropped
+/// and counted per node when a queue is full).
+async fn read_into(
+    reader: RawReader,
+    topic: TopicRef,
+    participant: Arc<Participant>,
+    status: Arc<Mutex<TransportStatus>>,
+    injector: executor::Injector,
+    targets: Vec<usize>,
+) {
+    let name: Arc<str> = topic.topic.as_str().into();
+    let mut stream = std::pin::pin!(reader.as_async_stream());
+    while let Some(r) = stream.next().await {
+        let change = match r {
+            Ok(c) => c,
+            Err(e) => {
+                let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
+                s.problem(
+                    Fault::Undecodable,
+                    &topic.topic,
+                    format!("{}: a sample could not be read: {e}", topic.topic),
+                );
+                continue;
+            }
+        };
+        if participant.is_own(change.writer_guid) {
+            continue;
+        }
+        let at = Instant::now();
+        {
+            let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
+            *s.received.entry(topic.topic.clone()).or_default() += 1;
+        }
+        let bytes = Arc::new(change.sample.0);
+        for &i in &targets {
+            injector.inject_to(
+                i,
+                RawSample {
+                    topic: name.clone(),
+                    type_name: topic.type_name,
+                    bytes: bytes.clone(),
+                    at,
+                },
+            );
+        }
     }
-    drop(tx);
-    let mut writers = BTreeMap::new();
-    for t in &outputs {
-        let w = participant.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
-        tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
-        writers.insert(t.topic.clone(), w);
-    }
-    let diagnostics = participant.writer(
-        "/diagnostics",
-        DiagnosticArray::TYPE_NAME,
-        TopicQos::for_type(DiagnosticArray::TYPE_NAME),
-    )?;
-
-    let mut pump = Pump {
-        bus: Bus::new(nodes),
-        lag: inputs.iter().map(|_| LagWindow::default()).collect(),
-        participant: participant.clone(),
-        wrong_writers: BTreeSet::new(),
-        param_rx,
-        inputs,
-        writers,
-        diagnostics,
-        status,
-    };
-    pump.run(rx, opts, &stop);
-    let summary = pump.summary();
-    drop(pump);
-    drop(ros_nodes);
-    runtime.shutdown_timeout(Duration::from_millis(500));
-    Ok(summary)
 }
 
 /// Topics to read from the wire (what local nodes read and no local node writes) and to
@@ -611,150 +685,246 @@ fn wire_topics(
     (inputs.into_iter().collect(), outputs)
 }
 
-async fn read_topic(
-    reader: RawReader,
-    index: usize,
-    topic: String,
-    participant: Arc<Participant>,
-    tx: SyncSender<Sample>,
-    status: Arc<Mutex<TransportStatus>>,
-) {
-    let mut stream = std::pin::pin!(reader.as_async_stream());
-    while let Some(r) = stream.next().await {
-        let change = match r {
-            Ok(c) => c,
-            Err(e) => {
-                let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
-                s.problem(
-                    Fault::Undecodable,
-                    &topic,
-                    format!("{topic}: a sample could not be read: {e}"),
-                );
-                continue;
+/// Runs `nodes` on the wire, each on its own thread ([`executor`]), until `stop` is set
+/// (Ctrl-C) or `opts.run_for` has passed, then finishes them in rank order (closing meshes,
+/// a last check), publishes what that gives and waits for reliable readers to acknowledge.
+///
+/// `specs` are the nodes' launch specs (their ROS names, parameters and executor options).
+///
+/// # Errors
+/// The participant, a reader or a writer cannot be created.
+pub fn run_nodes(
+    nodes: Vec<Box<dyn Node>>,
+    specs: &[NodeSpec],
+    opts: &LiveOptions,
+    stop: Arc<AtomicBool>,
+) -> Result<LiveSummary, LiveError> {
+    if nodes.is_empty() {
+        return Err(LiveError::Nothing("no node to run".into()));
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(1)
+        .enable_all()
+        .build()?;
+    let participant = Arc::new(Participant::new(opts.domain_id)?);
+    tracing::info!(domain = participant.domain_id(), "joined the DDS domain");
+    let status = Arc::new(Mutex::new(TransportStatus::default()));
+    let io_stop = Arc::new(AtomicBool::new(false));
+
+    // Each node's executor options, from its spec (nodes a spec makes more than one of, such
+    // as the carving node's display, share nothing but the spec's name prefix: defaults).
+    let unit_options: Vec<UnitOptions> = nodes
+        .iter()
+        .map(|n| {
+            let e = specs
+                .iter()
+                .find(|s| s.fqn == n.name())
+                .and_then(|s| s.executor().ok());
+            UnitOptions {
+                realtime: e.is_some_and(|e| e.realtime),
+                queue_depth: e
+                    .and_then(|e| e.queue_depth)
+                    .unwrap_or(opts.queue_capacity)
+                    .max(1),
             }
+        })
+        .collect();
+    let runtime_params: BTreeMap<String, Vec<(String, ParamValue)>> = nodes
+        .iter()
+        .map(|n| (n.name().to_owned(), n.runtime_parameters()))
+        .collect();
+
+    let (inputs, outputs) = wire_topics(&nodes, &opts.remote_subscribed);
+    let main_writers: BTreeMap<String, Arc<Mutex<RawWriter>>> = outputs
+        .iter()
+        .map(|t| {
+            let w = participant.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+            tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
+            Ok((t.topic.clone(), Arc::new(Mutex::new(w))))
+        })
+        .collect::<Result<_, LiveError>>()?;
+    let diagnostics = participant.writer(
+        "/diagnostics",
+        DiagnosticArray::TYPE_NAME,
+        TopicQos::for_type(DiagnosticArray::TYPE_NAME),
+    )?;
+
+    // Real-time nodes: their own participant and I/O thread; large outputs through a writer
+    // thread on the main participant.
+    let mut wires: Vec<Arc<dyn WireOut>> = Vec::new();
+    let mut rt_io = Vec::new();
+    let mut bulk_threads = Vec::new();
+    for (i, n) in nodes.iter().enumerate() {
+        let shared_out = || DdsOut {
+            writers: main_writers.clone(),
+            status: status.clone(),
         };
-        if participant.is_own(change.writer_guid) {
+        if !unit_options[i].realtime {
+            wires.push(Arc::new(shared_out()));
             continue;
         }
-        let mut s = status.lock().unwrap_or_else(|p| p.into_inner());
-        *s.received.entry(topic.clone()).or_default() += 1;
-        match tx.try_send(Sample {
-            topic: index,
-            bytes: change.sample,
-            at: Instant::now(),
-        }) {
-            Ok(()) => {}
-            Err(TrySendError::Full(_)) => s.problem(
-                Fault::Dropped,
-                &topic,
-                format!("{topic}: the nodes are behind (queue full): a sample was dropped"),
-            ),
-            Err(TrySendError::Disconnected(_)) => return,
+        let my_inputs: Vec<TopicRef> = n
+            .subscriptions()
+            .into_iter()
+            .filter(|s| inputs.contains(s))
+            .collect();
+        let small: Vec<TopicRef> = n
+            .publications()
+            .into_iter()
+            .filter(|p| !is_bulk(p.type_name) && main_writers.contains_key(&p.topic))
+            .collect();
+        let io = start_realtime_io(
+            opts.domain_id,
+            i,
+            my_inputs,
+            small,
+            status.clone(),
+            io_stop.clone(),
+        )?;
+        let (bulk_tx, bulk_rx) = crossbeam_channel::bounded::<Message>(BULK_QUEUE);
+        let bulk = shared_out();
+        bulk_threads.push(
+            std::thread::Builder::new()
+                .name(format!("bulk writer {}", n.name()))
+                .spawn(move || {
+                    for m in bulk_rx {
+                        bulk.write(&m);
+                    }
+                })
+                .map_err(LiveError::Runtime)?,
+        );
+        wires.push(Arc::new(RealtimeOut {
+            own: DdsOut {
+                writers: io.own.writers.clone(),
+                status: status.clone(),
+            },
+            bulk: bulk_tx,
+            status: status.clone(),
+        }));
+        tracing::info!(node = n.name(), "real-time: own thread and DDS participant");
+        rt_io.push(io);
+    }
+
+    let exec = Executor::start(nodes, &unit_options, wires, opts.tick)?;
+    let injector = exec.injector();
+
+    let mut ros_nodes = Vec::new();
+    for spec in specs {
+        // The launch's parameters, and those the node can change while it runs.
+        let mut params = spec.params.clone();
+        for (k, v) in runtime_params.get(&spec.fqn).into_iter().flatten() {
+            params.entry(k.clone()).or_insert_with(|| v.clone());
+        }
+        let mut n = participant.ros_node(&spec.fqn, &params, exec.param_sender(&spec.fqn))?;
+        let spinner = n
+            .spinner()
+            .map_err(|e| e.to_string())
+            .map_err(dds_err(format!("the spinner of {}", spec.fqn)))?;
+        runtime.spawn(async move {
+            if let Err(e) = spinner.spin().await {
+                tracing::warn!("a ROS node's spinner stopped: {e:?}");
+            }
+        });
+        ros_nodes.push(n);
+    }
+
+    for t in &inputs {
+        let targets: Vec<usize> = exec
+            .readers_of(&t.topic)
+            .into_iter()
+            .filter(|&(_, rt, ty)| !rt && ty == t.type_name)
+            .map(|(i, _, _)| i)
+            .collect();
+        if targets.is_empty() {
+            continue;
+        }
+        let reader = participant.reader(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+        tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
+        runtime.spawn(read_into(
+            reader,
+            t.clone(),
+            participant.clone(),
+            status.clone(),
+            injector.clone(),
+            targets,
+        ));
+    }
+    for io in &rt_io {
+        let _ = io.start.send(injector.clone());
+    }
+
+    let mut coordinator = Coordinator {
+        participants: std::iter::once(participant.clone())
+            .chain(rt_io.iter().map(|io| io.participant.clone()))
+            .collect(),
+        inputs,
+        diagnostics,
+        status: status.clone(),
+        wrong_writers: BTreeSet::new(),
+    };
+    let start = Instant::now();
+    let mut last_diag = start;
+    while !(stop.load(Ordering::Relaxed) || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
+        std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
+        if last_diag.elapsed() >= opts.diagnostics_period {
+            last_diag = Instant::now();
+            coordinator.check_foreign_types();
+            coordinator.publish_diagnostics(&exec.runs());
         }
     }
+    coordinator.check_foreign_types();
+    tracing::info!("stopping: the nodes finish what they have");
+    let runs = exec.finish(Duration::from_secs(30));
+    coordinator.publish_diagnostics(&runs);
+    io_stop.store(true, Ordering::Relaxed);
+    for t in bulk_threads {
+        let _ = t.join();
+    }
+    for w in main_writers
+        .values()
+        .chain(rt_io.iter().flat_map(|io| io.own.writers.values()))
+    {
+        // Reliable samples are resent until acknowledged; give readers a moment.
+        let _ = w
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .wait_for_acknowledgments(Duration::from_secs(2));
+    }
+    let summary = LiveSummary {
+        transport: coordinator.transport(&runs),
+        nodes: runs,
+    };
+    drop(coordinator);
+    drop(ros_nodes);
+    for io in rt_io {
+        let _ = io.thread.join();
+    }
+    runtime.shutdown_timeout(Duration::from_millis(500));
+    Ok(summary)
 }
 
-/// The nodes' thread: takes samples, runs the nodes, writes what they publish.
-struct Pump {
-    bus: Bus,
+/// The coordinating thread: `/diagnostics`, publishers of wrong types.
+struct Coordinator {
+    participants: Vec<Arc<Participant>>,
     inputs: Vec<TopicRef>,
-    writers: BTreeMap<String, RawWriter>,
     diagnostics: RawWriter,
     status: Arc<Mutex<TransportStatus>>,
-    lag: Vec<LagWindow>,
-    participant: Arc<Participant>,
     /// Writers already counted as publishing a wrong type.
     wrong_writers: BTreeSet<rustdds::GUID>,
-    /// Parameter changes asked for over ROS.
-    param_rx: Receiver<ParamRequest>,
 }
 
-impl Pump {
-    fn run(&mut self, rx: Receiver<Sample>, opts: &LiveOptions, stop: &AtomicBool) {
-        let start = Instant::now();
-        let mut last_tick = start;
-        let mut last_diag = start;
-        loop {
-            if stop.load(Ordering::Relaxed) || opts.run_for.is_some_and(|d| start.elapsed() >= d) {
-                break;
-            }
-            match rx.recv_timeout(opts.tick) {
-                Ok(s) => self.take(s),
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => std::thread::sleep(opts.tick),
-            }
-            while let Ok(req) = self.param_rx.try_recv() {
-                let r = self.bus.set_parameter(&req.node, &req.name, &req.value);
-                match &r {
-                    Ok(()) => tracing::info!(node = req.node, "parameter {} set", req.name),
-                    Err(e) => tracing::warn!(node = req.node, "parameter refused: {e}"),
-                }
-                let _ = req.reply.send(r);
-            }
-            if last_tick.elapsed() >= opts.tick {
-                last_tick = Instant::now();
-                let now_ns = start.elapsed().as_nanos() as i64;
-                let mut out = Vec::new();
-                self.bus.tick(now_ns, &mut |m| out.push(m.clone()));
-                for m in &out {
-                    self.send(m);
-                }
-            }
-            if last_diag.elapsed() >= opts.diagnostics_period {
-                last_diag = Instant::now();
-                self.check_foreign_types();
-                self.publish_diagnostics();
-            }
-        }
-        self.check_foreign_types();
-        tracing::info!("stopping: the nodes finish what they have");
-        let mut out = Vec::new();
-        self.bus.finish(&mut |m| out.push(m.clone()));
-        for m in &out {
-            self.send(m);
-        }
-        self.publish_diagnostics();
-        for w in self.writers.values() {
-            // Reliable samples are resent until acknowledged; give readers a moment.
-            let _ = w.wait_for_acknowledgments(Duration::from_secs(2));
-        }
-    }
-
-    fn take(&mut self, s: Sample) {
-        let Some(t) = self.inputs.get(s.topic) else {
-            return;
-        };
-        let busy = Instant::now();
-        match Payload::decode(t.type_name, &s.bytes.0) {
-            Ok(payload) => {
-                let msg = Message::new(&t.topic, wall_clock_ns(), payload);
-                let mut out = Vec::new();
-                self.bus.deliver(msg, &mut |m| out.push(m.clone()));
-                for m in &out {
-                    self.send(m);
-                }
-                if let Some(w) = self.lag.get_mut(s.topic) {
-                    w.add(s.at.elapsed().as_secs_f64(), busy.elapsed().as_secs_f64());
-                }
-            }
-            Err(e) => {
-                let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
-                st.problem(
-                    Fault::Undecodable,
-                    &t.topic,
-                    format!(
-                        "{}: a sample does not decode as {}: {e}",
-                        t.topic, t.type_name
-                    ),
-                );
-            }
-        }
-    }
-
+impl Coordinator {
     /// Counts, once per writer, publishers on an input topic whose type is not the one the
     /// nodes read: DDS never matches them, so without this their data would vanish silently.
     fn check_foreign_types(&mut self) {
-        let writers = self.participant.foreign_writers();
+        let Some(main) = self.participants.first() else {
+            return;
+        };
+        let writers: Vec<_> = main
+            .foreign_writers()
+            .into_iter()
+            .filter(|(_, _, g)| !self.participants.iter().any(|p| p.is_own(*g)))
+            .collect();
         for t in &self.inputs {
             let (topic, want) = (dds_topic_name(&t.topic), dds_type_name(t.type_name));
             for (_, ty, guid) in writers
@@ -778,35 +948,13 @@ impl Pump {
         }
     }
 
-    fn send(&self, m: &Message) {
-        let Some(w) = self.writers.get(&*m.topic) else {
-            return;
-        };
-        let r = m
-            .payload
-            .encode()
-            .map_err(|e| e.to_string())
-            .and_then(|bytes| write_stamped(w, bytes));
-        let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
-        match r {
-            Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
-            Err(e) => st.problem(
-                Fault::NotSent,
-                &m.topic,
-                format!("{}: not sent: {e}", m.topic),
-            ),
-        }
-    }
-
-    fn publish_diagnostics(&self) {
+    fn publish_diagnostics(&self, runs: &BTreeMap<String, NodeRun>) {
         let now = wall_clock_ns();
-        let mut status: Vec<DiagnosticStatus> = self
-            .bus
-            .statuses()
-            .into_iter()
-            .map(|(name, s)| node_diagnostic(name, s))
+        let mut status: Vec<DiagnosticStatus> = runs
+            .iter()
+            .map(|(name, r)| node_diagnostic(name, r))
             .collect();
-        status.push(transport_diagnostic(&self.transport()));
+        status.push(transport_diagnostic(&self.transport(runs)));
         let msg = DiagnosticArray {
             header: Header {
                 stamp: Time::from_nanos(now),
@@ -824,36 +972,43 @@ impl Pump {
         }
     }
 
-    /// The transport's counters, with the lag figures so far.
-    fn transport(&self) -> TransportStatus {
-        let mut transport = self
+    /// The transport's counters, with the nodes' drops, undecodable samples and lags of the
+    /// wire's topics (per topic, the worst node reading it).
+    fn transport(&self, runs: &BTreeMap<String, NodeRun>) -> TransportStatus {
+        let mut t = self
             .status
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .clone();
-        transport.lag = self
-            .inputs
-            .iter()
-            .zip(&self.lag)
-            .filter(|(_, w)| w.handled > 0)
-            .map(|(t, w)| (t.topic.clone(), w.stats()))
-            .collect();
-        transport
-    }
-
-    fn summary(&self) -> LiveSummary {
-        LiveSummary {
-            nodes: self
-                .bus
-                .statuses()
-                .into_iter()
-                .map(|(n, s)| (n.to_owned(), s.clone()))
-                .collect(),
-            transport: self.transport(),
+        for r in runs.values() {
+            for (topic, n) in &r.dropped {
+                if self.inputs.iter().any(|i| &i.topic == topic) {
+                    *t.dropped.entry(topic.clone()).or_default() += n;
+                }
+            }
+            for (topic, n) in &r.undecodable {
+                *t.undecodable.entry(topic.clone()).or_default() += n;
+            }
+            for (topic, l) in &r.lag {
+                if !self.inputs.iter().any(|i| &i.topic == topic) {
+                    continue;
+                }
+                let worse = t.lag.get(topic).is_none_or(|old| l.p99_ms > old.p99_ms);
+                if worse {
+                    t.lag.insert(topic.clone(), l.clone());
+                }
+            }
         }
+        for r in runs.values() {
+            for m in &r.status.messages {
+                if m.contains("does not decode") && t.messages.len() < NodeStatus::KEPT {
+                    t.messages.push(m.clone());
+                }
+            }
+        }
+        t
     }
 }
-
 /// Writes one sample with its source timestamp (now), as ROS 2's middleware does: readers
 /// (`ros2 topic delay`, a peer's `SampleInfo`) see when it was published.
 ///
@@ -893,19 +1048,49 @@ fn diagnostic(name: &str, problems: u64, summary: &str, values: Vec<KeyValue>) -
     }
 }
 
-/// A node's status as ROS diagnostics: WARN once it has counted a problem.
-pub fn node_diagnostic(name: &str, s: &NodeStatus) -> DiagnosticStatus {
-    let mut values = vec![kv("received", s.received), kv("published", s.published)];
+/// A node's status as ROS diagnostics: WARN once it has counted a problem or dropped a
+/// message, ERROR once it is stopped after a fault; with its CPU use.
+pub fn node_diagnostic(name: &str, r: &NodeRun) -> DiagnosticStatus {
+    let s = &r.status;
+    let mut values = vec![
+        kv("received", s.received),
+        kv("published", s.published),
+        kv("thread", r.thread),
+        kv("cpu_s", format!("{:.3}", r.cpu_s)),
+        kv("cpu_percent", format!("{:.1}", r.cpu_percent)),
+        kv("max_batch", r.max_batch),
+    ];
+    values.extend(r.scheduling.as_ref().map(|s| kv("scheduling", s)));
+    values.extend(r.dropped.iter().map(|(t, n)| kv(format!("dropped.{t}"), n)));
+    values.extend(
+        r.undecodable
+            .iter()
+            .map(|(t, n)| kv(format!("undecodable.{t}"), n)),
+    );
+    for (topic, l) in &r.lag {
+        values.push(kv(format!("lag_p99_ms.{topic}"), format!("{:.3}", l.p99_ms)));
+    }
     values.extend(
         s.problems
             .iter()
             .map(|(k, n)| kv(format!("problem.{k}"), n)),
     );
     values.extend(s.messages.last().map(|m| kv("last_problem", m)));
+    if let Some(why) = &r.stopped {
+        values.push(kv("stopped", why));
+        return DiagnosticStatus {
+            level: DiagnosticStatus::ERROR,
+            name: name.to_owned(),
+            message: format!("stopped after a fault ({why}); the other nodes go on"),
+            hardware_id: String::new(),
+            values,
+        };
+    }
+    let dropped: u64 = r.dropped.values().sum();
     diagnostic(
         name,
-        s.problem_count(),
-        "problem(s), counted and skipped",
+        s.problem_count() + dropped,
+        "problem(s) or dropped message(s), counted and skipped",
         values,
     )
 }

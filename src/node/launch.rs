@@ -159,6 +159,43 @@ pub struct NodeSpec {
     pub remaps: BTreeMap<String, String>,
 }
 
+/// Parameters every node takes, read by the live executor, not by the node itself.
+pub const EXECUTOR_PARAMS: [&str; 2] = ["realtime", "queue_depth"];
+
+/// How the live executor runs one node (its `realtime` and `queue_depth` parameters).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ExecutorSpec {
+    /// The node's handler runs on a thread nothing else uses, at real-time priority
+    /// (SCHED_FIFO) where the system allows, with its own DDS participant for its inputs and
+    /// small outputs; it never waits for another node.
+    pub realtime: bool,
+    /// Messages waiting for the node, all its topics together; beyond it a new message is
+    /// dropped and counted (`None`: the launch's `--queue`).
+    pub queue_depth: Option<usize>,
+}
+
+impl NodeSpec {
+    /// The node's executor parameters.
+    ///
+    /// # Errors
+    /// `realtime` is not a bool, or `queue_depth` not an integer in 1..=65536.
+    pub fn executor(&self) -> Result<ExecutorSpec, LaunchError> {
+        let mut p = Params {
+            spec: self,
+            taken: BTreeSet::new(),
+        };
+        let realtime = p.bool("realtime", false)?;
+        let queue_depth = match self.params.get("queue_depth") {
+            None => None,
+            Some(_) => Some(p.int("queue_depth", 256, 1..=65536)? as usize),
+        };
+        Ok(ExecutorSpec {
+            realtime,
+            queue_depth,
+        })
+    }
+}
+
 /// A whole launch config.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct LaunchConfig {
@@ -520,12 +557,15 @@ impl LaunchConfig {
                     ));
                 }
             }
-            nodes.push(NodeSpec {
+            let spec = NodeSpec {
                 kind,
                 fqn,
                 params,
                 remaps,
-            });
+            };
+            // The executor's parameters are checked here: every node kind takes them.
+            spec.executor()?;
+            nodes.push(spec);
         }
         Ok(Self { path: None, nodes })
     }
@@ -545,11 +585,12 @@ pub struct Params<'a> {
 }
 
 impl<'a> Params<'a> {
-    /// The parameters of `spec`.
+    /// The parameters of `spec`. The executor's ([`EXECUTOR_PARAMS`]) count as taken: they
+    /// are read by [`NodeSpec::executor`], for every node kind.
     pub fn of(spec: &'a NodeSpec) -> Self {
         Self {
             spec,
-            taken: BTreeSet::new(),
+            taken: EXECUTOR_PARAMS.iter().copied().collect(),
         }
     }
 

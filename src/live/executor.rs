@@ -1,0 +1,919 @@
+//! The live executor: every node on a thread of its own, fed through its own bounded queue.
+//!
+//! The model is rclcpp's multi-threaded executor with one mutually exclusive callback group
+//! per node: a node's handlers never run concurrently with each other (the node is a plain
+//! state machine), while different nodes run at once on different cores.
+//!
+//! - **Queues.** Each node has a bounded queue (`queue_depth`, all its topics together). A
+//!   sample from the wire that finds it full is dropped and counted for that node and topic.
+//!   A message from another node in the process waits for room (back-pressure: mesh pieces
+//!   are never dropped between a mesher and a checker), at most [`LOCAL_SEND_WAIT`], then it
+//!   is dropped and counted; a real-time node's messages never wait (dropped and counted
+//!   when the queue is full).
+//! - **Batches.** When a node takes a message, it takes everything else waiting in its queue
+//!   too (at most [`MAX_BATCH`]) and handles them as one batch ([`Node::on_messages`]), so a
+//!   node that can (the mesher's bodies) works on them in parallel.
+//! - **Real-time nodes** (`realtime: true`) run at SCHED_FIFO priority where the system
+//!   allows it (the result is reported in `/diagnostics` and the summary), on a thread
+//!   nothing else uses, and their wire traffic goes through a DDS participant of their own,
+//!   so a large message of another node never queues in front of theirs.
+//! - **Faults.** A node whose handler panics is stopped: the panic is caught, counted and
+//!   reported (`/diagnostics` ERROR, the summary's `stopped`), the messages sent to it after
+//!   that are counted as dropped, and every other node goes on.
+//! - **Finishing.** On stop, nodes finish in increasing [`Node::rank`]: a rank's nodes
+//!   finish (each after the messages already in its queue) and what they publish reaches the
+//!   next rank's queues before that rank is told to finish, as on the in-process bus.
+//!
+//! The executor knows nothing of DDS: the wire is behind [`WireOut`] (what a node publishes
+//! that leaves the process) and [`Executor::inject`] (what comes in), so the tests run it
+//! in memory.
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, SendTimeoutError, Sender, TrySendError};
+use serde::Serialize;
+
+use super::{LagStats, ParamRequest};
+use crate::node::{Message, Node, NodeStatus, Payload};
+
+/// Longest a message from one node waits for room in another node's queue before it is
+/// dropped and counted (a non-real-time publisher only).
+pub const LOCAL_SEND_WAIT: Duration = Duration::from_secs(2);
+
+/// Most messages a node takes from its queue in one batch.
+pub const MAX_BATCH: usize = 64;
+
+/// SCHED_FIFO priority of real-time nodes' threads (1..=99; below the kernel's own
+/// real-time threads at 99 and typical IRQ threads at 50).
+pub const REALTIME_PRIORITY: i32 = 40;
+
+/// Where a node's published messages go when they leave the process.
+pub trait WireOut: Send + Sync {
+    /// Writes `m` to the wire if its topic goes there (counted by the implementation).
+    fn send(&self, m: &Message);
+}
+
+/// A wire that takes nothing (in-process runs and tests).
+pub struct NoWire;
+
+impl WireOut for NoWire {
+    fn send(&self, _m: &Message) {}
+}
+
+/// A serialised sample from the wire, decoded on the node's thread.
+pub struct RawSample {
+    /// The topic.
+    pub topic: Arc<str>,
+    /// The type the node reads on it.
+    pub type_name: &'static str,
+    /// CDR bytes with the encapsulation header (shared by every node that reads the topic).
+    pub bytes: Arc<Vec<u8>>,
+    /// When the reader took it from DDS.
+    pub at: Instant,
+}
+
+/// What a node's queue carries.
+pub enum Input {
+    /// A sample from the wire.
+    Wire(RawSample),
+    /// A message another node of the process published.
+    Local(Message, Instant),
+    /// A parameter change asked for over ROS.
+    Param(ParamRequest),
+    /// The inputs have ended: finish, then acknowledge.
+    Finish(Sender<()>),
+    /// End the thread.
+    Stop,
+}
+
+/// How one node runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UnitOptions {
+    /// See [`crate::node::launch::ExecutorSpec::realtime`].
+    pub realtime: bool,
+    /// Its queue's capacity.
+    pub queue_depth: usize,
+}
+
+/// What the executor reports of one node.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct NodeRun {
+    /// The node's own counters and problems.
+    #[serde(flatten)]
+    pub status: NodeStatus,
+    /// `"shared"` or `"realtime"`.
+    pub thread: &'static str,
+    /// For a real-time node: `SCHED_FIFO <priority>`, or why the system refused it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scheduling: Option<String>,
+    /// CPU time of the node's thread (s): its handlers, decoding, and its writes.
+    pub cpu_s: f64,
+    /// Its share of one core over the last diagnostics period, in percent.
+    pub cpu_percent: f64,
+    /// Messages for it dropped because its queue was full (or it was stopped), per topic.
+    pub dropped: BTreeMap<String, u64>,
+    /// Messages for it that did not decode as the topic's type, per topic.
+    pub undecodable: BTreeMap<String, u64>,
+    /// Per input topic: from the reader (or the publishing node) to the end of its handling.
+    pub lag: BTreeMap<String, LagStats>,
+    /// Largest batch it took at once.
+    pub max_batch: usize,
+    /// Why it was stopped (a panic's message), if it was.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stopped: Option<String>,
+}
+
+/// The recent lags of one topic (a bounded ring), from which [`LagStats`] are computed.
+#[derive(Debug, Default, Clone)]
+pub(crate) struct LagWindow {
+    pub(crate) handled: u64,
+    lag: Vec<f64>,
+    busy: Vec<f64>,
+    next: usize,
+    max: f64,
+    busy_total: f64,
+}
+
+impl LagWindow {
+    pub(crate) fn add(&mut self, lag_s: f64, busy_s: f64) {
+        self.handled += 1;
+        self.max = self.max.max(lag_s);
+        self.busy_total += busy_s;
+        if self.lag.len() < LagStats::WINDOW {
+            self.lag.push(lag_s);
+            self.busy.push(busy_s);
+        } else {
+            self.lag[self.next] = lag_s;
+            self.busy[self.next] = busy_s;
+            self.next = (self.next + 1) % LagStats::WINDOW;
+        }
+    }
+
+    pub(crate) fn stats(&self) -> LagStats {
+        let pct = |v: &[f64], q: f64| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            v.get(((v.len() as f64 - 1.0) * q).round() as usize)
+                .copied()
+                .unwrap_or(0.0)
+                * 1e3
+        };
+        LagStats {
+            handled: self.handled,
+            p50_ms: pct(&self.lag, 0.5),
+            p99_ms: pct(&self.lag, 0.99),
+            max_ms: self.max * 1e3,
+            busy_p50_ms: pct(&self.busy, 0.5),
+            busy_total_s: self.busy_total,
+        }
+    }
+}
+
+/// A node's figures as its thread keeps them; the coordinator reads a copy.
+struct Shared {
+    run: NodeRun,
+    lag: BTreeMap<String, LagWindow>,
+    cpu_at_last: (Instant, f64),
+}
+
+struct UnitHandle {
+    name: String,
+    rank: u8,
+    realtime: bool,
+    tx: Sender<Input>,
+    shared: Arc<Mutex<Shared>>,
+    thread: Option<JoinHandle<()>>,
+}
+
+/// Routes between the nodes of the process: by topic, the queues of the nodes reading it.
+struct Routes {
+    by_topic: BTreeMap<String, Vec<(usize, &'static str)>>,
+    queues: Vec<(Sender<Input>, Arc<Mutex<Shared>>)>,
+    names: Vec<String>,
+}
+
+/// Nodes running on their threads.
+pub struct Executor {
+    units: Vec<UnitHandle>,
+    routes: Arc<Routes>,
+    start: Instant,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
+/// CPU time of the calling thread (s).
+pub fn thread_cpu_s() -> f64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime writes one timespec through a valid pointer.
+    let r = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+    if r == 0 {
+        ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+    } else {
+        0.0
+    }
+}
+
+/// Puts the calling thread at SCHED_FIFO `priority`: `Ok("SCHED_FIFO 40")`, or why not
+/// (without CAP_SYS_NICE or an rtprio limit the system refuses; the node then runs at normal
+/// priority, still on its own thread). Threads it starts afterwards inherit the policy.
+pub fn make_realtime(priority: i32) -> Result<String, String> {
+    let param = libc::sched_param {
+        sched_priority: priority,
+    };
+    // SAFETY: pthread_self is always valid; param is a valid sched_param.
+    let r = unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) };
+    if r == 0 {
+        Ok(format!("SCHED_FIFO {priority}"))
+    } else {
+        Err(format!(
+            "SCHED_FIFO {priority} refused ({}): normal priority on its own thread; \
+             grant CAP_SYS_NICE or an rtprio limit (ulimit -r) for real-time scheduling",
+            std::io::Error::from_raw_os_error(r)
+        ))
+    }
+}
+
+fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}
+
+impl Routes {
+    /// Delivers `out` (published by node `from`) to the nodes reading each topic, then to
+    /// the wire.
+    fn route(&self, from: usize, realtime: bool, out: &mut Vec<Message>, wire: &dyn WireOut) {
+        for m in out.drain(..) {
+            if let Some(subs) = self.by_topic.get(&*m.topic) {
+                for &(to, ty) in subs {
+                    if to == from {
+                        continue;
+                    }
+                    let (tx, shared) = &self.queues[to];
+                    if ty != m.payload.type_name() {
+                        let text = format!(
+                            "{}: {} publishes {}, {} reads {ty}: not delivered",
+                            m.topic,
+                            self.names[from],
+                            m.payload.type_name(),
+                            self.names[to]
+                        );
+                        let mut s = lock(shared);
+                        let name = self.names[to].clone();
+                        s.run.status.problem(&name, "misrouted", text);
+                        continue;
+                    }
+                    let input = Input::Local(m.clone(), Instant::now());
+                    let sent = if realtime {
+                        match tx.try_send(input) {
+                            Ok(()) => Ok(()),
+                            Err(TrySendError::Full(_)) => Err("its queue is full"),
+                            Err(TrySendError::Disconnected(_)) => Err("it has ended"),
+                        }
+                    } else {
+                        match tx.send_timeout(input, LOCAL_SEND_WAIT) {
+                            Ok(()) => Ok(()),
+                            Err(SendTimeoutError::Timeout(_)) => {
+                                Err("its queue stayed full for LOCAL_SEND_WAIT")
+                            }
+                            Err(SendTimeoutError::Disconnected(_)) => Err("it has ended"),
+                        }
+                    };
+                    if let Err(why) = sent {
+                        let mut s = lock(shared);
+                        *s.run.dropped.entry(m.topic.to_string()).or_default() += 1;
+                        if s.run.dropped.values().sum::<u64>() == 1 {
+                            tracing::warn!(
+                                node = self.names[to],
+                                topic = %m.topic,
+                                "a message from {} was dropped: {why}",
+                                self.names[from]
+                            );
+                        }
+                    }
+                }
+            }
+            wire.send(&m);
+        }
+    }
+}
+
+/// Everything one node's thread needs.
+struct Unit {
+    index: usize,
+    name: String,
+    node: Option<Box<dyn Node>>,
+    rx: Receiver<Input>,
+    shared: Arc<Mutex<Shared>>,
+    routes: Arc<Routes>,
+    wire: Arc<dyn WireOut>,
+    realtime: bool,
+    tick: Duration,
+    start: Instant,
+}
+
+impl Unit {
+    fn run(mut self) {
+        if self.realtime {
+            let r = make_realtime(REALTIME_PRIORITY);
+            match &r {
+                Ok(s) => tracing::info!(node = self.name, "real-time: {s}"),
+                Err(e) => tracing::warn!(node = self.name, "real-time: {e}"),
+            }
+            lock(&self.shared).run.scheduling = Some(r.unwrap_or_else(|e| e));
+        }
+        let mut next_tick = Instant::now() + self.tick;
+        let mut next_report = Instant::now();
+        let mut pending: Option<Input> = None;
+        let mut out = Vec::new();
+        loop {
+            let first = match pending.take() {
+                Some(i) => i,
+                None => {
+                    let wait = next_tick.saturating_duration_since(Instant::now());
+                    match self.rx.recv_timeout(wait) {
+                        Ok(i) => i,
+                        Err(RecvTimeoutError::Timeout) => {
+                            self.tick(&mut out);
+                            next_tick = Instant::now() + self.tick;
+                            self.report(&mut next_report);
+                            continue;
+                        }
+                        Err(RecvTimeoutError::Disconnected) => break,
+                    }
+                }
+            };
+            match first {
+                Input::Param(req) => {
+                    let r = match self.node.as_mut() {
+                        Some(n) => n.set_parameter(&req.name, &req.value),
+                        None => Err(format!("{}: stopped after a fault", req.node)),
+                    };
+                    match &r {
+                        Ok(()) => tracing::info!(node = req.node, "parameter {} set", req.name),
+                        Err(e) => tracing::warn!(node = req.node, "parameter refused: {e}"),
+                    }
+                    let _ = req.reply.send(r);
+                }
+                Input::Stop => break,
+                Input::Finish(ack) => {
+                    self.guarded(&mut out, |n, out| n.finish(out));
+                    self.routes
+                        .route(self.index, self.realtime, &mut out, self.wire.as_ref());
+                    self.report(&mut Instant::now());
+                    let _ = ack.send(());
+                }
+                first => {
+                    // Everything waiting, up to a control input (handled in order next).
+                    let mut batch = vec![first];
+                    while batch.len() < MAX_BATCH {
+                        match self.rx.try_recv() {
+                            Ok(i @ (Input::Wire(_) | Input::Local(..))) => batch.push(i),
+                            Ok(other) => {
+                                pending = Some(other);
+                                break;
+                            }
+                            Err(_) => break,
+                        }
+                    }
+                    self.handle(batch, &mut out);
+                }
+            }
+            if Instant::now() >= next_tick {
+                self.tick(&mut out);
+                next_tick = Instant::now() + self.tick;
+            }
+            self.report(&mut next_report);
+        }
+        self.report(&mut Instant::now());
+    }
+
+    /// Runs `f` on the node, catching a panic: the node is then stopped and reported.
+    fn guarded(&mut self, out: &mut Vec<Message>, f: impl FnOnce(&mut dyn Node, &mut Vec<Message>)) {
+        let Some(node) = self.node.as_mut() else {
+            return;
+        };
+        let before = out.len();
+        let r = catch_unwind(AssertUnwindSafe(|| f(node.as_mut(), out)));
+        if let Err(p) = r {
+            let text = panic_text(p.as_ref());
+            tracing::error!(
+                node = self.name,
+                "the node panicked and is stopped (the other nodes go on): {text}"
+            );
+            out.truncate(before);
+            let mut s = lock(&self.shared);
+            s.run.stopped = Some(format!("panicked: {text}"));
+            s.run.status = node.status().clone();
+            self.node = None;
+        }
+    }
+
+    fn handle(&mut self, batch: Vec<Input>, out: &mut Vec<Message>) {
+        let mut msgs = Vec::with_capacity(batch.len());
+        let mut arrivals = Vec::with_capacity(batch.len());
+        for input in batch {
+            match input {
+                Input::Wire(s) => match Payload::decode(s.type_name, &s.bytes) {
+                    Ok(payload) => {
+                        msgs.push(Message::new(&s.topic, wall_clock_ns(), payload));
+                        arrivals.push(s.at);
+                    }
+                    Err(e) => {
+                        let mut sh = lock(&self.shared);
+                        *sh.run.undecodable.entry(s.topic.to_string()).or_default() += 1;
+                        let text = format!(
+                            "{}: a sample does not decode as {}: {e}",
+                            s.topic, s.type_name
+                        );
+                        tracing::warn!(node = self.name, "{text}");
+                        if sh.run.status.messages.len() < NodeStatus::KEPT {
+                            sh.run.status.messages.push(text);
+                        }
+                    }
+                },
+                Input::Local(m, at) => {
+                    msgs.push(m);
+                    arrivals.push(at);
+                }
+                Input::Param(_) | Input::Finish(_) | Input::Stop => {}
+            }
+        }
+        if msgs.is_empty() {
+            return;
+        }
+        if self.node.is_none() {
+            let mut sh = lock(&self.shared);
+            for m in &msgs {
+                *sh.run.dropped.entry(m.topic.to_string()).or_default() += 1;
+            }
+            return;
+        }
+        let busy = Instant::now();
+        self.guarded(out, |n, out| n.on_messages(&msgs, out));
+        self.routes
+            .route(self.index, self.realtime, out, self.wire.as_ref());
+        let busy_s = busy.elapsed().as_secs_f64() / msgs.len() as f64;
+        let mut sh = lock(&self.shared);
+        sh.run.max_batch = sh.run.max_batch.max(msgs.len());
+        for (m, at) in msgs.iter().zip(arrivals) {
+            sh.lag
+                .entry(m.topic.to_string())
+                .or_default()
+                .add(at.elapsed().as_secs_f64(), busy_s);
+        }
+    }
+
+    fn tick(&mut self, out: &mut Vec<Message>) {
+        let now_ns = self.start.elapsed().as_nanos() as i64;
+        self.guarded(out, |n, out| n.on_tick(now_ns, out));
+        self.routes
+            .route(self.index, self.realtime, out, self.wire.as_ref());
+    }
+
+    /// Copies the node's status and CPU time for the coordinator (at most 5 times a second).
+    fn report(&mut self, next: &mut Instant) {
+        if Instant::now() < *next {
+            return;
+        }
+        *next = Instant::now() + Duration::from_millis(200);
+        let cpu = thread_cpu_s();
+        let mut sh = lock(&self.shared);
+        if let Some(n) = &self.node {
+            let kept = std::mem::take(&mut sh.run.status.messages);
+            sh.run.status = n.status().clone();
+            // Decoding problems are the executor's, kept with the node's.
+            for m in kept {
+                if !sh.run.status.messages.contains(&m)
+                    && sh.run.status.messages.len() < NodeStatus::KEPT
+                {
+                    sh.run.status.messages.push(m);
+                }
+            }
+        }
+        let (t0, c0) = sh.cpu_at_last;
+        let dt = t0.elapsed().as_secs_f64();
+        if dt >= 0.9 {
+            sh.run.cpu_percent = 100.0 * (cpu - c0) / dt;
+            sh.cpu_at_last = (Instant::now(), cpu);
+        }
+        sh.run.cpu_s = cpu;
+    }
+}
+
+fn wall_clock_ns() -> i64 {
+    std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.as_nanos() as i64)
+}
+
+impl Executor {
+    /// Starts every node on its thread. `wires[i]` takes what node `i` publishes to the
+    /// wire; `tick` is how often the nodes see the clock.
+    ///
+    /// # Errors
+    /// The OS refuses a thread.
+    pub fn start(
+        nodes: Vec<Box<dyn Node>>,
+        options: &[UnitOptions],
+        wires: Vec<Arc<dyn WireOut>>,
+        tick: Duration,
+    ) -> std::io::Result<Self> {
+        let start = Instant::now();
+        let mut by_topic: BTreeMap<String, Vec<(usize, &'static str)>> = BTreeMap::new();
+        for (i, n) in nodes.iter().enumerate() {
+            for s in n.subscriptions() {
+                by_topic.entry(s.topic).or_default().push((i, s.type_name));
+            }
+        }
+        let mut channels = Vec::new();
+        let mut shared = Vec::new();
+        for (i, n) in nodes.iter().enumerate() {
+            let o = options.get(i).copied().unwrap_or(UnitOptions {
+                realtime: false,
+                queue_depth: 256,
+            });
+            channels.push(bounded::<Input>(o.queue_depth.max(1)));
+            let sh = Shared {
+                run: NodeRun {
+                    status: n.status().clone(),
+                    thread: if o.realtime { "realtime" } else { "shared" },
+                    ..NodeRun::default()
+                },
+                lag: BTreeMap::new(),
+                cpu_at_last: (start, 0.0),
+            };
+            shared.push(Arc::new(Mutex::new(sh)));
+        }
+        let routes = Arc::new(Routes {
+            by_topic,
+            queues: channels
+                .iter()
+                .zip(&shared)
+                .map(|((tx, _), sh)| (tx.clone(), sh.clone()))
+                .collect(),
+            names: nodes.iter().map(|n| n.name().to_owned()).collect(),
+        });
+        let mut units = Vec::new();
+        let mut wires = wires.into_iter();
+        for (i, ((node, (tx, rx)), sh)) in nodes.into_iter().zip(channels).zip(shared).enumerate()
+        {
+            let realtime = options.get(i).is_some_and(|o| o.realtime);
+            let name = node.name().to_owned();
+            let rank = node.rank();
+            let unit = Unit {
+                index: i,
+                name: name.clone(),
+                node: Some(node),
+                rx,
+                shared: sh.clone(),
+                routes: routes.clone(),
+                wire: wires.next().unwrap_or_else(|| Arc::new(NoWire)),
+                realtime,
+                tick,
+                start,
+            };
+            let thread = std::thread::Builder::new()
+                .name(format!("node {name}"))
+                .spawn(move || unit.run())?;
+            units.push(UnitHandle {
+                name,
+                rank,
+                realtime,
+                tx,
+                shared: sh,
+                thread: Some(thread),
+            });
+        }
+        Ok(Self {
+            units,
+            routes,
+            start,
+        })
+    }
+
+    /// When the executor started.
+    pub fn started(&self) -> Instant {
+        self.start
+    }
+
+    /// What the readers hand wire samples to.
+    pub fn injector(&self) -> Injector {
+        Injector(self.routes.clone())
+    }
+
+    /// Hands a sample from the wire to every node reading `sample.topic` (queued, or
+    /// dropped and counted for a node whose queue is full). How many nodes took it.
+    pub fn inject(&self, sample: &RawSample) -> usize {
+        let subs = self.readers_of(&sample.topic);
+        let injector = self.injector();
+        subs.into_iter()
+            .filter(|&(i, _, _)| {
+                injector.inject_to(
+                    i,
+                    RawSample {
+                        topic: sample.topic.clone(),
+                        type_name: sample.type_name,
+                        bytes: sample.bytes.clone(),
+                        at: sample.at,
+                    },
+                )
+            })
+            .count()
+    }
+
+    /// Nodes reading `topic` from the wire, by index: `(index, realtime, type)`.
+    pub fn readers_of(&self, topic: &str) -> Vec<(usize, bool, &'static str)> {
+        self.routes
+            .by_topic
+            .get(topic)
+            .map(|subs| {
+                subs.iter()
+                    .map(|&(i, ty)| (i, self.units[i].realtime, ty))
+                    .collect()
+            })
+            .unwrap_or_default()
+    }
+
+    /// The queue of the node named `node`, for parameter requests.
+    pub fn param_sender(&self, node: &str) -> Option<Sender<Input>> {
+        self.units
+            .iter()
+            .find(|u| u.name == node)
+            .map(|u| u.tx.clone())
+    }
+
+    /// Every node's figures now.
+    pub fn runs(&self) -> BTreeMap<String, NodeRun> {
+        self.units
+            .iter()
+            .map(|u| {
+                let sh = lock(&u.shared);
+                let mut run = sh.run.clone();
+                run.lag = sh
+                    .lag
+                    .iter()
+                    .filter(|(_, w)| w.handled > 0)
+                    .map(|(t, w)| (t.clone(), w.stats()))
+                    .collect();
+                (u.name.clone(), run)
+            })
+            .collect()
+    }
+
+    /// Finishes the nodes in increasing rank (each after what is in its queue), waiting at
+    /// most `wait` per rank, then ends their threads.
+    pub fn finish(mut self, wait: Duration) -> BTreeMap<String, NodeRun> {
+        let mut ranks: Vec<u8> = self.units.iter().map(|u| u.rank).collect();
+        ranks.sort_unstable();
+        ranks.dedup();
+        for r in ranks {
+            let acks: Vec<_> = self
+                .units
+                .iter()
+                .filter(|u| u.rank == r)
+                .map(|u| {
+                    let (tx, rx) = bounded(1);
+                    let _ = u.tx.send_timeout(Input::Finish(tx), wait);
+                    (u.name.clone(), rx)
+                })
+                .collect();
+            for (name, rx) in acks {
+                if rx.recv_timeout(wait).is_err() {
+                    tracing::warn!(node = name, "did not finish within {wait:?}");
+                }
+            }
+        }
+        for u in &self.units {
+            let _ = u.tx.send_timeout(Input::Stop, wait);
+        }
+        for u in &mut self.units {
+            if let Some(t) = u.thread.take() {
+                let _ = t.join();
+            }
+        }
+        self.runs()
+    }
+}
+
+/// Hands wire samples to the nodes' queues (held by the readers).
+#[derive(Clone)]
+pub struct Injector(Arc<Routes>);
+
+impl Injector {
+    /// Hands `sample` to node `index`: queued, or dropped and counted for that node and
+    /// topic if its queue is full. Whether it was queued.
+    pub fn inject_to(&self, index: usize, sample: RawSample) -> bool {
+        let Some((tx, shared)) = self.0.queues.get(index) else {
+            return false;
+        };
+        let topic = sample.topic.clone();
+        match tx.try_send(Input::Wire(sample)) {
+            Ok(()) => true,
+            Err(_) => {
+                let mut sh = lock(shared);
+                let first = sh.run.dropped.is_empty();
+                *sh.run.dropped.entry(topic.to_string()).or_default() += 1;
+                if first {
+                    tracing::warn!(
+                        node = self.0.names[index],
+                        topic = %topic,
+                        "the node is behind (queue full): a sample was dropped (counted)"
+                    );
+                }
+                false
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msg::{Header, PoseStamped, RosMessage, Time};
+    use crate::node::TopicRef;
+
+    /// Reads `input`, republishes every pose on `output`; panics on a pose at `panic_at`.
+    struct Relay {
+        name: String,
+        input: String,
+        output: String,
+        rank: u8,
+        panic_at: Option<f64>,
+        sleep: Duration,
+        seen: Arc<Mutex<Vec<f64>>>,
+        status: NodeStatus,
+    }
+
+    fn relay(name: &str, input: &str, output: &str, rank: u8) -> (Relay, Arc<Mutex<Vec<f64>>>) {
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let r = Relay {
+            name: name.into(),
+            input: input.into(),
+            output: output.into(),
+            rank,
+            panic_at: None,
+            sleep: Duration::ZERO,
+            seen: seen.clone(),
+            status: NodeStatus::default(),
+        };
+        (r, seen)
+    }
+
+    fn pose(x: f64) -> Payload {
+        let mut p = PoseStamped {
+            header: Header {
+                stamp: Time::from_nanos(1),
+                frame_id: "world".into(),
+            },
+            ..PoseStamped::default()
+        };
+        p.pose.position.x = x;
+        Payload::PoseStamped(Arc::new(p))
+    }
+
+    impl Node for Relay {
+        fn as_any(&self) -> &dyn std::any::Any {
+            self
+        }
+        fn name(&self) -> &str {
+            &self.name
+        }
+        fn subscriptions(&self) -> Vec<TopicRef> {
+            vec![TopicRef {
+                topic: self.input.clone(),
+                type_name: PoseStamped::TYPE_NAME,
+            }]
+        }
+        fn publications(&self) -> Vec<TopicRef> {
+            vec![TopicRef {
+                topic: self.output.clone(),
+                type_name: PoseStamped::TYPE_NAME,
+            }]
+        }
+        fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
+            self.status.received += 1;
+            let Payload::PoseStamped(p) = &msg.payload else {
+                return;
+            };
+            let x = p.pose.position.x;
+            assert!(self.panic_at != Some(x), "unlucky pose {x}");
+            std::thread::sleep(self.sleep);
+            lock(&self.seen).push(x);
+            out.push(Message::new(&self.output, msg.stamp_ns, msg.payload.clone()));
+        }
+        fn finish(&mut self, out: &mut Vec<Message>) {
+            out.push(Message::new(&self.output, 0, pose(-1.0)));
+        }
+        fn status(&self) -> &NodeStatus {
+            &self.status
+        }
+        fn rank(&self) -> u8 {
+            self.rank
+        }
+    }
+
+    fn sample(topic: &str, x: f64) -> RawSample {
+        RawSample {
+            topic: topic.into(),
+            type_name: PoseStamped::TYPE_NAME,
+            bytes: Arc::new(pose(x).encode().unwrap()),
+            at: Instant::now(),
+        }
+    }
+
+    fn opts(depth: usize) -> UnitOptions {
+        UnitOptions {
+            realtime: false,
+            queue_depth: depth,
+        }
+    }
+
+    fn start(nodes: Vec<Box<dyn Node>>, options: &[UnitOptions]) -> Executor {
+        Executor::start(nodes, options, Vec::new(), Duration::from_millis(20)).unwrap()
+    }
+
+    #[test]
+    fn a_panicking_node_is_stopped_and_reported_while_the_others_go_on() {
+        let (mut a, seen_a) = relay("/a", "/in", "/mid", 0);
+        a.panic_at = Some(13.0);
+        let (b, seen_b) = relay("/b", "/mid", "/out", 1);
+        let (c, seen_c) = relay("/c", "/in", "/other", 0);
+        let exec = start(vec![Box::new(a), Box::new(b), Box::new(c)], &[opts(64); 3]);
+        for x in [1.0, 2.0, 13.0, 4.0, 5.0] {
+            assert_eq!(exec.inject(&sample("/in", x)), 2);
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        let runs = exec.finish(Duration::from_secs(5));
+        // /a panicked at 13: stopped, what came after is dropped and counted.
+        let a = &runs["/a"];
+        assert!(a.stopped.as_deref().unwrap().contains("unlucky pose 13"), "{a:?}");
+        assert_eq!(*lock(&seen_a), vec![1.0, 2.0]);
+        assert_eq!(a.dropped.get("/in"), Some(&2), "{a:?}");
+        // /b got what /a relayed before it stopped (and nothing from a finish /a never had).
+        assert_eq!(*lock(&seen_b), vec![1.0, 2.0]);
+        assert!(runs["/b"].stopped.is_none());
+        // /c, reading the same topic, saw everything.
+        assert_eq!(*lock(&seen_c), vec![1.0, 2.0, 13.0, 4.0, 5.0]);
+        assert!(runs["/c"].stopped.is_none());
+    }
+
+    #[test]
+    fn a_slow_node_drops_wire_samples_counted_for_itself_only() {
+        let (mut slow, seen_slow) = relay("/slow", "/in", "/s", 0);
+        slow.sleep = Duration::from_millis(30);
+        let (fast, seen_fast) = relay("/fast", "/in", "/f", 0);
+        let exec = start(vec![Box::new(slow), Box::new(fast)], &[opts(2), opts(64)]);
+        for x in 0..20 {
+            exec.inject(&sample("/in", f64::from(x)));
+        }
+        let runs = exec.finish(Duration::from_secs(10));
+        let slow = &runs["/slow"];
+        let dropped = slow.dropped.get("/in").copied().unwrap_or(0);
+        assert!(dropped >= 10, "{slow:?}");
+        assert_eq!(lock(&seen_slow).len() as u64 + dropped, 20);
+        assert_eq!(lock(&seen_fast).len(), 20);
+        assert!(runs["/fast"].dropped.is_empty());
+        assert_eq!(runs["/slow"].lag["/in"].handled + dropped, 20);
+    }
+
+    #[test]
+    fn nodes_finish_in_rank_order_so_the_last_messages_reach_the_next_rank() {
+        let (a, _) = relay("/a", "/in", "/mid", 0);
+        let (mut b, seen_b) = relay("/b", "/mid", "/out", 1);
+        // A slow reader: the finishing message must still reach it before it finishes.
+        b.sleep = Duration::from_millis(20);
+        let exec = start(vec![Box::new(b), Box::new(a)], &[opts(1), opts(64)]);
+        for x in 0..5 {
+            exec.inject(&sample("/in", f64::from(x)));
+        }
+        let runs = exec.finish(Duration::from_secs(10));
+        // Back-pressure between nodes: nothing dropped on /mid although /b's queue holds one.
+        assert!(runs["/b"].dropped.is_empty(), "{:?}", runs["/b"]);
+        assert_eq!(*lock(&seen_b), vec![0.0, 1.0, 2.0, 3.0, 4.0, -1.0]);
+    }
+
+    #[test]
+    fn a_batch_is_what_was_waiting() {
+        let (mut a, seen) = relay("/a", "/in", "/mid", 0);
+        a.sleep = Duration::from_millis(50);
+        let exec = start(vec![Box::new(a)], &[opts(64)]);
+        for x in 0..10 {
+            exec.inject(&sample("/in", f64::from(x)));
+        }
+        let runs = exec.finish(Duration::from_secs(10));
+        assert_eq!(lock(&seen).len(), 10);
+        assert!(runs["/a"].max_batch > 1, "{:?}", runs["/a"]);
+        assert!(runs["/a"].cpu_s >= 0.0);
+    }
+}
