@@ -83,17 +83,8 @@ fn every_pose_gets_a_wrench_before_any_frame_and_frames_follow_the_period() {
     assert_eq!(first, 0);
     assert!(n.workpiece().material_points() < 20 * 20 * 10);
     assert!(n.status().problems.is_empty(), "{:?}", n.status().problems);
-    // The surfel cloud carries a point per surfel.
-    let cloud = out
-        .iter()
-        .rev()
-        .find_map(|m| match &m.payload {
-            Payload::PointCloud2(c) => Some(c.clone()),
-            _ => None,
-        })
-        .unwrap();
-    assert_eq!(cloud.point_step, 32);
-    assert_eq!(cloud.data.len(), cloud.width as usize * 32);
+    // The force part publishes no cloud: the display does.
+    assert!(!out.iter().any(|m| matches!(m.payload, Payload::PointCloud2(_))));
     // Cutting resists the motion along x.
     let f = n.last_force();
     assert!(f[0] < 0.0, "{f:?}");
@@ -205,4 +196,73 @@ fn launch_parameters_are_checked() {
 fn a_thin_blade_is_reported() {
     let n = node("    - {name: knife_thickness_m, value: 0.0002}\n");
     assert_eq!(n.status().problems["thin_blade"], 1);
+}
+
+/// Every PointCloud2 the display publishes, by topic suffix.
+fn clouds<'a>(out: &'a [Message], suffix: &str) -> Vec<&'a chronotope::msg::PointCloud2> {
+    out.iter()
+        .filter(|m| m.topic.ends_with(suffix))
+        .filter_map(|m| match &m.payload {
+            Payload::PointCloud2(c) => Some(c.as_ref()),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A zigzag of knife moves through the block, going deeper: `n` poses at 1 kHz from `t0` ms.
+fn zigzag(t0: i64, n: i64) -> Vec<Message> {
+    (0..n)
+        .map(|k| {
+            let t = (t0 + k) as f64 * 1e-3;
+            let x = 0.002 + 0.016 * (0.5 + 0.5 * (t * 40.0).sin());
+            let y = 0.004 + 0.012 * (0.5 + 0.5 * (t * 13.0).cos());
+            let z = 0.0095 - 0.004 * (t / 0.3).min(1.0);
+            pose_msg(t0 + k, [x, y, z], ID, "world")
+        })
+        .collect()
+}
+
+#[test]
+fn the_display_copy_of_the_surfels_follows_the_workpiece_exactly_even_when_frames_are_missed() {
+    for missed_every in [0usize, 2, 3] {
+        let mut n = node("");
+        let mut d = n.display().unwrap();
+        let mut frames = 0usize;
+        let mut shown = Vec::new();
+        for m in zigzag(0, 300) {
+            let mut out = Vec::new();
+            n.on_message(&m, &mut out);
+            for f in out.iter().filter(|m| m.topic.ends_with("/occupancy")) {
+                frames += 1;
+                // Frames the display's queue dropped: it never sees them.
+                if missed_every > 0 && frames % missed_every == 0 {
+                    continue;
+                }
+                d.on_message(f, &mut shown);
+            }
+        }
+        let mut out = Vec::new();
+        n.finish(&mut out);
+        for f in &out {
+            d.on_message(f, &mut shown);
+        }
+        d.finish(&mut shown);
+        assert!(frames > 20, "{frames} frames");
+        let full = clouds(&shown, "/surfels");
+        let last = full.last().expect("a whole cloud at the end");
+        assert_eq!(last.data, n.workpiece().surfel_bytes(), "missed every {missed_every}");
+        assert_eq!(last.width as usize, n.workpiece().surfels().len());
+        let changed = clouds(&shown, "/surfels_changed");
+        assert!(!changed.is_empty());
+        for c in &changed {
+            assert_eq!(c.data.len(), c.width as usize * 32);
+            assert_eq!(c.point_step, 32);
+        }
+        // Changed clouds are far smaller than the whole one.
+        let mean = changed.iter().map(|c| c.data.len()).sum::<usize>() / changed.len();
+        assert!(mean < last.data.len(), "{mean} vs {}", last.data.len());
+        if missed_every > 0 {
+            assert!(n.status().problems.get("display_behind").is_some_and(|&c| c > 0));
+        }
+    }
 }

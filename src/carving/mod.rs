@@ -44,7 +44,10 @@ pub use force::{
 pub use math::{Quat, Vec3};
 pub use sweep::{CutStats, MAX_SUBSTEPS, MAX_SWEEP_POINTS_PER_POSE, MAX_SWEEP_ROWS_PER_POSE};
 pub use tool::{Tool, ToolKind};
-pub use workpiece::{Flag, Surfel, Workpiece, BYTES_PER_POINT, MAX_POINTS, WORKPIECE_MEMORY_BYTES};
+pub use workpiece::{
+    Flag, Surfel, SurfelDelta, Workpiece, BYTES_PER_POINT, MAX_POINTS, SURFEL_BYTES,
+    WORKPIECE_MEMORY_BYTES,
+};
 
 /// Why a workpiece, tool or pose was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

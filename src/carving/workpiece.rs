@@ -4,9 +4,11 @@
 use super::math::{add, scale, Vec3};
 use super::CarveError;
 
-/// Memory a workpiece may need at worst (bytes): 2 GiB, the budget of the carving node on
-/// the documented machine (2 cores, 8 GB, shared with the mesher and the checker).
-pub const WORKPIECE_MEMORY_BYTES: u64 = 2 << 30;
+/// Memory a workpiece may need at worst (bytes), with the carving node's display: 4 GiB, the
+/// budget of the carving node on the documented machine (2 cores, 8 GB, shared with the
+/// mesher and the checker). Only a workpiece whose every point carries a surfel comes near
+/// it; the 1.1M-surfel workpiece of the benchmarks touches about 0.5 GB.
+pub const WORKPIECE_MEMORY_BYTES: u64 = 4 << 30;
 
 /// Bytes one grid point costs at worst, in eighths of a byte (874 = 109.25 bytes):
 /// - its flag (1), surfel slot (4) and occupancy bit (1/8);
@@ -14,16 +16,21 @@ pub const WORKPIECE_MEMORY_BYTES: u64 = 2 << 30;
 ///   remove every point;
 /// - a surfel, reserved for every point since every material point can be BOUND (a comb
 ///   of one-spacing slabs): the `Surfel` (32), its owner (4) and its PointCloud2 bytes (32);
-/// - a published frame's copies of the bits (1/8) and of the surfel bytes (32).
+/// - a published frame's copies of the bits (1/8) and of the surfel bytes (32);
+/// - the display's share ([`SurfelDelta`]): a changed-slot bit (1/8), the display's copy of
+///   the surfel bytes (32), and two deltas of 36 bytes per changed surfel at most (one being
+///   applied, one waiting) with the changed surfels' PointCloud2 (32).
 ///
-/// Everything is reserved when the workpiece is built, so a run never grows past it.
-pub const BYTES_PER_POINT_EIGHTHS: u64 = 8 * (1 + 4 + 4 + 32 + 4 + 32 + 32) + 1 + 1;
+/// The workpiece's part is reserved when it is built, the display's when the display is,
+/// so a run never grows past it.
+pub const BYTES_PER_POINT_EIGHTHS: u64 =
+    8 * (1 + 4 + 4 + 32 + 4 + 32 + 32) + 1 + 1 + 1 + 8 * (32 + 36 + 36 + 32);
 
-/// [`BYTES_PER_POINT_EIGHTHS`] in bytes (109.25).
+/// [`BYTES_PER_POINT_EIGHTHS`] in bytes (245.375).
 pub const BYTES_PER_POINT: f64 = BYTES_PER_POINT_EIGHTHS as f64 / 8.0;
 
 /// Most grid points of a workpiece: [`WORKPIECE_MEMORY_BYTES`] / [`BYTES_PER_POINT`]
-/// = 19 656 600 (256³ = 16.8M fits; 270³ does not).
+/// = 17 503 687 (256³ = 16.8M fits; 260³ does not).
 pub const MAX_POINTS: u64 = WORKPIECE_MEMORY_BYTES * 8 / BYTES_PER_POINT_EIGHTHS;
 
 /// A vector of `n` copies of `v`, or a typed error if the memory cannot be had.
@@ -132,6 +139,48 @@ pub struct Workpiece {
     pub(crate) removed: Vec<u32>,
     /// Scratch: row spans of a sweep.
     pub(crate) spans: Vec<(usize, usize, usize)>,
+    /// Surfel slots written or moved since the last [`Workpiece::take_surfel_delta`], one
+    /// bit per slot.
+    changed: Vec<u64>,
+    /// Words of `changed` below this may have bits set.
+    changed_hi: usize,
+}
+
+/// What changed in the surfel cloud since the last delta: the cloud's new length and the
+/// bytes of every slot below it that was written or moved. Applied in order to a copy of
+/// the cloud ([`SurfelDelta::apply`]), it gives the workpiece's [`Workpiece::surfel_bytes`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SurfelDelta {
+    /// Surfels in the cloud after the change.
+    pub len: usize,
+    /// `(slot, its PointCloud2 bytes)` for the changed slots, in slot order.
+    pub writes: Vec<(u32, [u8; SURFEL_BYTES])>,
+}
+
+impl SurfelDelta {
+    /// Merges a later delta into this one (the later writes win).
+    pub fn merge(&mut self, later: SurfelDelta) {
+        self.len = later.len;
+        self.writes.extend(later.writes);
+        let len = self.len;
+        self.writes.retain(|w| (w.0 as usize) < len);
+        // Keep the last write of each slot, in slot order.
+        self.writes.reverse();
+        self.writes.sort_by_key(|w| w.0);
+        self.writes.dedup_by_key(|w| w.0);
+    }
+
+    /// Applies the delta to `cloud` (a copy of the surfel bytes as of the delta before).
+    /// Slots that appear grow the copy (within its reserved capacity when reserved).
+    pub fn apply(&self, cloud: &mut Vec<u8>) {
+        cloud.resize(self.len * SURFEL_BYTES, 0);
+        for (slot, bytes) in &self.writes {
+            let at = *slot as usize * SURFEL_BYTES;
+            if let Some(dst) = cloud.get_mut(at..at + SURFEL_BYTES) {
+                dst.copy_from_slice(bytes);
+            }
+        }
+    }
 }
 
 impl Workpiece {
@@ -199,6 +248,8 @@ impl Workpiece {
             hi,
             removed: Vec::new(),
             spans: Vec::new(),
+            changed: filled(n.div_ceil(64), 0u64, "changed-surfel bits")?,
+            changed_hi: 0,
         };
         // Room for every surfel the workpiece can have (one per point) and for a substep
         // removing every point: cutting never grows a vector, so neither a pose's update
@@ -351,6 +402,11 @@ impl Workpiece {
         };
         let slot = self.surfel_of[idx];
         let bytes = s.to_bytes();
+        self.mark_changed(if slot == NO_SURFEL {
+            self.surfels.len()
+        } else {
+            slot as usize
+        });
         if slot == NO_SURFEL {
             self.surfel_of[idx] = self.surfels.len() as u32;
             self.surfels.push(s);
@@ -389,8 +445,49 @@ impl Workpiece {
         if (slot as usize) < self.surfels.len() {
             let moved = self.owners[slot as usize];
             self.surfel_of[moved as usize] = slot;
+            self.mark_changed(slot as usize);
         }
         Some(normal)
+    }
+
+    fn mark_changed(&mut self, slot: usize) {
+        if let Some(w) = self.changed.get_mut(slot / 64) {
+            *w |= 1 << (slot % 64);
+            self.changed_hi = self.changed_hi.max(slot / 64 + 1);
+        }
+    }
+
+    /// The surfel slots written or moved since the last call, with their bytes, and the
+    /// cloud's length: what a copy of [`Workpiece::surfel_bytes`] needs to catch up. Costs
+    /// a scan of one bit per surfel and a copy of the changed ones.
+    pub fn take_surfel_delta(&mut self) -> SurfelDelta {
+        let len = self.surfels.len();
+        let words = len.div_ceil(64).min(self.changed.len());
+        let count: usize = self.changed[..words]
+            .iter()
+            .map(|w| w.count_ones() as usize)
+            .sum();
+        let mut writes = Vec::with_capacity(count);
+        for (wi, w) in self.changed[..words].iter_mut().enumerate() {
+            let mut bits = std::mem::take(w);
+            while bits != 0 {
+                let slot = wi * 64 + bits.trailing_zeros() as usize;
+                bits &= bits - 1;
+                if slot < len {
+                    let at = slot * SURFEL_BYTES;
+                    let mut b = [0u8; SURFEL_BYTES];
+                    b.copy_from_slice(&self.cloud[at..at + SURFEL_BYTES]);
+                    writes.push((slot as u32, b));
+                }
+            }
+        }
+        // Bits of slots past the end (surfels removed since) carry nothing.
+        let hi = self.changed_hi.min(self.changed.len());
+        if hi > words {
+            self.changed[words..hi].fill(0);
+        }
+        self.changed_hi = 0;
+        SurfelDelta { len, writes }
     }
 
     /// Removes material point `idx` by a cut: counted in `stats` (with its surfel's normal

@@ -109,9 +109,15 @@ pub(crate) fn build_nodes(
     let mut nodes: Vec<Box<dyn Node>> = Vec::new();
     let mut bodies: Vec<String> = bag_bodies.to_vec();
     for spec in config.of_kind(NodeKind::Carving) {
-        let c = CarvingNode::from_spec(spec)?;
+        let mut c = CarvingNode::from_spec(spec)?;
+        let display = c.display().map_err(|reason| LaunchError::Param {
+            node: spec.fqn.clone(),
+            param: "workpiece_max".into(),
+            reason,
+        })?;
         bodies.push(c.occupancy_topic().to_owned());
         nodes.push(Box::new(c));
+        nodes.push(Box::new(display));
     }
     let mut meshers: Vec<MesherNode> = config
         .of_kind(NodeKind::Mesher)

@@ -1,8 +1,19 @@
 //! The carving node: a haptic tool's poses in (geometry_msgs/PoseStamped on `pose_topic`),
 //! the cutting force back per pose (`~/wrench`, WrenchStamped), and the workpiece published
 //! every `occupancy_period_s` as VoxelGrid frames (`~/occupancy`: the grid points still
-//! material, so the mesher can watch it) and as PointCloud2 surfels (`~/surfels`: x, y, z,
-//! normal, radius, rgb).
+//! material, so the mesher can watch it) and as PointCloud2 surfels (x, y, z, normal,
+//! radius, rgb): the surfels changed since the last frame on `~/surfels_changed` every
+//! frame, the whole cloud on `~/surfels` every `surfels_period_s` and at the end.
+//!
+//! It is two parts, so the force path never waits for a display frame: [`CarvingNode`]
+//! (poses, force, occupancy) and [`CarvingDisplay`] (`<name>/display`: the surfel clouds).
+//! The force part keeps a bit per changed surfel slot; when a frame is due it publishes the
+//! occupancy frame and parks the changed surfels ([`SurfelDelta`]) for the display, which
+//! applies them to its own copy of the cloud when the occupancy frame reaches it and builds
+//! the clouds there. A live launch runs the two on different threads (the force part may be
+//! `realtime`); a replay runs them one after the other on its bus, giving the same messages.
+//! If the display is behind, the changed bits keep accumulating until it has taken the
+//! last delta (counted as `display_behind`): nothing is lost and nothing waits.
 //!
 //! The model is [`crate::carving`]: a block sampled as a point grid with surfels on its
 //! surface, cut out by images (`cutouts`) at start, then carved by the knife or the
@@ -28,12 +39,15 @@
 //! workpiece unchanged); a non-unit quaternion is normalised (counted); an image that does not
 //! load or an unknown tool in the schedule is a counted problem at start and is skipped.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::carving::cutout::{Axis, BinaryImage};
-use crate::carving::{ForceModel, ForceParams, ForceRenderer, Tool, ToolKind, ToolPose, Workpiece};
+use crate::carving::{
+    ForceModel, ForceParams, ForceRenderer, SurfelDelta, Tool, ToolKind, ToolPose, Workpiece,
+    SURFEL_BYTES,
+};
 use crate::msg::{
     Header, Point, PointCloud2, PointField, PoseStamped, RosMessage, Time, Vector3, VoxelGrid,
     Wrench, WrenchStamped,
@@ -71,6 +85,11 @@ pub struct CarvingNode {
     last_force: [f64; 3],
     /// Due times on the period grid that got no frame (no pose in them, or throttled).
     skipped_periods: u64,
+    /// The changed surfels parked for the display, with their frame's stamp.
+    mailbox: Arc<Mutex<Option<(i64, SurfelDelta)>>>,
+    /// Whether a display was made ([`CarvingNode::display`]): only then are deltas parked.
+    has_display: bool,
+    surfels_period_ns: i64,
     status: NodeStatus,
 }
 
@@ -141,6 +160,7 @@ impl CarvingNode {
             return Err(bad(param, reason));
         }
         let period = p.double("occupancy_period_s", 1.0 / 30.0, 1e-3..=3600.0)?;
+        let surfels_period = p.double("surfels_period_s", 2.0, 1e-3..=3600.0)?;
         let wrench_topic = p.resolve("~/wrench", "~/wrench")?;
         let occupancy_topic = p.resolve("~/occupancy", "~/occupancy")?;
         let surfels_topic = p.resolve("~/surfels", "~/surfels")?;
@@ -195,6 +215,9 @@ impl CarvingNode {
             next_publish: None,
             last_force: [0.0; 3],
             skipped_periods: 0,
+            mailbox: Arc::new(Mutex::new(None)),
+            has_display: false,
+            surfels_period_ns: (surfels_period * 1e9).round() as i64,
             status,
         };
         for t in [&me.knife, &me.chisel] {
@@ -259,7 +282,8 @@ impl CarvingNode {
         self.skipped_periods
     }
 
-    /// Bytes of one workpiece frame now (occupancy bits and surfel cloud).
+    /// Bytes of one workpiece frame now (occupancy bits and surfel cloud: the display's
+    /// whole cloud, the larger of its two).
     pub fn frame_bytes(&self) -> usize {
         self.work.occupancy_bits().len() + self.work.surfel_bytes().len()
     }
@@ -296,7 +320,7 @@ impl CarvingNode {
             .skipped_periods
             .saturating_add(u64::try_from(k).unwrap_or(u64::MAX));
         let due = i64::try_from(due).unwrap_or(stamp);
-        self.publish_workpiece(due, out);
+        self.publish_workpiece(due, false, out);
         // Whole periods covering the time this frame's bytes take at the budget.
         let bytes = self.frame_bytes() as f64;
         let need_ns = bytes / MAX_FRAME_BYTES_PER_S * 1e9;
@@ -339,7 +363,10 @@ impl CarvingNode {
             .map_or(self.tool, |e| e.1)
     }
 
-    fn publish_workpiece(&self, stamp: i64, out: &mut Vec<Message>) {
+    /// Publishes the occupancy frame at `stamp` and parks the surfels changed since the last
+    /// frame for the display (or, if the display has not taken the last ones yet, leaves
+    /// them accumulating; `last` merges them in regardless, for the final frame).
+    fn publish_workpiece(&mut self, stamp: i64, last: bool, out: &mut Vec<Message>) {
         let header = Header {
             stamp: Time::from_nanos(stamp),
             frame_id: self.frame_id.clone(),
@@ -347,7 +374,7 @@ impl CarvingNode {
         let dims = self.work.dims();
         let (lo, _) = self.work.block_bounds();
         let grid = VoxelGrid {
-            header: header.clone(),
+            header,
             origin: Point {
                 x: lo[0],
                 y: lo[1],
@@ -360,37 +387,70 @@ impl CarvingNode {
             encoding: VoxelGrid::ENCODING_BITS,
             data: self.work.occupancy_bits().to_vec(),
         };
+        let behind = self.has_display && {
+            let mut parked = self.mailbox.lock().unwrap_or_else(|p| p.into_inner());
+            match parked.as_mut() {
+                None => {
+                    *parked = Some((stamp, self.work.take_surfel_delta()));
+                    false
+                }
+                Some((t, d)) if last => {
+                    *t = stamp;
+                    d.merge(self.work.take_surfel_delta());
+                    false
+                }
+                Some(_) => true,
+            }
+        };
+        if behind {
+            self.count_quietly("display_behind", 1, || {
+                "the display has not taken the last changed surfels yet: they accumulate \
+                 until it has (nothing is lost; its frames come later)"
+                    .into()
+            });
+        }
         out.push(Message::new(
             &self.occupancy_topic,
             stamp,
             Payload::VoxelGrid(Arc::new(grid)),
         ));
-        let data = self.work.surfel_bytes().to_vec();
-        let surfels = self.work.surfels();
-        let mut fields: Vec<PointField> =
-            ["x", "y", "z", "normal_x", "normal_y", "normal_z", "radius"]
-                .iter()
-                .enumerate()
-                .map(|(i, n)| PointField::new(*n, 4 * i as u32, PointField::FLOAT32, 1))
-                .collect();
-        fields.push(PointField::new("rgb", 28, PointField::UINT32, 1));
-        let count = surfels.len() as u32;
-        let cloud = PointCloud2 {
-            header,
-            height: 1,
-            width: count,
-            fields,
-            is_bigendian: false,
-            point_step: 32,
-            row_step: 32 * count,
-            data,
-            is_dense: true,
-        };
-        out.push(Message::new(
-            &self.surfels_topic,
-            stamp,
-            Payload::PointCloud2(Arc::new(cloud)),
-        ));
+    }
+
+    /// The display part: it reads this node's occupancy frames and publishes the surfel
+    /// clouds from the changed surfels parked for it. Its copy of the cloud is reserved
+    /// here, for a surfel on every point.
+    ///
+    /// # Errors
+    /// The memory for the copy cannot be reserved.
+    pub fn display(&mut self) -> Result<CarvingDisplay, String> {
+        let mut cloud = Vec::new();
+        let points = self.work.dims().iter().product::<usize>();
+        cloud
+            .try_reserve_exact(points * SURFEL_BYTES)
+            .map_err(|_| {
+                format!(
+                    "cannot reserve {:.1} MB for the display's copy of the surfels",
+                    points as f64 * 32.0 / 1e6
+                )
+            })?;
+        // The display starts from the cloud as it is (the block, cut out).
+        let start = self.work.take_surfel_delta();
+        start.apply(&mut cloud);
+        self.has_display = true;
+        Ok(CarvingDisplay {
+            fqn: format!("{}/display", self.fqn),
+            occupancy_topic: self.occupancy_topic.clone(),
+            surfels_topic: self.surfels_topic.clone(),
+            changed_topic: format!("{}_changed", self.surfels_topic),
+            frame_id: self.frame_id.clone(),
+            mailbox: self.mailbox.clone(),
+            cloud,
+            period_ns: self.surfels_period_ns.max(1),
+            next_full: None,
+            last_stamp: None,
+            last_full: None,
+            status: NodeStatus::default(),
+        })
     }
 
     fn on_pose(&mut self, p: &PoseStamped, out: &mut Vec<Message>) {
@@ -533,10 +593,6 @@ impl Node for CarvingNode {
                 topic: self.occupancy_topic.clone(),
                 type_name: VoxelGrid::TYPE_NAME,
             },
-            TopicRef {
-                topic: self.surfels_topic.clone(),
-                type_name: PointCloud2::TYPE_NAME,
-            },
         ]
     }
 
@@ -562,7 +618,7 @@ impl Node for CarvingNode {
         // The final workpiece, on the period grid.
         if let Some(t) = self.next_publish {
             let before = out.len();
-            self.publish_workpiece(t, out);
+            self.publish_workpiece(t, true, out);
             self.status.published += (out.len() - before) as u64;
         }
     }
@@ -573,5 +629,167 @@ impl Node for CarvingNode {
 
     fn rank(&self) -> u8 {
         0
+    }
+}
+
+/// The carving node's display part (see the module): the surfel clouds, built from its own
+/// copy of the cloud, off the force path.
+pub struct CarvingDisplay {
+    fqn: String,
+    occupancy_topic: String,
+    surfels_topic: String,
+    changed_topic: String,
+    frame_id: String,
+    mailbox: Arc<Mutex<Option<(i64, SurfelDelta)>>>,
+    /// The surfels' PointCloud2 bytes, as of the last delta taken.
+    cloud: Vec<u8>,
+    period_ns: i64,
+    next_full: Option<i64>,
+    last_stamp: Option<i64>,
+    last_full: Option<i64>,
+    status: NodeStatus,
+}
+
+fn surfel_cloud(header: Header, data: Vec<u8>) -> PointCloud2 {
+    let mut fields: Vec<PointField> = ["x", "y", "z", "normal_x", "normal_y", "normal_z", "radius"]
+        .iter()
+        .enumerate()
+        .map(|(i, n)| PointField::new(*n, 4 * i as u32, PointField::FLOAT32, 1))
+        .collect();
+    fields.push(PointField::new("rgb", 28, PointField::UINT32, 1));
+    let count = (data.len() / 32) as u32;
+    PointCloud2 {
+        header,
+        height: 1,
+        width: count,
+        fields,
+        is_bigendian: false,
+        point_step: 32,
+        row_step: 32 * count,
+        data,
+        is_dense: true,
+    }
+}
+
+impl CarvingDisplay {
+    /// The topic of the surfels changed since the last frame.
+    pub fn changed_topic(&self) -> &str {
+        &self.changed_topic
+    }
+
+    /// Surfels in its copy of the cloud.
+    pub fn surfel_count(&self) -> usize {
+        self.cloud.len() / 32
+    }
+
+    fn header(&self, stamp: i64) -> Header {
+        Header {
+            stamp: Time::from_nanos(stamp),
+            frame_id: self.frame_id.clone(),
+        }
+    }
+
+    /// Takes the parked delta, if any: applies it, publishes the changed surfels, and the
+    /// whole cloud when it is due (or `force_full`).
+    fn take(&mut self, force_full: bool, out: &mut Vec<Message>) {
+        let parked = self
+            .mailbox
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        if let Some((stamp, delta)) = parked {
+            delta.apply(&mut self.cloud);
+            self.last_stamp = Some(stamp);
+            let mut data = Vec::with_capacity(delta.writes.len() * 32);
+            for (_, b) in &delta.writes {
+                data.extend_from_slice(b);
+            }
+            out.push(Message::new(
+                &self.changed_topic,
+                stamp,
+                Payload::PointCloud2(Arc::new(surfel_cloud(self.header(stamp), data))),
+            ));
+            let due = *self.next_full.get_or_insert(stamp);
+            if stamp >= due && !force_full {
+                self.publish_full(stamp, out);
+                let k = (i128::from(stamp) - i128::from(due)) / i128::from(self.period_ns) + 1;
+                let next = i128::from(due) + k * i128::from(self.period_ns);
+                self.next_full = Some(i64::try_from(next).unwrap_or(i64::MAX));
+            }
+        }
+        if force_full && self.last_full != self.last_stamp {
+            if let Some(stamp) = self.last_stamp {
+                self.publish_full(stamp, out);
+            }
+        }
+    }
+
+    fn publish_full(&mut self, stamp: i64, out: &mut Vec<Message>) {
+        self.last_full = Some(stamp);
+        out.push(Message::new(
+            &self.surfels_topic,
+            stamp,
+            Payload::PointCloud2(Arc::new(surfel_cloud(self.header(stamp), self.cloud.clone()))),
+        ));
+    }
+}
+
+impl Node for CarvingDisplay {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
+    fn name(&self) -> &str {
+        &self.fqn
+    }
+
+    fn subscriptions(&self) -> Vec<TopicRef> {
+        vec![TopicRef {
+            topic: self.occupancy_topic.clone(),
+            type_name: VoxelGrid::TYPE_NAME,
+        }]
+    }
+
+    fn publications(&self) -> Vec<TopicRef> {
+        vec![
+            TopicRef {
+                topic: self.surfels_topic.clone(),
+                type_name: PointCloud2::TYPE_NAME,
+            },
+            TopicRef {
+                topic: self.changed_topic.clone(),
+                type_name: PointCloud2::TYPE_NAME,
+            },
+        ]
+    }
+
+    fn on_message(&mut self, _frame: &Message, out: &mut Vec<Message>) {
+        self.status.received += 1;
+        let before = out.len();
+        self.take(false, out);
+        self.status.published += (out.len() - before) as u64;
+    }
+
+    fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
+        // Several frames waiting: the parked delta is one, whatever their number.
+        self.status.received += msgs.len() as u64;
+        let before = out.len();
+        self.take(false, out);
+        self.status.published += (out.len() - before) as u64;
+    }
+
+    fn finish(&mut self, out: &mut Vec<Message>) {
+        let before = out.len();
+        self.take(true, out);
+        self.status.published += (out.len() - before) as u64;
+    }
+
+    fn status(&self) -> &NodeStatus {
+        &self.status
+    }
+
+    fn rank(&self) -> u8 {
+        // After the carving node, whose last frame it takes.
+        1
     }
 }
