@@ -389,7 +389,10 @@ impl Unit {
                     self.handle(batch, &mut out);
                 }
             }
-            if Instant::now() >= next_tick {
+            // The clock is seen only when the node has caught up: a node behind its queue
+            // has input waiting, so none of its streams went quiet (a mesher must not close
+            // a body whose frames wait in the queue).
+            if Instant::now() >= next_tick && pending.is_none() && self.rx.is_empty() {
                 self.tick(&mut out);
                 next_tick = Instant::now() + self.tick;
             }
@@ -464,6 +467,13 @@ impl Unit {
         self.routes
             .route(self.index, self.realtime, out, self.wire.as_ref());
         let busy_s = busy.elapsed().as_secs_f64() / msgs.len() as f64;
+        tracing::debug!(
+            node = self.name,
+            batch = msgs.len(),
+            oldest_ms = arrivals.iter().map(|a| a.elapsed().as_secs_f64() * 1e3).fold(0.0, f64::max),
+            busy_ms = busy_s * 1e3 * msgs.len() as f64,
+            "batch handled"
+        );
         let mut sh = lock(&self.shared);
         sh.run.max_batch = sh.run.max_batch.max(msgs.len());
         for (m, at) in msgs.iter().zip(arrivals) {

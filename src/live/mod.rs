@@ -445,9 +445,9 @@ pub struct LiveSummary {
     pub transport: TransportStatus,
 }
 
-/// Types whose messages can be large (frames, clouds, meshes, markers): a real-time node
-/// hands them to a writer thread on the process's main participant instead of writing them
-/// on its own.
+/// Types whose messages can be large (frames, clouds, meshes, markers, labels): they are
+/// written through the process's bulk participant, and a real-time node hands them to a
+/// writer thread instead of writing them itself.
 fn is_bulk(type_name: &str) -> bool {
     [
         crate::msg::VoxelGrid::TYPE_NAME,
@@ -735,10 +735,22 @@ pub fn run_nodes(
         .collect();
 
     let (inputs, outputs) = wire_topics(&nodes, &opts.remote_subscribed);
+    // Large outputs (frames, clouds, meshes, markers, labels) go through a participant of
+    // their own: resending their fragments to a slow reader keeps a RustDDS event loop busy
+    // for seconds, and the inputs must not wait behind that.
+    let bulk_participant = if outputs.iter().any(|t| is_bulk(t.type_name)) {
+        Some(Arc::new(Participant::new(opts.domain_id)?))
+    } else {
+        None
+    };
     let main_writers: BTreeMap<String, Arc<Mutex<RawWriter>>> = outputs
         .iter()
         .map(|t| {
-            let w = participant.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+            let p = match &bulk_participant {
+                Some(b) if is_bulk(t.type_name) => b,
+                _ => &participant,
+            };
+            let w = p.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
             tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
             Ok((t.topic.clone(), Arc::new(Mutex::new(w))))
         })
@@ -855,6 +867,7 @@ pub fn run_nodes(
 
     let mut coordinator = Coordinator {
         participants: std::iter::once(participant.clone())
+            .chain(bulk_participant.iter().cloned())
             .chain(rt_io.iter().map(|io| io.participant.clone()))
             .collect(),
         inputs,
