@@ -21,7 +21,9 @@ use super::{CarveError, ToolPose};
 pub const MAX_SUBSTEPS: u64 = 4096;
 
 /// Most grid rows the sweeps of one pose may visit: the rows crossing the bounding box of
-/// each rotation substep's sweep, plus the layer ahead of the tool. Each row costs the
+/// each rotation substep's sweep (for the chisel, also that box two points wider, where
+/// its edge band is resampled), plus the layer ahead of the tool and the `section` force's
+/// window. Each row costs the
 /// constraint elimination of the tool's faces: about 90 ns a row including the points it
 /// removes (measured in the test profile, opt-level 2, with a 0.3 m knife turning through a
 /// 64³ grid: 2040 substeps, at most 8.4M rows, 0.73 s), so 2^22 rows bound a pose to about
@@ -71,6 +73,7 @@ pub struct CutStats {
 }
 
 /// A translation sweep of the tool at one orientation, in world coordinates.
+#[derive(Clone, Copy)]
 pub(crate) struct Sweep {
     /// `(world normal, offset at s = 0)`: `n · x <= off` at the start pose.
     faces: [(Vec3, f64); 8],
@@ -273,7 +276,11 @@ impl Workpiece {
             let rot = from.rotation.slerp(&to.rotation, (t0 + t1) / 2.0);
             let c0 = lerp(from.position, to.position, t0);
             let c1 = lerp(from.position, to.position, t1);
-            count(self.sweep_box(tool, &rot, c0, c1));
+            let b = self.sweep_box(tool, &rot, c0, c1);
+            count(b);
+            if tool.kind() == ToolKind::Chisel {
+                count(b.map(|b| Self::band_box(b, self.dims)));
+            }
         }
         let motion = sub(to.position, from.position);
         count(self.ahead_box(tool, to, motion));
@@ -597,6 +604,115 @@ impl Workpiece {
             }
         }
         self.removed = removed;
+        if tool.kind() == ToolKind::Chisel {
+            self.resample_band(&range, sweep, stats);
+        }
+    }
+
+    /// The index box the chisel's edge band is looked for in ([`Workpiece::resample_band`]):
+    /// the sweep's, two points wider each way.
+    fn band_box(range: GridBox, dims: [usize; 3]) -> GridBox {
+        [0, 1, 2].map(|a| {
+            (
+                range[a].0.saturating_sub(2),
+                (range[a].1 + 2).min(dims[a] - 1),
+            )
+        })
+    }
+
+    /// Eq. 2's BOUND band for eq. 6: the surfels of the old surface within the band
+    /// `0 < f <= 1.5 spacings` of the sweep's slanted faces that the cut did not expose
+    /// (no 6-neighbour removed) are slid onto the edge too, if they are within 0.7 spacing
+    /// of it (their own disc then still covers where they were: the square lattice's discs,
+    /// √3/2 spacing wide, leave a hole of 0.13 spacing around a moved one). Without this
+    /// only exposed points are resampled, and on a cut diagonal to the grid those are sparse
+    /// along the edge (at 30°, the points within 0.37 spacing of it; at 45°, none at some
+    /// offsets). Rows of the sweep's index box widened by two points, with the sweep's faces
+    /// pushed out by 1.5 spacings.
+    fn resample_band(&mut self, range: &GridBox, sweep: &Sweep, stats: &mut CutStats) {
+        let band = Self::band_box(*range, self.dims);
+        let mut grown = *sweep;
+        for k in 0..grown.m {
+            grown.faces[k].1 += 1.5 * self.h;
+        }
+        let mut spans = std::mem::take(&mut self.spans);
+        for k in band[2].0..=band[2].1 {
+            self.layer_spans(&band, k, &grown, &mut spans);
+            for &(row, i0, i1) in &spans {
+                for idx in row + i0..=row + i1 {
+                    if self.flags[idx] != BOUND {
+                        continue;
+                    }
+                    let slot = self.surfel_of[idx];
+                    if slot == NO_SURFEL {
+                        continue;
+                    }
+                    let colour = self.surfels[slot as usize].colour;
+                    if colour == COLOUR_EDGE || colour == COLOUR_CHISEL {
+                        continue;
+                    }
+                    let c = self.coords(idx);
+                    let (f, s, k) = sweep.value(self.point(c[0], c[1], c[2]));
+                    if sweep.slanted[k] && f > 0.0 {
+                        self.slide_to_edge(idx, sweep, k, s, 0.7, stats);
+                    }
+                }
+            }
+        }
+        self.spans = spans;
+    }
+
+    /// Eq. 6: a chisel's slanted face `k` (at sweep parameter `s`) meeting the old surface
+    /// at BOUND point `idx`: slides the old surfel within its tangent plane onto the face
+    /// (the groove's edge), keeping its normal, if the edge is within `reach` spacings.
+    /// The old surface is the point's surfel unless the chisel put it itself (a face of an
+    /// earlier pose of the stroke, often its front face meeting the point first): then it
+    /// is the block's face the point lies on, if any. Returns whether the surfel is on the
+    /// edge (moved there now, or already there).
+    fn slide_to_edge(
+        &mut self,
+        idx: usize,
+        sweep: &Sweep,
+        k: usize,
+        s: f64,
+        reach: f64,
+        stats: &mut CutStats,
+    ) -> bool {
+        let h = self.h;
+        let nw = sweep.faces[k].0;
+        let o = self.surfels[self.surfel_of[idx] as usize];
+        let old = if o.colour == COLOUR_CHISEL {
+            self.uncut_face(idx, nw)
+        } else {
+            Some((o.position.map(f64::from), o.normal.map(f64::from), o.colour))
+        };
+        let Some((xb, nb, old_colour)) = old else {
+            return false;
+        };
+        let cos = dot(nw, nb);
+        if !(cos.abs() < 0.94) {
+            return false;
+        }
+        let v = sub(nw, scale(nb, cos));
+        // Plane of face k at the sweep parameter s: n · x = off + s (n · d).
+        let fb = dot(nw, xb) - sweep.faces[k].1 - s * dot(nw, sweep.d);
+        if old_colour == COLOUR_EDGE && fb.abs() <= 1e-3 * h {
+            // Already on this face's edge (a later pose of the same stroke exposes the
+            // point again): projecting it onto the face would lose the edge.
+            return true;
+        }
+        let nv = dot(nw, v);
+        if !(nv.abs() > 1e-12) {
+            return false;
+        }
+        let step = scale(v, fb / nv);
+        if fb > 0.0 && norm(step) <= reach * h {
+            self.set_surfel(idx, sub(xb, step), nb, COLOUR_EDGE);
+            stats.resampled += 1;
+            stats.exposed += 1;
+            return true;
+        }
+        false
     }
 
     /// The surface point `idx` had before the chisel reached it, if that was one of the
@@ -626,44 +742,8 @@ impl Workpiece {
         let nw = sweep.faces[k].0;
         let h = self.h;
         let was_surface = self.flags[idx] == BOUND && self.surfel_of[idx] != NO_SURFEL;
-        // Eq. 6: a chisel's slanted face meeting the old surface: slide the old surfel
-        // within its tangent plane onto the face (the groove's edge), keeping its normal.
-        // The old surface is the point's surfel unless the chisel put it itself (a face of
-        // an earlier pose of the stroke, often its front face meeting the point first): then
-        // it is the block's face the point lies on, if any.
-        let old = if sweep.slanted[k] && was_surface {
-            let o = self.surfels[self.surfel_of[idx] as usize];
-            if o.colour == COLOUR_CHISEL {
-                self.uncut_face(idx, nw)
-            } else {
-                Some((o.position.map(f64::from), o.normal.map(f64::from), o.colour))
-            }
-        } else {
-            None
-        };
-        if let Some((xb, nb, old_colour)) = old {
-            let cos = dot(nw, nb);
-            if cos.abs() < 0.94 {
-                let v = sub(nw, scale(nb, cos));
-                // Plane of face k at the sweep parameter s: n · x = off + s (n · d).
-                let fb = dot(nw, xb) - sweep.faces[k].1 - s * dot(nw, sweep.d);
-                if old_colour == COLOUR_EDGE && fb.abs() <= 1e-3 * h {
-                    // Already on this face's edge (a later pose of the same stroke exposes
-                    // the point again): projecting it onto the face would lose the edge.
-                    return;
-                }
-                let nv = dot(nw, v);
-                if nv.abs() > 1e-12 {
-                    let step = scale(v, fb / nv);
-                    if fb > 0.0 && norm(step) <= h {
-                        let edge = sub(xb, step);
-                        self.set_surfel(idx, edge, nb, COLOUR_EDGE);
-                        stats.resampled += 1;
-                        stats.exposed += 1;
-                        return;
-                    }
-                }
-            }
+        if sweep.slanted[k] && was_surface && self.slide_to_edge(idx, sweep, k, s, 1.0, stats) {
+            return;
         }
         self.flags[idx] = BOUND;
         // The knife: the surfel at the exact closest point of the swept solid, facing it.
