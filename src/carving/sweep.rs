@@ -500,7 +500,7 @@ impl Workpiece {
     /// sub-voxel weights: the material in the window from half a spacing to one and a half
     /// spacings ahead of the tool, `Σ w_p h³ / h`, where `w_p` is the length (in spacings)
     /// of the window's chords along x that falls in point `p`'s cell `[i - ½, i + ½]`,
-    /// averaged over four lines through the cell (at ±¼ spacing across the row).
+    /// averaged over two lines through the cell (at ∓¼ spacing in y and z).
     ///
     /// Counting the points inside a one-spacing layer ([`Workpiece::material_ahead`]) is
     /// exact along a grid axis but jumps with the lattice phase on a diagonal: a point
@@ -510,7 +510,7 @@ impl Workpiece {
     /// the first less that of the second); it starts half a spacing ahead so that no cell
     /// of a point the move already removed reaches into it (a removed point's cell ends at
     /// most half a spacing along x, so at most half a spacing along the motion, past the
-    /// tool). Costs eight chords per row of the window, where `material_ahead` costs one.
+    /// tool). Costs four chords per row of the window, where `material_ahead` costs one.
     pub fn section_ahead(&mut self, tool: &Tool, pose: &ToolPose, motion: Vec3) -> f64 {
         let Some((c0, da, db, range)) = self.section_window(tool, pose, motion) else {
             return 0.0;
@@ -521,12 +521,13 @@ impl Workpiece {
         let mut cells = 0.0f64;
         for k in range[2].0..=range[2].1 {
             for j in range[1].0..=range[1].1 {
-                // The chords of four sub-rows of the row's cell (at ±h/4 in y and z): the
-                // cell's share of the window across the row, not only at its centre line.
+                // The chords of two sub-rows of the row's cell, at (-h/4, -h/4) and
+                // (h/4, h/4) across it in (y, z): the cell's share of the window across the
+                // row, not only at its centre line.
                 let base = self.point(0, j, k);
-                let mut chords = [(None, None); 4];
+                let mut chords = [(None, None); 2];
                 let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-                for (c, (dy, dz)) in [(-q, -q), (q, -q), (-q, q), (q, q)].into_iter().enumerate() {
+                for (c, (dy, dz)) in [(-q, -q), (q, q)].into_iter().enumerate() {
                     let p0 = [base[0], base[1] + dy, base[2] + dz];
                     if let Some(ca) = self.chord(p0, &a) {
                         lo = lo.min(ca.0);
@@ -550,7 +551,7 @@ impl Workpiece {
                         c.map_or(0.0, |(l, u)| ((x + 0.5).min(u) - (x - 0.5).max(l)).max(0.0))
                     };
                     for &(ca, cb) in &chords {
-                        cells += (overlap(ca) - overlap(cb)) / 4.0;
+                        cells += (overlap(ca) - overlap(cb)) / 2.0;
                     }
                 }
             }
@@ -648,10 +649,13 @@ impl Workpiece {
                         continue;
                     }
                     let colour = self.surfels[slot as usize].colour;
-                    if colour == COLOUR_EDGE || colour == COLOUR_CHISEL {
+                    let c = self.coords(idx);
+                    // An edge surfel stays; a chisel face's surfel is no old surface unless
+                    // the point lies on the block's face ([`Workpiece::uncut_face`]).
+                    let on_block_face = (0..3).any(|a| c[a] == 0 || c[a] + 1 == self.dims[a]);
+                    if colour == COLOUR_EDGE || (colour == COLOUR_CHISEL && !on_block_face) {
                         continue;
                     }
-                    let c = self.coords(idx);
                     let (f, s, k) = sweep.value(self.point(c[0], c[1], c[2]));
                     if sweep.slanted[k] && f > 0.0 {
                         self.slide_to_edge(idx, sweep, k, s, 0.7, stats);

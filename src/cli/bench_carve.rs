@@ -487,6 +487,8 @@ struct EdgeAccuracy {
     gap_max_after: f64,
     /// Time to build the polygons (ms).
     build_ms: f64,
+    /// Median and p99 time of one pose's carve (µs), eq. 6 and its band included.
+    pose_us: (f64, f64),
 }
 
 fn point_segment(p: Vec3, a: Vec3, b: Vec3) -> f64 {
@@ -526,11 +528,15 @@ fn edge_case(h: f64, angle_deg: f64) -> Result<EdgeAccuracy, CliError> {
     };
     let mut prev = at(0.0);
     work.carve(&tool, &prev, &prev).map_err(err)?;
+    let mut times = Vec::with_capacity(moves);
     for k in 1..=moves {
         let next = at(length * k as f64 / moves as f64);
+        let t0 = Instant::now();
         work.carve(&tool, &prev, &next).map_err(err)?;
+        times.push(t0.elapsed().as_secs_f64() * 1e6);
         prev = next;
     }
+    times.sort_by(f64::total_cmp);
     let t0 = Instant::now();
     let mut polys = Vec::new();
     let report = work
@@ -607,6 +613,7 @@ fn edge_case(h: f64, angle_deg: f64) -> Result<EdgeAccuracy, CliError> {
         gap_mean_after: mean(&after),
         gap_max_after: max(&after),
         build_ms,
+        pose_us: (percentile(&times, 0.5), percentile(&times, 0.99)),
     })
 }
 
@@ -888,16 +895,19 @@ pub fn bench_carve_accuracy(
         "√3/2 spacing) or to the eq. 7 strip's edge side P1 P2 (after; polygons half a spacing\n",
     );
     e.push_str(
-        "wide on each side). Build = time to build the polygons from the surfels (display rate).\n\n",
+        "wide on each side). Build = time to build the polygons from the surfels (display rate);\n",
     );
-    e.push_str("| spacing mm | angle | edge surfels | polygons (unmatched, strip ends) | centre RMS / max mm | gap before mean / max mm | gap after mean / max mm | build ms |\n");
-    e.push_str("|---|---|---|---|---|---|---|---|\n");
+    e.push_str(
+        "pose µs = median / p99 of one move's carve (sweep, exposure, eq. 6 and its band).\n\n",
+    );
+    e.push_str("| spacing mm | angle | edge surfels | polygons (unmatched, strip ends) | centre RMS / max mm | gap before mean / max mm | gap after mean / max mm | build ms | pose µs |\n");
+    e.push_str("|---|---|---|---|---|---|---|---|---|\n");
     print!("{e}");
     for &s in spacings_mm {
         for angle in [0.0, 30.0, 45.0] {
             let a = edge_case(s * 1e-3, angle)?;
             let line = format!(
-                "| {s} | {angle}° | {} | {} ({}, {}) | {:.4} / {:.4} | {:.3} / {:.3} | {:.4} / {:.4} | {:.2} |\n",
+                "| {s} | {angle}° | {} | {} ({}, {}) | {:.4} / {:.4} | {:.3} / {:.3} | {:.4} / {:.4} | {:.2} | {:.1} / {:.1} |\n",
                 a.surfels,
                 a.polygons,
                 a.unmatched,
@@ -908,7 +918,9 @@ pub fn bench_carve_accuracy(
                 a.gap_max_before * 1e3,
                 a.gap_mean_after * 1e3,
                 a.gap_max_after * 1e3,
-                a.build_ms
+                a.build_ms,
+                a.pose_us.0,
+                a.pose_us.1
             );
             print!("{line}");
             e.push_str(&line);
