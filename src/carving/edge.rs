@@ -85,6 +85,9 @@ pub struct EdgeReport {
     pub strip_ends: usize,
 }
 
+/// The nearest edge point on one side along the edge: its distance along it and position.
+type Neighbour = Option<(f64, Vec3)>;
+
 /// An edge point: its surfel, face normal `N` and edge direction.
 #[derive(Clone, Copy)]
 struct EdgePoint {
@@ -212,7 +215,7 @@ impl Workpiece {
         let w = width;
         for p in &points {
             // The nearest edge point of the same edge before and after this one.
-            let (mut prev, mut next): (Option<(f64, Vec3)>, Option<(f64, Vec3)>) = (None, None);
+            let (mut prev, mut next): (Neighbour, Neighbour) = (None, None);
             self.around(p.owner, REACH_ALONG, |o| {
                 let Some(&q) = by_slot.get(&(o as u32)) else {
                     return;
@@ -234,7 +237,7 @@ impl Workpiece {
             });
             // Half-way to each neighbour; at a strip's end as far as to the neighbour on the
             // other side (half a spacing for a lone edge point).
-            let half = |t: Option<(f64, Vec3)>| t.map(|(d, _)| d / 2.0);
+            let half = |t: Neighbour| t.map(|(d, _)| d / 2.0);
             let reach_prev = half(prev).or(half(next)).unwrap_or(self.h / 2.0);
             let reach_next = half(next).or(half(prev)).unwrap_or(self.h / 2.0);
             let p1 = match prev {
