@@ -109,7 +109,7 @@ impl Workpiece {
     /// on each side of the edge, into `out` (cleared first); see the module documentation.
     ///
     /// At most one polygon per edge surfel, so at most [`Workpiece::surfels`]`.len()`; the
-    /// room is reserved before anything is built (52 bytes a polygon, plus about 120 bytes an
+    /// room is reserved before anything is built (52 bytes a polygon, plus about 140 bytes an
     /// edge surfel of scratch). Costs about 850 grid lookups per edge surfel: a display-rate
     /// operation, not for the force path.
     ///

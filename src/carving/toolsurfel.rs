@@ -29,7 +29,7 @@ use super::workpiece::{Workpiece, OUTSIDE};
 use super::{CarveError, ToolPose};
 
 /// Most tool surfels [`sweep_surfels`] builds for one move (a cross-check, not a runtime
-/// path): 2^20, 32 MB.
+/// path): 2^20 of 48 bytes, 48 MiB.
 pub const MAX_TOOL_SURFELS: usize = 1 << 20;
 
 /// A tool surfel: a sample of the swept solid's boundary (m) and its outward normal.
