@@ -15,11 +15,13 @@ pub enum ForceModel {
     /// times a specific cutting pressure (N/m^2), along `n_avg`: independent of the pose
     /// rate and, up to sampling, of the spacing.
     Volume,
-    /// The cut cross-section read off the material in front of the tool: `A = m h^2` for the
-    /// `m` material points within one spacing ahead of it along the move
-    /// ([`crate::carving::Workpiece::material_ahead`]), times the cutting pressure, against
-    /// the motion. Rate independent like [`ForceModel::Volume`], and without its stepping
-    /// (points are removed a layer at a time, so the removed volume per pose comes in bursts).
+    /// The cut cross-section read off the material in front of the tool
+    /// ([`crate::carving::Workpiece::section_ahead`]: the material in a one-spacing window
+    /// half a spacing ahead of it along the move, with sub-voxel weights, divided by the
+    /// window's length), times the cutting pressure, against the motion. Rate independent
+    /// like [`ForceModel::Volume`], and without its stepping (points are removed a layer at
+    /// a time, so the removed volume per pose comes in bursts), nor the lattice-phase jumps
+    /// a plain count of the points ahead has on a cut diagonal to the grid.
     Section,
 }
 
@@ -232,10 +234,10 @@ impl ForceRenderer {
     pub fn cut_force(&self, cut: &CutStats, spacing: f64, motion: Vec3) -> Vec3 {
         if self.p.model == ForceModel::Section {
             let len = norm(motion);
-            if cut.ahead == 0 || !(len > 1e-12) {
+            let area = cut.ahead_area;
+            if !(area > 0.0 && area.is_finite() && len > 1e-12) {
                 return [0.0; 3];
             }
-            let area = cut.ahead as f64 * spacing * spacing;
             return scale(motion, -self.p.pressure * area / len);
         }
         if cut.removed == 0 {

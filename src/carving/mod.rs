@@ -13,8 +13,12 @@
 //! and, for a rotation, by substeps small enough that angle × tool radius < spacing / 2. Only
 //! the grid rows crossing the sweep's bounding box are visited, and on each row the range of
 //! removed points is solved for rather than searched. The classification uses the seed's
-//! band `d_s` (eqs. 2-5): material points next to removed ones become BOUND and take the
-//! cutting face's normal (§5.2), their surfel projected onto that face.
+//! band `d_s` (eq. 2): material points next to removed ones become BOUND and take the
+//! cutting face's normal (§5.2), their surfel projected onto that face; where a chisel's
+//! slanted face meets the old surface, the old surfel slides onto the edge (eq. 6), and
+//! [`edge`] lines the edges with the seed's eq. 7 polygons at display rate. The seed's tool
+//! surfels classified against the workpiece (eqs. 3-5) are not needed for this; [`toolsurfel`]
+//! computes them as a cross-check of the analytic classification.
 //!
 //! [`ForceRenderer`] turns what a step removed into a force (seed eq. 8, or the rate- and
 //! resolution-independent cut cross-section of DESIGN.md §8), low-pass filtered and through
@@ -30,11 +34,13 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod cutout;
+pub mod edge;
 pub mod exact;
 mod force;
 mod math;
 mod sweep;
 mod tool;
+pub mod toolsurfel;
 mod workpiece;
 
 pub use force::{

@@ -13,7 +13,7 @@
 use super::math::{add, dot, lerp, norm, scale, sub, Vec3};
 use super::tool::{Tool, ToolKind};
 use super::workpiece::{
-    Workpiece, BOUND, COLOUR_CHISEL, COLOUR_EDGE, COLOUR_KNIFE, NO_SURFEL, OUTSIDE,
+    Workpiece, BOUND, COLOUR_BLOCK, COLOUR_CHISEL, COLOUR_EDGE, COLOUR_KNIFE, NO_SURFEL, OUTSIDE,
 };
 use super::{CarveError, ToolPose};
 
@@ -21,7 +21,9 @@ use super::{CarveError, ToolPose};
 pub const MAX_SUBSTEPS: u64 = 4096;
 
 /// Most grid rows the sweeps of one pose may visit: the rows crossing the bounding box of
-/// each rotation substep's sweep, plus the layer ahead of the tool. Each row costs the
+/// each rotation substep's sweep (for the chisel, also that box two points wider, where
+/// its edge band is resampled), plus the layer ahead of the tool and the `section` force's
+/// window. Each row costs the
 /// constraint elimination of the tool's faces: about 90 ns a row including the points it
 /// removes (measured in the test profile, opt-level 2, with a 0.3 m knife turning through a
 /// 64³ grid: 2040 substeps, at most 8.4M rows, 0.73 s), so 2^22 rows bound a pose to about
@@ -63,12 +65,16 @@ pub struct CutStats {
     /// Material points in the layer one spacing ahead of the tool after the move
     /// ([`Workpiece::material_ahead`]).
     pub ahead: u64,
+    /// The cut cross-section read off the material ahead of the tool after the move, with
+    /// sub-voxel weights (m², [`Workpiece::section_ahead`]): what the `section` force uses.
+    pub ahead_area: f64,
     /// Distance swept: the tool origin's displacement plus rotation angle x tool radius (m).
     pub travel: f64,
 }
 
 /// A translation sweep of the tool at one orientation, in world coordinates.
-struct Sweep {
+#[derive(Clone, Copy)]
+pub(crate) struct Sweep {
     /// `(world normal, offset at s = 0)`: `n · x <= off` at the start pose.
     faces: [(Vec3, f64); 8],
     m: usize,
@@ -83,7 +89,7 @@ struct Sweep {
 }
 
 impl Sweep {
-    fn new(tool: &Tool, rot: &super::Quat, c0: Vec3, d: Vec3) -> Self {
+    pub(crate) fn new(tool: &Tool, rot: &super::Quat, c0: Vec3, d: Vec3) -> Self {
         let mut faces = [([0.0; 3], 0.0); 8];
         let mut b = [0.0; 8];
         let mut slanted = [false; 8];
@@ -145,7 +151,7 @@ impl Sweep {
     }
 
     /// `f(p) = min over s in [0,1] of max_k (a_k - s b_k)`, the `s` and the face attaining it.
-    fn value(&self, p: Vec3) -> (f64, f64, usize) {
+    pub(crate) fn value(&self, p: Vec3) -> (f64, f64, usize) {
         let mut a = [0.0; 8];
         for k in 0..self.m {
             a[k] = dot(self.faces[k].0, p) - self.faces[k].1;
@@ -270,10 +276,15 @@ impl Workpiece {
             let rot = from.rotation.slerp(&to.rotation, (t0 + t1) / 2.0);
             let c0 = lerp(from.position, to.position, t0);
             let c1 = lerp(from.position, to.position, t1);
-            count(self.sweep_box(tool, &rot, c0, c1));
+            let b = self.sweep_box(tool, &rot, c0, c1);
+            count(b);
+            if tool.kind() == ToolKind::Chisel {
+                count(b.map(|b| Self::band_box(b, self.dims)));
+            }
         }
         let motion = sub(to.position, from.position);
         count(self.ahead_box(tool, to, motion));
+        count(self.section_box(tool, to, motion));
         let too_much = |what, got, unit, max, limit| CarveError::TooMuchWork {
             what,
             got,
@@ -314,7 +325,8 @@ impl Workpiece {
             let sweep = Sweep::new(tool, &rot, c0, sub(c1, c0));
             self.carve_translation(tool, &rot, c0, c1, &sweep, &mut stats);
         }
-        stats.ahead = self.material_ahead(tool, to, sub(to.position, from.position));
+        stats.ahead = self.material_ahead(tool, to, motion);
+        stats.ahead_area = self.section_ahead(tool, to, motion);
         Ok(stats)
     }
 
@@ -369,25 +381,8 @@ impl Workpiece {
         spans: &mut Vec<(usize, usize, usize)>,
     ) {
         spans.clear();
-        let h = self.h;
-        let m = sweep.m;
-        let mut cons = [(0.0, 0.0, 0.0); 10];
-        cons[m] = (0.0, -1.0, 0.0); // s >= 0
-        cons[m + 1] = (0.0, 1.0, 1.0); // s <= 1
         for j in range[1].0..=range[1].1 {
-            let p0 = self.point(0, j, k);
-            for (q, &(nw, off)) in sweep.faces[..m].iter().enumerate() {
-                // a_q(i) - s b_q <= 0  with  a_q(i) = n·p0 - off + i n_x h.
-                let alpha = dot(nw, p0) - off;
-                // A face parallel to the move: its constraint does not involve s.
-                let b = if sweep.b[q].abs() < 1e-12 * h {
-                    0.0
-                } else {
-                    sweep.b[q]
-                };
-                cons[q] = (nw[0] * h, -b, -alpha);
-            }
-            let Some((lo, hi)) = row_range(&cons[..m + 2]) else {
+            let Some((lo, hi)) = self.row_interval(j, k, sweep) else {
                 continue;
             };
             let i0 = lo.ceil().max(range[0].0 as f64);
@@ -396,6 +391,84 @@ impl Workpiece {
                 spans.push((self.index(0, j, k), i0 as usize, i1 as usize));
             }
         }
+    }
+
+    /// The real range `[lo, hi]` of `i` (in spacings along x, unclipped) for which the
+    /// line through the points `(·, j, k)` is inside the translation sweep, or `None`.
+    fn row_interval(&self, j: usize, k: usize, sweep: &Sweep) -> Option<(f64, f64)> {
+        self.chord(self.point(0, j, k), sweep)
+    }
+
+    /// The real range `[lo, hi]` of `i` for which `p0 + i h x̂` is inside the translation
+    /// sweep, or `None`.
+    fn chord(&self, p0: Vec3, sweep: &Sweep) -> Option<(f64, f64)> {
+        let h = self.h;
+        let m = sweep.m;
+        let mut cons = [(0.0, 0.0, 0.0); 10];
+        cons[m] = (0.0, -1.0, 0.0); // s >= 0
+        cons[m + 1] = (0.0, 1.0, 1.0); // s <= 1
+        for (q, &(nw, off)) in sweep.faces[..m].iter().enumerate() {
+            // a_q(i) - s b_q <= 0  with  a_q(i) = n·p0 - off + i n_x h.
+            let alpha = dot(nw, p0) - off;
+            // A face parallel to the move: its constraint does not involve s.
+            let b = if sweep.b[q].abs() < 1e-12 * h {
+                0.0
+            } else {
+                sweep.b[q]
+            };
+            cons[q] = (nw[0] * h, -b, -alpha);
+        }
+        row_range(&cons[..m + 2])
+    }
+
+    /// The window the `section` force reads ([`Workpiece::section_ahead`]): the tool at
+    /// `pose` swept along `motion` by one and a half spacings (`A`) and by half a spacing
+    /// (`B`); the window is `A \ B`. Their start, translations and `A`'s index box.
+    fn section_window(
+        &self,
+        tool: &Tool,
+        pose: &ToolPose,
+        motion: Vec3,
+    ) -> Option<(Vec3, Vec3, Vec3, GridBox)> {
+        let len = norm(motion);
+        if !(len > 1e-12) {
+            return None;
+        }
+        let u = scale(motion, 1.0 / len);
+        let c0 = pose.position;
+        let (da, db) = (scale(u, 1.5 * self.h), scale(u, 0.5 * self.h));
+        // The index box widened by one point: a point whose cell overlaps the window may
+        // lie outside it.
+        let h = self.h;
+        let (lo, hi) = tool.vertices().iter().fold(
+            ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |(mut lo, mut hi), &v| {
+                let w = pose.rotation.rotate(v);
+                for c in [c0, add(c0, da)] {
+                    for a in 0..3 {
+                        lo[a] = lo[a].min(c[a] + w[a] - h);
+                        hi[a] = hi[a].max(c[a] + w[a] + h);
+                    }
+                }
+                (lo, hi)
+            },
+        );
+        let mut b = [(0usize, 0usize); 3];
+        for a in 0..3 {
+            let l = ((lo[a] - self.origin[a]) / h).ceil().max(0.0);
+            let u = ((hi[a] - self.origin[a]) / h)
+                .floor()
+                .min(self.dims[a] as f64 - 1.0);
+            if !(l <= u) {
+                return None;
+            }
+            b[a] = (l as usize, u as usize);
+        }
+        Some((c0, da, db, b))
+    }
+
+    fn section_box(&self, tool: &Tool, pose: &ToolPose, motion: Vec3) -> Option<GridBox> {
+        self.section_window(tool, pose, motion).map(|w| w.3)
     }
 
     /// Material points the tool at `pose` would meet in its next spacing of travel along
@@ -421,6 +494,69 @@ impl Workpiece {
         }
         self.spans = spans;
         n
+    }
+
+    /// The cut cross-section ahead of the tool at `pose` moving along `motion` (m²), with
+    /// sub-voxel weights: the material in the window from half a spacing to one and a half
+    /// spacings ahead of the tool, `Σ w_p h³ / h`, where `w_p` is the length (in spacings)
+    /// of the window's chords along x that falls in point `p`'s cell `[i - ½, i + ½]`,
+    /// averaged over two lines through the cell (at ∓¼ spacing in y and z).
+    ///
+    /// Counting the points inside a one-spacing layer ([`Workpiece::material_ahead`]) is
+    /// exact along a grid axis but jumps with the lattice phase on a diagonal: a point
+    /// enters or leaves whole. Here each row contributes the length of its chords through
+    /// the window, which move continuously with the tool. The window is the tool swept
+    /// ahead by 1.5 spacings less the tool swept ahead by 0.5 (on each row, the chord of
+    /// the first less that of the second); it starts half a spacing ahead so that no cell
+    /// of a point the move already removed reaches into it (a removed point's cell ends at
+    /// most half a spacing along x, so at most half a spacing along the motion, past the
+    /// tool). Costs four chords per row of the window, where `material_ahead` costs one.
+    pub fn section_ahead(&mut self, tool: &Tool, pose: &ToolPose, motion: Vec3) -> f64 {
+        let Some((c0, da, db, range)) = self.section_window(tool, pose, motion) else {
+            return 0.0;
+        };
+        let a = Sweep::new(tool, &pose.rotation, c0, da);
+        let b = Sweep::new(tool, &pose.rotation, c0, db);
+        let q = self.h / 4.0;
+        let mut cells = 0.0f64;
+        for k in range[2].0..=range[2].1 {
+            for j in range[1].0..=range[1].1 {
+                // The chords of two sub-rows of the row's cell, at (-h/4, -h/4) and
+                // (h/4, h/4) across it in (y, z): the cell's share of the window across the
+                // row, not only at its centre line.
+                let base = self.point(0, j, k);
+                let mut chords = [(None, None); 2];
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for (c, (dy, dz)) in [(-q, -q), (q, q)].into_iter().enumerate() {
+                    let p0 = [base[0], base[1] + dy, base[2] + dz];
+                    if let Some(ca) = self.chord(p0, &a) {
+                        lo = lo.min(ca.0);
+                        hi = hi.max(ca.1);
+                        chords[c] = (Some(ca), self.chord(p0, &b));
+                    }
+                }
+                // Points whose cells [i - 1/2, i + 1/2] overlap [lo, hi].
+                let i0 = (lo + 0.5).floor().max(range[0].0 as f64);
+                let i1 = (hi - 0.5).ceil().min(range[0].1 as f64);
+                if !(i0 <= i1) {
+                    continue;
+                }
+                let row = self.index(0, j, k);
+                for i in i0 as usize..=i1 as usize {
+                    if self.flags[row + i] == OUTSIDE {
+                        continue;
+                    }
+                    let x = i as f64;
+                    let overlap = |c: Option<(f64, f64)>| {
+                        c.map_or(0.0, |(l, u)| ((x + 0.5).min(u) - (x - 0.5).max(l)).max(0.0))
+                    };
+                    for &(ca, cb) in &chords {
+                        cells += (overlap(ca) - overlap(cb)) / 2.0;
+                    }
+                }
+            }
+        }
+        cells * self.h * self.h
     }
 
     fn carve_translation(
@@ -469,6 +605,137 @@ impl Workpiece {
             }
         }
         self.removed = removed;
+        if tool.kind() == ToolKind::Chisel {
+            self.resample_band(&range, sweep, stats);
+        }
+    }
+
+    /// The index box the chisel's edge band is looked for in ([`Workpiece::resample_band`]):
+    /// the sweep's, two points wider each way.
+    fn band_box(range: GridBox, dims: [usize; 3]) -> GridBox {
+        [0, 1, 2].map(|a| {
+            (
+                range[a].0.saturating_sub(2),
+                (range[a].1 + 2).min(dims[a] - 1),
+            )
+        })
+    }
+
+    /// Eq. 2's BOUND band for eq. 6: the surfels of the old surface within the band
+    /// `0 < f <= 1.5 spacings` of the sweep's slanted faces that the cut did not expose
+    /// (no 6-neighbour removed) are slid onto the edge too, if they are within 0.7 spacing
+    /// of it (their own disc then still covers where they were: the square lattice's discs,
+    /// √3/2 spacing wide, leave a hole of 0.13 spacing around a moved one). Without this
+    /// only exposed points are resampled, and on a cut diagonal to the grid those are sparse
+    /// along the edge (at 30°, the points within 0.37 spacing of it; at 45°, none at some
+    /// offsets). Rows of the sweep's index box widened by two points, with the sweep's faces
+    /// pushed out by 1.5 spacings.
+    fn resample_band(&mut self, range: &GridBox, sweep: &Sweep, stats: &mut CutStats) {
+        let band = Self::band_box(*range, self.dims);
+        let mut grown = *sweep;
+        for k in 0..grown.m {
+            grown.faces[k].1 += 1.5 * self.h;
+        }
+        let mut spans = std::mem::take(&mut self.spans);
+        for k in band[2].0..=band[2].1 {
+            self.layer_spans(&band, k, &grown, &mut spans);
+            for &(row, i0, i1) in &spans {
+                for idx in row + i0..=row + i1 {
+                    if self.flags[idx] != BOUND {
+                        continue;
+                    }
+                    let slot = self.surfel_of[idx];
+                    if slot == NO_SURFEL {
+                        continue;
+                    }
+                    let colour = self.surfels[slot as usize].colour;
+                    let c = self.coords(idx);
+                    // An edge surfel stays; a chisel face's surfel is no old surface unless
+                    // the point lies on the block's face ([`Workpiece::uncut_face`]).
+                    let on_block_face = (0..3).any(|a| c[a] == 0 || c[a] + 1 == self.dims[a]);
+                    if colour == COLOUR_EDGE || (colour == COLOUR_CHISEL && !on_block_face) {
+                        continue;
+                    }
+                    let (f, s, k) = sweep.value(self.point(c[0], c[1], c[2]));
+                    if sweep.slanted[k] && f > 0.0 {
+                        self.slide_to_edge(idx, sweep, k, s, 0.7, stats);
+                    }
+                }
+            }
+        }
+        self.spans = spans;
+    }
+
+    /// Eq. 6: a chisel's slanted face `k` (at sweep parameter `s`) meeting the old surface
+    /// at BOUND point `idx`: slides the old surfel within its tangent plane onto the face
+    /// (the groove's edge), keeping its normal, if the edge is within `reach` spacings.
+    /// The old surface is the point's surfel unless the chisel put it itself (a face of an
+    /// earlier pose of the stroke, often its front face meeting the point first): then it
+    /// is the block's face the point lies on, if any. Returns whether the surfel is on the
+    /// edge (moved there now, or already there).
+    fn slide_to_edge(
+        &mut self,
+        idx: usize,
+        sweep: &Sweep,
+        k: usize,
+        s: f64,
+        reach: f64,
+        stats: &mut CutStats,
+    ) -> bool {
+        let h = self.h;
+        let nw = sweep.faces[k].0;
+        let o = self.surfels[self.surfel_of[idx] as usize];
+        let old = if o.colour == COLOUR_CHISEL {
+            self.uncut_face(idx, nw)
+        } else {
+            Some((o.position.map(f64::from), o.normal.map(f64::from), o.colour))
+        };
+        let Some((xb, nb, old_colour)) = old else {
+            return false;
+        };
+        let cos = dot(nw, nb);
+        if !(cos.abs() < 0.94) {
+            return false;
+        }
+        let v = sub(nw, scale(nb, cos));
+        // Plane of face k at the sweep parameter s: n · x = off + s (n · d).
+        let fb = dot(nw, xb) - sweep.faces[k].1 - s * dot(nw, sweep.d);
+        if old_colour == COLOUR_EDGE && fb.abs() <= 1e-3 * h {
+            // Already on this face's edge (a later pose of the same stroke exposes the
+            // point again): projecting it onto the face would lose the edge.
+            return true;
+        }
+        let nv = dot(nw, v);
+        if !(nv.abs() > 1e-12) {
+            return false;
+        }
+        let step = scale(v, fb / nv);
+        if fb > 0.0 && norm(step) <= reach * h {
+            self.set_surfel(idx, sub(xb, step), nb, COLOUR_EDGE);
+            stats.resampled += 1;
+            stats.exposed += 1;
+            return true;
+        }
+        false
+    }
+
+    /// The surface point `idx` had before the chisel reached it, if that was one of the
+    /// block's own faces: the first axis direction off the grid from it that is not within
+    /// 20° of the face normal `nw`; the face half a spacing that way, facing it. (An air
+    /// neighbour is no evidence: the chisel may have cut it earlier in the stroke.)
+    fn uncut_face(&self, idx: usize, nw: Vec3) -> Option<(Vec3, Vec3, u32)> {
+        let c = self.coords(idx);
+        let p = self.point(c[0], c[1], c[2]);
+        for a in 0..3 {
+            for (sign, off_grid) in [(-1.0f64, c[a] == 0), (1.0, c[a] + 1 == self.dims[a])] {
+                let mut dir = [0.0; 3];
+                dir[a] = sign;
+                if off_grid && dot(dir, nw).abs() < 0.94 {
+                    return Some((add(p, scale(dir, self.h / 2.0)), dir, COLOUR_BLOCK));
+                }
+            }
+        }
+        None
     }
 
     /// Point `idx` (material, next to a removed point) is on the surface of the cut.
@@ -479,29 +746,8 @@ impl Workpiece {
         let nw = sweep.faces[k].0;
         let h = self.h;
         let was_surface = self.flags[idx] == BOUND && self.surfel_of[idx] != NO_SURFEL;
-        // Eq. 6: a chisel's slanted face meeting the old surface: slide the old surfel
-        // within its tangent plane onto the face (the groove's edge), keeping its normal.
-        if sweep.slanted[k] && was_surface {
-            let old = self.surfels[self.surfel_of[idx] as usize];
-            let nb = old.normal.map(f64::from);
-            let xb = old.position.map(f64::from);
-            let cos = dot(nw, nb);
-            if cos.abs() < 0.94 {
-                let v = sub(nw, scale(nb, cos));
-                // Plane of face k at the sweep parameter s: n · x = off + s (n · d).
-                let fb = dot(nw, xb) - sweep.faces[k].1 - s * dot(nw, sweep.d);
-                let nv = dot(nw, v);
-                if nv.abs() > 1e-12 {
-                    let step = scale(v, fb / nv);
-                    if fb > 0.0 && norm(step) <= h {
-                        let edge = sub(xb, step);
-                        self.set_surfel(idx, edge, nb, COLOUR_EDGE);
-                        stats.resampled += 1;
-                        stats.exposed += 1;
-                        return;
-                    }
-                }
-            }
+        if sweep.slanted[k] && was_surface && self.slide_to_edge(idx, sweep, k, s, 1.0, stats) {
+            return;
         }
         self.flags[idx] = BOUND;
         // The knife: the surfel at the exact closest point of the swept solid, facing it.

@@ -347,10 +347,48 @@ fn accuracy_case(h: f64, per_frame: f64, rotate: bool) -> Result<Accuracy, CliEr
     })
 }
 
-/// Coefficient of variation of the rendered force over a steady cut at 1 kHz (after 0.2 s),
-/// and its mean (N).
-fn force_cv(h: f64, model: ForceModel, filtered: bool) -> Result<(f64, f64), CliError> {
-    let mut work = Workpiece::block([0.0; 3], [0.08, 0.02, 0.02], h).map_err(err)?;
+/// How the `section` force reads the layer ahead in [`force_cv`].
+#[derive(Clone, Copy, PartialEq)]
+enum Ahead {
+    /// As the model does ([`crate::carving::Workpiece::section_ahead`], sub-voxel weights).
+    SubVoxel,
+    /// The material points within one spacing ahead, counted whole (the estimate before
+    /// the sub-voxel one; [`crate::carving::Workpiece::material_ahead`]).
+    Count,
+}
+
+/// A steady cut's force statistics.
+struct ForceStats {
+    /// Coefficient of variation of |F|.
+    cv: f64,
+    /// Mean |F| (N).
+    mean: f64,
+    /// Median time of one pose's update (carve + force), µs.
+    pose_us: f64,
+}
+
+/// The rendered force over a steady cut at 1 kHz (after 0.2 s): the knife 3 mm deep, facing
+/// its motion, moving at 50 mm/s at `angle_deg` to the grid's x axis in the x-y plane.
+fn force_cv(
+    h: f64,
+    model: ForceModel,
+    filtered: bool,
+    angle_deg: f64,
+    ahead: Ahead,
+) -> Result<ForceStats, CliError> {
+    let speed = 0.05; // m/s
+    let dt = 1e-3;
+    let poses = 1000;
+    let (sin, cos) = angle_deg.to_radians().sin_cos();
+    let start = [0.005, 0.01, 0.0];
+    let travel = speed * dt * poses as f64;
+    // The block holds the stroke with 10 mm to spare past its end and beside it.
+    let hi = [
+        (start[0] + travel * cos + 0.01).max(0.02),
+        (start[1] + travel * sin + 0.01).max(0.02),
+        0.02,
+    ];
+    let mut work = Workpiece::block([0.0, 0.0, 0.01], hi, h).map_err(err)?;
     let tool = Tool::knife(0.008, 0.006, 0.002, h).map_err(err)?;
     let mut params = ForceParams {
         model,
@@ -362,22 +400,27 @@ fn force_cv(h: f64, model: ForceModel, filtered: bool) -> Result<(f64, f64), Cli
         params.max_force = f64::INFINITY;
     }
     let mut force = ForceRenderer::new(params);
-    let speed = 0.05; // m/s
-    let dt = 1e-3;
-    let rot = facing_x();
+    let rot = Quat::from_axis_angle([0.0, 0.0, 1.0], angle_deg.to_radians()).mul(&facing_x());
     let z = 0.02 + 0.004 - 0.003; // 3 mm deep
+    let step = [speed * dt * cos, speed * dt * sin, 0.0];
     let mut prev = ToolPose {
-        position: [0.005, 0.01, z],
+        position: [start[0], start[1], z],
         rotation: rot,
     };
-    let mut mags = Vec::new();
-    for k in 1..=1000 {
+    let mut mags = Vec::with_capacity(poses);
+    let mut times = Vec::with_capacity(poses);
+    for k in 1..=poses {
         let next = ToolPose {
-            position: [prev.position[0] + speed * dt, 0.01, z],
+            position: [0, 1, 2].map(|a| prev.position[a] + step[a]),
             rotation: rot,
         };
-        let cut = work.carve(&tool, &prev, &next).map_err(err)?;
-        let f = force.step(&cut, h, [speed * dt, 0.0, 0.0], dt);
+        let t0 = Instant::now();
+        let mut cut = work.carve(&tool, &prev, &next).map_err(err)?;
+        if ahead == Ahead::Count {
+            cut.ahead_area = cut.ahead as f64 * h * h;
+        }
+        let f = force.step(&cut, h, step, dt);
+        times.push(t0.elapsed().as_secs_f64() * 1e6);
         if k > 200 {
             mags.push((f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt());
         }
@@ -385,7 +428,287 @@ fn force_cv(h: f64, model: ForceModel, filtered: bool) -> Result<(f64, f64), Cli
     }
     let mean = mags.iter().sum::<f64>() / mags.len() as f64;
     let var = mags.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / mags.len() as f64;
-    Ok((var.sqrt() / mean.max(1e-300), mean))
+    times.sort_by(f64::total_cmp);
+    Ok(ForceStats {
+        cv: var.sqrt() / mean.max(1e-300),
+        mean,
+        pose_us: percentile(&times, 0.5),
+    })
+}
+
+/// Median time (µs) of reading the layer ahead by counting points and with sub-voxel
+/// weights, on a steady diagonal cut at `angle_deg`, spacing `h`.
+fn ahead_cost_us(h: f64, angle_deg: f64) -> Result<(f64, f64), CliError> {
+    let (sin, cos) = angle_deg.to_radians().sin_cos();
+    let mut work = Workpiece::block([0.0, 0.0, 0.01], [0.04, 0.04, 0.02], h).map_err(err)?;
+    let tool = Tool::knife(0.008, 0.006, 0.002, h).map_err(err)?;
+    let rot = Quat::from_axis_angle([0.0, 0.0, 1.0], angle_deg.to_radians()).mul(&facing_x());
+    let step = [5e-5 * cos, 5e-5 * sin, 0.0];
+    let mut prev = ToolPose {
+        position: [0.005, 0.01, 0.021],
+        rotation: rot,
+    };
+    let (mut count, mut sub) = (Vec::new(), Vec::new());
+    for _ in 0..400 {
+        let next = ToolPose {
+            position: [0, 1, 2].map(|a| prev.position[a] + step[a]),
+            rotation: rot,
+        };
+        work.carve(&tool, &prev, &next).map_err(err)?;
+        let t0 = Instant::now();
+        std::hint::black_box(work.material_ahead(&tool, &next, step));
+        let t1 = Instant::now();
+        std::hint::black_box(work.section_ahead(&tool, &next, step));
+        let t2 = Instant::now();
+        count.push((t1 - t0).as_secs_f64() * 1e6);
+        sub.push((t2 - t1).as_secs_f64() * 1e6);
+        prev = next;
+    }
+    count.sort_by(f64::total_cmp);
+    sub.sort_by(f64::total_cmp);
+    Ok((percentile(&count, 0.5), percentile(&sub, 0.5)))
+}
+
+/// One chisel-edge case's result: the edge drawn by the eq. 6 surfels alone and by the
+/// eq. 7 polygon strip, against the true edges of the groove.
+struct EdgeAccuracy {
+    surfels: usize,
+    polygons: usize,
+    unmatched: usize,
+    strip_ends: usize,
+    /// Edge surfel centres' distance to the true edge: RMS and max (m).
+    centre_rms: f64,
+    centre_max: f64,
+    /// True-edge samples' distance to the nearest edge surfel centre: mean and max (m).
+    gap_mean_before: f64,
+    gap_max_before: f64,
+    /// ... to the polygon strip (the segments `P1 P2`): mean and max (m).
+    gap_mean_after: f64,
+    gap_max_after: f64,
+    /// Time to build the polygons (ms).
+    build_ms: f64,
+    /// Median and p99 time of one pose's carve (µs), eq. 6 and its band included.
+    pose_us: (f64, f64),
+}
+
+fn point_segment(p: Vec3, a: Vec3, b: Vec3) -> f64 {
+    let ab = [0, 1, 2].map(|k| b[k] - a[k]);
+    let ap = [0, 1, 2].map(|k| p[k] - a[k]);
+    let l2 = ab.iter().map(|v| v * v).sum::<f64>();
+    let t = if l2 > 0.0 {
+        ((0..3).map(|k| ab[k] * ap[k]).sum::<f64>() / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (0..3)
+        .map(|k| (ap[k] - t * ab[k]).powi(2))
+        .sum::<f64>()
+        .sqrt()
+}
+
+/// A chisel (3 mm wide, 1.5 mm high: sides at 45°; 1 mm thick) stroke 20 mm long at
+/// `angle_deg` to the grid's x axis, apex 1 mm below the top of a 40 x 30 x 10 mm block, in
+/// moves of half a spacing; its two groove edges on the top face against the edge surfels
+/// and the eq. 7 strip.
+fn edge_case(h: f64, angle_deg: f64) -> Result<EdgeAccuracy, CliError> {
+    use crate::carving::edge::EDGE_POLYGON_WIDTH_SPACINGS;
+    let lo = [0.0, 0.0, 0.0];
+    let hi = [0.04, 0.03, 0.01];
+    let mut work = Workpiece::block(lo, hi, h).map_err(err)?;
+    let (width, height) = (0.003, 0.0015);
+    let tool = Tool::chisel(width, height, 0.001, h).map_err(err)?;
+    let rot = Quat::from_axis_angle([0.0, 0.0, 1.0], angle_deg.to_radians());
+    let (sin, cos) = angle_deg.to_radians().sin_cos();
+    let start = [0.01, 0.008, hi[2] - 0.001];
+    let length = 0.02;
+    let moves = (length / (h / 2.0)).ceil() as usize;
+    let at = |t: f64| ToolPose {
+        position: [start[0] + t * cos, start[1] + t * sin, start[2]],
+        rotation: rot,
+    };
+    let mut prev = at(0.0);
+    work.carve(&tool, &prev, &prev).map_err(err)?;
+    let mut times = Vec::with_capacity(moves);
+    for k in 1..=moves {
+        let next = at(length * k as f64 / moves as f64);
+        let t0 = Instant::now();
+        work.carve(&tool, &prev, &next).map_err(err)?;
+        times.push(t0.elapsed().as_secs_f64() * 1e6);
+        prev = next;
+    }
+    times.sort_by(f64::total_cmp);
+    let t0 = Instant::now();
+    let mut polys = Vec::new();
+    let report = work
+        .edge_polygons(EDGE_POLYGON_WIDTH_SPACINGS * h, &mut polys)
+        .map_err(err)?;
+    let build_ms = t0.elapsed().as_secs_f64() * 1e3;
+    // The true edges: the sides' planes (through the apex line, containing the motion) on
+    // the top face, at tool-frame y = ±(width/2) z/height with z the apex's depth.
+    let depth = hi[2] - start[2];
+    let side = width / 2.0 * depth / height;
+    let edge = |s: f64, t: f64| -> Vec3 {
+        let q = rot.rotate([t, s * side, depth]);
+        [start[0] + q[0], start[1] + q[1], start[2] + q[2]]
+    };
+    // Along the edge, stay two spacings inside the stroke's ends.
+    let (t_lo, t_hi) = (2.0 * h, length - 2.0 * h);
+    let red: Vec<Vec3> = work
+        .surfels()
+        .iter()
+        .filter(|s| s.colour == 0xd02020)
+        .map(|s| s.position.map(f64::from))
+        .collect();
+    let line_distance = |p: Vec3| -> Option<f64> {
+        [-1.0, 1.0]
+            .iter()
+            .filter_map(|&s| {
+                let a = edge(s, 0.0);
+                let u = [cos, sin, 0.0];
+                let t = (0..3).map(|k| (p[k] - a[k]) * u[k]).sum::<f64>();
+                (t >= t_lo && t <= t_hi).then(|| point_segment(p, edge(s, t_lo), edge(s, t_hi)))
+            })
+            .reduce(f64::min)
+    };
+    let (mut sum2, mut cmax, mut n) = (0.0f64, 0.0f64, 0usize);
+    for &p in &red {
+        if let Some(d) = line_distance(p) {
+            sum2 += d * d;
+            cmax = cmax.max(d);
+            n += 1;
+        }
+    }
+    let segs: Vec<(Vec3, Vec3)> = polys
+        .iter()
+        .map(|p| (p.vertices[0].map(f64::from), p.vertices[1].map(f64::from)))
+        .collect();
+    let (mut before, mut after) = (Vec::new(), Vec::new());
+    let samples = ((t_hi - t_lo) / (h / 20.0)).ceil() as usize;
+    for s in [-1.0, 1.0] {
+        for k in 0..=samples {
+            let q = edge(s, t_lo + (t_hi - t_lo) * k as f64 / samples as f64);
+            let b = red
+                .iter()
+                .map(|&p| (0..3).map(|a| (p[a] - q[a]).powi(2)).sum::<f64>().sqrt())
+                .fold(f64::INFINITY, f64::min);
+            let a = segs
+                .iter()
+                .map(|&(p1, p2)| point_segment(q, p1, p2))
+                .fold(f64::INFINITY, f64::min);
+            before.push(b);
+            after.push(a);
+        }
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let max = |v: &[f64]| v.iter().copied().fold(0.0f64, f64::max);
+    Ok(EdgeAccuracy {
+        surfels: report.edge_surfels,
+        polygons: report.polygons,
+        unmatched: report.unmatched,
+        strip_ends: report.strip_ends,
+        centre_rms: (sum2 / n.max(1) as f64).sqrt(),
+        centre_max: cmax,
+        gap_mean_before: mean(&before),
+        gap_max_before: max(&before),
+        gap_mean_after: mean(&after),
+        gap_max_after: max(&after),
+        build_ms,
+        pose_us: (percentile(&times, 0.5), percentile(&times, 0.99)),
+    })
+}
+
+/// Agreement of a tool-surfel classification with the exact one.
+#[derive(Default)]
+struct Agreement {
+    /// Tool surfels compared (those not on the exact surface).
+    total: usize,
+    /// Same material / air answer.
+    material: usize,
+    /// Of those farther than half a spacing from the exact surface: count and agreeing.
+    clear: usize,
+    clear_material: usize,
+    /// Same class of three (OUTSIDE, BOUND within d_s, INSIDE).
+    class: usize,
+    /// Time (µs per tool surfel).
+    us: f64,
+}
+
+/// The seed's eqs. 3-5 against the grid's classification of the tool surfels of one knife
+/// move (8 x 6 x 2 mm, crossing a 6 mm wide, 3 mm deep slot cut before it, or the plain
+/// block), against the exact workpiece.
+fn eq3_case(h: f64, slot: bool) -> Result<(usize, Agreement, Agreement), CliError> {
+    use crate::carving::toolsurfel::{sweep_surfels, ToolClass};
+    let lo = [0.0, 0.0, 0.0];
+    let hi = [0.04, 0.03, 0.02];
+    let mut work = Workpiece::block(lo, hi, h).map_err(err)?;
+    let tool = Tool::knife(0.008, 0.006, 0.002, h).map_err(err)?;
+    let z = hi[2] + 0.004 - 0.003;
+    let mut solid = SweptSolid::default();
+    if slot {
+        let a = ToolPose {
+            position: [0.005, 0.015, z],
+            rotation: facing_x(),
+        };
+        let b = ToolPose {
+            position: [0.035, 0.015, z],
+            rotation: facing_x(),
+        };
+        work.carve(&tool, &a, &a).map_err(err)?;
+        work.carve(&tool, &a, &b).map_err(err)?;
+        solid.pieces.push(BoxSweep {
+            c0: a.position,
+            rotation: a.rotation,
+            half: knife_half(&tool),
+            d: [0.03, 0.0, 0.0],
+        });
+    }
+    // The second move: across the slot along y, 1 mm deeper, turned to face y.
+    let rot = Quat::from_axis_angle([0.0, 0.0, 1.0], std::f64::consts::FRAC_PI_2).mul(&facing_x());
+    let from = ToolPose {
+        position: [0.02, 0.004, z - 0.001],
+        rotation: rot,
+    };
+    let to = ToolPose {
+        position: [0.02, 0.026, z - 0.001],
+        rotation: rot,
+    };
+    let surfels = sweep_surfels(&tool, &from, &to, h).map_err(err)?;
+    let d_s = h;
+    let exact = |x: Vec3| {
+        let sd = solid.carved_block_distance(lo, hi, x);
+        let class = if sd >= 0.0 {
+            ToolClass::Outside
+        } else if sd > -d_s {
+            ToolClass::Bound
+        } else {
+            ToolClass::Inside
+        };
+        (sd, class)
+    };
+    let score = |f: &dyn Fn(Vec3) -> ToolClass| {
+        let mut a = Agreement::default();
+        let t0 = Instant::now();
+        let got: Vec<ToolClass> = surfels.iter().map(|s| f(s.position)).collect();
+        a.us = t0.elapsed().as_secs_f64() * 1e6 / surfels.len().max(1) as f64;
+        for (s, g) in surfels.iter().zip(got) {
+            let (sd, want) = exact(s.position);
+            if sd.abs() < 1e-9 {
+                continue;
+            }
+            let same = (g == ToolClass::Outside) == (want == ToolClass::Outside);
+            a.total += 1;
+            a.material += usize::from(same);
+            a.class += usize::from(g == want);
+            if sd.abs() > h {
+                a.clear += 1;
+                a.clear_material += usize::from(same);
+            }
+        }
+        a
+    };
+    let eq3 = score(&|x| work.classify_eq3(x, d_s));
+    let grid = score(&|x| work.classify_grid(x, d_s));
+    Ok((surfels.len(), eq3, grid))
 }
 
 /// `chronotope bench carve --accuracy`: prints the tables and writes them to `out` (Markdown).
@@ -455,28 +778,202 @@ pub fn bench_carve_accuracy(
     }
     let mut f = String::new();
     f.push_str(
-        "\nForce in a steady cut: knife 3 mm deep moving along x at 50 mm/s, poses at 1 kHz,\n",
+        "\nForce in a steady cut: knife 8 x 6 x 2 mm, 3 mm deep, facing its motion, moving at\n",
     );
     f.push_str(
-        "0.8 s after the first 0.2 s. CV = standard deviation / mean of |F|. Filtered = the\n",
+        "50 mm/s at 0°, 30° or 45° to the grid's x axis (in the x-y plane), poses at 1 kHz;\n",
     );
-    f.push_str("default 30 Hz low-pass and virtual coupling (2000 N/m, 8 N·s/m, 0.02 kg).\n\n");
-    f.push_str("| spacing mm | force | mean N | CV |\n|---|---|---|---|\n");
+    f.push_str(
+        "statistics over 0.8 s after the first 0.2 s. CV = standard deviation / mean of |F|.\n",
+    );
+    f.push_str("Filtered = the default 30 Hz low-pass and virtual coupling (2000 N/m, 8 N·s/m,\n");
+    f.push_str(
+        "0.02 kg). `section`, count = the layer ahead read by counting the points within one\n",
+    );
+    f.push_str(
+        "spacing ahead (the estimate before); `section`, sub-voxel = the model's estimate\n",
+    );
+    f.push_str(
+        "(row chords through a window half a spacing ahead). Pose µs = median of one pose's\n",
+    );
+    f.push_str("update (carve + force).\n\n");
+    f.push_str(
+        "| spacing mm | angle | force | mean N | CV | pose µs |\n|---|---|---|---|---|---|\n",
+    );
+    print!("{f}");
     for &s in spacings_mm {
         let h = s * 1e-3;
-        for (name, model, filtered) in [
-            ("eq. 8 (count), raw", ForceModel::Count, false),
-            ("cross-section (volume), raw", ForceModel::Volume, false),
-            ("cross-section (volume), filtered", ForceModel::Volume, true),
-            ("layer ahead (section), raw", ForceModel::Section, false),
-            ("layer ahead (section), filtered", ForceModel::Section, true),
-        ] {
-            let (cv, mean) = force_cv(h, model, filtered)?;
-            f.push_str(&format!("| {s} | {name} | {mean:.3} | {cv:.2} |\n"));
+        for angle in [0.0, 30.0, 45.0] {
+            for (name, model, filtered, ahead) in [
+                (
+                    "eq. 8 (count), raw",
+                    ForceModel::Count,
+                    false,
+                    Ahead::SubVoxel,
+                ),
+                (
+                    "cross-section (volume), raw",
+                    ForceModel::Volume,
+                    false,
+                    Ahead::SubVoxel,
+                ),
+                (
+                    "cross-section (volume), filtered",
+                    ForceModel::Volume,
+                    true,
+                    Ahead::SubVoxel,
+                ),
+                (
+                    "layer ahead (section), count, raw",
+                    ForceModel::Section,
+                    false,
+                    Ahead::Count,
+                ),
+                (
+                    "layer ahead (section), count, filtered",
+                    ForceModel::Section,
+                    true,
+                    Ahead::Count,
+                ),
+                (
+                    "layer ahead (section), sub-voxel, raw",
+                    ForceModel::Section,
+                    false,
+                    Ahead::SubVoxel,
+                ),
+                (
+                    "layer ahead (section), sub-voxel, filtered",
+                    ForceModel::Section,
+                    true,
+                    Ahead::SubVoxel,
+                ),
+            ] {
+                let r = force_cv(h, model, filtered, angle, ahead)?;
+                let line = format!(
+                    "| {s} | {angle}° | {name} | {:.3} | {:.3} | {:.1} |\n",
+                    r.mean, r.cv, r.pose_us
+                );
+                print!("{line}");
+                f.push_str(&line);
+            }
         }
     }
-    print!("{f}");
+    let mut c = String::from(
+        "\nCost of reading the layer ahead (median µs per pose, steady cut as above):\n\n\
+         | spacing mm | angle | count | sub-voxel |\n|---|---|---|---|\n",
+    );
+    for &s in spacings_mm {
+        for angle in [0.0, 30.0, 45.0] {
+            let (count, sub) = ahead_cost_us(s * 1e-3, angle)?;
+            c.push_str(&format!("| {s} | {angle}° | {count:.1} | {sub:.1} |\n"));
+        }
+    }
+    f.push_str(&c);
+    print!("{c}");
     md.push_str(&f);
+    let mut e = String::new();
+    e.push_str(
+        "\nChisel edges (seed eqs. 6-7): a chisel 3 mm wide, 1.5 mm high (sides at 45°), 1 mm\n",
+    );
+    e.push_str(
+        "thick, apex 1 mm below the top of a 40 x 30 x 10 mm block, a 20 mm stroke at 0°, 30°\n",
+    );
+    e.push_str(
+        "or 45° to the grid's x axis in moves of half a spacing. The true edges: the lines where\n",
+    );
+    e.push_str(
+        "the groove's sides meet the top (2 mm apart), two spacings inside the stroke's ends.\n",
+    );
+    e.push_str(
+        "Centre = distance of the eq. 6 edge surfels' centres to the true edge. Gap = distance\n",
+    );
+    e.push_str("from a true-edge sample (every 1/20 spacing) to the nearest edge surfel centre\n");
+    e.push_str(
+        "(before: the edge drawn by discs alone, each also overhanging the edge by its radius,\n",
+    );
+    e.push_str(
+        "√3/2 spacing) or to the eq. 7 strip's edge side P1 P2 (after; polygons half a spacing\n",
+    );
+    e.push_str(
+        "wide on each side). Build = time to build the polygons from the surfels (display rate);\n",
+    );
+    e.push_str(
+        "pose µs = median / p99 of one move's carve (sweep, exposure, eq. 6 and its band).\n\n",
+    );
+    e.push_str("| spacing mm | angle | edge surfels | polygons (unmatched, strip ends) | centre RMS / max mm | gap before mean / max mm | gap after mean / max mm | build ms | pose µs |\n");
+    e.push_str("|---|---|---|---|---|---|---|---|---|\n");
+    print!("{e}");
+    for &s in spacings_mm {
+        for angle in [0.0, 30.0, 45.0] {
+            let a = edge_case(s * 1e-3, angle)?;
+            let line = format!(
+                "| {s} | {angle}° | {} | {} ({}, {}) | {:.4} / {:.4} | {:.3} / {:.3} | {:.4} / {:.4} | {:.2} | {:.1} / {:.1} |\n",
+                a.surfels,
+                a.polygons,
+                a.unmatched,
+                a.strip_ends,
+                a.centre_rms * 1e3,
+                a.centre_max * 1e3,
+                a.gap_mean_before * 1e3,
+                a.gap_max_before * 1e3,
+                a.gap_mean_after * 1e3,
+                a.gap_max_after * 1e3,
+                a.build_ms,
+                a.pose_us.0,
+                a.pose_us.1
+            );
+            print!("{line}");
+            e.push_str(&line);
+        }
+    }
+    md.push_str(&e);
+    let mut t = String::new();
+    t.push_str(
+        "\nTool surfels (seed eqs. 3-5) against the grid: the surfels of one knife move (8 x 6 x\n",
+    );
+    t.push_str(
+        "2 mm, 22 mm along y, 4 mm deep) on a 40 x 30 x 20 mm block, plain or with a 6 mm wide,\n",
+    );
+    t.push_str(
+        "3 mm deep slot cut along x before it; each classified by eqs. 3-5 as written (against\n",
+    );
+    t.push_str(
+        "every surfel of the workpiece) and by the grid (the nearest point's flag; BOUND if a\n",
+    );
+    t.push_str("surfel within two points is closer than d_s = one spacing), against the exact\n");
+    t.push_str(
+        "workpiece (block minus the slot's exact sweep). Material = same material / air answer;\n",
+    );
+    t.push_str(
+        "clear = the same for tool surfels farther than a spacing from the exact surface (wrong of n);\n",
+    );
+    t.push_str("class = same of OUTSIDE / BOUND / INSIDE. µs per tool surfel.\n\n");
+    t.push_str(
+        "| spacing mm | workpiece | tool surfels | method | material | clear | class | µs |\n",
+    );
+    t.push_str("|---|---|---|---|---|---|---|---|\n");
+    print!("{t}");
+    for &s in spacings_mm {
+        for slot in [false, true] {
+            let (n, eq3, grid) = eq3_case(s * 1e-3, slot)?;
+            for (name, a) in [("eqs. 3-5", eq3), ("grid", grid)] {
+                let pct = |k: usize, of: usize| 100.0 * k as f64 / of.max(1) as f64;
+                let line = format!(
+                    "| {s} | {} | {n} | {name} | {:.2}% | {:.2}% ({} of {}) | {:.2}% | {:.3} |\n",
+                    if slot { "slot" } else { "block" },
+                    pct(a.material, a.total),
+                    pct(a.clear_material, a.clear),
+                    a.clear - a.clear_material,
+                    a.clear,
+                    pct(a.class, a.total),
+                    a.us
+                );
+                print!("{line}");
+                t.push_str(&line);
+            }
+        }
+    }
+    md.push_str(&t);
     if let Some(path) = out {
         std::fs::write(path, md).map_err(|source| CliError::Io {
             path: path.to_owned(),
