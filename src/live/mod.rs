@@ -1145,3 +1145,47 @@ fn transport_diagnostic(t: &TransportStatus) -> DiagnosticStatus {
         values,
     )
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_node_s_diagnostics_carry_its_cpu_and_drops_and_turn_error_when_stopped() {
+        let mut r = NodeRun {
+            thread: "realtime",
+            scheduling: Some("SCHED_FIFO 40".into()),
+            cpu_s: 1.25,
+            cpu_percent: 12.5,
+            ..NodeRun::default()
+        };
+        let d = node_diagnostic("/carving", &r);
+        assert_eq!(d.level, DiagnosticStatus::OK);
+        let value = |d: &DiagnosticStatus, k: &str| {
+            d.values
+                .iter()
+                .find(|v| v.key == k)
+                .map(|v| v.value.clone())
+        };
+        assert_eq!(value(&d, "cpu_s").as_deref(), Some("1.250"));
+        assert_eq!(value(&d, "cpu_percent").as_deref(), Some("12.5"));
+        assert_eq!(value(&d, "scheduling").as_deref(), Some("SCHED_FIFO 40"));
+        r.dropped.insert("/haptic/pose".into(), 3);
+        let d = node_diagnostic("/carving", &r);
+        assert_eq!(d.level, DiagnosticStatus::WARN);
+        assert_eq!(value(&d, "dropped./haptic/pose").as_deref(), Some("3"));
+        r.stopped = Some("panicked: boom".into());
+        let d = node_diagnostic("/carving", &r);
+        assert_eq!(d.level, DiagnosticStatus::ERROR);
+        assert!(d.message.contains("boom"), "{}", d.message);
+    }
+
+    #[test]
+    fn large_types_are_the_bulk_ones() {
+        assert!(is_bulk(crate::msg::VoxelGrid::TYPE_NAME));
+        assert!(is_bulk(crate::msg::PointCloud2::TYPE_NAME));
+        assert!(is_bulk(crate::msg::MarkerArray::TYPE_NAME));
+        assert!(!is_bulk(crate::msg::WrenchStamped::TYPE_NAME));
+        assert!(!is_bulk(crate::msg::InterferenceReport::TYPE_NAME));
+    }
+}

@@ -870,4 +870,22 @@ launch:
             assert!(e.contains(what), "{bad}: {e}");
         }
     }
+
+    #[test]
+    fn every_node_takes_the_executor_parameters_checked_at_load() {
+        let cfg = "launch:\n- node: {pkg: chronotope, exec: mesher, param: [{name: realtime, value: true}, {name: queue_depth, value: 8}]}\n";
+        let c = LaunchConfig::parse(cfg, "t").unwrap();
+        let e = c.nodes[0].executor().unwrap();
+        assert!(e.realtime);
+        assert_eq!(e.queue_depth, Some(8));
+        for (bad, what) in [
+            ("{name: realtime, value: 'yes'}", "realtime"),
+            ("{name: queue_depth, value: 0}", "queue_depth"),
+            ("{name: queue_depth, value: 1.5}", "queue_depth"),
+        ] {
+            let cfg = format!("launch:\n- node: {{pkg: chronotope, exec: checker, param: [{bad}]}}\n");
+            let e = LaunchConfig::parse(&cfg, "t").unwrap_err().to_string();
+            assert!(e.contains(what), "{bad}: {e}");
+        }
+    }
 }
