@@ -191,8 +191,11 @@ impl TopicQos {
             t if t == MarkerArray::TYPE_NAME => Self::latched(256),
             t if t == Marker::TYPE_NAME => Self::best_effort(16),
             t if t == PointCloud2::TYPE_NAME => Self::latched(1),
+            // Depth 16: a best-effort writer keeps at most `depth` samples not yet sent, the
+            // newest evicting the oldest, so depth 1 lost wrenches written back to back
+            // after a stall. A reader still takes the latest.
             t if t == PoseStamped::TYPE_NAME || t == WrenchStamped::TYPE_NAME => {
-                Self::best_effort(1)
+                Self::best_effort(16)
             }
             t if t == Clock::TYPE_NAME => Self::best_effort(1),
             t if t == DiagnosticArray::TYPE_NAME => Self::reliable(10),
@@ -200,10 +203,19 @@ impl TopicQos {
         }
     }
 
-    /// As RustDDS policies. Reliable writers block at most 100 ms on a full history.
+    /// As RustDDS policies. Reliable writers block at most 100 ms on a full history. The
+    /// resource limit of `depth` samples bounds what a reliable writer keeps for readers that
+    /// have not acknowledged (RustDDS keeps every unacknowledged sample of a transient-local
+    /// writer otherwise, up to 8192: gigabytes of clouds and markers with a slow reader or
+    /// none); it is applied at RustDDS's cache cleaning, every 6 s.
     pub fn policies(&self) -> QosPolicies {
         let b = QosPolicyBuilder::new()
             .history(History::KeepLast { depth: self.depth })
+            .resource_limits(rustdds::policy::ResourceLimits {
+                max_samples: self.depth,
+                max_instances: 1,
+                max_samples_per_instance: self.depth,
+            })
             .durability(if self.transient_local {
                 Durability::TransientLocal
             } else {
