@@ -12,8 +12,9 @@
       time from a loop's last frame to its report (includes the mesher's idle timeout, 2 s).
   python3 bench/live_bench.py idle      [--seconds 30]
       CPU load and resident memory of an idle `chronotope launch launch_configs/machine_tool.yaml`.
-  python3 bench/live_bench.py mesher    [--hz 10] [--bag B] [--grid 128] [--frames N]
-      `chronotope play --rate` plays the scene's frames (0.1 s apart) at --hz frames per second.
+  python3 bench/live_bench.py mesher    [--hz 10] [--seconds S | --frames N] [--bag B] [--grid 128]
+      `chronotope play --rate` plays the scene's frames (0.1 s apart) at --hz frames per second
+      (--seconds S: a scene of S x hz frames per body).
       Prints, per input topic, frames received, dropped (the launch's --summary), the lag
       p50/p99/max (reader to end of handling) also in frame periods, the launch's CPU while
       playing and in all, its RSS and peak RSS, and the CPU per thread of the launch.
@@ -309,8 +310,8 @@ def thread_cpu_s(pid: int) -> dict:
     return {k: round(v, 2) for k, v in sorted(out.items(), key=lambda kv: -kv[1])}
 
 
-def bag_frame_period_s(bag: Path) -> float:
-    """The median log-time step between two VoxelGrid frames of one topic of a bag."""
+def bag_frames(bag: Path):
+    """(median log-time step [s] between two VoxelGrid frames of one topic, frames per topic)."""
     from mcap.reader import make_reader
     times = {}
     with open(bag, "rb") as f:
@@ -320,7 +321,7 @@ def bag_frame_period_s(bag: Path) -> float:
     steps = [b - a for ts in times.values() for a, b in zip(ts, ts[1:]) if b > a]
     if not steps:
         raise SystemExit(f"{bag}: fewer than two VoxelGrid frames on any topic")
-    return statistics.median(steps) / 1e9
+    return statistics.median(steps) / 1e9, {t: len(ts) for t, ts in sorted(times.items())}
 
 
 # ---- mesher -----------------------------------------------------------------------------
@@ -329,14 +330,18 @@ def bench_mesher(a, exe, domain, tmp):
     bag = Path(a.bag) if a.bag else tmp / f"machine-tool-{a.grid}.mcap"
     if not a.bag:
         cmd = [str(exe), "scene", "machine-tool", "--grid", str(a.grid), "--out", str(bag)]
-        if a.frames:
-            cmd += ["--frames", str(a.frames)]
+        # --seconds N: N seconds of play at --hz (the scene's choreography, stretched over
+        # N x hz frames; the default 64 frames play for 2.1 s at 30 Hz, too short for the
+        # queue to fill).
+        frames = a.frames or (round(a.seconds * a.hz) if a.seconds else None)
+        if frames:
+            cmd += ["--frames", str(frames)]
         log(f"generating the machine-tool scene at {a.grid}^3 -> {bag}")
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
     # `chronotope play` keeps the recorded timing scaled by --rate: the scene's frames are
     # `period` apart, so --rate hz * period plays --hz frames per second (the stamps keep
     # their recorded spacing; the nodes' lag is measured in wall time).
-    period = bag_frame_period_s(bag)
+    period, per_topic = bag_frames(bag)
     rate = a.hz * period
     cfg = ROOT / "launch_configs/machine_tool.yaml"
     summary = tmp / "summary.json"
@@ -367,7 +372,8 @@ def bench_mesher(a, exe, domain, tmp):
     s = full["transport"]
     lag = s.get("lag", {})
     frame_s = 1.0 / a.hz
-    print(f"\nmesher: machine-tool {a.grid}^3 bag (frames {period * 1e3:.0f} ms apart) played at "
+    print(f"\nmesher: machine-tool {a.grid}^3 bag ({max(per_topic.values())} frames per body, "
+          f"{period * 1e3:.0f} ms apart) played at "
           f"{a.hz:g} Hz (--rate {rate:.3g}, {t_play:.1f} s) into `launch machine_tool.yaml`")
     print("| topic | received | dropped | lag p50 [ms] | p99 [ms] | max [ms] | p99 [frame periods] | "
           "busy p50 [ms] |")
@@ -389,6 +395,7 @@ def bench_mesher(a, exe, domain, tmp):
           f"the bag: {cpu:.1f} s; RSS {rss:.0f} MB (peak {peak:.0f} MB); load {load0} -> {load1}")
     print("CPU per thread [s]: " + ", ".join(f"{k} {v}" for k, v in threads.items()))
     return {"topics": rows, "hz": a.hz, "play_rate": rate, "bag_frame_period_s": period,
+            "frames_per_topic": per_topic,
             "grid": a.grid, "play_s": t_play, "cpu_s_while_playing": cpu_play, "cpu_s": cpu,
             "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
             "loadavg_before": load0, "loadavg_after": load1, "summary": full}
@@ -781,14 +788,15 @@ def main() -> int:
                     help="mesher: seconds after the bag before the launch is stopped")
     ap.add_argument("--seconds-max", type=int, default=600)
     ap.add_argument("--seconds", type=float, default=None,
-                    help="idle: measuring time (default 30); carving: sending time (default 60)")
+                    help="idle: measuring time (default 30); carving: sending time (default 60); "
+                         "mesher: play time (frames = seconds x hz; default: the scene's 64 frames)")
     ap.add_argument("--setup", choices=sorted(CARVING_SETUPS), default="small",
                     help="carving: the workpiece, and whether a mesher and checker run too")
     ap.add_argument("--frame-hz", type=float, default=30.0,
                     help="carving: display frames per second (occupancy_period_s = 1 / this)")
     ap.add_argument("--pose-hz", type=float, default=1000.0, help="carving: poses per second")
     ap.add_argument("--speed", type=float, default=0.05, help="carving: knife speed [m/s]")
-    ap.add_argument("--max-rss-mb", type=float, default=12000.0,
+    ap.add_argument("--max-rss-mb", type=float, default=8000.0,
                     help="carving: stop sending when the launch's resident memory exceeds this")
     ap.add_argument("--quiet", type=float, default=10.0,
                     help="cyclone: stop taking results after this many seconds without any")
