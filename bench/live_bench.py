@@ -33,7 +33,7 @@
 
 Build first: cargo build --release.  --exe selects another binary.  --json FILE writes the
 figures as JSON too (with the load average: other builds share the cores).
-Domain: 120 + pid % 50 (never ROS_DOMAIN_ID's value), loopback discovery.
+Domain: --domain, else 120 + pid % 50 (never ROS_DOMAIN_ID's value), loopback discovery.
 """
 
 import argparse
@@ -521,7 +521,19 @@ def match_wrenches(sent, seen_poses, wrenches) -> dict:
         lat.append((src - seen_poses.get(stamp, sent[stamp])) / 1e6)
         forces.append(f)
     missing = len(sent) - len(first)
+    # Runs of consecutive poses (in send order) without a wrench: scattered single losses
+    # (the wire) or long runs (a stalled handler, a burst the writer's history kept the last
+    # of).
+    runs, longest, cur = 0, 0, 0
+    for stamp in sorted(sent):
+        if stamp in first:
+            cur = 0
+            continue
+        runs += cur == 0
+        cur += 1
+        longest = max(longest, cur)
     return {
+        "missing_runs": runs, "longest_missing_run": longest,
         "poses_sent": len(sent), "poses_seen_by_peer_reader": len(seen_poses),
         "source_timestamp_mismatches": sum(1 for k, v in seen_poses.items() if sent.get(k) != v),
         "wrenches_received": len(wrenches), "poses_with_wrench": len(first),
@@ -644,7 +656,7 @@ def bench_carving(a, exe, domain, tmp):
     path = KnifePath(setup["lo"], setup["hi"], speed=a.speed)
     period = 1.0 / a.pose_hz
     sent, deadlines, sent_at = {}, [], []
-    rss_peak_seen, rss_stop = 0.0, None
+    rss_peak_seen, rss_stop, rss_series = 0.0, None, []  # [s after the first pose, MB]
     cpu0, wall0, pcpu0 = proc_cpu_s(launch.pid), time.monotonic(), time.process_time()
     t0 = time.perf_counter()
     next_check = t0 + 1.0
@@ -682,7 +694,9 @@ def bench_carving(a, exe, domain, tmp):
             next_check = now + 1.0
             if launch.poll() is not None:
                 break
-            rss_peak_seen = max(rss_peak_seen, proc_rss_mb(launch.pid))
+            rss_now = proc_rss_mb(launch.pid)
+            rss_series.append([round(now - t0, 1), round(rss_now)])
+            rss_peak_seen = max(rss_peak_seen, rss_now)
             if rss_peak_seen > a.max_rss_mb:
                 rss_stop = rss_peak_seen
                 break
@@ -738,11 +752,13 @@ def bench_carving(a, exe, domain, tmp):
     print(f"wrenches with a force: {res['wrenches_with_force']} (median {res['force_n_p50']:.2f} N, "
           f"max {res['force_n_max']:.2f} N); latency over 1 ms: {res['latency_over_1ms']}, "
           f"over 2 ms: {res['latency_over_2ms']}; unmatched {res['wrenches_unmatched']}, "
-          f"duplicate {res['wrenches_duplicate']}; peer's pose reader saw {res['poses_seen_by_peer_reader']} "
+          f"duplicate {res['wrenches_duplicate']}; missing in {res['missing_runs']} runs, the longest "
+          f"{res['longest_missing_run']} poses; peer's pose reader saw {res['poses_seen_by_peer_reader']} "
           f"({res['source_timestamp_mismatches']} source-timestamp mismatches)")
     print("launch transport: " + "; ".join(f"{k} {v}" for k, v in counts.items() if v))
     print(f"launch CPU per thread [s]: " + ", ".join(f"{k} {v}" for k, v in threads.items()))
-    print(f"load {load0} -> {load1}")
+    print(f"load {load0} -> {load1}; launch RSS [MB] every ~10 s: "
+          + ", ".join(f"{s:g} s {m}" for s, m in rss_series[::10]))
     if rss_stop is not None:
         print(f"STOPPED EARLY: the launch's RSS reached {rss_stop:.0f} MB (--max-rss-mb {a.max_rss_mb})")
     return {"setup": a.setup, "description": desc, "config": cfg.read_text(), "seconds": a.seconds,
@@ -750,7 +766,7 @@ def bench_carving(a, exe, domain, tmp):
             "result": res, "pacing": pace, "sender_cpu_fraction": pcpu / send_s,
             "launch_cpu_s_while_sending": cpu_run, "launch_cpu_fraction_of_one_core": cpu_run / wall_run,
             "launch_cpu_s": cpu, "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
-            "stopped_early_rss_mb": rss_stop, "loadavg_before": load0, "loadavg_after": load1,
+            "stopped_early_rss_mb": rss_stop, "rss_mb_series": rss_series, "loadavg_before": load0, "loadavg_after": load1,
             "summary": full}
 
 
@@ -800,6 +816,8 @@ def main() -> int:
                     help="carving: stop sending when the launch's resident memory exceeds this")
     ap.add_argument("--quiet", type=float, default=10.0,
                     help="cyclone: stop taking results after this many seconds without any")
+    ap.add_argument("--domain", type=int, default=None,
+                    help="DDS domain (default 120 + pid % 50), e.g. to add a peer of your own")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     exe = Path(a.exe)
@@ -809,10 +827,12 @@ def main() -> int:
         ap.error("--loops in 1..100, --hz in 0.1..1000")
     if not (1 <= a.pose_hz <= 10_000 and 0.01 <= a.frame_hz <= 1000 and 0.001 <= a.speed <= 10):
         ap.error("--pose-hz in 1..10000, --frame-hz in 0.01..1000, --speed in 0.001..10 m/s")
+    if a.domain is not None and not 0 <= a.domain <= 232:
+        ap.error("--domain in 0..232")
     if a.seconds is not None and not 1 <= a.seconds <= 3600:
         ap.error("--seconds in 1..3600")
-    domain = 120 + os.getpid() % 50
-    out = {"machine": {"nproc": os.cpu_count()}, "exe": str(exe), "command": sys.argv,
+    domain = a.domain if a.domain is not None else 120 + os.getpid() % 50
+    out = {"domain": domain, "machine": {"nproc": os.cpu_count()}, "exe": str(exe), "command": sys.argv,
            "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "loadavg_start": loadavg()}
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)

@@ -123,6 +123,17 @@ class MatchTest(unittest.TestCase):
         self.assertEqual(r["latency_over_1ms"], 1)
         self.assertEqual(r["latency_over_2ms"], 1)
         self.assertEqual(r["wrenches_with_force"], 2)
+        self.assertEqual(r["missing_runs"], 2)  # poses 2 and 4, apart
+        self.assertEqual(r["longest_missing_run"], 1)
+
+    def test_runs_of_missing_wrenches(self):
+        sent = {k: k for k in range(10)}
+        have = [0, 1, 5, 9]  # missing 2-4 (a run of 3) and 6-8 (a run of 3)
+        r = lb.match_wrenches(sent, {}, [(k, k + 100, 1.0) for k in have])
+        self.assertEqual(r["missing_runs"], 2)
+        self.assertEqual(r["longest_missing_run"], 3)
+        r = lb.match_wrenches(sent, {}, [(k, k, 1.0) for k in [3]])
+        self.assertEqual((r["missing_runs"], r["longest_missing_run"]), (2, 6))
 
     def test_the_pose_readers_source_timestamp_is_preferred(self):
         sent = {10: 10, 20: 20}
