@@ -9,6 +9,7 @@ period.
 import importlib.util
 import math
 import os
+import sys
 import tempfile
 import unittest
 from pathlib import Path
@@ -17,6 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent.parent
 
 
 def load_bench():
+    sys.dont_write_bytecode = True  # no __pycache__ in bench/
     spec = importlib.util.spec_from_file_location("live_bench", ROOT / "bench/live_bench.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
