@@ -324,6 +324,25 @@ def bag_frames(bag: Path):
     return statistics.median(steps) / 1e9, {t: len(ts) for t, ts in sorted(times.items())}
 
 
+def summary_extras(full: dict) -> dict:
+    """From a launch's --summary: each node's counted problems, and every number whose path
+    of keys names CPU (wherever the executor reports it: per node, per thread)."""
+    problems = {n: s.get("problems", {}) for n, s in full.get("nodes", {}).items()
+                if s.get("problems")}
+    cpu = {}
+
+    def walk(v, path):
+        items = v.items() if isinstance(v, dict) else enumerate(v) if isinstance(v, list) else ()
+        for k, x in items:
+            p = f"{path}.{k}" if path else str(k)
+            if isinstance(x, (int, float)) and not isinstance(x, bool) and "cpu" in p.lower():
+                cpu[p] = x
+            else:
+                walk(x, p)
+    walk(full, "")
+    return {"problems": problems, "cpu": cpu}
+
+
 # ---- mesher -----------------------------------------------------------------------------
 
 def bench_mesher(a, exe, domain, tmp):
@@ -394,7 +413,12 @@ def bench_mesher(a, exe, domain, tmp):
           f"({100 * cpu_play / max(t_play, 1e-9):.0f} % of one core); until {a.settle:.0f} s after "
           f"the bag: {cpu:.1f} s; RSS {rss:.0f} MB (peak {peak:.0f} MB); load {load0} -> {load1}")
     print("CPU per thread [s]: " + ", ".join(f"{k} {v}" for k, v in threads.items()))
-    return {"topics": rows, "hz": a.hz, "play_rate": rate, "bag_frame_period_s": period,
+    extras = summary_extras(full)
+    if extras["cpu"]:
+        print("CPU in --summary: " + ", ".join(f"{k} {v}" for k, v in extras["cpu"].items()))
+    if extras["problems"]:
+        print("problems counted: " + "; ".join(f"{n} {p}" for n, p in extras["problems"].items()))
+    return {"topics": rows, "summary_cpu": extras["cpu"], "problems": extras["problems"], "hz": a.hz, "play_rate": rate, "bag_frame_period_s": period,
             "frames_per_topic": per_topic,
             "grid": a.grid, "play_s": t_play, "cpu_s_while_playing": cpu_play, "cpu_s": cpu,
             "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
@@ -757,13 +781,18 @@ def bench_carving(a, exe, domain, tmp):
           f"({res['source_timestamp_mismatches']} source-timestamp mismatches)")
     print("launch transport: " + "; ".join(f"{k} {v}" for k, v in counts.items() if v))
     print(f"launch CPU per thread [s]: " + ", ".join(f"{k} {v}" for k, v in threads.items()))
+    extras = summary_extras(full)
+    if extras["cpu"]:
+        print("CPU in --summary: " + ", ".join(f"{k} {v}" for k, v in extras["cpu"].items()))
+    if extras["problems"]:
+        print("problems counted: " + "; ".join(f"{n} {p}" for n, p in extras["problems"].items()))
     print(f"load {load0} -> {load1}; launch RSS [MB] every ~10 s: "
           + ", ".join(f"{s:g} s {m}" for s, m in rss_series[::10]))
     if rss_stop is not None:
         print(f"STOPPED EARLY: the launch's RSS reached {rss_stop:.0f} MB (--max-rss-mb {a.max_rss_mb})")
     return {"setup": a.setup, "description": desc, "config": cfg.read_text(), "seconds": a.seconds,
             "pose_hz": a.pose_hz, "frame_hz": a.frame_hz, "knife_speed_m_per_s": a.speed,
-            "result": res, "pacing": pace, "sender_cpu_fraction": pcpu / send_s,
+            "result": res, "pacing": pace, "summary_cpu": extras["cpu"], "problems": extras["problems"], "sender_cpu_fraction": pcpu / send_s,
             "launch_cpu_s_while_sending": cpu_run, "launch_cpu_fraction_of_one_core": cpu_run / wall_run,
             "launch_cpu_s": cpu, "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
             "stopped_early_rss_mb": rss_stop, "rss_mb_series": rss_series, "loadavg_before": load0, "loadavg_after": load1,

@@ -230,6 +230,16 @@ class BagTest(unittest.TestCase):
 
 
 class HelpersTest(unittest.TestCase):
+    def test_summary_extras(self):
+        full = {"nodes": {"/a": {"problems": {"x": 2}, "cpu_s": 1.5}, "/b": {"problems": {}}},
+                "transport": {"received": {"/t": 3}, "cpu": {"per_node": {"/a": 0.5}}},
+                "threads": [{"cpu_fraction": 0.25}]}
+        e = lb.summary_extras(full)
+        self.assertEqual(e["problems"], {"/a": {"x": 2}})
+        self.assertEqual(e["cpu"], {"nodes./a.cpu_s": 1.5, "transport.cpu.per_node./a": 0.5,
+                                    "threads.0.cpu_fraction": 0.25})
+        self.assertEqual(lb.summary_extras({"nodes": {}})["cpu"], {})
+
     def test_pct(self):
         self.assertEqual(lb.pct(list(range(101)), 0.5), 50)
         self.assertEqual(lb.pct(list(range(101)), 0.99), 99)
