@@ -19,7 +19,7 @@
       p50/p99/max (reader to end of handling) also in frame periods, the launch's CPU while
       playing and in all, its RSS and peak RSS, and the CPU per thread of the launch.
   python3 bench/live_bench.py carving   [--setup small|big|alone-small|alone-big] [--seconds 60]
-                                        [--frame-hz 30] [--pose-hz 1000] [--speed 0.05]
+                                        [--frame-hz 30] [--pose-hz 1000] [--speed 0.05] [--display]
       A Cyclone DDS peer sends geometry_msgs/PoseStamped on /haptic/pose at --pose-hz for
       --seconds (absolute deadlines: sleep, then spin for the last 0.3 ms), a knife slicing
       back and forth through the block in fresh kerfs, into a launch written from --setup:
@@ -30,6 +30,10 @@
       wrench's DDS source timestamp minus the pose's (matched by header stamp, which the node
       copies). Prints poses sent, wrenches received, poses without a wrench, latency
       p50/p99/max, the launch's CPU and RSS, and the peer's achieved rate and jitter.
+      --display: a third process subscribes to the surfels and occupancy as a display would
+      (reliable, keep last 1; it never decodes them). Without a subscriber
+      the node's writers keep every frame until RustDDS's 8192-sample limit (no reader ever
+      acknowledges them): the launch's RSS grows by each frame's bytes.
 
 Build first: cargo build --release.  --exe selects another binary.  --json FILE writes the
 figures as JSON too (with the load average: other builds share the cores).
@@ -595,6 +599,62 @@ def carving_types(cp):
     return PoseStamped, WrenchStamped
 
 
+def display_types(cp):
+    """sensor_msgs PointField and PointCloud2, field for field."""
+    from dataclasses import dataclass
+    from cyclonedds.idl import IdlStruct
+    from cyclonedds.idl.types import sequence, uint8, uint32
+
+    @dataclass
+    class PointField(IdlStruct, typename="sensor_msgs::msg::dds_::PointField_"):
+        name: str
+        offset: uint32
+        datatype: uint8
+        count: uint32
+
+    @dataclass
+    class PointCloud2(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
+        header: cp.Header
+        height: uint32
+        width: uint32
+        fields: sequence[PointField]
+        is_bigendian: bool
+        point_step: uint32
+        row_step: uint32
+        data: sequence[uint8]
+        is_dense: bool
+
+    return PointCloud2
+
+
+def display_peer(domain, ready, done, max_s):
+    """A display's subscriptions (as rviz2 or Foxglove would hold them): reliable readers of
+    /carving/surfels (transient local) and /carving/occupancy, keep last 1. It never takes
+    (decoding a 36 MB cloud in Python takes seconds): Cyclone receives, acknowledges and keeps
+    the latest sample, so the node's writers see a reader acknowledge what they send."""
+    cp = peer_module()
+    from cyclonedds.core import Qos, Policy
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    PointCloud2 = display_types(cp)
+    dp = DomainParticipant(domain)
+    def qos(durability):
+        return Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000), durability,
+                   Policy.History.KeepLast(1))
+    # The node offers the surfels latched (transient local), the occupancy volatile.
+    readers = [DataReader(dp, Topic(dp, "rt/carving/surfels", PointCloud2),
+                          qos=qos(Policy.Durability.TransientLocal)),
+               DataReader(dp, Topic(dp, "rt/carving/occupancy", cp.VoxelGrid),
+                          qos=qos(Policy.Durability.Volatile))]
+    t_end = time.monotonic() + max_s
+    while any(not r.get_matched_publications() for r in readers) and time.monotonic() < t_end:
+        time.sleep(0.05)
+    ready.set()
+    while not done.is_set() and time.monotonic() < t_end:
+        time.sleep(0.1)
+
+
 def take_wrenches(domain, out_path, ready, done, quiet_s, max_s):
     """A process of its own (its Python decoding must not delay the 1 kHz sender): takes
     /carving/wrench and, to read each pose's DDS source timestamp as a reader sees it, the
@@ -655,10 +715,17 @@ def bench_carving(a, exe, domain, tmp):
     got_path = tmp / "wrenches.json"
     rx = ctx.Process(target=take_wrenches, args=(domain, str(got_path), ready, done, 2.0, a.seconds + 90))
     rx.start()
+    disp = None
+    disp_ready = ctx.Event()
+    if a.display:
+        disp = ctx.Process(target=display_peer, args=(domain, disp_ready, done, a.seconds + 90))
+        disp.start()
 
     def fail(why):
         launch.kill()
         rx.kill()
+        if disp is not None:
+            disp.kill()
         log_tail = (tmp / "launch.log").read_text()[-2000:]
         raise SystemExit(f"{why}\nlaunch log (end):\n{log_tail}")
 
@@ -669,7 +736,8 @@ def bench_carving(a, exe, domain, tmp):
     deadline = time.monotonic() + 60
     # The node's pose reader and the receiver's; the receiver is ready once the node's
     # wrench writer matched it.
-    while len(w.get_matched_subscriptions()) < 2 or not ready.is_set():
+    while len(w.get_matched_subscriptions()) < 2 or not ready.is_set() or \
+            (disp is not None and not disp_ready.is_set()):
         if launch.poll() is not None:
             fail(f"chronotope launch exited with {launch.returncode} before matching")
         if time.monotonic() > deadline:
@@ -734,6 +802,8 @@ def bench_carving(a, exe, domain, tmp):
     cpu_run, wall_run = proc_cpu_s(launch.pid) - cpu0, time.monotonic() - wall0
     done.set()
     rx.join(timeout=120)
+    if disp is not None:
+        disp.join(timeout=30)
     if rx.exitcode != 0:
         fail(f"the wrench receiver failed (exit {rx.exitcode})")
     cpu = proc_cpu_s(launch.pid)
@@ -753,7 +823,8 @@ def bench_carving(a, exe, domain, tmp):
     counts = {k: t.get(k, {}) for k in ("received", "dropped", "sent", "undecodable", "send_errors")}
     desc = (f"{a.setup}: {'x'.join(f'{1e3 * (h - l):g}' for l, h in zip(setup['lo'], setup['hi']))} mm "
             f"at {setup['spacing'] * 1e3:g} mm, frames at {a.frame_hz:g} Hz"
-            + (", mesher + checker of /carving/occupancy" if setup["pipeline"] else ", carving alone"))
+            + (", mesher + checker of /carving/occupancy" if setup["pipeline"] else ", carving alone")
+            + (", a display peer subscribed to the surfels and occupancy" if a.display else ""))
     print(f"\ncarving {desc}; Cyclone peer sends {POSE_TOPIC} at {a.pose_hz:g} Hz for {a.seconds:g} s "
           f"(knife at {a.speed * 100:g} cm/s)")
     # Where a pose lost its wrench: not received by the launch (best effort, keep last 1: the
@@ -791,7 +862,7 @@ def bench_carving(a, exe, domain, tmp):
     if rss_stop is not None:
         print(f"STOPPED EARLY: the launch's RSS reached {rss_stop:.0f} MB (--max-rss-mb {a.max_rss_mb})")
     return {"setup": a.setup, "description": desc, "config": cfg.read_text(), "seconds": a.seconds,
-            "pose_hz": a.pose_hz, "frame_hz": a.frame_hz, "knife_speed_m_per_s": a.speed,
+            "pose_hz": a.pose_hz, "frame_hz": a.frame_hz, "display_peer": a.display, "knife_speed_m_per_s": a.speed,
             "result": res, "pacing": pace, "summary_cpu": extras["cpu"], "problems": extras["problems"], "sender_cpu_fraction": pcpu / send_s,
             "launch_cpu_s_while_sending": cpu_run, "launch_cpu_fraction_of_one_core": cpu_run / wall_run,
             "launch_cpu_s": cpu, "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
@@ -841,6 +912,8 @@ def main() -> int:
                     help="carving: display frames per second (occupancy_period_s = 1 / this)")
     ap.add_argument("--pose-hz", type=float, default=1000.0, help="carving: poses per second")
     ap.add_argument("--speed", type=float, default=0.05, help="carving: knife speed [m/s]")
+    ap.add_argument("--display", action="store_true",
+                    help="carving: a display peer subscribes to /carving/surfels and /carving/occupancy")
     ap.add_argument("--max-rss-mb", type=float, default=8000.0,
                     help="carving: stop sending when the launch's resident memory exceeds this")
     ap.add_argument("--quiet", type=float, default=10.0,
