@@ -919,7 +919,7 @@ def main() -> int:
     ap.add_argument("--quiet", type=float, default=10.0,
                     help="cyclone: stop taking results after this many seconds without any")
     ap.add_argument("--domain", type=int, default=None,
-                    help="DDS domain (default 120 + pid % 50), e.g. to add a peer of your own")
+                    help="DDS domain (default 120 + pid %% 50), e.g. to add a peer of your own")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     exe = Path(a.exe)

@@ -230,6 +230,14 @@ class BagTest(unittest.TestCase):
 
 
 class HelpersTest(unittest.TestCase):
+    def test_help_prints(self):
+        import subprocess
+        r = subprocess.run([sys.executable, "-B", str(ROOT / "bench/live_bench.py"), "--help"],
+                           capture_output=True, text=True, timeout=60)
+        self.assertEqual(r.returncode, 0, r.stderr)
+        for opt in ("--setup", "--display", "--hz", "--seconds", "--exe", "--domain"):
+            self.assertIn(opt, r.stdout)
+
     def test_summary_extras(self):
         full = {"nodes": {"/a": {"problems": {"x": 2}, "cpu_s": 1.5}, "/b": {"problems": {}}},
                 "transport": {"received": {"/t": 3}, "cpu": {"per_node": {"/a": 0.5}}},
