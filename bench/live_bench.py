@@ -10,20 +10,40 @@
       launch's --summary), the transport latency (reception at the peer minus the DDS source
       timestamp, same host and clock; includes the peer's Python decoding) and the end-to-end
       time from a loop's last frame to its report (includes the mesher's idle timeout, 2 s).
-  python3 bench/live_bench.py mesher    [--bag B] [--grid 128]
-      `chronotope play` (RustDDS) publishes the machine-tool scene (grid^3 voxels, its frame
-      rate) into `chronotope launch` of the machine-tool config; prints frames received,
-      dropped, the per-frame lag (reader to end of handling) and the CPU time of the launch.
   python3 bench/live_bench.py idle      [--seconds 30]
       CPU load and resident memory of an idle `chronotope launch launch_configs/machine_tool.yaml`.
+  python3 bench/live_bench.py mesher    [--hz 10] [--seconds S | --frames N] [--bag B] [--grid 128]
+      `chronotope play --rate` plays the scene's frames (0.1 s apart) at --hz frames per second
+      (--seconds S: a scene of S x hz frames per body).
+      Prints, per input topic, frames received, dropped (the launch's --summary), the lag
+      p50/p99/max (reader to end of handling) also in frame periods, the launch's CPU while
+      playing and in all, its RSS and peak RSS, and the CPU per thread of the launch.
+  python3 bench/live_bench.py carving   [--setup small|big|alone-small|alone-big] [--seconds 60]
+                                        [--frame-hz 30] [--pose-hz 1000] [--speed 0.05] [--display]
+      A Cyclone DDS peer sends geometry_msgs/PoseStamped on /haptic/pose at --pose-hz for
+      --seconds (absolute deadlines: sleep, then spin for the last 0.3 ms), a knife slicing
+      back and forth through the block in fresh kerfs, into a launch written from --setup:
+      `small` = the carving_session.yaml block (60 x 60 x 30 mm at 2 mm), `big` = 360 x 360 x
+      16 mm at 0.5 mm (~1.1M surfels), both with a mesher and a checker of /carving/occupancy
+      (a lone body: no fixture publishes live); `alone-*` = the carving node alone; frames at
+      --frame-hz. Another process takes /carving/wrench and the poses. Latency of a pose = its
+      wrench's DDS source timestamp minus the pose's (matched by header stamp, which the node
+      copies). Prints poses sent, wrenches received, poses without a wrench, latency
+      p50/p99/max, the launch's CPU and RSS, and the peer's achieved rate and jitter.
+      --display: a third process subscribes to the surfels and occupancy as a display would
+      (reliable, keep last 1; it never decodes them). Without a subscriber
+      the node's writers keep every frame until RustDDS's 8192-sample limit (no reader ever
+      acknowledges them): the launch's RSS grows by each frame's bytes.
 
 Build first: cargo build --release.  --exe selects another binary.  --json FILE writes the
-figures as JSON too.  Domain: 120 + pid % 50 (never ROS_DOMAIN_ID's value), loopback discovery.
+figures as JSON too (with the load average: other builds share the cores).
+Domain: --domain, else 120 + pid % 50 (never ROS_DOMAIN_ID's value), loopback discovery.
 """
 
 import argparse
 import importlib.util
 import json
+import math
 import multiprocessing
 import os
 import statistics
@@ -262,43 +282,592 @@ def take_markers(domain, run_s, out, ready):
     out.put((got, dec))
 
 
+# ---- shared measurements ------------------------------------------------------------------
+
+def loadavg() -> list:
+    """The 1, 5 and 15 minute load averages (other engineers build on the same cores)."""
+    return [float(x) for x in Path("/proc/loadavg").read_text().split()[:3]]
+
+
+def proc_peak_rss_mb(pid: int) -> float:
+    """Peak resident memory (VmHWM) of a process."""
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith("VmHWM:"):
+            return int(line.split()[1]) / 1024
+    return float("nan")
+
+
+def thread_cpu_s(pid: int) -> dict:
+    """CPU seconds per thread name (threads of the same name summed), from /proc: where the
+    launch's time goes, whatever its executor (node threads are named after their node when
+    the executor names them)."""
+    tick = os.sysconf("SC_CLK_TCK")
+    out = {}
+    for tid in os.listdir(f"/proc/{pid}/task"):
+        try:
+            stat = Path(f"/proc/{pid}/task/{tid}/stat").read_text()
+        except OSError:
+            continue  # the thread ended
+        name = stat[stat.index("(") + 1:stat.rindex(")")]
+        fields = stat.rsplit(")", 1)[1].split()
+        out[name] = out.get(name, 0.0) + (int(fields[11]) + int(fields[12])) / tick
+    return {k: round(v, 2) for k, v in sorted(out.items(), key=lambda kv: -kv[1])}
+
+
+def bag_frames(bag: Path):
+    """(median log-time step [s] between two VoxelGrid frames of one topic, frames per topic)."""
+    from mcap.reader import make_reader
+    times = {}
+    with open(bag, "rb") as f:
+        for schema, ch, m in make_reader(f).iter_messages(log_time_order=True):
+            if schema is not None and schema.name == "chronotope_msgs/msg/VoxelGrid":
+                times.setdefault(ch.topic, []).append(m.log_time)
+    steps = [b - a for ts in times.values() for a, b in zip(ts, ts[1:]) if b > a]
+    if not steps:
+        raise SystemExit(f"{bag}: fewer than two VoxelGrid frames on any topic")
+    return statistics.median(steps) / 1e9, {t: len(ts) for t, ts in sorted(times.items())}
+
+
+def summary_extras(full: dict) -> dict:
+    """From a launch's --summary: each node's counted problems, and every number whose path
+    of keys names CPU (wherever the executor reports it: per node, per thread)."""
+    problems = {n: s.get("problems", {}) for n, s in full.get("nodes", {}).items()
+                if s.get("problems")}
+    cpu = {}
+
+    def walk(v, path):
+        items = v.items() if isinstance(v, dict) else enumerate(v) if isinstance(v, list) else ()
+        for k, x in items:
+            p = f"{path}.{k}" if path else str(k)
+            if isinstance(x, (int, float)) and not isinstance(x, bool) and "cpu" in p.lower():
+                cpu[p] = x
+            else:
+                walk(x, p)
+    walk(full, "")
+    return {"problems": problems, "cpu": cpu}
+
+
 # ---- mesher -----------------------------------------------------------------------------
 
 def bench_mesher(a, exe, domain, tmp):
     bag = Path(a.bag) if a.bag else tmp / f"machine-tool-{a.grid}.mcap"
     if not a.bag:
+        cmd = [str(exe), "scene", "machine-tool", "--grid", str(a.grid), "--out", str(bag)]
+        # --seconds N: N seconds of play at --hz (the scene's choreography, stretched over
+        # N x hz frames; the default 64 frames play for 2.1 s at 30 Hz, too short for the
+        # queue to fill).
+        frames = a.frames or (round(a.seconds * a.hz) if a.seconds else None)
+        if frames:
+            cmd += ["--frames", str(frames)]
         log(f"generating the machine-tool scene at {a.grid}^3 -> {bag}")
-        subprocess.run([str(exe), "scene", "machine-tool", "--grid", str(a.grid), "--out", str(bag)],
-                       check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+    # `chronotope play` keeps the recorded timing scaled by --rate: the scene's frames are
+    # `period` apart, so --rate hz * period plays --hz frames per second (the stamps keep
+    # their recorded spacing; the nodes' lag is measured in wall time).
+    period, per_topic = bag_frames(bag)
+    rate = a.hz * period
     cfg = ROOT / "launch_configs/machine_tool.yaml"
     summary = tmp / "summary.json"
+    load0 = loadavg()
     launch = start_launch(exe, cfg, domain, a.seconds_max, summary, tmp / "launch.log")
     time.sleep(1.0)
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), RUST_LOG="warn")
+    cpu0 = proc_cpu_s(launch.pid)
     t0 = time.monotonic()
-    play = subprocess.run([str(exe), "play", str(bag), "--wait", "3"], env=env,
-                          capture_output=True, text=True)
+    play = subprocess.run([str(exe), "play", str(bag), "--wait", "3", "--rate", f"{rate:.6g}"],
+                          env=env, capture_output=True, text=True)
     t_play = time.monotonic() - t0 - 3
+    cpu_play = proc_cpu_s(launch.pid) - cpu0
     log(play.stderr.strip().splitlines()[-1] if play.stderr.strip() else "play: no output")
+    if play.returncode != 0:
+        launch.kill()
+        raise SystemExit(f"chronotope play exited with {play.returncode}")
     # Let the nodes close the streams (idle timeout) and check.
     time.sleep(a.settle)
     cpu = proc_cpu_s(launch.pid)
     rss = proc_rss_mb(launch.pid)
+    peak = proc_peak_rss_mb(launch.pid)
+    threads = thread_cpu_s(launch.pid)
     launch.terminate()
     wait(launch, "chronotope launch", 300)
-    s = json.loads(summary.read_text())["transport"]
+    load1 = loadavg()
+    full = json.loads(summary.read_text())
+    s = full["transport"]
     lag = s.get("lag", {})
-    print(f"\nmesher: machine-tool {a.grid}^3 bag played at its frame rate ({t_play:.1f} s) into "
-          f"`launch machine_tool.yaml`")
-    print("| topic | received | dropped | lag p50 [ms] | p99 [ms] | max [ms] | busy p50 [ms] |")
-    print("|---|---|---|---|---|---|---|")
+    frame_s = 1.0 / a.hz
+    print(f"\nmesher: machine-tool {a.grid}^3 bag ({max(per_topic.values())} frames per body, "
+          f"{period * 1e3:.0f} ms apart) played at "
+          f"{a.hz:g} Hz (--rate {rate:.3g}, {t_play:.1f} s) into `launch machine_tool.yaml`")
+    print("| topic | received | dropped | lag p50 [ms] | p99 [ms] | max [ms] | p99 [frame periods] | "
+          "busy p50 [ms] |")
+    print("|---|---|---|---|---|---|---|---|")
+    rows = []
     for t in sorted(s["received"]):
         l = lag.get(t, {})
-        print(f"| `{t}` | {s['received'][t]} | {s['dropped'].get(t, 0)} | {l.get('p50_ms', float('nan')):.1f} | "
-              f"{l.get('p99_ms', float('nan')):.1f} | {l.get('max_ms', float('nan')):.1f} | "
-              f"{l.get('busy_p50_ms', float('nan')):.1f} |")
-    print(f"launch CPU until {a.settle:.0f} s after the bag: {cpu:.1f} s; RSS {rss:.0f} MB")
-    return {"transport": s, "cpu_s": cpu, "rss_mb": rss, "play_s": t_play, "grid": a.grid}
+        nan = float("nan")
+        row = {"topic": t, "received": s["received"][t], "dropped": s["dropped"].get(t, 0),
+               "lag_ms_p50": l.get("p50_ms", nan), "lag_ms_p99": l.get("p99_ms", nan),
+               "lag_ms_max": l.get("max_ms", nan), "busy_ms_p50": l.get("busy_p50_ms", nan),
+               "lag_p99_periods": l.get("p99_ms", nan) / 1e3 / frame_s}
+        rows.append(row)
+        print(f"| `{t}` | {row['received']} | {row['dropped']} | {row['lag_ms_p50']:.1f} | "
+              f"{row['lag_ms_p99']:.1f} | {row['lag_ms_max']:.1f} | {row['lag_p99_periods']:.2f} | "
+              f"{row['busy_ms_p50']:.1f} |")
+    print(f"launch CPU while playing: {cpu_play:.1f} s in {t_play:.1f} s "
+          f"({100 * cpu_play / max(t_play, 1e-9):.0f} % of one core); until {a.settle:.0f} s after "
+          f"the bag: {cpu:.1f} s; RSS {rss:.0f} MB (peak {peak:.0f} MB); load {load0} -> {load1}")
+    print("CPU per thread [s]: " + ", ".join(f"{k} {v}" for k, v in threads.items()))
+    extras = summary_extras(full)
+    if extras["cpu"]:
+        print("CPU in --summary: " + ", ".join(f"{k} {v}" for k, v in extras["cpu"].items()))
+    if extras["problems"]:
+        print("problems counted: " + "; ".join(f"{n} {p}" for n, p in extras["problems"].items()))
+    return {"topics": rows, "summary_cpu": extras["cpu"], "problems": extras["problems"], "hz": a.hz, "play_rate": rate, "bag_frame_period_s": period,
+            "frames_per_topic": per_topic,
+            "grid": a.grid, "play_s": t_play, "cpu_s_while_playing": cpu_play, "cpu_s": cpu,
+            "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
+            "loadavg_before": load0, "loadavg_after": load1, "summary": full}
+
+
+# ---- carving ----------------------------------------------------------------------------
+
+# The workpieces of `carving --setup`: the block of launch_configs/carving_session.yaml
+# (60 x 60 x 30 mm at 2 mm) and a realistic one (360 x 360 x 16 mm at 0.5 mm, ~1.1M surfels);
+# `alone-*` runs the carving node by itself, the others add a mesher and a checker of its
+# occupancy frames in the same launch (the shape of carving_session.yaml).
+CARVING_SETUPS = {
+    "alone-small": {"lo": [0.0, 0.0, 0.0], "hi": [0.06, 0.06, 0.03], "spacing": 0.002, "pipeline": False},
+    "small": {"lo": [0.0, 0.0, 0.0], "hi": [0.06, 0.06, 0.03], "spacing": 0.002, "pipeline": True},
+    "alone-big": {"lo": [0.0, 0.0, 0.0], "hi": [0.36, 0.36, 0.016], "spacing": 0.0005, "pipeline": False},
+    "big": {"lo": [0.0, 0.0, 0.0], "hi": [0.36, 0.36, 0.016], "spacing": 0.0005, "pipeline": True},
+}
+# The knife of carving_session.yaml (m).
+KNIFE = {"length": 0.016, "width": 0.010, "thickness": 0.002}
+POSE_TOPIC = "/haptic/pose"
+WRENCH_TOPIC = "/carving/wrench"
+
+
+def carving_config(setup: str, frame_hz: float) -> str:
+    """The launch config of a `carving --setup`, as ROS 2 launch YAML. The checker of the
+    pipeline setups is given no `pairs`: /carving/occupancy is then a lone body, meshed and
+    reported (a fixture body would have no publisher live)."""
+    s = CARVING_SETUPS[setup]
+    vec = lambda v: "[" + ", ".join(repr(float(x)) for x in v) + "]"
+    params = [
+        ("pose_topic", POSE_TOPIC), ("frame_id", "world"),
+        ("workpiece_min", vec(s["lo"])), ("workpiece_max", vec(s["hi"])),
+        ("spacing_m", repr(s["spacing"])), ("tool", "knife"),
+        ("knife_length_m", repr(KNIFE["length"])), ("knife_width_m", repr(KNIFE["width"])),
+        ("knife_thickness_m", repr(KNIFE["thickness"])),
+        # The force parameters of carving_session.yaml.
+        ("force_model", "section"), ("cutting_pressure_n_per_m2", "200000.0"),
+        ("filter_cutoff_hz", "30.0"), ("coupling_stiffness_n_per_m", "2000.0"),
+        ("coupling_damping_ns_per_m", "8.0"), ("proxy_mass_kg", "0.02"), ("max_force_n", "10.0"),
+        ("occupancy_period_s", f"{1.0 / frame_hz:.6f}"),
+    ]
+    lines = [f"# live_bench.py carving --setup {setup}", "launch:", "- node:", "    pkg: chronotope",
+             "    exec: carving", "    name: carving", "    param:"]
+    lines += [f"    - {{name: {k}, value: {v}}}" for k, v in params]
+    if s["pipeline"]:
+        lines += ["- node:", "    pkg: chronotope", "    exec: mesher", "    name: mesher", "    param:",
+                  "    - {name: bodies, value: [/carving/occupancy]}",
+                  "- node:", "    pkg: chronotope", "    exec: checker", "    name: checker"]
+    return "\n".join(lines) + "\n"
+
+
+class KnifePath:
+    """A tool path that cuts all the time: the knife (length along x, width along z, blade
+    face normal to y) slices along x through the block at `speed` m/s, back and forth, from
+    outside its -x face to outside its +x face; at each turn (outside the block) it moves one
+    blade thickness along y, so every pass cuts a fresh kerf next to the last one; when y has
+    crossed the block it goes `layer` m deeper and comes back along y. Positions are a
+    function of time, so a late pose is where the tool is then."""
+
+    # Rotation of -90 degrees about x: tool y -> -z (the width hangs down), tool z -> y.
+    QUAT = (-math.sqrt(0.5), 0.0, 0.0, math.sqrt(0.5))
+
+    def __init__(self, lo, hi, speed=0.05, knife=KNIFE, layer=None):
+        self.lo, self.hi, self.speed = lo, hi, speed
+        self.half_len = knife["length"] / 2
+        self.half_w = knife["width"] / 2
+        self.step_y = knife["thickness"]
+        self.layer = layer if layer is not None else knife["width"] / 2
+        margin = 0.002
+        self.x0 = lo[0] - self.half_len - margin  # the whole blade outside the block
+        self.x1 = hi[0] + self.half_len + margin
+        self.pass_s = (self.x1 - self.x0) / speed
+        self.passes_per_layer = max(1, math.ceil((hi[1] - lo[1]) / self.step_y))
+
+    def at(self, t: float):
+        """(position, quaternion x y z w) at `t` seconds after the start."""
+        k = int(t // self.pass_s)  # pass index
+        u = t / self.pass_s - k  # 0..1 within the pass
+        x = self.x0 + (self.x1 - self.x0) * (u if k % 2 == 0 else 1.0 - u)
+        j, i = divmod(k, self.passes_per_layer)  # layer, pass within it
+        if j % 2 == 1:
+            i = self.passes_per_layer - 1 - i  # back along y
+        y = self.lo[1] + (i + 0.5) * self.step_y
+        bottom = max(self.hi[2] - (j + 1) * self.layer, self.lo[2] + 0.001)
+        z = bottom + self.half_w
+        return (x, y, z), self.QUAT
+
+
+def pacing_stats(deadlines_s, sent_s, seconds) -> dict:
+    """How well the peer held its send schedule: the achieved rate, the lateness of each send
+    after its deadline and the intervals between sends (ms)."""
+    late = [(s - d) * 1e3 for d, s in zip(deadlines_s, sent_s)]
+    gaps = [(b - a) * 1e3 for a, b in zip(sent_s, sent_s[1:])]
+    return {
+        "sent": len(sent_s),
+        "achieved_hz": len(sent_s) / seconds if seconds > 0 else float("nan"),
+        "late_ms_p50": pct(late, 0.5), "late_ms_p99": pct(late, 0.99),
+        "late_ms_max": max(late) if late else float("nan"),
+        "interval_ms_p1": pct(gaps, 0.01), "interval_ms_p50": pct(gaps, 0.5),
+        "interval_ms_p99": pct(gaps, 0.99), "interval_ms_max": max(gaps) if gaps else float("nan"),
+        "intervals_over_2ms": sum(1 for g in gaps if g > 2.0),
+    }
+
+
+def match_wrenches(sent, seen_poses, wrenches) -> dict:
+    """Latency of each pose = its wrench's DDS source timestamp minus the pose's.
+
+    `sent`: {stamp ns: source timestamp ns given to write()}, every pose sent;
+    `seen_poses`: {stamp ns: source timestamp ns} as a Cyclone reader of the pose topic saw
+    them (SampleInfo.source_timestamp; preferred where present);
+    `wrenches`: [(header stamp ns, source timestamp ns, |force| N)], as received.
+    A wrench is matched to the pose of the same header stamp (the node copies it); a wrench
+    whose stamp matches no pose sent, and a second wrench for the same pose, are counted."""
+    lat, forces, unknown, dup, first = [], [], 0, 0, {}
+    for stamp, src, f in wrenches:
+        if stamp not in sent:
+            unknown += 1
+            continue
+        if stamp in first:
+            dup += 1
+            continue
+        first[stamp] = src
+        lat.append((src - seen_poses.get(stamp, sent[stamp])) / 1e6)
+        forces.append(f)
+    missing = len(sent) - len(first)
+    # Runs of consecutive poses (in send order) without a wrench: scattered single losses
+    # (the wire) or long runs (a stalled handler, a burst the writer's history kept the last
+    # of).
+    runs, longest, cur = 0, 0, 0
+    for stamp in sorted(sent):
+        if stamp in first:
+            cur = 0
+            continue
+        runs += cur == 0
+        cur += 1
+        longest = max(longest, cur)
+    return {
+        "missing_runs": runs, "longest_missing_run": longest,
+        "poses_sent": len(sent), "poses_seen_by_peer_reader": len(seen_poses),
+        "source_timestamp_mismatches": sum(1 for k, v in seen_poses.items() if sent.get(k) != v),
+        "wrenches_received": len(wrenches), "poses_with_wrench": len(first),
+        "poses_without_wrench": missing, "wrenches_unmatched": unknown, "wrenches_duplicate": dup,
+        "latency_ms_p50": pct(lat, 0.5), "latency_ms_p99": pct(lat, 0.99),
+        "latency_ms_p999": pct(lat, 0.999), "latency_ms_max": max(lat) if lat else float("nan"),
+        "latency_over_1ms": sum(1 for x in lat if x > 1.0),
+        "latency_over_2ms": sum(1 for x in lat if x > 2.0),
+        "wrenches_with_force": sum(1 for f in forces if f > 1e-9),
+        "force_n_p50": pct(forces, 0.5), "force_n_max": max(forces) if forces else float("nan"),
+    }
+
+
+def carving_types(cp):
+    """geometry_msgs PoseStamped and WrenchStamped, field for field, on tests/py/cyclone_peer.py's
+    Header, Point, Quaternion, Pose and Vector3 (plain CDR, as RustDDS reads and writes)."""
+    from dataclasses import dataclass
+    from cyclonedds.idl import IdlStruct
+
+    @dataclass
+    class PoseStamped(IdlStruct, typename="geometry_msgs::msg::dds_::PoseStamped_"):
+        header: cp.Header
+        pose: cp.Pose
+
+    @dataclass
+    class Wrench(IdlStruct, typename="geometry_msgs::msg::dds_::Wrench_"):
+        force: cp.Vector3
+        torque: cp.Vector3
+
+    @dataclass
+    class WrenchStamped(IdlStruct, typename="geometry_msgs::msg::dds_::WrenchStamped_"):
+        header: cp.Header
+        wrench: Wrench
+
+    return PoseStamped, WrenchStamped
+
+
+def display_types(cp):
+    """sensor_msgs PointField and PointCloud2, field for field."""
+    from dataclasses import dataclass
+    from cyclonedds.idl import IdlStruct
+    from cyclonedds.idl.types import sequence, uint8, uint32
+
+    @dataclass
+    class PointField(IdlStruct, typename="sensor_msgs::msg::dds_::PointField_"):
+        name: str
+        offset: uint32
+        datatype: uint8
+        count: uint32
+
+    @dataclass
+    class PointCloud2(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
+        header: cp.Header
+        height: uint32
+        width: uint32
+        fields: sequence[PointField]
+        is_bigendian: bool
+        point_step: uint32
+        row_step: uint32
+        data: sequence[uint8]
+        is_dense: bool
+
+    return PointCloud2
+
+
+def display_peer(domain, ready, done, max_s):
+    """A display's subscriptions (as rviz2 or Foxglove would hold them): reliable readers of
+    /carving/surfels (transient local) and /carving/occupancy, keep last 1. It never takes
+    (decoding a 36 MB cloud in Python takes seconds): Cyclone receives, acknowledges and keeps
+    the latest sample, so the node's writers see a reader acknowledge what they send."""
+    cp = peer_module()
+    from cyclonedds.core import Qos, Policy
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    PointCloud2 = display_types(cp)
+    dp = DomainParticipant(domain)
+    def qos(durability):
+        return Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000), durability,
+                   Policy.History.KeepLast(1))
+    # The node offers the surfels latched (transient local), the occupancy volatile.
+    readers = [DataReader(dp, Topic(dp, "rt/carving/surfels", PointCloud2),
+                          qos=qos(Policy.Durability.TransientLocal)),
+               DataReader(dp, Topic(dp, "rt/carving/occupancy", cp.VoxelGrid),
+                          qos=qos(Policy.Durability.Volatile))]
+    t_end = time.monotonic() + max_s
+    while any(not r.get_matched_publications() for r in readers) and time.monotonic() < t_end:
+        time.sleep(0.05)
+    ready.set()
+    while not done.is_set() and time.monotonic() < t_end:
+        time.sleep(0.1)
+
+
+def take_wrenches(domain, out_path, ready, done, quiet_s, max_s):
+    """A process of its own (its Python decoding must not delay the 1 kHz sender): takes
+    /carving/wrench and, to read each pose's DDS source timestamp as a reader sees it, the
+    pose topic; after `done`, until no wrench came for `quiet_s`; writes JSON to out_path."""
+    cp = peer_module()
+    from cyclonedds.core import Qos, Policy
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.sub import DataReader
+    from cyclonedds.topic import Topic
+    PoseStamped, WrenchStamped = carving_types(cp)
+    dp = DomainParticipant(domain)
+    # Best effort as the node's writer; a deep history so that nothing is overwritten
+    # before it is taken.
+    qos = Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile, Policy.History.KeepLast(100_000))
+    wr = DataReader(dp, Topic(dp, cp.dds_topic(WRENCH_TOPIC), WrenchStamped), qos=qos)
+    pr = DataReader(dp, Topic(dp, cp.dds_topic(POSE_TOPIC), PoseStamped), qos=qos)
+    t_end = time.monotonic() + max_s
+    while not wr.get_matched_publications() and time.monotonic() < t_end:
+        time.sleep(0.05)
+    ready.set()
+    wrenches, poses, last = [], [], time.monotonic()
+    while time.monotonic() < t_end:
+        got = 0
+        for s in wr.take(N=256):
+            f = s.wrench.force
+            wrenches.append([s.header.stamp.sec * 10**9 + s.header.stamp.nanosec,
+                             s.sample_info.source_timestamp, time.time_ns(),
+                             math.sqrt(f.x * f.x + f.y * f.y + f.z * f.z)])
+            got += 1
+        for s in pr.take(N=256):
+            poses.append([s.header.stamp.sec * 10**9 + s.header.stamp.nanosec,
+                          s.sample_info.source_timestamp])
+        if got:
+            last = time.monotonic()
+        elif done.is_set() and time.monotonic() - last > quiet_s:
+            break
+        else:
+            time.sleep(0.0005)
+    Path(out_path).write_text(json.dumps({"wrenches": wrenches, "poses": poses}))
+
+
+def bench_carving(a, exe, domain, tmp):
+    cp = peer_module()
+    from cyclonedds.core import Qos, Policy
+    from cyclonedds.domain import DomainParticipant
+    from cyclonedds.pub import DataWriter
+    from cyclonedds.topic import Topic
+    PoseStamped, _ = carving_types(cp)
+
+    setup = CARVING_SETUPS[a.setup]
+    cfg = tmp / f"carving-{a.setup}.yaml"
+    cfg.write_text(carving_config(a.setup, a.frame_hz))
+    summary = tmp / "summary.json"
+    load0 = loadavg()
+    launch = start_launch(exe, cfg, domain, int(a.seconds + 120), summary, tmp / "launch.log")
+    ctx = multiprocessing.get_context("spawn")
+    ready, done = ctx.Event(), ctx.Event()
+    got_path = tmp / "wrenches.json"
+    rx = ctx.Process(target=take_wrenches, args=(domain, str(got_path), ready, done, 2.0, a.seconds + 90))
+    rx.start()
+    disp = None
+    disp_ready = ctx.Event()
+    if a.display:
+        disp = ctx.Process(target=display_peer, args=(domain, disp_ready, done, a.seconds + 90))
+        disp.start()
+
+    def fail(why):
+        launch.kill()
+        rx.kill()
+        if disp is not None:
+            disp.kill()
+        log_tail = (tmp / "launch.log").read_text()[-2000:]
+        raise SystemExit(f"{why}\nlaunch log (end):\n{log_tail}")
+
+    dp = DomainParticipant(domain)
+    w = DataWriter(dp, Topic(dp, cp.dds_topic(POSE_TOPIC), PoseStamped),
+                   qos=Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile,
+                           Policy.History.KeepLast(1)))
+    deadline = time.monotonic() + 60
+    # The node's pose reader and the receiver's; the receiver is ready once the node's
+    # wrench writer matched it.
+    while len(w.get_matched_subscriptions()) < 2 or not ready.is_set() or \
+            (disp is not None and not disp_ready.is_set()):
+        if launch.poll() is not None:
+            fail(f"chronotope launch exited with {launch.returncode} before matching")
+        if time.monotonic() > deadline:
+            fail("no match with chronotope launch within 60 s")
+        time.sleep(0.05)
+    time.sleep(1.0)  # let discovery finish in both directions
+
+    path = KnifePath(setup["lo"], setup["hi"], speed=a.speed)
+    period = 1.0 / a.pose_hz
+    sent, deadlines, sent_at = {}, [], []
+    rss_peak_seen, rss_stop, rss_series = 0.0, None, []  # [s after the first pose, MB]
+    cpu0, wall0, pcpu0 = proc_cpu_s(launch.pid), time.monotonic(), time.process_time()
+    t0 = time.perf_counter()
+    next_check = t0 + 1.0
+    k = skipped = 0
+    while True:
+        due = t0 + k * period
+        if due - t0 >= a.seconds:
+            break
+        # Absolute deadlines: sleep while more than 0.3 ms is left (the scheduler's wake-up
+        # is late by tens of microseconds), then spin. A slot missed by more than a period
+        # is not caught up with a burst: the schedule moves on (a device samples at its rate).
+        while True:
+            now = time.perf_counter()
+            left = due - now
+            if left <= 0:
+                break
+            if left > 0.0003:
+                time.sleep(left - 0.0002)
+        if now - due > period:
+            skipped += int((now - t0) / period) - k
+            k = int((now - t0) / period)
+            continue
+        stamp = time.time_ns()
+        pos, q = path.at(now - t0)
+        msg = PoseStamped(
+            header=cp.Header(stamp=cp.Time(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="world"),
+            pose=cp.Pose(position=cp.Point(x=pos[0], y=pos[1], z=pos[2]),
+                         orientation=cp.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])))
+        w.write(msg, timestamp=stamp)
+        sent[stamp] = stamp
+        deadlines.append(due - t0)
+        sent_at.append(now - t0)
+        k += 1
+        if now >= next_check:
+            next_check = now + 1.0
+            if launch.poll() is not None:
+                break
+            rss_now = proc_rss_mb(launch.pid)
+            rss_series.append([round(now - t0, 1), round(rss_now)])
+            rss_peak_seen = max(rss_peak_seen, rss_now)
+            if rss_peak_seen > a.max_rss_mb:
+                rss_stop = rss_peak_seen
+                break
+    send_s = time.perf_counter() - t0
+    pcpu = time.process_time() - pcpu0
+    exited = launch.poll()
+    if exited is not None:
+        done.set()
+        rx.join(timeout=30)
+        fail(f"chronotope launch exited with {exited} while the poses were sent")
+    cpu_run, wall_run = proc_cpu_s(launch.pid) - cpu0, time.monotonic() - wall0
+    done.set()
+    rx.join(timeout=120)
+    if disp is not None:
+        disp.join(timeout=30)
+    if rx.exitcode != 0:
+        fail(f"the wrench receiver failed (exit {rx.exitcode})")
+    cpu = proc_cpu_s(launch.pid)
+    rss = proc_rss_mb(launch.pid)
+    peak = proc_peak_rss_mb(launch.pid)
+    threads = thread_cpu_s(launch.pid)
+    launch.terminate()
+    wait(launch, "chronotope launch", 120)
+    load1 = loadavg()
+    full = json.loads(summary.read_text())
+    got = json.loads(got_path.read_text())
+    seen = {s: src for s, src, in got["poses"]}
+    res = match_wrenches(sent, seen, [(s, src, f) for s, src, _, f in got["wrenches"]])
+    pace = pacing_stats(deadlines, sent_at, send_s)
+    pace["slots_skipped"] = skipped  # send slots missed by more than a period (not caught up)
+    t = full.get("transport", {})
+    counts = {k: t.get(k, {}) for k in ("received", "dropped", "sent", "undecodable", "send_errors")}
+    desc = (f"{a.setup}: {'x'.join(f'{1e3 * (h - l):g}' for l, h in zip(setup['lo'], setup['hi']))} mm "
+            f"at {setup['spacing'] * 1e3:g} mm, frames at {a.frame_hz:g} Hz"
+            + (", mesher + checker of /carving/occupancy" if setup["pipeline"] else ", carving alone")
+            + (", a display peer subscribed to the surfels and occupancy" if a.display else ""))
+    print(f"\ncarving {desc}; Cyclone peer sends {POSE_TOPIC} at {a.pose_hz:g} Hz for {a.seconds:g} s "
+          f"(knife at {a.speed * 100:g} cm/s)")
+    # Where a pose lost its wrench: not received by the launch (best effort, keep last 1: the
+    # node's reader overwrites a pose not taken in time), or a wrench sent but not received.
+    res["launch_poses_received"] = counts["received"].get(POSE_TOPIC, 0)
+    res["launch_wrenches_sent"] = counts["sent"].get(WRENCH_TOPIC, 0)
+    print("| poses sent | received by the launch | wrenches sent | wrenches received | "
+          "poses without a wrench | latency p50 [ms] | p99 [ms] | max [ms] | "
+          "launch CPU [% of one core] | RSS [MB] (peak) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    print(f"| {res['poses_sent']} | {res['launch_poses_received']} | {res['launch_wrenches_sent']} | "
+          f"{res['wrenches_received']} | {res['poses_without_wrench']} | "
+          f"{res['latency_ms_p50']:.2f} | {res['latency_ms_p99']:.2f} | {res['latency_ms_max']:.2f} | "
+          f"{100 * cpu_run / wall_run:.0f} | {rss:.0f} ({peak:.0f}) |")
+    print(f"peer pacing: {pace['achieved_hz']:.1f} Hz achieved, lateness p50/p99/max "
+          f"{pace['late_ms_p50']:.3f}/{pace['late_ms_p99']:.3f}/{pace['late_ms_max']:.3f} ms, "
+          f"intervals p1/p50/p99/max {pace['interval_ms_p1']:.3f}/{pace['interval_ms_p50']:.3f}/"
+          f"{pace['interval_ms_p99']:.3f}/{pace['interval_ms_max']:.3f} ms, "
+          f"{pace['intervals_over_2ms']} over 2 ms, {skipped} slots skipped; the sender used {100 * pcpu / send_s:.0f} % of a core")
+    print(f"wrenches with a force: {res['wrenches_with_force']} (median {res['force_n_p50']:.2f} N, "
+          f"max {res['force_n_max']:.2f} N); latency over 1 ms: {res['latency_over_1ms']}, "
+          f"over 2 ms: {res['latency_over_2ms']}; unmatched {res['wrenches_unmatched']}, "
+          f"duplicate {res['wrenches_duplicate']}; missing in {res['missing_runs']} runs, the longest "
+          f"{res['longest_missing_run']} poses; peer's pose reader saw {res['poses_seen_by_peer_reader']} "
+          f"({res['source_timestamp_mismatches']} source-timestamp mismatches)")
+    print("launch transport: " + "; ".join(f"{k} {v}" for k, v in counts.items() if v))
+    print(f"launch CPU per thread [s]: " + ", ".join(f"{k} {v}" for k, v in threads.items()))
+    extras = summary_extras(full)
+    if extras["cpu"]:
+        print("CPU in --summary: " + ", ".join(f"{k} {v}" for k, v in extras["cpu"].items()))
+    if extras["problems"]:
+        print("problems counted: " + "; ".join(f"{n} {p}" for n, p in extras["problems"].items()))
+    print(f"load {load0} -> {load1}; launch RSS [MB] every ~10 s: "
+          + ", ".join(f"{s:g} s {m}" for s, m in rss_series[::10]))
+    if rss_stop is not None:
+        print(f"STOPPED EARLY: the launch's RSS reached {rss_stop:.0f} MB (--max-rss-mb {a.max_rss_mb})")
+    return {"setup": a.setup, "description": desc, "config": cfg.read_text(), "seconds": a.seconds,
+            "pose_hz": a.pose_hz, "frame_hz": a.frame_hz, "display_peer": a.display, "knife_speed_m_per_s": a.speed,
+            "result": res, "pacing": pace, "summary_cpu": extras["cpu"], "problems": extras["problems"], "sender_cpu_fraction": pcpu / send_s,
+            "launch_cpu_s_while_sending": cpu_run, "launch_cpu_fraction_of_one_core": cpu_run / wall_run,
+            "launch_cpu_s": cpu, "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
+            "stopped_early_rss_mb": rss_stop, "rss_mb_series": rss_series, "loadavg_before": load0, "loadavg_after": load1,
+            "summary": full}
 
 
 # ---- idle -------------------------------------------------------------------------------
@@ -322,18 +891,35 @@ def bench_idle(a, exe, domain, tmp):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=["cyclone", "mesher", "idle", "all"])
+    ap.add_argument("case", choices=["cyclone", "mesher", "carving", "idle", "all"])
     ap.add_argument("--exe", default=str(DEFAULT_EXE))
     ap.add_argument("--loops", type=int, default=3)
-    ap.add_argument("--hz", type=float, default=10.0)
+    ap.add_argument("--hz", type=float, default=10.0,
+                    help="cyclone, mesher: frames per second the scene is played at")
     ap.add_argument("--bag", default=None, help="mesher: a machine-tool bag (default: generate)")
     ap.add_argument("--grid", type=int, default=128)
+    ap.add_argument("--frames", type=int, default=None,
+                    help="mesher: frames per body of the generated scene (default: the scene's, 64)")
     ap.add_argument("--settle", type=float, default=20.0,
                     help="mesher: seconds after the bag before the launch is stopped")
     ap.add_argument("--seconds-max", type=int, default=600)
-    ap.add_argument("--seconds", type=float, default=30.0, help="idle: measuring time")
+    ap.add_argument("--seconds", type=float, default=None,
+                    help="idle: measuring time (default 30); carving: sending time (default 60); "
+                         "mesher: play time (frames = seconds x hz; default: the scene's 64 frames)")
+    ap.add_argument("--setup", choices=sorted(CARVING_SETUPS), default="small",
+                    help="carving: the workpiece, and whether a mesher and checker run too")
+    ap.add_argument("--frame-hz", type=float, default=30.0,
+                    help="carving: display frames per second (occupancy_period_s = 1 / this)")
+    ap.add_argument("--pose-hz", type=float, default=1000.0, help="carving: poses per second")
+    ap.add_argument("--speed", type=float, default=0.05, help="carving: knife speed [m/s]")
+    ap.add_argument("--display", action="store_true",
+                    help="carving: a display peer subscribes to /carving/surfels and /carving/occupancy")
+    ap.add_argument("--max-rss-mb", type=float, default=8000.0,
+                    help="carving: stop sending when the launch's resident memory exceeds this")
     ap.add_argument("--quiet", type=float, default=10.0,
                     help="cyclone: stop taking results after this many seconds without any")
+    ap.add_argument("--domain", type=int, default=None,
+                    help="DDS domain (default 120 + pid %% 50), e.g. to add a peer of your own")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     exe = Path(a.exe)
@@ -341,17 +927,29 @@ def main() -> int:
         ap.error(f"{exe} not found: cargo build --release")
     if not (1 <= a.loops <= 100 and 0.1 <= a.hz <= 1000):
         ap.error("--loops in 1..100, --hz in 0.1..1000")
-    domain = 120 + os.getpid() % 50
-    out = {"machine": {"nproc": os.cpu_count()}}
+    if not (1 <= a.pose_hz <= 10_000 and 0.01 <= a.frame_hz <= 1000 and 0.001 <= a.speed <= 10):
+        ap.error("--pose-hz in 1..10000, --frame-hz in 0.01..1000, --speed in 0.001..10 m/s")
+    if a.domain is not None and not 0 <= a.domain <= 232:
+        ap.error("--domain in 0..232")
+    if a.seconds is not None and not 1 <= a.seconds <= 3600:
+        ap.error("--seconds in 1..3600")
+    domain = a.domain if a.domain is not None else 120 + os.getpid() % 50
+    out = {"domain": domain, "machine": {"nproc": os.cpu_count()}, "exe": str(exe), "command": sys.argv,
+           "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "loadavg_start": loadavg()}
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         cases = ["idle", "cyclone", "mesher"] if a.case == "all" else [a.case]
+        given = a.seconds
         for c in cases:
             sub = tmp / c
             sub.mkdir()
-            out[c] = {"idle": bench_idle, "cyclone": bench_cyclone, "mesher": bench_mesher}[c](
-                a, exe, domain, sub)
+            # Each case's own default (`all` runs idle, then the mesher with its 64 frames).
+            a.seconds = given if given is not None else {"idle": 30.0, "carving": 60.0}.get(c)
+            out[c] = {"idle": bench_idle, "cyclone": bench_cyclone, "mesher": bench_mesher,
+                      "carving": bench_carving}[c](a, exe, domain, sub)
+    out["loadavg_end"] = loadavg()
     if a.json:
+        Path(a.json).parent.mkdir(parents=True, exist_ok=True)
         Path(a.json).write_text(json.dumps(out, indent=1) + "\n")
     return 0
 
