@@ -447,7 +447,7 @@ POSE_TOPIC = "/haptic/pose"
 WRENCH_TOPIC = "/carving/wrench"
 
 
-def carving_config(setup: str, frame_hz: float) -> str:
+def carving_config(setup: str, frame_hz: float, realtime: bool = False) -> str:
     """The launch config of a `carving --setup`, as ROS 2 launch YAML. The checker of the
     pipeline setups is given no `pairs`: /carving/occupancy is then a lone body, meshed and
     reported (a fixture body would have no publisher live)."""
@@ -465,6 +465,9 @@ def carving_config(setup: str, frame_hz: float) -> str:
         ("coupling_damping_ns_per_m", "8.0"), ("proxy_mass_kg", "0.02"), ("max_force_n", "10.0"),
         ("occupancy_period_s", f"{1.0 / frame_hz:.6f}"),
     ]
+    if realtime:
+        # The node's own thread (SCHED_FIFO if allowed) and DDS participant.
+        params.append(("realtime", "true"))
     lines = [f"# live_bench.py carving --setup {setup}", "launch:", "- node:", "    pkg: chronotope",
              "    exec: carving", "    name: carving", "    param:"]
     lines += [f"    - {{name: {k}, value: {v}}}" for k, v in params]
@@ -706,7 +709,7 @@ def bench_carving(a, exe, domain, tmp):
 
     setup = CARVING_SETUPS[a.setup]
     cfg = tmp / f"carving-{a.setup}.yaml"
-    cfg.write_text(carving_config(a.setup, a.frame_hz))
+    cfg.write_text(carving_config(a.setup, a.frame_hz, a.realtime))
     summary = tmp / "summary.json"
     load0 = loadavg()
     launch = start_launch(exe, cfg, domain, int(a.seconds + 120), summary, tmp / "launch.log")
@@ -912,6 +915,8 @@ def main() -> int:
                     help="carving: display frames per second (occupancy_period_s = 1 / this)")
     ap.add_argument("--pose-hz", type=float, default=1000.0, help="carving: poses per second")
     ap.add_argument("--speed", type=float, default=0.05, help="carving: knife speed [m/s]")
+    ap.add_argument("--realtime", action="store_true",
+                    help="carving: mark the carving node realtime (builds that have the executor)")
     ap.add_argument("--display", action="store_true",
                     help="carving: a display peer subscribes to /carving/surfels and /carving/occupancy")
     ap.add_argument("--max-rss-mb", type=float, default=8000.0,

@@ -19,18 +19,20 @@ pub const WORKPIECE_MEMORY_BYTES: u64 = 4 << 30;
 /// - a published frame's copies of the bits (1/8) and of the surfel bytes (32);
 /// - the display's share ([`SurfelDelta`]): a changed-slot bit (1/8), the display's copy of
 ///   the surfel bytes (32), and two deltas of 36 bytes per changed surfel at most (one being
-///   applied, one waiting) with the changed surfels' PointCloud2 (32).
+///   applied, one waiting) with the changed surfels' PointCloud2 (32); a changed-byte bit of
+///   the occupancy (1/64, counted as 1/8), the display's copy of the bits (1/8), and two
+///   deltas of 8 bytes per changed occupancy byte (1 per point).
 ///
 /// The workpiece's part is reserved when it is built, the display's when the display is,
 /// so a run never grows past it.
 pub const BYTES_PER_POINT_EIGHTHS: u64 =
-    8 * (1 + 4 + 4 + 32 + 4 + 32 + 32) + 1 + 1 + 1 + 8 * (32 + 36 + 36 + 32);
+    8 * (1 + 4 + 4 + 32 + 4 + 32 + 32) + 1 + 1 + 1 + 8 * (32 + 36 + 36 + 32) + 1 + 1 + 16;
 
-/// [`BYTES_PER_POINT_EIGHTHS`] in bytes (245.375).
+/// [`BYTES_PER_POINT_EIGHTHS`] in bytes (247.625).
 pub const BYTES_PER_POINT: f64 = BYTES_PER_POINT_EIGHTHS as f64 / 8.0;
 
 /// Most grid points of a workpiece: [`WORKPIECE_MEMORY_BYTES`] / [`BYTES_PER_POINT`]
-/// = 17 503 687 (256³ = 16.8M fits; 260³ does not).
+/// = 17 344 643 (256³ = 16.8M fits; 260³ does not).
 pub const MAX_POINTS: u64 = WORKPIECE_MEMORY_BYTES * 8 / BYTES_PER_POINT_EIGHTHS;
 
 /// A vector of `n` copies of `v`, or a typed error if the memory cannot be had.
@@ -144,17 +146,23 @@ pub struct Workpiece {
     changed: Vec<u64>,
     /// Words of `changed` below this may have bits set.
     changed_hi: usize,
+    /// Bytes of `bits` changed since the last delta, one bit per byte.
+    bits_changed: Vec<u64>,
 }
 
-/// What changed in the surfel cloud since the last delta: the cloud's new length and the
-/// bytes of every slot below it that was written or moved. Applied in order to a copy of
-/// the cloud ([`SurfelDelta::apply`]), it gives the workpiece's [`Workpiece::surfel_bytes`].
+/// What changed in the surfel cloud and the occupancy since the last delta: the cloud's new
+/// length and the bytes of every slot below it that was written or moved, and the changed
+/// bytes of the occupancy bits. Applied in order to copies ([`SurfelDelta::apply`],
+/// [`SurfelDelta::apply_bits`]), it gives the workpiece's [`Workpiece::surfel_bytes`] and
+/// [`Workpiece::occupancy_bits`].
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SurfelDelta {
     /// Surfels in the cloud after the change.
     pub len: usize,
     /// `(slot, its PointCloud2 bytes)` for the changed slots, in slot order.
     pub writes: Vec<(u32, [u8; SURFEL_BYTES])>,
+    /// `(byte index, its value)` for the changed bytes of the occupancy bits, in order.
+    pub bits: Vec<(u32, u8)>,
 }
 
 impl SurfelDelta {
@@ -168,6 +176,19 @@ impl SurfelDelta {
         self.writes.reverse();
         self.writes.sort_by_key(|w| w.0);
         self.writes.dedup_by_key(|w| w.0);
+        self.bits.extend(later.bits);
+        self.bits.reverse();
+        self.bits.sort_by_key(|b| b.0);
+        self.bits.dedup_by_key(|b| b.0);
+    }
+
+    /// Applies the occupancy part to `bits` (a copy of the occupancy as of the delta before).
+    pub fn apply_bits(&self, bits: &mut [u8]) {
+        for &(i, v) in &self.bits {
+            if let Some(b) = bits.get_mut(i as usize) {
+                *b = v;
+            }
+        }
     }
 
     /// Applies the delta to `cloud` (a copy of the surfel bytes as of the delta before).
@@ -250,6 +271,7 @@ impl Workpiece {
             spans: Vec::new(),
             changed: filled(n.div_ceil(64), 0u64, "changed-surfel bits")?,
             changed_hi: 0,
+            bits_changed: filled(n.div_ceil(8).div_ceil(64), 0u64, "changed-occupancy bits")?,
         };
         // Room for every surfel the workpiece can have (one per point) and for a substep
         // removing every point: cutting never grows a vector, so neither a pose's update
@@ -425,6 +447,9 @@ impl Workpiece {
         debug_assert!(self.flags[idx] != OUTSIDE);
         self.flags[idx] = OUTSIDE;
         self.bits[idx / 8] &= !(1u8 << (idx % 8));
+        if let Some(w) = self.bits_changed.get_mut(idx / 8 / 64) {
+            *w |= 1 << ((idx / 8) % 64);
+        }
         self.material -= 1;
         let slot = self.surfel_of[idx];
         if slot == NO_SURFEL {
@@ -487,7 +512,18 @@ impl Workpiece {
             self.changed[words..hi].fill(0);
         }
         self.changed_hi = 0;
-        SurfelDelta { len, writes }
+        let mut bits = Vec::new();
+        for (wi, w) in self.bits_changed.iter_mut().enumerate() {
+            let mut set = std::mem::take(w);
+            while set != 0 {
+                let byte = wi * 64 + set.trailing_zeros() as usize;
+                set &= set - 1;
+                if let Some(&v) = self.bits.get(byte) {
+                    bits.push((byte as u32, v));
+                }
+            }
+        }
+        SurfelDelta { len, writes, bits }
     }
 
     /// Removes material point `idx` by a cut: counted in `stats` (with its surfel's normal

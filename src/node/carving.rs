@@ -85,6 +85,8 @@ pub struct CarvingNode {
     last_force: [f64; 3],
     /// Due times on the period grid that got no frame (no pose in them, or throttled).
     skipped_periods: u64,
+    /// Hidden topic (`~/_frame`, Clock) telling the display a frame is due.
+    frame_topic: String,
     /// The changed surfels parked for the display, with their frame's stamp.
     mailbox: Arc<Mutex<Option<(i64, SurfelDelta)>>>,
     /// Whether a display was made ([`CarvingNode::display`]): only then are deltas parked.
@@ -164,6 +166,7 @@ impl CarvingNode {
         let wrench_topic = p.resolve("~/wrench", "~/wrench")?;
         let occupancy_topic = p.resolve("~/occupancy", "~/occupancy")?;
         let surfels_topic = p.resolve("~/surfels", "~/surfels")?;
+        let frame_topic = p.resolve("~/_frame", "~/_frame")?;
         p.finish()?;
         let work =
             Workpiece::block(lo, hi, spacing).map_err(|e| bad("workpiece_max", e.to_string()))?;
@@ -202,6 +205,7 @@ impl CarvingNode {
             wrench_topic,
             occupancy_topic,
             surfels_topic,
+            frame_topic,
             frame_id,
             work,
             knife,
@@ -363,31 +367,26 @@ impl CarvingNode {
             .map_or(self.tool, |e| e.1)
     }
 
-    /// Publishes the occupancy frame at `stamp` and parks the surfels changed since the last
-    /// frame for the display (or, if the display has not taken the last ones yet, leaves
-    /// them accumulating; `last` merges them in regardless, for the final frame).
+    /// Parks what changed since the last frame (surfels and occupancy) for the display and
+    /// tells it a frame is due at `stamp` (or, if the display has not taken the last delta
+    /// yet, leaves the changes accumulating; `last` merges them in regardless, for the final
+    /// frame). Without a display, publishes the occupancy frame itself. Nothing large is
+    /// copied here: the force path never builds a frame.
     fn publish_workpiece(&mut self, stamp: i64, last: bool, out: &mut Vec<Message>) {
-        let header = Header {
-            stamp: Time::from_nanos(stamp),
-            frame_id: self.frame_id.clone(),
-        };
-        let dims = self.work.dims();
-        let (lo, _) = self.work.block_bounds();
-        let grid = VoxelGrid {
-            header,
-            origin: Point {
-                x: lo[0],
-                y: lo[1],
-                z: lo[2],
-            },
-            resolution: self.work.spacing(),
-            size_x: dims[0] as u32,
-            size_y: dims[1] as u32,
-            size_z: dims[2] as u32,
-            encoding: VoxelGrid::ENCODING_BITS,
-            data: self.work.occupancy_bits().to_vec(),
-        };
-        let behind = self.has_display && {
+        if !self.has_display {
+            out.push(Message::new(
+                &self.occupancy_topic,
+                stamp,
+                Payload::VoxelGrid(Arc::new(occupancy_frame(
+                    &self.work,
+                    &self.frame_id,
+                    stamp,
+                    self.work.occupancy_bits().to_vec(),
+                ))),
+            ));
+            return;
+        }
+        let behind = {
             let mut parked = self.mailbox.lock().unwrap_or_else(|p| p.into_inner());
             match parked.as_mut() {
                 None => {
@@ -404,15 +403,17 @@ impl CarvingNode {
         };
         if behind {
             self.count_quietly("display_behind", 1, || {
-                "the display has not taken the last changed surfels yet: they accumulate \
-                 until it has (nothing is lost; its frames come later)"
+                "the display has not taken the last changes yet: they accumulate until it \
+                 has (nothing is lost; its frames come later)"
                     .into()
             });
         }
         out.push(Message::new(
-            &self.occupancy_topic,
+            &self.frame_topic,
             stamp,
-            Payload::VoxelGrid(Arc::new(grid)),
+            Payload::Clock(Arc::new(crate::msg::Clock {
+                clock: Time::from_nanos(stamp),
+            })),
         ));
     }
 
@@ -433,13 +434,25 @@ impl CarvingNode {
                     points as f64 * 32.0 / 1e6
                 )
             })?;
-        // The display starts from the cloud as it is (the block, cut out).
+        // The display starts from the cloud and occupancy as they are (the block, cut out).
         let start = self.work.take_surfel_delta();
         start.apply(&mut cloud);
+        let mut bits = Vec::new();
+        bits.try_reserve_exact(self.work.occupancy_bits().len())
+            .map_err(|_| "cannot reserve the display's copy of the occupancy".to_string())?;
+        bits.extend_from_slice(self.work.occupancy_bits());
         self.has_display = true;
+        let (lo, _) = self.work.block_bounds();
         Ok(CarvingDisplay {
             fqn: format!("{}/display", self.fqn),
+            frame_topic: self.frame_topic.clone(),
             occupancy_topic: self.occupancy_topic.clone(),
+            grid: GridShape {
+                origin: lo,
+                spacing: self.work.spacing(),
+                dims: self.work.dims(),
+            },
+            bits,
             surfels_topic: self.surfels_topic.clone(),
             changed_topic: format!("{}_changed", self.surfels_topic),
             frame_id: self.frame_id.clone(),
@@ -589,9 +602,16 @@ impl Node for CarvingNode {
                 topic: self.wrench_topic.clone(),
                 type_name: WrenchStamped::TYPE_NAME,
             },
-            TopicRef {
-                topic: self.occupancy_topic.clone(),
-                type_name: VoxelGrid::TYPE_NAME,
+            if self.has_display {
+                TopicRef {
+                    topic: self.frame_topic.clone(),
+                    type_name: crate::msg::Clock::TYPE_NAME,
+                }
+            } else {
+                TopicRef {
+                    topic: self.occupancy_topic.clone(),
+                    type_name: VoxelGrid::TYPE_NAME,
+                }
             },
         ]
     }
@@ -636,7 +656,11 @@ impl Node for CarvingNode {
 /// copy of the cloud, off the force path.
 pub struct CarvingDisplay {
     fqn: String,
+    frame_topic: String,
     occupancy_topic: String,
+    grid: GridShape,
+    /// The occupancy bits, as of the last delta taken.
+    bits: Vec<u8>,
     surfels_topic: String,
     changed_topic: String,
     frame_id: String,
@@ -648,6 +672,48 @@ pub struct CarvingDisplay {
     last_stamp: Option<i64>,
     last_full: Option<i64>,
     status: NodeStatus,
+}
+
+/// Where the workpiece's grid points are.
+struct GridShape {
+    origin: [f64; 3],
+    spacing: f64,
+    dims: [usize; 3],
+}
+
+/// A VoxelGrid of the workpiece's points with occupancy `bits`.
+fn occupancy_frame(work: &Workpiece, frame_id: &str, stamp: i64, bits: Vec<u8>) -> VoxelGrid {
+    let (lo, _) = work.block_bounds();
+    grid_frame(
+        &GridShape {
+            origin: lo,
+            spacing: work.spacing(),
+            dims: work.dims(),
+        },
+        frame_id,
+        stamp,
+        bits,
+    )
+}
+
+fn grid_frame(g: &GridShape, frame_id: &str, stamp: i64, bits: Vec<u8>) -> VoxelGrid {
+    VoxelGrid {
+        header: Header {
+            stamp: Time::from_nanos(stamp),
+            frame_id: frame_id.to_owned(),
+        },
+        origin: Point {
+            x: g.origin[0],
+            y: g.origin[1],
+            z: g.origin[2],
+        },
+        resolution: g.spacing,
+        size_x: g.dims[0] as u32,
+        size_y: g.dims[1] as u32,
+        size_z: g.dims[2] as u32,
+        encoding: VoxelGrid::ENCODING_BITS,
+        data: bits,
+    }
 }
 
 fn surfel_cloud(header: Header, data: Vec<u8>) -> PointCloud2 {
@@ -699,7 +765,18 @@ impl CarvingDisplay {
             .take();
         if let Some((stamp, delta)) = parked {
             delta.apply(&mut self.cloud);
+            delta.apply_bits(&mut self.bits);
             self.last_stamp = Some(stamp);
+            out.push(Message::new(
+                &self.occupancy_topic,
+                stamp,
+                Payload::VoxelGrid(Arc::new(grid_frame(
+                    &self.grid,
+                    &self.frame_id,
+                    stamp,
+                    self.bits.clone(),
+                ))),
+            ));
             let mut data = Vec::with_capacity(delta.writes.len() * 32);
             for (_, b) in &delta.writes {
                 data.extend_from_slice(b);
@@ -745,13 +822,17 @@ impl Node for CarvingDisplay {
 
     fn subscriptions(&self) -> Vec<TopicRef> {
         vec![TopicRef {
-            topic: self.occupancy_topic.clone(),
-            type_name: VoxelGrid::TYPE_NAME,
+            topic: self.frame_topic.clone(),
+            type_name: crate::msg::Clock::TYPE_NAME,
         }]
     }
 
     fn publications(&self) -> Vec<TopicRef> {
         vec![
+            TopicRef {
+                topic: self.occupancy_topic.clone(),
+                type_name: VoxelGrid::TYPE_NAME,
+            },
             TopicRef {
                 topic: self.surfels_topic.clone(),
                 type_name: PointCloud2::TYPE_NAME,

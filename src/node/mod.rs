@@ -19,7 +19,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::msg::{
-    decode_cdr, encode_cdr, CdrError, ContactEvent, DiagnosticArray, InterferenceReport, Marker,
+    decode_cdr, encode_cdr, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker,
     MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels,
     VoxelGrid, WrenchStamped,
 };
@@ -109,6 +109,7 @@ payloads! {
     WrenchStamped(WrenchStamped),
     PointCloud2(PointCloud2),
     Diagnostics(DiagnosticArray),
+    Clock(Clock),
 }
 
 /// Why a serialised message could not be turned into a [`Payload`].
@@ -237,4 +238,11 @@ pub trait Node: Send + std::any::Any {
     /// Position in the pipeline: nodes finish in increasing rank, so what one publishes on
     /// finishing reaches the nodes after it before they finish.
     fn rank(&self) -> u8;
+}
+
+/// Whether a topic is hidden (a name token starting with `_`, as ROS 2 hides them): a topic
+/// between the parts of one node, never written to the wire or to an output bag unless a
+/// recorder names it.
+pub fn is_hidden_topic(topic: &str) -> bool {
+    topic.split('/').any(|t| t.starts_with('_'))
 }
