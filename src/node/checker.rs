@@ -23,6 +23,8 @@
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
 use super::mesher::mesher_options;
@@ -291,7 +293,28 @@ impl CheckerNode {
         let before = out.len();
         // The answer after this step, built once for its contact events and its report.
         let mut report: Option<Report> = None;
-        for r in rolled {
+        // The periods' markers (a slice of each body's slab) are independent: built on
+        // rayon's pool first, published in their place below.
+        let mut markers: Vec<Option<Message>> = match self.markers_topic.as_deref() {
+            Some(topic)
+                if rolled
+                    .iter()
+                    .filter(|r| matches!(r, RollOut::SlabDone(_)))
+                    .count()
+                    > 1 =>
+            {
+                let this = &*self;
+                rolled
+                    .par_iter()
+                    .map(|r| match r {
+                        RollOut::SlabDone(d) => Some(this.marker(topic, d)),
+                        _ => None,
+                    })
+                    .collect()
+            }
+            _ => Vec::new(),
+        };
+        for (n, r) in rolled.into_iter().enumerate() {
             match r {
                 RollOut::Labels(l) => {
                     let Some(topic) = &self.labels_topic else {
@@ -318,7 +341,9 @@ impl CheckerNode {
                     ));
                 }
                 RollOut::SlabDone(d) => {
-                    if let Some(topic) = self.markers_topic.clone() {
+                    if let Some(m) = markers.get_mut(n).and_then(Option::take) {
+                        out.push(m);
+                    } else if let Some(topic) = self.markers_topic.clone() {
                         out.push(self.marker(&topic, &d));
                     }
                 }
