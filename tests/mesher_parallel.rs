@@ -7,6 +7,7 @@ mod common;
 use std::sync::Arc;
 
 use chronotope::mesh::march::{SlabMarcher, SlabPlacement, MIN_CHUNK_PLANES};
+use chronotope::mesh::slice::{PlaneValue, Slicer, SLICE_CHUNK_TETS};
 use chronotope::mesh::table::table;
 use chronotope::mesh::{DecodeOptions, FrameRef, OccupancyGrid, TetMesh};
 use chronotope::msg::{Header, Point, Time, VoxelGrid};
@@ -137,6 +138,48 @@ fn the_tet_limit_holds_for_the_slab_as_a_whole_when_chunked() {
         // Each chunk alone is under the limit; the slab is not.
         let (ok, _) = march(threads, &a, &b, 2, n / 2);
         assert!(!ok, "{threads} threads, half the slab's tets");
+    }
+}
+
+#[test]
+fn a_slice_cut_in_chunks_is_the_sequential_slice() {
+    let size = [70, 70, 70];
+    let a = decode(size, &blob(size, [35.0, 35.0, 35.0], 30.0, 3, false), false);
+    let b = decode(size, &blob(size, [36.0, 34.0, 35.0], 30.0, 4, false), false);
+    let (_, mesh) = march(1, &a, &b, 2, usize::MAX);
+    assert!(
+        mesh.tets.len() > 3 * SLICE_CHUNK_TETS,
+        "{} tets",
+        mesh.tets.len()
+    );
+    // Frame 3 at scale 2: the slab spans t = 6..8; a plane in the middle, and one through
+    // the lattice vertices of the later frame's edges.
+    for plane in [
+        PlaneValue {
+            num: 7 * 1024 + 1,
+            den: 1024,
+        },
+        PlaneValue::lattice(7),
+    ] {
+        let slice = |threads: usize, par: bool| {
+            pool(threads).install(|| {
+                // A first part sliced alone, then the mesh: sources count over both.
+                let mut s = Slicer::new(3, plane).with_sources();
+                s.add(&mesh);
+                if par {
+                    s.add_par(&mesh);
+                } else {
+                    s.add(&mesh);
+                }
+                s.finish_with_sources()
+            })
+        };
+        let one = slice(1, false);
+        assert!(!one.0.triangles.is_empty());
+        for threads in [1, 2, 3] {
+            let many = slice(threads, true);
+            assert!(many == one, "{threads} threads: slices differ");
+        }
     }
 }
 

@@ -7,11 +7,11 @@
 //! hashing, no allocation per cube).
 
 use super::grid::OccupancyGrid;
+use super::hash::{fast_map, FastMap};
 use super::table::Table;
 use super::table_gen::{edge3, edge4};
 use crate::kernel::LatticePoint;
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A set of tetrahedra on shared lattice vertices.
@@ -50,7 +50,7 @@ impl TetMesh {
 /// index between appends.
 #[derive(Debug, Default)]
 pub struct Welder {
-    index: HashMap<LatticePoint, u32>,
+    index: FastMap<LatticePoint, u32>,
 }
 
 impl Welder {
@@ -208,7 +208,7 @@ impl SlabMarcher {
         }
         // Join the chunks in order; a vertex on the plane a chunk starts at may have been
         // made by the chunk before it.
-        let mut shared: HashMap<LatticePoint, u32> = HashMap::new();
+        let mut shared: FastMap<LatticePoint, u32> = fast_map();
         let mut prev_start = 0;
         for (k, (_, part)) in self.extra[..chunks - 1].iter_mut().enumerate() {
             let plane = at.scale * (bounds[k + 1] as i32 - 1);
@@ -411,7 +411,7 @@ pub fn march_cap(
     let [px, py, pz] = f.padded;
     let s = at.scale;
     let t = s * at.frame as i32;
-    let mut index: HashMap<LatticePoint, u32> = HashMap::new();
+    let mut index: FastMap<LatticePoint, u32> = fast_map();
     for z in 0..pz - 1 {
         for y in 0..py - 1 {
             let rows: [&[u64]; 4] = std::array::from_fn(|r| f.row(y + (r & 1), z + (r >> 1)));

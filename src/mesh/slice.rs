@@ -17,9 +17,10 @@
 //! and [`slice_mesh`] then slices again with on-plane vertices counted as "−", which gives the
 //! boundary of the touching face: a slice at a frame time always reproduces that frame.
 
+use super::hash::{fast_map, FastMap};
 use super::march::TetMesh;
 use crate::kernel::LatticePoint;
-use std::collections::HashMap;
+use rayon::prelude::*;
 use std::io::{self, Write};
 
 /// A plane coordinate in lattice units, as an exact fraction `num / den` (`den > 0`).
@@ -61,13 +62,16 @@ enum Key {
     Edge(LatticePoint, LatticePoint),
 }
 
+/// Tets per chunk of [`Slicer::add_par`].
+pub const SLICE_CHUNK_TETS: usize = 1 << 15;
+
 /// Streams tets (from any number of slabs or caps) into one slice.
 #[derive(Debug)]
 pub struct Slicer {
     axis: usize,
     c: PlaneValue,
     on_plane_is_plus: bool,
-    index: HashMap<Key, u32>,
+    index: FastMap<Key, u32>,
     mesh: TriMesh,
     /// With [`Slicer::with_sources`]: per triangle, the tet it came from (counted over every
     /// `add`ed mesh in order).
@@ -91,7 +95,7 @@ impl Slicer {
             axis,
             c,
             on_plane_is_plus: true,
-            index: HashMap::new(),
+            index: fast_map(),
             mesh: TriMesh::default(),
             sources: None,
             tets_seen: 0,
@@ -128,6 +132,67 @@ impl Slicer {
             let source = self.tets_seen;
             self.tets_seen = self.tets_seen.wrapping_add(1);
             self.cut(t.map(|v| mesh.vertices[v as usize]), source);
+        }
+    }
+
+    /// [`Slicer::add`] on rayon's pool: the tets are cut in chunks of [`SLICE_CHUNK_TETS`],
+    /// each into its own slice, and the chunks' slices joined in order, each slice point
+    /// numbered where it first occurs. The result (vertices, their numbering, triangles,
+    /// sources) is the one `add` gives, whatever the thread count.
+    pub fn add_par(&mut self, mesh: &TetMesh) {
+        let n = mesh.tets.len();
+        if rayon::current_num_threads() < 2 || n < 2 * SLICE_CHUNK_TETS {
+            self.add(mesh);
+            return;
+        }
+        let base = self.tets_seen;
+        let parts: Vec<Slicer> = mesh
+            .tets
+            .par_chunks(SLICE_CHUNK_TETS)
+            .enumerate()
+            .map(|(k, tets)| {
+                let mut part = Slicer {
+                    axis: self.axis,
+                    c: self.c,
+                    on_plane_is_plus: self.on_plane_is_plus,
+                    index: fast_map(),
+                    mesh: TriMesh::default(),
+                    sources: self.sources.as_ref().map(|_| Vec::new()),
+                    tets_seen: 0,
+                };
+                let first = base.wrapping_add((k * SLICE_CHUNK_TETS) as u32);
+                for (j, t) in tets.iter().enumerate() {
+                    let source = first.wrapping_add(j as u32);
+                    part.cut(t.map(|v| mesh.vertices[v as usize]), source);
+                }
+                part
+            })
+            .collect();
+        self.tets_seen = base.wrapping_add(n as u32);
+        for part in parts {
+            // The part's keys by its own numbering (the order it made them in).
+            let mut keys: Vec<(u32, Key)> = part.index.iter().map(|(k, &id)| (id, *k)).collect();
+            keys.sort_unstable_by_key(|x| x.0);
+            let remap: Vec<u32> = keys
+                .into_iter()
+                .zip(&part.mesh.vertices)
+                .map(|((_, key), pos)| {
+                    let next = self.mesh.vertices.len() as u32;
+                    *self.index.entry(key).or_insert_with(|| {
+                        self.mesh.vertices.push(*pos);
+                        next
+                    })
+                })
+                .collect();
+            self.mesh.triangles.extend(
+                part.mesh
+                    .triangles
+                    .iter()
+                    .map(|t| t.map(|v| remap[v as usize])),
+            );
+            if let (Some(all), Some(src)) = (&mut self.sources, part.sources) {
+                all.extend(src);
+            }
         }
     }
 

@@ -26,7 +26,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::launch::{LaunchError, NodeSpec, Params};
-use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
+use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
@@ -34,6 +34,7 @@ use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
 use crate::cli::frame_ref;
+use crate::mesh::slice::Slicer;
 use crate::mesh::GridGeometry;
 use crate::mesh::{MesherOptions, OccupancyGrid};
 use crate::msg::{
@@ -424,10 +425,10 @@ impl CheckerNode {
     /// triangles coloured by the strongest label of their tet over the body's pairs.
     fn marker(&self, topic: &str, d: &SlabDone) -> Message {
         let g = d.geometry;
-        let (tri, src) = slice_with_sources(
-            &[d.mesh.as_ref()],
-            mid_slab_plane(u64::from(d.index), g.scale),
-        );
+        // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
+        let mut slicer = Slicer::new(3, mid_slab_plane(u64::from(d.index), g.scale)).with_sources();
+        slicer.add_par(&d.mesh);
+        let (tri, src) = slicer.finish_with_sources();
         let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
         let base = body_color(&d.body);
         let outside = ColorRGBA { a: 0.45, ..base };

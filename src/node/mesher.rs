@@ -13,9 +13,10 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
-use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
+use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::cli::frame_ref;
+use crate::mesh::slice::Slicer;
 use crate::mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
 use crate::mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
 use crate::msg::{Header, Marker, MeshSlab, RosMessage, Time, VoxelGrid};
@@ -231,10 +232,11 @@ impl Ctx<'_> {
 
     fn slice_marker(&self, body: &str, b: &Body, slab: &Slab) -> Option<Message> {
         let topic = self.slice_topic?;
-        let (tri, _) = slice_with_sources(
-            &[&slab.mesh],
-            mid_slab_plane(slab.index, slab.geometry.scale),
-        );
+        // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
+        let mut slicer =
+            Slicer::new(3, mid_slab_plane(slab.index, slab.geometry.scale)).with_sources();
+        slicer.add_par(&slab.mesh);
+        let (tri, _) = slicer.finish_with_sources();
         let stamp = slab.stamp_lo_ns + (slab.stamp_hi_ns - slab.stamp_lo_ns) / 2;
         let header = Header {
             stamp: Time::from_nanos(stamp),
