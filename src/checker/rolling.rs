@@ -35,7 +35,9 @@ use rayon::prelude::*;
 use super::bounds;
 use super::labels::{Label, LabelCounts};
 
-use super::window::{check_window, prepare_window, TakenLabels, WindowBody, WindowResult};
+use super::window::{
+    check_window, prepare_window, PreparedWindow, TakenLabels, WindowBody, WindowResult,
+};
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
 use crate::kernel::float::tet_normal as float_normal;
@@ -482,6 +484,9 @@ pub struct RollingChecker {
     dropped_resolutions: u64,
     /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
     prefetched: Vec<Prefetched>,
+    /// Per body, its latest prepared window (one per body at most): a body in several pairs
+    /// has the same window in each, prepared once.
+    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
     /// The lateral piece just accepted still has to be added to its run's statistics
     /// (run id, and the run's first cap if the piece is its first slab): done while the
     /// windows it makes ready are checked.
@@ -498,7 +503,7 @@ struct Prefetched {
     pair: usize,
     s: i64,
     specs: (WindowSpec, WindowSpec),
-    result: Result<WindowResult, super::window::WindowError>,
+    result: WindowChecked,
 }
 
 /// Distinct frame stamps over the checked bodies: first, last and how many.
@@ -589,6 +594,7 @@ impl RollingChecker {
             resolutions: VecDeque::new(),
             dropped_resolutions: 0,
             prefetched: Vec::new(),
+            prepared: BTreeMap::new(),
             pending_stats: None,
         }
     }
@@ -939,7 +945,7 @@ impl RollingChecker {
             .into_par_iter()
             .map(|(i, s, wa, wb)| {
                 let p = &self.pairs[i];
-                let result = check_specs((&p.a, &wa), (&p.b, &wb));
+                let result = check_specs((&p.a, &wa), (&p.b, &wb), &self.prepared);
                 Prefetched {
                     pair: i,
                     s,
@@ -1331,10 +1337,14 @@ impl RollingChecker {
             });
             let result = match ahead {
                 Some(n) => self.prefetched.swap_remove(n).result,
-                None => check_specs((&a, &wa), (&b, &wb)),
+                None => check_specs((&a, &wa), (&b, &wb), &self.prepared),
             };
             match result {
-                Ok(r) => r,
+                Ok((r, [pa, pb])) => {
+                    self.prepared.insert(a.clone(), (wa.clone(), pa));
+                    self.prepared.insert(b.clone(), (wb.clone(), pb));
+                    r
+                }
                 Err(e) => {
                     let why = format!(
                         "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
@@ -2208,16 +2218,26 @@ fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
 }
 
 /// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
+///
+/// A body's window prepared for another pair's period is taken from `cache` when it is the
+/// same window (a body in several pairs is then prepared once per period); the two prepared
+/// windows are returned with the result, for the cache.
 fn check_specs(
     (a, wa): (&str, &WindowSpec),
     (b, wb): (&str, &WindowSpec),
-) -> Result<WindowResult, super::window::WindowError> {
-    let (ra, rb) = rayon::join(
-        || prepare_window(&wa.body(a)),
-        || prepare_window(&wb.body(b)),
-    );
-    Ok(check_window(&ra?, &rb?))
+    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+) -> WindowChecked {
+    let prepared = |id: &str, w: &WindowSpec| match cache.get(id).filter(|c| c.0.same_as(w)) {
+        Some((_, p)) => Ok(p.clone()),
+        None => prepare_window(&w.body(id)).map(Arc::new),
+    };
+    let (ra, rb) = rayon::join(|| prepared(a, wa), || prepared(b, wb));
+    let (pa, pb) = (ra?, rb?);
+    Ok((check_window(&pa, &pb), [pa, pb]))
 }
+
+/// A window's result, with the two bodies' prepared windows.
+type WindowChecked = Result<(WindowResult, [Arc<PreparedWindow>; 2]), super::window::WindowError>;
 
 impl WindowSpec {
     /// The same window: the same pieces (by identity), placement and numbering.
