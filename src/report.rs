@@ -635,7 +635,12 @@ pub fn resolve(
 ) -> Vec<Resolution> {
     let m = Metric::new(lat, c);
     let mut out = Vec::new();
-    if let Some(t) = suggest_translation(a, others, rs, &m) {
+    // The two searches are independent: both at once.
+    let (translation, scaling) = rayon::join(
+        || suggest_translation(a, others, rs, &m),
+        || suggest_time_scaling(a, others, rs),
+    );
+    if let Some(t) = translation {
         let v = [0, 1, 2, 3].map(|k| {
             if k < 3 {
                 t.lattice[k] as f64 * m.sigma[k]
@@ -657,7 +662,7 @@ pub fn resolve(
     } else {
         tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
     }
-    if let Some(ts) = suggest_time_scaling(a, others, rs) {
+    if let Some(ts) = scaling {
         out.push(Resolution::TimeScale {
             body: a.id.clone(),
             t0_s: lat.time_s(ts.t0 as f64, origin),
