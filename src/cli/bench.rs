@@ -553,15 +553,11 @@ fn bench_nodes(name: SceneName, o: &SceneOptions, path: &std::path::Path) -> Res
     for k in 0..scene.frame_count() {
         let t = Instant::now();
         let mut step = Vec::with_capacity(topics.len());
-        for b in 0..topics.len() {
+        for (b, topic) in topics.iter().enumerate() {
             let mut g = VoxelGrid::default();
             scene.write_frame(b, k, &mut raster, &mut g)?;
             let stamp = g.header.stamp.as_nanos();
-            step.push(Message::new(
-                &topics[b],
-                stamp,
-                Payload::VoxelGrid(Arc::new(g)),
-            ));
+            step.push(Message::new(topic, stamp, Payload::VoxelGrid(Arc::new(g))));
         }
         made_s += t.elapsed().as_secs_f64();
         for (b, m) in step.into_iter().enumerate() {

@@ -166,6 +166,9 @@ impl MesherNode {
 /// status in message order.
 type Problem = (&'static str, String);
 
+/// One message of a batch handled: its place in the batch, what it published, its problems.
+type Handled = (usize, Vec<Message>, Vec<Problem>);
+
 /// The node's names a body's handler needs.
 #[derive(Clone, Copy)]
 struct Ctx<'a> {
@@ -529,7 +532,7 @@ impl Node for MesherNode {
             .filter_map(|(t, idx)| self.bodies.remove(&*t).map(|b| (t, b, idx)))
             .collect();
         let ctx = self.ctx();
-        let done: Vec<Vec<(usize, Vec<Message>, Vec<Problem>)>> = work
+        let done: Vec<Vec<Handled>> = work
             .par_iter_mut()
             .map(|(topic, b, idx)| {
                 idx.iter()
