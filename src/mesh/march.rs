@@ -415,7 +415,25 @@ pub fn march_cap(
     for z in 0..pz - 1 {
         for y in 0..py - 1 {
             let rows: [&[u64]; 4] = std::array::from_fn(|r| f.row(y + (r & 1), z + (r >> 1)));
-            for x in 0..px - 1 {
+            // Cubes x whose eight corners are all free are skipped 64 at a time: cube x
+            // has corners at x and x + 1.
+            let words = f.words;
+            let cubes = (0..words).flat_map(|w| {
+                let any = |w: usize| {
+                    rows.iter()
+                        .fold(0u64, |a, r| a | r.get(w).copied().unwrap_or(0))
+                };
+                let here = any(w);
+                let mut mask = here | (here >> 1) | (any(w + 1) << 63);
+                std::iter::from_fn(move || {
+                    (mask != 0).then(|| {
+                        let bit = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        w * 64 + bit
+                    })
+                })
+            });
+            for x in cubes.take_while(|&x| x < px - 1) {
                 let mut case = 0u8;
                 for (r, row) in rows.iter().enumerate() {
                     case |= (((row[x / 64] >> (x % 64)) & 1) as u8) << (2 * r);

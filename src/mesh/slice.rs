@@ -205,50 +205,68 @@ impl Slicer {
     }
 
     fn cut(&mut self, p: [LatticePoint; 4], source: u32) {
-        {
-            let side = p.map(|q| self.plus(&q));
-            let plus = side.iter().filter(|&&s| s).count();
-            if plus == 0 || plus == 4 {
-                return;
+        let side = p.map(|q| self.plus(&q));
+        let plus = side.iter().filter(|&&s| s).count();
+        if plus == 0 || plus == 4 {
+            return;
+        }
+        // Slice points in cyclic order around the polygon (no allocation: a triangle or a
+        // quad, in fixed arrays).
+        let mut pts = [(0usize, 0usize); 4];
+        let n = if plus == 1 || plus == 3 {
+            let lone = (0..4).find(|&i| side[i] == (plus == 1)).unwrap_or(0);
+            let mut n = 0;
+            for i in (0..4).filter(|&i| i != lone) {
+                pts[n] = (lone, i);
+                n += 1;
             }
-            // Slice points in cyclic order around the polygon.
-            let pts: Vec<(usize, usize)> = if plus == 1 || plus == 3 {
-                let lone = (0..4)
-                    .find(|&i| side[i] == (plus == 1))
-                    .expect("one lone vertex");
-                (0..4).filter(|&i| i != lone).map(|i| (lone, i)).collect()
-            } else {
-                let pos: Vec<usize> = (0..4).filter(|&i| side[i]).collect();
-                let neg: Vec<usize> = (0..4).filter(|&i| !side[i]).collect();
-                // (n0,p0) (n0,p1) (n1,p1) (n1,p0) is a cycle of the quad.
-                vec![
-                    (neg[0], pos[0]),
-                    (neg[0], pos[1]),
-                    (neg[1], pos[1]),
-                    (neg[1], pos[0]),
-                ]
-            };
-            let normal = outward_normal(&p);
-            let geo: Vec<([i128; 3], i128)> =
-                pts.iter().map(|&(i, j)| self.point(&p, i, j)).collect();
-            let keys: Vec<Key> = pts.iter().map(|&(i, j)| self.key(&p, i, j)).collect();
-            let tris: &[[usize; 3]] = if pts.len() == 3 {
-                &[[0, 1, 2]]
-            } else {
-                &[[0, 1, 2], [0, 2, 3]]
-            };
-            for tri in tris {
-                let [a, b, c] = *tri;
-                if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
-                    continue;
+            3
+        } else {
+            let (mut pos, mut neg) = ([0usize; 2], [0usize; 2]);
+            let (mut np, mut nn) = (0, 0);
+            for i in 0..4 {
+                if side[i] {
+                    pos[np] = i;
+                    np += 1;
+                } else {
+                    neg[nn] = i;
+                    nn += 1;
                 }
-                let s = orientation(&geo[a], &geo[b], &geo[c], &normal, self.axis);
-                let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
-                let ids = ordered.map(|i| self.vertex(keys[i]));
-                self.mesh.triangles.push(ids);
-                if let Some(src) = &mut self.sources {
-                    src.push(source);
-                }
+            }
+            // (n0,p0) (n0,p1) (n1,p1) (n1,p0) is a cycle of the quad.
+            pts = [
+                (neg[0], pos[0]),
+                (neg[0], pos[1]),
+                (neg[1], pos[1]),
+                (neg[1], pos[0]),
+            ];
+            4
+        };
+        let normal = outward_normal(&p);
+        let geo: [([i128; 3], i128); 4] = std::array::from_fn(|m| {
+            let (i, j) = pts[m.min(n - 1)];
+            self.point(&p, i, j)
+        });
+        let keys: [Key; 4] = std::array::from_fn(|m| {
+            let (i, j) = pts[m.min(n - 1)];
+            self.key(&p, i, j)
+        });
+        let tris: &[[usize; 3]] = if n == 3 {
+            &[[0, 1, 2]]
+        } else {
+            &[[0, 1, 2], [0, 2, 3]]
+        };
+        for tri in tris {
+            let [a, b, c] = *tri;
+            if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
+                continue;
+            }
+            let s = orientation(&geo[a], &geo[b], &geo[c], &normal, self.axis);
+            let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
+            let ids = ordered.map(|i| self.vertex(keys[i]));
+            self.mesh.triangles.push(ids);
+            if let Some(src) = &mut self.sources {
+                src.push(source);
             }
         }
     }
