@@ -106,6 +106,10 @@ pub const MIN_CHUNK_PLANES: usize = 16;
 /// has its own two z-layers of edge slots).
 pub const MAX_CHUNK_CACHE_BYTES: usize = 64 << 20;
 
+/// Most tets a chunk's mesh buffer keeps its room for between slabs (4 MiB of tets, and
+/// as many vertices at most); a bigger chunk's buffers are freed after its slab.
+pub const MAX_KEPT_CHUNK_TETS: usize = 1 << 18;
+
 /// Reusable workspace for marching slabs.
 ///
 /// A slab is marched in chunks of consecutive z-planes on rayon's pool when it has threads
@@ -203,7 +207,9 @@ impl SlabMarcher {
             .all(|ok| ok);
         if !ok {
             out.clear();
-            self.extra.iter_mut().for_each(|(_, m)| m.clear());
+            self.extra
+                .iter_mut()
+                .for_each(|(_, m)| *m = TetMesh::default());
             return false;
         }
         // Join the chunks in order; a vertex on the plane a chunk starts at may have been
@@ -234,7 +240,12 @@ impl SlabMarcher {
                 .collect();
             out.tets
                 .extend(part.tets.iter().map(|t| t.map(|v| remap[v as usize])));
-            part.clear();
+            if part.tets.capacity() > MAX_KEPT_CHUNK_TETS {
+                // A big slab's buffers are not kept for the next one.
+                *part = TetMesh::default();
+            } else {
+                part.clear();
+            }
         }
         true
     }
