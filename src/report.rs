@@ -4,7 +4,6 @@
 
 use crate::checker::bounds;
 use crate::checker::labels::LabelCounts;
-pub use crate::checker::par_map;
 use crate::checker::prep::BodyPrep;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{
@@ -13,6 +12,7 @@ use crate::checker::{
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::stream::{LossKind, LossLog, UNKNOWN_STAMP};
 use crate::mesh::MesherOptions;
+use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -528,44 +528,43 @@ pub fn check_streamed(
     let c = plan.time_scale.unwrap_or(lat.resolution / period);
     report.time_scale_m_per_s = c;
     // Bodies are prepared, and pairs checked, on all cores: they are independent.
-    let streamed: Vec<std::sync::Mutex<Option<BodyPrep>>> = named
-        .iter()
-        .map(|(id, _)| std::sync::Mutex::new(preps.remove(*id)))
-        .collect();
-    let prepared: Vec<Prepared> = par_map(named.len(), |i| {
-        let (id, b) = named[i];
-        match streamed[i].lock().ok().and_then(|mut p| p.take()) {
+    let streamed: Vec<Option<BodyPrep>> = named.iter().map(|(id, _)| preps.remove(*id)).collect();
+    let prepared: Vec<Prepared> = named
+        .par_iter()
+        .zip(streamed)
+        .map(|(&(id, b), p)| match p {
             Some(p) => lat.place_prep(id, b, p),
             None => lat.prepare(id, b),
-        }
-    })
-    .into_iter()
-    .collect::<Result<_, _>>()?;
+        })
+        .collect::<Result<_, _>>()?;
     let jobs: Vec<(usize, usize)> = pair_ids
         .iter()
         .filter_map(|(a, b)| Some((index(a)?, index(b)?)))
         .collect();
     let as_is: Vec<bool> = named.iter().map(|(_, b)| lat.places_as_is(b)).collect();
-    let walked: Vec<std::sync::Mutex<Option<StreamWalk>>> = jobs
+    let walked: Vec<Option<StreamWalk>> = jobs
         .iter()
         .map(|&(i, j)| {
             let w = walks.remove(&(ids[i].clone(), ids[j].clone()));
-            std::sync::Mutex::new(w.filter(|_| as_is[i] && as_is[j]))
+            w.filter(|_| as_is[i] && as_is[j])
         })
         .collect();
-    let results = par_map(jobs.len(), |k| {
-        let (i, j) = jobs[k];
-        let r = match walked[k].lock().ok().and_then(|mut w| w.take()) {
-            Some(w) => check_pair_walked(&prepared[i], &prepared[j], w),
-            None => check_pair(&prepared[i], &prepared[j]),
-        };
-        let hv = if r.interfering() {
-            overlap_hypervolume(named[i].1, named[j].1, opts)
-        } else {
-            Some((0.0, 0.0))
-        };
-        (r, hv)
-    });
+    let results: Vec<(PairResult, _)> = jobs
+        .par_iter()
+        .zip(walked)
+        .map(|(&(i, j), w)| {
+            let r = match w {
+                Some(w) => check_pair_walked(&prepared[i], &prepared[j], w),
+                None => check_pair(&prepared[i], &prepared[j]),
+            };
+            let hv = if r.interfering() {
+                overlap_hypervolume(named[i].1, named[j].1, opts)
+            } else {
+                Some((0.0, 0.0))
+            };
+            (r, hv)
+        })
+        .collect();
     let mut checked = Vec::new();
     for (&(i, j), (r, hv)) in jobs.iter().zip(results) {
         report
@@ -636,7 +635,12 @@ pub fn resolve(
 ) -> Vec<Resolution> {
     let m = Metric::new(lat, c);
     let mut out = Vec::new();
-    if let Some(t) = suggest_translation(a, others, rs, &m) {
+    // The two searches are independent: both at once.
+    let (translation, scaling) = rayon::join(
+        || suggest_translation(a, others, rs, &m),
+        || suggest_time_scaling(a, others, rs),
+    );
+    if let Some(t) = translation {
         let v = [0, 1, 2, 3].map(|k| {
             if k < 3 {
                 t.lattice[k] as f64 * m.sigma[k]
@@ -658,7 +662,7 @@ pub fn resolve(
     } else {
         tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
     }
-    if let Some(ts) = suggest_time_scaling(a, others, rs) {
+    if let Some(ts) = scaling {
         out.push(Resolution::TimeScale {
             body: a.id.clone(),
             t0_s: lat.time_s(ts.t0 as f64, origin),

@@ -1169,12 +1169,6 @@ impl labels::InsideTest for TetInside<'_> {
     }
 }
 
-/// `f(0..n)` computed on rayon's pool, results in index order.
-pub fn par_map<T: Send>(n: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
-    use rayon::prelude::*;
-    (0..n).into_par_iter().map(&f).collect()
-}
-
 /// Sorts closed ranges and merges those that overlap or touch.
 pub fn merge_ranges(mut v: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
     v.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));

@@ -29,10 +29,11 @@
 use super::inclusion::Inclusion;
 use super::labels::Label;
 use super::{
-    interferes, mapped_tet_inside, par_map, tet_of, CommonLattice, PairResult, Placement, Prepared,
+    interferes, mapped_tet_inside, tet_of, CommonLattice, PairResult, Placement, Prepared,
 };
 use crate::kernel::bvh::TraverseWorkspace;
 use crate::kernel::LatticePoint;
+use rayon::prelude::*;
 
 /// How many times a suggestion that does not clear is lengthened by 10 %.
 pub const GROWTH_STEPS: usize = 8;
@@ -327,13 +328,16 @@ pub fn suggest_translation(
         axes("axis fallback", &mut directions);
     }
     // Exits along each direction, on all cores (independent ray casts).
-    let per_direction = par_map(directions.len(), |n| {
-        // Move λ along dir_lattice = u/σ: the metric displacement is λ·u, |u| = 1.
-        let dir: V4 = [0, 1, 2, 3].map(|k| directions[n].0[k] / m.sigma[k]);
-        hits.iter()
-            .map(|&i| (i, exits(a, results[i], others[i], &dir)))
-            .collect::<Vec<_>>()
-    });
+    let per_direction: Vec<Vec<_>> = directions
+        .par_iter()
+        .map(|(u, _)| {
+            // Move λ along dir_lattice = u/σ: the metric displacement is λ·u, |u| = 1.
+            let dir: V4 = [0, 1, 2, 3].map(|k| u[k] / m.sigma[k]);
+            hits.iter()
+                .map(|&i| (i, exits(a, results[i], others[i], &dir)))
+                .collect()
+        })
+        .collect();
     let mut best: Option<(f64, usize)> = None;
     for (n, per_pair) in per_direction.iter().enumerate() {
         let d = per_pair

@@ -30,10 +30,14 @@
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::bounds;
 use super::labels::{Label, LabelCounts};
 
-use super::window::{check_window, prepare_window, TakenLabels, WindowBody, WindowResult};
+use super::window::{
+    check_window, prepare_window, PreparedWindow, TakenLabels, WindowBody, WindowResult,
+};
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
 use crate::kernel::float::tet_normal as float_normal;
@@ -478,6 +482,28 @@ pub struct RollingChecker {
     resolved_until: BTreeMap<String, f64>,
     resolutions: VecDeque<Resolution>,
     dropped_resolutions: u64,
+    /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
+    prefetched: Vec<Prefetched>,
+    /// Per body, its latest prepared window (one per body at most): a body in several pairs
+    /// has the same window in each, prepared once.
+    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+    /// The lateral piece just accepted still has to be added to its run's statistics
+    /// (run id, and the run's first cap if the piece is its first slab): done while the
+    /// windows it makes ready are checked.
+    pending_stats: Option<(u64, Option<Arc<TetMesh>>)>,
+}
+
+/// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
+/// a pump starts are checked at once on rayon's pool, then taken in pair order by the
+/// sequential steps. A step uses one only if the window it builds is the same (same
+/// pieces, caps and placement); otherwise it checks its own, so the answer never depends
+/// on what was checked ahead, nor on the thread count.
+#[derive(Debug)]
+struct Prefetched {
+    pair: usize,
+    s: i64,
+    specs: (WindowSpec, WindowSpec),
+    result: WindowChecked,
 }
 
 /// Distinct frame stamps over the checked bodies: first, last and how many.
@@ -567,6 +593,9 @@ impl RollingChecker {
             resolved_until: plan_movable(&plan_copy),
             resolutions: VecDeque::new(),
             dropped_resolutions: 0,
+            prefetched: Vec::new(),
+            prepared: BTreeMap::new(),
+            pending_stats: None,
         }
     }
 
@@ -615,10 +644,45 @@ impl RollingChecker {
         if !self.bodies.contains_key(&p.body) {
             return;
         }
+        self.pending_stats = None;
         if let Err((kind, text)) = self.accept(&p) {
             self.problem(out, kind, text);
         }
-        self.pump(out);
+        let Some((run, first_cap)) = self.pending_stats.take() else {
+            self.pump(out);
+            return;
+        };
+        // The body's statistics of the piece (closedness, hypervolume) and the windows it
+        // makes ready are independent: both at once.
+        let acc = self
+            .bodies
+            .get_mut(&p.body)
+            .and_then(|b| b.runs.iter_mut().find(|r| r.id == run))
+            .map(|r| std::mem::take(&mut r.acc));
+        let Some(mut acc) = acc else {
+            self.pump(out);
+            return;
+        };
+        let lateral = LateralRef {
+            index: u64::from(p.index),
+            stamps_ns: p.stamps_ns,
+            geometry: &p.geometry,
+            mesh: &p.mesh,
+            vanishes: p.vanishes,
+        };
+        let (_, ahead) = rayon::join(
+            || acc.add_lateral(lateral, first_cap.as_deref()),
+            || self.prefetch(1),
+        );
+        if let Some(r) = self
+            .bodies
+            .get_mut(&p.body)
+            .and_then(|b| b.runs.iter_mut().find(|r| r.id == run))
+        {
+            r.acc = acc;
+        }
+        self.prefetched = ahead;
+        self.pump_prefetched(out);
     }
 
     fn accept(&mut self, p: &PieceIn) -> Result<(), (&'static str, String)> {
@@ -750,17 +814,8 @@ impl RollingChecker {
                         ),
                     ));
                 }
-                let first_cap = (r.next_index == 0).then(|| r.first_cap.as_ref());
-                r.acc.add_lateral(
-                    LateralRef {
-                        index: u64::from(p.index),
-                        stamps_ns: p.stamps_ns,
-                        geometry: &p.geometry,
-                        mesh: &p.mesh,
-                        vanishes: p.vanishes,
-                    },
-                    first_cap,
-                );
+                // Added to the run's statistics by `on_piece`, while windows are checked.
+                self.pending_stats = Some((r.id, (r.next_index == 0).then(|| r.first_cap.clone())));
                 let first_tet = r.tets;
                 r.tets += p.mesh.tets.len() as u64;
                 r.next_index += 1;
@@ -806,6 +861,12 @@ impl RollingChecker {
 
     /// Decides every period that can be decided, then drops what nothing needs any more.
     fn pump(&mut self, out: &mut Vec<RollOut>) {
+        self.prefetched = self.prefetch(2);
+        self.pump_prefetched(out);
+    }
+
+    /// [`Self::pump`] with the windows checked ahead already in `self.prefetched`.
+    fn pump_prefetched(&mut self, out: &mut Vec<RollOut>) {
         for i in 0..self.pairs.len() {
             while self.pairs[i].stopped.is_none() {
                 if !self.step(i, out) {
@@ -813,8 +874,86 @@ impl RollingChecker {
                 }
             }
         }
+        self.prefetched.clear();
         self.resolve_episodes(out);
         self.prune(out);
+    }
+
+    /// The window pair `i` would check next, if it is plainly ready: both bodies have their
+    /// slab at the next stamp and what follows it, on one lattice and in one frame. Anything
+    /// less plain is left to [`Self::step`].
+    fn ready_window(&self, i: usize) -> Option<(i64, WindowSpec, WindowSpec)> {
+        let p = &self.pairs[i];
+        if p.stopped.is_some() {
+            return None;
+        }
+        let s = self.next_stamp(i)?;
+        if p.next.is_some_and(|n| s > n) {
+            return None;
+        }
+        let (a, b) = (&self.bodies[&p.a], &self.bodies[&p.b]);
+        if a.status(s, self.finishing) != Status::Has || b.status(s, self.finishing) != Status::Has
+        {
+            return None;
+        }
+        let (sa, sb) = (a.slabs.get(&s)?, b.slabs.get(&s)?);
+        let hi = sa.hi;
+        let known = |body: &BodyStream, run: u64| {
+            body.slabs.contains_key(&hi) || body.run(run).is_some_and(|r| r.ended())
+        };
+        if sb.hi != hi || !known(a, sa.run) || !known(b, sb.run) || a.frame_id != b.frame_id {
+            return None;
+        }
+        let (ga, gb) = (a.run(sa.run)?.geometry, b.run(sb.run)?.geometry);
+        let lattice = pair_lattice(&ga, &gb).ok()?;
+        let k = self.period_index(i, s);
+        let per = i64::from(lattice.scale) * i64::from(CHECKER_FACTOR);
+        let base = if k - p.base > REBASE_FRAMES {
+            k - CONTEXT_SLABS as i64
+        } else {
+            p.base
+        };
+        let wa = self.window_spec(
+            &p.a,
+            &p.b,
+            s,
+            k,
+            (base, per),
+            (lattice.shift_a, lattice.ratio_a),
+        )?;
+        let wb = self.window_spec(
+            &p.b,
+            &p.a,
+            s,
+            k,
+            (base, per),
+            (lattice.shift_b, lattice.ratio_b),
+        )?;
+        (!apart(&wa, &wb)).then_some((s, wa, wb))
+    }
+
+    /// The windows ready for checking at the start of a pump, checked on rayon's pool, if
+    /// there are at least `least` (one window alone splits its own check over the cores).
+    fn prefetch(&self, least: usize) -> Vec<Prefetched> {
+        let ready: Vec<(usize, i64, WindowSpec, WindowSpec)> = (0..self.pairs.len())
+            .filter_map(|i| self.ready_window(i).map(|(s, wa, wb)| (i, s, wa, wb)))
+            .collect();
+        if ready.len() < least.max(1) {
+            return Vec::new();
+        }
+        ready
+            .into_par_iter()
+            .map(|(i, s, wa, wb)| {
+                let p = &self.pairs[i];
+                let result = check_specs((&p.a, &wa), (&p.b, &wb), &self.prepared);
+                Prefetched {
+                    pair: i,
+                    s,
+                    specs: (wa, wb),
+                    result,
+                }
+            })
+            .collect()
     }
 
     /// The next stamp pair `i` has to decide, if any body has a slab at or after it.
@@ -1193,12 +1332,19 @@ impl RollingChecker {
                 ..WindowResult::default()
             }
         } else {
-            let (ra, rb) = rayon::join(
-                || prepare_window(&wa.body(&a)),
-                || prepare_window(&wb.body(&b)),
-            );
-            match ra.and_then(|pa| Ok((pa, rb?))) {
-                Ok((pa, pb)) => check_window(&pa, &pb),
+            let ahead = self.prefetched.iter().position(|x| {
+                x.pair == i && x.s == s && x.specs.0.same_as(&wa) && x.specs.1.same_as(&wb)
+            });
+            let result = match ahead {
+                Some(n) => self.prefetched.swap_remove(n).result,
+                None => check_specs((&a, &wa), (&b, &wb), &self.prepared),
+            };
+            match result {
+                Ok((r, [pa, pb])) => {
+                    self.prepared.insert(a.clone(), (wa.clone(), pa));
+                    self.prepared.insert(b.clone(), (wb.clone(), pb));
+                    r
+                }
                 Err(e) => {
                     let why = format!(
                         "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
@@ -2071,7 +2217,49 @@ fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
     (0..3).any(|k| x.1[k] < y.0[k] || y.1[k] < x.0[k])
 }
 
+/// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
+///
+/// A body's window prepared for another pair's period is taken from `cache` when it is the
+/// same window (a body in several pairs is then prepared once per period); the two prepared
+/// windows are returned with the result, for the cache.
+fn check_specs(
+    (a, wa): (&str, &WindowSpec),
+    (b, wb): (&str, &WindowSpec),
+    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+) -> WindowChecked {
+    let prepared = |id: &str, w: &WindowSpec| match cache.get(id).filter(|c| c.0.same_as(w)) {
+        Some((_, p)) => Ok(p.clone()),
+        None => prepare_window(&w.body(id)).map(Arc::new),
+    };
+    let (ra, rb) = rayon::join(|| prepared(a, wa), || prepared(b, wb));
+    let (pa, pb) = (ra?, rb?);
+    Ok((check_window(&pa, &pb), [pa, pb]))
+}
+
+/// A window's result, with the two bodies' prepared windows.
+type WindowChecked = Result<(WindowResult, [Arc<PreparedWindow>; 2]), super::window::WindowError>;
+
 impl WindowSpec {
+    /// The same window: the same pieces (by identity), placement and numbering.
+    fn same_as(&self, o: &WindowSpec) -> bool {
+        let same = |x: &Arc<TetMesh>, y: &Arc<TetMesh>| Arc::ptr_eq(x, y);
+        let same_opt = |x: &Option<Arc<TetMesh>>, y: &Option<Arc<TetMesh>>| match (x, y) {
+            (Some(x), Some(y)) => same(x, y),
+            (None, None) => true,
+            _ => false,
+        };
+        self.geometry == o.geometry
+            && self.lo == o.lo
+            && self.slabs.len() == o.slabs.len()
+            && self.slabs.iter().zip(&o.slabs).all(|(x, y)| same(x, y))
+            && self.centre == o.centre
+            && same_opt(&self.low, &o.low)
+            && same_opt(&self.high, &o.high)
+            && self.mul == o.mul
+            && self.add == o.add
+            && self.first_tet == o.first_tet
+    }
+
     /// The box of every vertex of the window on the pair's lattice, spatial axes only
     /// (`None` for a window without vertices).
     fn spatial_box(&self) -> Option<([i64; 3], [i64; 3])> {

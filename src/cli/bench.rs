@@ -23,6 +23,10 @@ pub struct BenchArgs {
     /// Which benchmark.
     #[command(subcommand)]
     pub which: BenchWhich,
+    /// Threads of the rayon pool the benchmark runs in (default: RAYON_NUM_THREADS, or
+    /// one per core).
+    #[arg(long, global = true)]
+    pub threads: Option<usize>,
 }
 
 /// The benchmarks.
@@ -45,6 +49,11 @@ pub enum BenchWhich {
         /// Also validate (closedness, hypervolume) every slab.
         #[arg(long)]
         validate: bool,
+        /// Then play the frames, in time order, through the nodes of this launch config in
+        /// one process (as a live launch does, without the transport) and print the work
+        /// per input frame by body, and each node's time.
+        #[arg(long)]
+        launch: Option<std::path::PathBuf>,
     },
     /// Error against run time on four-spheres: the checker's intervals, first contacts,
     /// overlap hypervolumes and translations against the exact answers.
@@ -125,6 +134,18 @@ pub enum BenchWhich {
 /// # Errors
 /// Bad scene options.
 pub fn run(a: &BenchArgs) -> Result<(), CliError> {
+    match a.threads {
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n.clamp(1, 1024))
+            .build()
+            .map_err(|e| CliError::Usage(format!("--threads {n}: {e}")))?
+            .install(|| run_in_pool(a)),
+        None => run_in_pool(a),
+    }
+}
+
+fn run_in_pool(a: &BenchArgs) -> Result<(), CliError> {
+    println!("rayon pool: {} thread(s)", rayon::current_num_threads());
     match &a.which {
         BenchWhich::Mesh {
             scene,
@@ -132,6 +153,7 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             frames,
             encoding,
             validate,
+            launch,
         } => {
             let mut o = SceneOptions::for_scene(*scene).encoding((*encoding).into());
             if let Some(g) = grid {
@@ -140,7 +162,11 @@ pub fn run(a: &BenchArgs) -> Result<(), CliError> {
             if let Some(f) = frames {
                 o = o.frames(*f);
             }
-            bench_mesh(*scene, &o, *validate)
+            bench_mesh(*scene, &o, *validate)?;
+            match launch {
+                Some(l) => bench_nodes(*scene, &o, l),
+                None => Ok(()),
+            }
         }
         BenchWhich::Accuracy {
             grids,
@@ -482,8 +508,9 @@ fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), C
         all_slab_ms.extend(slab_ms);
     }
     println!(
-        "total {:.3} s on one core ({} lateral tets, {} lateral vertices before welding frames); slab p50 {:.2} ms, p99 {:.2} ms{}",
+        "total {:.3} s on {} thread(s) ({} lateral tets, {} lateral vertices before welding frames); slab p50 {:.2} ms, p99 {:.2} ms{}",
         total_s,
+        rayon::current_num_threads(),
         tets,
         lateral_vertices,
         percentile(&all_slab_ms, 0.5),
@@ -494,5 +521,81 @@ fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), C
         "peak RSS {:.1} MB (frames held in memory for the benchmark)",
         super::peak_rss_mb()
     );
+    Ok(())
+}
+
+/// Plays the scene's frames in time order (every body's frame k, then k + 1, ...) through
+/// the nodes of launch config `path`, in one process, timing each frame's handling by all
+/// the nodes (what the frame costs the process: meshing, checking, markers), by body.
+fn bench_nodes(name: SceneName, o: &SceneOptions, path: &std::path::Path) -> Result<(), CliError> {
+    use crate::node::bus::Bus;
+    use crate::node::launch::LaunchConfig;
+    use crate::node::{Message, Payload};
+    use std::sync::Arc;
+
+    let text = std::fs::read_to_string(path).map_err(|source| CliError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let config = LaunchConfig::parse(&text, &path.display().to_string())
+        .map_err(|e| CliError::Usage(e.to_string()))?;
+    let scene = build_scene(name, o)?;
+    let topics = scene.topics();
+    let (nodes, _) = super::replay::build_nodes(&config, &topics, false)
+        .map_err(|e| CliError::Usage(e.to_string()))?;
+    let mut bus = Bus::new(nodes);
+    let mut raster = Rasterizer::new();
+    // Frames are made before the clock starts, one time step at a time.
+    let mut per_body: Vec<Vec<f64>> = vec![Vec::new(); topics.len()];
+    let mut published = 0u64;
+    let start = Instant::now();
+    let mut made_s = 0.0;
+    for k in 0..scene.frame_count() {
+        let t = Instant::now();
+        let mut step = Vec::with_capacity(topics.len());
+        for (b, topic) in topics.iter().enumerate() {
+            let mut g = VoxelGrid::default();
+            scene.write_frame(b, k, &mut raster, &mut g)?;
+            let stamp = g.header.stamp.as_nanos();
+            step.push(Message::new(topic, stamp, Payload::VoxelGrid(Arc::new(g))));
+        }
+        made_s += t.elapsed().as_secs_f64();
+        for (b, m) in step.into_iter().enumerate() {
+            let t = Instant::now();
+            bus.deliver(m, &mut |_| published += 1);
+            per_body[b].push(t.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    let t = Instant::now();
+    bus.finish(&mut |_| published += 1);
+    let finish_s = t.elapsed().as_secs_f64();
+    let total_s = start.elapsed().as_secs_f64() - made_s;
+    println!(
+        "nodes of {} on {} thread(s), frames in time order ({} messages published):",
+        path.display(),
+        rayon::current_num_threads(),
+        published
+    );
+    for (topic, ms) in topics.iter().zip(&per_body) {
+        println!(
+            "  {topic:<24} per frame p50 {:>7.2} ms  p99 {:>7.2} ms  max {:>7.2} ms",
+            percentile(ms, 0.5),
+            percentile(ms, 0.99),
+            ms.iter().copied().fold(0.0, f64::max)
+        );
+    }
+    let steps: Vec<f64> = (0..scene.frame_count())
+        .map(|k| per_body.iter().map(|v| v[k as usize]).sum())
+        .collect();
+    println!(
+        "  all bodies' frames of one time step: p50 {:.2} ms, p99 {:.2} ms; end of run (closing caps, last periods, resolutions) {:.3} s; in all {:.3} s",
+        percentile(&steps, 0.5),
+        percentile(&steps, 0.99),
+        finish_s,
+        total_s
+    );
+    for (node, s) in bus.busy_s() {
+        println!("  node {node:<20} {s:>8.3} s in its handlers");
+    }
     Ok(())
 }

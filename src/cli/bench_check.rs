@@ -31,11 +31,11 @@ use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::slice::{slice_mesh, PlaneValue, TriMesh as SliceMesh};
 use crate::mesh::MesherOptions;
 use crate::msg::VoxelGrid;
-use crate::report::par_map;
 use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions, FOUR_SPHERES};
 use parry3d::math::{Pose, Vector};
 use parry3d::query::intersection_test;
 use parry3d::shape::TriMesh as ParryMesh;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Meshes bodies `which` of four-spheres at `grid` voxels and `frames` frames.
@@ -51,17 +51,19 @@ fn spheres(
         .encoding(encoding.into());
     let scene = build_scene(SceneName::FourSpheres, &o)?;
     let topics = scene.topics();
-    let out = par_map(which.len(), |i| -> Result<(String, BodyMesh), CliError> {
-        let b = which[i];
-        let mut raster = Rasterizer::new();
-        let mut grid = VoxelGrid::default();
-        let mut asm = BodyAssembler::new(MesherOptions::default())?;
-        for k in 0..scene.frame_count() {
-            scene.write_frame(b, k, &mut raster, &mut grid)?;
-            asm.push(&frame_ref(&grid))?;
-        }
-        Ok((topics[b].clone(), asm.finish()))
-    });
+    let out: Vec<Result<(String, BodyMesh), CliError>> = which
+        .par_iter()
+        .map(|&b| -> Result<(String, BodyMesh), CliError> {
+            let mut raster = Rasterizer::new();
+            let mut grid = VoxelGrid::default();
+            let mut asm = BodyAssembler::new(MesherOptions::default())?;
+            for k in 0..scene.frame_count() {
+                scene.write_frame(b, k, &mut raster, &mut grid)?;
+                asm.push(&frame_ref(&grid))?;
+            }
+            Ok((topics[b].clone(), asm.finish()))
+        })
+        .collect();
     out.into_iter().collect()
 }
 
@@ -73,8 +75,9 @@ fn detect(
     let t0 = Instant::now();
     let named: Vec<(&str, &BodyMesh)> = bodies.iter().map(|(id, b)| (id.as_str(), b)).collect();
     let lat = CommonLattice::of(&named)?;
-    let prepared: Vec<Prepared> = par_map(named.len(), |i| lat.prepare(named[i].0, named[i].1))
-        .into_iter()
+    let prepared: Vec<Prepared> = named
+        .par_iter()
+        .map(|&(id, b)| lat.prepare(id, b))
         .collect::<Result<_, _>>()?;
     let prepare_s = t0.elapsed().as_secs_f64();
     let results = (1..prepared.len())
@@ -120,20 +123,11 @@ fn detect_streamed(
     let t0 = Instant::now();
     let named: Vec<(&str, &BodyMesh)> = bodies.iter().map(|(id, b)| (id.as_str(), b)).collect();
     let lat = CommonLattice::of(&named)?;
-    let slots: Vec<std::sync::Mutex<Option<BodyPrep>>> = preps
-        .into_iter()
-        .map(|p| std::sync::Mutex::new(Some(p)))
-        .collect();
-    let prepared: Vec<Prepared> = par_map(named.len(), |i| {
-        let p = slots[i]
-            .lock()
-            .ok()
-            .and_then(|mut p| p.take())
-            .unwrap_or_default();
-        lat.place_prep(named[i].0, named[i].1, p)
-    })
-    .into_iter()
-    .collect::<Result<_, _>>()?;
+    let prepared: Vec<Prepared> = named
+        .par_iter()
+        .zip(preps)
+        .map(|(&(id, b), p)| lat.place_prep(id, b, p))
+        .collect::<Result<_, _>>()?;
     let place_s = t0.elapsed().as_secs_f64();
     let r = if named.iter().all(|(_, b)| lat.places_as_is(b)) {
         check_pair_walked(&prepared[0], &prepared[1], walk)

@@ -7,10 +7,12 @@
 //! hashing, no allocation per cube).
 
 use super::grid::OccupancyGrid;
+use super::hash::{fast_map, FastMap};
 use super::table::Table;
 use super::table_gen::{edge3, edge4};
 use crate::kernel::LatticePoint;
-use std::collections::HashMap;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// A set of tetrahedra on shared lattice vertices.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -48,7 +50,7 @@ impl TetMesh {
 /// index between appends.
 #[derive(Debug, Default)]
 pub struct Welder {
-    index: HashMap<LatticePoint, u32>,
+    index: FastMap<LatticePoint, u32>,
 }
 
 impl Welder {
@@ -95,9 +97,38 @@ pub struct SlabPlacement {
     pub iso: u8,
 }
 
+/// Most chunks of z-planes one slab is split into for marching on several cores.
+pub const MAX_MARCH_CHUNKS: usize = 4;
+/// Fewest z-planes of hypercubes per chunk (thinner chunks would cost more in merging and
+/// edge caches than they save).
+pub const MIN_CHUNK_PLANES: usize = 16;
+/// Most bytes the edge caches of the extra chunks may take in all, per marcher (each chunk
+/// has its own two z-layers of edge slots).
+pub const MAX_CHUNK_CACHE_BYTES: usize = 64 << 20;
+
+/// Most tets a chunk's mesh buffer keeps its room for between slabs (4 MiB of tets, and
+/// as many vertices at most); a bigger chunk's buffers are freed after its slab.
+pub const MAX_KEPT_CHUNK_TETS: usize = 1 << 18;
+
 /// Reusable workspace for marching slabs.
+///
+/// A slab is marched in chunks of consecutive z-planes on rayon's pool when it has threads
+/// (at most [`MAX_MARCH_CHUNKS`], each of at least [`MIN_CHUNK_PLANES`] planes, their extra
+/// edge caches within [`MAX_CHUNK_CACHE_BYTES`]). The chunks' meshes are joined in order, the
+/// vertices of a plane two chunks share merged by their lattice coordinates (a vertex lies
+/// inside its edge, so no two edges give the same point): the result is the mesh one
+/// sequential sweep gives, vertex for vertex and tet for tet, whatever the thread count.
 #[derive(Debug, Default)]
 pub struct SlabMarcher {
+    main: EdgeCache,
+    /// Workspaces and meshes of the chunks after the first, kept between slabs.
+    extra: Vec<(EdgeCache, TetMesh)>,
+}
+
+/// The edge cache of one sweep: vertex ids by edge for two z-layers, cleared by the list of
+/// touched entries.
+#[derive(Debug, Default)]
+struct EdgeCache {
     cache: [Vec<u32>; 2],
     touched: [Vec<usize>; 2],
 }
@@ -121,6 +152,18 @@ fn crossing(a: u8, b: u8, iso: u8, scale: i32) -> i32 {
     q.clamp(1, s - 1) as i32
 }
 
+/// How many chunks a slab of `planes` z-planes of hypercubes, with edge-cache layers of
+/// `layer` slots, is marched in on `threads` threads.
+fn chunk_count(planes: usize, layer: usize, threads: usize) -> usize {
+    let cache_bytes = layer.saturating_mul(2 * 4).max(1);
+    let by_memory = 1 + MAX_CHUNK_CACHE_BYTES / cache_bytes;
+    threads
+        .min(MAX_MARCH_CHUNKS)
+        .min(planes / MIN_CHUNK_PLANES)
+        .min(by_memory)
+        .max(1)
+}
+
 impl SlabMarcher {
     /// Meshes the lateral boundary of the slab between frames `f0` and `f1` (same lattice)
     /// into `out` (cleared first). Stops and returns `false` (with `out` empty) as soon as
@@ -135,9 +178,97 @@ impl SlabMarcher {
         max_tets: usize,
         out: &mut TetMesh,
     ) -> bool {
-        out.clear();
         let [px, py, pz] = f0.padded;
-        let words = f0.words;
+        let planes = pz - 1;
+        let chunks = chunk_count(planes, px * py * 7, rayon::current_num_threads());
+        let total = AtomicUsize::new(0);
+        let frames = [f0, f1];
+        if chunks <= 1 {
+            return self
+                .main
+                .sweep(table, frames, at, 0..planes, max_tets, &total, out);
+        }
+        if self.extra.len() < chunks - 1 {
+            self.extra.resize_with(chunks - 1, Default::default);
+        }
+        let bounds: Vec<usize> = (0..=chunks).map(|k| k * planes / chunks).collect();
+        let main = (&mut self.main, &mut *out);
+        let rest = self.extra[..chunks - 1].iter_mut().map(|(c, m)| (c, m));
+        let jobs: Vec<(usize, (&mut EdgeCache, &mut TetMesh))> =
+            std::iter::once(main).chain(rest).enumerate().collect();
+        let ok = jobs
+            .into_par_iter()
+            .map(|(k, (cache, mesh))| {
+                let range = bounds[k]..bounds[k + 1];
+                cache.sweep(table, frames, at, range, max_tets, &total, mesh)
+            })
+            .collect::<Vec<bool>>()
+            .into_iter()
+            .all(|ok| ok);
+        if !ok {
+            out.clear();
+            self.extra
+                .iter_mut()
+                .for_each(|(_, m)| *m = TetMesh::default());
+            return false;
+        }
+        // Join the chunks in order; a vertex on the plane a chunk starts at may have been
+        // made by the chunk before it.
+        let mut shared: FastMap<LatticePoint, u32> = fast_map();
+        let mut prev_start = 0;
+        for (k, (_, part)) in self.extra[..chunks - 1].iter_mut().enumerate() {
+            let plane = at.scale * (bounds[k + 1] as i32 - 1);
+            shared.clear();
+            shared.extend(
+                out.vertices[prev_start..]
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, p)| p[2] == plane)
+                    .map(|(i, p)| (*p, (prev_start + i) as u32)),
+            );
+            prev_start = out.vertices.len();
+            let remap: Vec<u32> = part
+                .vertices
+                .iter()
+                .map(|p| match shared.get(p) {
+                    Some(&id) => id,
+                    None => {
+                        out.vertices.push(*p);
+                        (out.vertices.len() - 1) as u32
+                    }
+                })
+                .collect();
+            out.tets
+                .extend(part.tets.iter().map(|t| t.map(|v| remap[v as usize])));
+            if part.tets.capacity() > MAX_KEPT_CHUNK_TETS {
+                // A big slab's buffers are not kept for the next one.
+                *part = TetMesh::default();
+            } else {
+                part.clear();
+            }
+        }
+        true
+    }
+}
+
+impl EdgeCache {
+    /// Marches the hypercubes of z-planes `planes` of the slab into `out` (cleared first),
+    /// adding the tets made to `total` (shared by the chunks of one slab) row by row; stops
+    /// with `false` (and `out` empty) once `total` exceeds `max_tets`.
+    #[allow(clippy::too_many_arguments)]
+    fn sweep(
+        &mut self,
+        table: &Table,
+        frames: [&OccupancyGrid; 2],
+        at: SlabPlacement,
+        planes: std::ops::Range<usize>,
+        max_tets: usize,
+        total: &AtomicUsize,
+        out: &mut TetMesh,
+    ) -> bool {
+        out.clear();
+        let [px, py, _] = frames[0].padded;
+        let words = frames[0].words;
         let layer = px * py * 7;
         for l in 0..2 {
             if self.cache[l].len() != layer {
@@ -145,9 +276,9 @@ impl SlabMarcher {
                 self.touched[l].clear();
             }
         }
-        let frames = [f0, f1];
         let s = at.scale;
-        for z in 0..pz - 1 {
+        let mut counted = 0;
+        for z in planes {
             for y in 0..py - 1 {
                 let rows: [&[u64]; 8] = std::array::from_fn(|r| {
                     frames[(r >> 2) & 1].row(y + (r & 1), z + ((r >> 1) & 1))
@@ -176,7 +307,14 @@ impl SlabMarcher {
                         self.emit_cube(table, frames, [x, y, z], case, at, s, px, out);
                     }
                 }
-                if out.tets.len() > max_tets {
+                let made = out.tets.len() - counted;
+                counted = out.tets.len();
+                let so_far = if made > 0 {
+                    total.fetch_add(made, Ordering::Relaxed) + made
+                } else {
+                    total.load(Ordering::Relaxed)
+                };
+                if so_far > max_tets {
                     for l in 0..2 {
                         self.cache[l].iter_mut().for_each(|c| *c = NONE);
                         self.touched[l].clear();
@@ -284,11 +422,29 @@ pub fn march_cap(
     let [px, py, pz] = f.padded;
     let s = at.scale;
     let t = s * at.frame as i32;
-    let mut index: HashMap<LatticePoint, u32> = HashMap::new();
+    let mut index: FastMap<LatticePoint, u32> = fast_map();
     for z in 0..pz - 1 {
         for y in 0..py - 1 {
             let rows: [&[u64]; 4] = std::array::from_fn(|r| f.row(y + (r & 1), z + (r >> 1)));
-            for x in 0..px - 1 {
+            // Cubes x whose eight corners are all free are skipped 64 at a time: cube x
+            // has corners at x and x + 1.
+            let words = f.words;
+            let cubes = (0..words).flat_map(|w| {
+                let any = |w: usize| {
+                    rows.iter()
+                        .fold(0u64, |a, r| a | r.get(w).copied().unwrap_or(0))
+                };
+                let here = any(w);
+                let mut mask = here | (here >> 1) | (any(w + 1) << 63);
+                std::iter::from_fn(move || {
+                    (mask != 0).then(|| {
+                        let bit = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        w * 64 + bit
+                    })
+                })
+            });
+            for x in cubes.take_while(|&x| x < px - 1) {
                 let mut case = 0u8;
                 for (r, row) in rows.iter().enumerate() {
                     case |= (((row[x / 64] >> (x % 64)) & 1) as u8) << (2 * r);

@@ -10,6 +10,7 @@
 
 pub mod glue;
 pub mod grid;
+pub mod hash;
 pub mod march;
 pub mod mesher;
 pub mod slice;

@@ -17,9 +17,10 @@
 //! and [`slice_mesh`] then slices again with on-plane vertices counted as "−", which gives the
 //! boundary of the touching face: a slice at a frame time always reproduces that frame.
 
+use super::hash::{fast_map, FastMap};
 use super::march::TetMesh;
 use crate::kernel::LatticePoint;
-use std::collections::HashMap;
+use rayon::prelude::*;
 use std::io::{self, Write};
 
 /// A plane coordinate in lattice units, as an exact fraction `num / den` (`den > 0`).
@@ -61,13 +62,16 @@ enum Key {
     Edge(LatticePoint, LatticePoint),
 }
 
+/// Tets per chunk of [`Slicer::add_par`].
+pub const SLICE_CHUNK_TETS: usize = 1 << 15;
+
 /// Streams tets (from any number of slabs or caps) into one slice.
 #[derive(Debug)]
 pub struct Slicer {
     axis: usize,
     c: PlaneValue,
     on_plane_is_plus: bool,
-    index: HashMap<Key, u32>,
+    index: FastMap<Key, u32>,
     mesh: TriMesh,
     /// With [`Slicer::with_sources`]: per triangle, the tet it came from (counted over every
     /// `add`ed mesh in order).
@@ -91,7 +95,7 @@ impl Slicer {
             axis,
             c,
             on_plane_is_plus: true,
-            index: HashMap::new(),
+            index: fast_map(),
             mesh: TriMesh::default(),
             sources: None,
             tets_seen: 0,
@@ -131,6 +135,67 @@ impl Slicer {
         }
     }
 
+    /// [`Slicer::add`] on rayon's pool: the tets are cut in chunks of [`SLICE_CHUNK_TETS`],
+    /// each into its own slice, and the chunks' slices joined in order, each slice point
+    /// numbered where it first occurs. The result (vertices, their numbering, triangles,
+    /// sources) is the one `add` gives, whatever the thread count.
+    pub fn add_par(&mut self, mesh: &TetMesh) {
+        let n = mesh.tets.len();
+        if rayon::current_num_threads() < 2 || n < 2 * SLICE_CHUNK_TETS {
+            self.add(mesh);
+            return;
+        }
+        let base = self.tets_seen;
+        let parts: Vec<Slicer> = mesh
+            .tets
+            .par_chunks(SLICE_CHUNK_TETS)
+            .enumerate()
+            .map(|(k, tets)| {
+                let mut part = Slicer {
+                    axis: self.axis,
+                    c: self.c,
+                    on_plane_is_plus: self.on_plane_is_plus,
+                    index: fast_map(),
+                    mesh: TriMesh::default(),
+                    sources: self.sources.as_ref().map(|_| Vec::new()),
+                    tets_seen: 0,
+                };
+                let first = base.wrapping_add((k * SLICE_CHUNK_TETS) as u32);
+                for (j, t) in tets.iter().enumerate() {
+                    let source = first.wrapping_add(j as u32);
+                    part.cut(t.map(|v| mesh.vertices[v as usize]), source);
+                }
+                part
+            })
+            .collect();
+        self.tets_seen = base.wrapping_add(n as u32);
+        for part in parts {
+            // The part's keys by its own numbering (the order it made them in).
+            let mut keys: Vec<(u32, Key)> = part.index.iter().map(|(k, &id)| (id, *k)).collect();
+            keys.sort_unstable_by_key(|x| x.0);
+            let remap: Vec<u32> = keys
+                .into_iter()
+                .zip(&part.mesh.vertices)
+                .map(|((_, key), pos)| {
+                    let next = self.mesh.vertices.len() as u32;
+                    *self.index.entry(key).or_insert_with(|| {
+                        self.mesh.vertices.push(*pos);
+                        next
+                    })
+                })
+                .collect();
+            self.mesh.triangles.extend(
+                part.mesh
+                    .triangles
+                    .iter()
+                    .map(|t| t.map(|v| remap[v as usize])),
+            );
+            if let (Some(all), Some(src)) = (&mut self.sources, part.sources) {
+                all.extend(src);
+            }
+        }
+    }
+
     /// Cuts the tets `ids` of `mesh` (sources: the ids).
     pub fn add_some(&mut self, mesh: &TetMesh, ids: &[u32]) {
         for &i in ids {
@@ -140,50 +205,68 @@ impl Slicer {
     }
 
     fn cut(&mut self, p: [LatticePoint; 4], source: u32) {
-        {
-            let side = p.map(|q| self.plus(&q));
-            let plus = side.iter().filter(|&&s| s).count();
-            if plus == 0 || plus == 4 {
-                return;
+        let side = p.map(|q| self.plus(&q));
+        let plus = side.iter().filter(|&&s| s).count();
+        if plus == 0 || plus == 4 {
+            return;
+        }
+        // Slice points in cyclic order around the polygon (no allocation: a triangle or a
+        // quad, in fixed arrays).
+        let mut pts = [(0usize, 0usize); 4];
+        let n = if plus == 1 || plus == 3 {
+            let lone = (0..4).find(|&i| side[i] == (plus == 1)).unwrap_or(0);
+            let mut n = 0;
+            for i in (0..4).filter(|&i| i != lone) {
+                pts[n] = (lone, i);
+                n += 1;
             }
-            // Slice points in cyclic order around the polygon.
-            let pts: Vec<(usize, usize)> = if plus == 1 || plus == 3 {
-                let lone = (0..4)
-                    .find(|&i| side[i] == (plus == 1))
-                    .expect("one lone vertex");
-                (0..4).filter(|&i| i != lone).map(|i| (lone, i)).collect()
-            } else {
-                let pos: Vec<usize> = (0..4).filter(|&i| side[i]).collect();
-                let neg: Vec<usize> = (0..4).filter(|&i| !side[i]).collect();
-                // (n0,p0) (n0,p1) (n1,p1) (n1,p0) is a cycle of the quad.
-                vec![
-                    (neg[0], pos[0]),
-                    (neg[0], pos[1]),
-                    (neg[1], pos[1]),
-                    (neg[1], pos[0]),
-                ]
-            };
-            let normal = outward_normal(&p);
-            let geo: Vec<([i128; 3], i128)> =
-                pts.iter().map(|&(i, j)| self.point(&p, i, j)).collect();
-            let keys: Vec<Key> = pts.iter().map(|&(i, j)| self.key(&p, i, j)).collect();
-            let tris: &[[usize; 3]] = if pts.len() == 3 {
-                &[[0, 1, 2]]
-            } else {
-                &[[0, 1, 2], [0, 2, 3]]
-            };
-            for tri in tris {
-                let [a, b, c] = *tri;
-                if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
-                    continue;
+            3
+        } else {
+            let (mut pos, mut neg) = ([0usize; 2], [0usize; 2]);
+            let (mut np, mut nn) = (0, 0);
+            for i in 0..4 {
+                if side[i] {
+                    pos[np] = i;
+                    np += 1;
+                } else {
+                    neg[nn] = i;
+                    nn += 1;
                 }
-                let s = orientation(&geo[a], &geo[b], &geo[c], &normal, self.axis);
-                let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
-                let ids = ordered.map(|i| self.vertex(keys[i]));
-                self.mesh.triangles.push(ids);
-                if let Some(src) = &mut self.sources {
-                    src.push(source);
-                }
+            }
+            // (n0,p0) (n0,p1) (n1,p1) (n1,p0) is a cycle of the quad.
+            pts = [
+                (neg[0], pos[0]),
+                (neg[0], pos[1]),
+                (neg[1], pos[1]),
+                (neg[1], pos[0]),
+            ];
+            4
+        };
+        let normal = outward_normal(&p);
+        let geo: [([i128; 3], i128); 4] = std::array::from_fn(|m| {
+            let (i, j) = pts[m.min(n - 1)];
+            self.point(&p, i, j)
+        });
+        let keys: [Key; 4] = std::array::from_fn(|m| {
+            let (i, j) = pts[m.min(n - 1)];
+            self.key(&p, i, j)
+        });
+        let tris: &[[usize; 3]] = if n == 3 {
+            &[[0, 1, 2]]
+        } else {
+            &[[0, 1, 2], [0, 2, 3]]
+        };
+        for tri in tris {
+            let [a, b, c] = *tri;
+            if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
+                continue;
+            }
+            let s = orientation(&geo[a], &geo[b], &geo[c], &normal, self.axis);
+            let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
+            let ids = ordered.map(|i| self.vertex(keys[i]));
+            self.mesh.triangles.push(ids);
+            if let Some(src) = &mut self.sources {
+                src.push(source);
             }
         }
     }

@@ -6,6 +6,7 @@
 //! in the same order.
 
 use std::collections::{BTreeMap, VecDeque};
+use std::time::{Duration, Instant};
 
 use super::{Message, Node, NodeStatus};
 
@@ -13,6 +14,8 @@ use super::{Message, Node, NodeStatus};
 pub struct Bus {
     nodes: Vec<Box<dyn Node>>,
     routes: BTreeMap<String, Vec<(usize, &'static str)>>,
+    /// Wall time each node spent in its handlers (messages, ticks, finishing).
+    busy: Vec<Duration>,
 }
 
 /// A message that reached a node of the wrong type for its subscription.
@@ -35,7 +38,12 @@ impl Bus {
                 routes.entry(s.topic).or_default().push((i, s.type_name));
             }
         }
-        Self { nodes, routes }
+        let busy = vec![Duration::ZERO; nodes.len()];
+        Self {
+            nodes,
+            routes,
+            busy,
+        }
     }
 
     /// The type subscribers expect on `topic`, if anyone reads it.
@@ -66,7 +74,9 @@ impl Bus {
                         });
                         continue;
                     }
+                    let t = Instant::now();
                     self.nodes[i].on_message(&m, &mut out);
+                    self.busy[i] += t.elapsed();
                     queue.extend(out.drain(..));
                 }
             }
@@ -82,7 +92,9 @@ impl Bus {
         let mut misrouted = Vec::new();
         for i in order {
             let mut out = Vec::new();
+            let t = Instant::now();
             self.nodes[i].finish(&mut out);
+            self.busy[i] += t.elapsed();
             for m in out {
                 sink(&m);
                 // Delivered to subscribers; `deliver` does not pass its own input to `sink`.
@@ -98,7 +110,9 @@ impl Bus {
         let mut misrouted = Vec::new();
         for i in 0..self.nodes.len() {
             let mut out = Vec::new();
+            let t = Instant::now();
             self.nodes[i].on_tick(now_ns, &mut out);
+            self.busy[i] += t.elapsed();
             for m in out {
                 sink(&m);
                 misrouted.extend(self.deliver(m, sink));
@@ -126,6 +140,17 @@ impl Bus {
             Some(n) => n.set_parameter(name, value),
             None => Err(format!("no node {node} here")),
         }
+    }
+
+    /// Name of every node and the wall time (s) it spent in its handlers so far (on the
+    /// threads it ran on: a node whose work is split over rayon's pool counts its wall time
+    /// once, not the pool's CPU time).
+    pub fn busy_s(&self) -> Vec<(&str, f64)> {
+        self.nodes
+            .iter()
+            .zip(&self.busy)
+            .map(|(n, d)| (n.name(), d.as_secs_f64()))
+            .collect()
     }
 
     /// The nodes.

@@ -23,8 +23,10 @@
 use std::collections::BTreeSet;
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::launch::{LaunchError, NodeSpec, Params};
-use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
+use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
@@ -32,6 +34,7 @@ use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
 use crate::cli::frame_ref;
+use crate::mesh::slice::Slicer;
 use crate::mesh::GridGeometry;
 use crate::mesh::{MesherOptions, OccupancyGrid};
 use crate::msg::{
@@ -291,7 +294,28 @@ impl CheckerNode {
         let before = out.len();
         // The answer after this step, built once for its contact events and its report.
         let mut report: Option<Report> = None;
-        for r in rolled {
+        // The periods' markers (a slice of each body's slab) are independent: built on
+        // rayon's pool first, published in their place below.
+        let mut markers: Vec<Option<Message>> = match self.markers_topic.as_deref() {
+            Some(topic)
+                if rolled
+                    .iter()
+                    .filter(|r| matches!(r, RollOut::SlabDone(_)))
+                    .count()
+                    > 1 =>
+            {
+                let this = &*self;
+                rolled
+                    .par_iter()
+                    .map(|r| match r {
+                        RollOut::SlabDone(d) => Some(this.marker(topic, d)),
+                        _ => None,
+                    })
+                    .collect()
+            }
+            _ => Vec::new(),
+        };
+        for (n, r) in rolled.into_iter().enumerate() {
             match r {
                 RollOut::Labels(l) => {
                     let Some(topic) = &self.labels_topic else {
@@ -318,7 +342,9 @@ impl CheckerNode {
                     ));
                 }
                 RollOut::SlabDone(d) => {
-                    if let Some(topic) = self.markers_topic.clone() {
+                    if let Some(m) = markers.get_mut(n).and_then(Option::take) {
+                        out.push(m);
+                    } else if let Some(topic) = self.markers_topic.clone() {
                         out.push(self.marker(&topic, &d));
                     }
                 }
@@ -399,10 +425,10 @@ impl CheckerNode {
     /// triangles coloured by the strongest label of their tet over the body's pairs.
     fn marker(&self, topic: &str, d: &SlabDone) -> Message {
         let g = d.geometry;
-        let (tri, src) = slice_with_sources(
-            &[d.mesh.as_ref()],
-            mid_slab_plane(u64::from(d.index), g.scale),
-        );
+        // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
+        let mut slicer = Slicer::new(3, mid_slab_plane(u64::from(d.index), g.scale)).with_sources();
+        slicer.add_par(&d.mesh);
+        let (tri, src) = slicer.finish_with_sources();
         let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
         let base = body_color(&d.body);
         let outside = ColorRGBA { a: 0.45, ..base };

@@ -10,10 +10,13 @@
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
+use rayon::prelude::*;
+
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
-use super::markers::{body_color, mid_slab_plane, slice_with_sources, triangle_list};
+use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::cli::frame_ref;
+use crate::mesh::slice::Slicer;
 use crate::mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
 use crate::mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
 use crate::msg::{Header, Marker, MeshSlab, RosMessage, Time, VoxelGrid};
@@ -132,6 +135,49 @@ impl MesherNode {
         self.opts
     }
 
+    /// What the bodies' handlers share (all of it read only, so bodies can be handled on
+    /// several threads).
+    fn ctx(&self) -> Ctx<'_> {
+        Ctx {
+            fqn: &self.fqn,
+            slab_topic: &self.slab_topic,
+            slice_topic: self.slice_topic.as_deref(),
+        }
+    }
+
+    fn on_frame(&mut self, topic: &str, grid: &VoxelGrid, out: &mut Vec<Message>) {
+        let ctx = Ctx {
+            fqn: &self.fqn,
+            slab_topic: &self.slab_topic,
+            slice_topic: self.slice_topic.as_deref(),
+        };
+        let Some(b) = self.bodies.get_mut(topic) else {
+            return;
+        };
+        let mut problems = Vec::new();
+        ctx.on_frame(topic, b, grid, out, &mut problems);
+        for (kind, text) in problems {
+            self.status.problem(&self.fqn, kind, text);
+        }
+    }
+}
+
+/// A problem found while handling a message: its kind and text, counted in the node's
+/// status in message order.
+type Problem = (&'static str, String);
+
+/// One message of a batch handled: its place in the batch, what it published, its problems.
+type Handled = (usize, Vec<Message>, Vec<Problem>);
+
+/// The node's names a body's handler needs.
+#[derive(Clone, Copy)]
+struct Ctx<'a> {
+    fqn: &'a str,
+    slab_topic: &'a str,
+    slice_topic: Option<&'a str>,
+}
+
+impl Ctx<'_> {
     #[allow(clippy::too_many_arguments)]
     fn piece(
         &self,
@@ -161,7 +207,7 @@ impl MesherNode {
             ..MeshSlab::default()
         };
         m.set_geometry(g);
-        Message::new(&self.slab_topic, stamps.1, Payload::MeshSlab(Arc::new(m)))
+        Message::new(self.slab_topic, stamps.1, Payload::MeshSlab(Arc::new(m)))
     }
 
     fn cap(&self, body: &str, b: &Body, k: &KeptFrame, side: CapSide) -> Option<Message> {
@@ -188,11 +234,12 @@ impl MesherNode {
     }
 
     fn slice_marker(&self, body: &str, b: &Body, slab: &Slab) -> Option<Message> {
-        let topic = self.slice_topic.as_ref()?;
-        let (tri, _) = slice_with_sources(
-            &[&slab.mesh],
-            mid_slab_plane(slab.index, slab.geometry.scale),
-        );
+        let topic = self.slice_topic?;
+        // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
+        let mut slicer =
+            Slicer::new(3, mid_slab_plane(slab.index, slab.geometry.scale)).with_sources();
+        slicer.add_par(&slab.mesh);
+        let (tri, _) = slicer.finish_with_sources();
         let stamp = slab.stamp_lo_ns + (slab.stamp_hi_ns - slab.stamp_lo_ns) / 2;
         let header = Header {
             stamp: Time::from_nanos(stamp),
@@ -203,17 +250,22 @@ impl MesherNode {
         Some(Message::new(topic, stamp, Payload::Marker(Arc::new(m))))
     }
 
-    fn on_frame(&mut self, topic: &str, grid: &VoxelGrid, out: &mut Vec<Message>) {
+    /// Handles one frame of body `b` (on `topic`): what it publishes goes to `out`, its
+    /// problems to `problems`. Touches nothing but `b`.
+    fn on_frame(
+        &self,
+        topic: &str,
+        b: &mut Body,
+        grid: &VoxelGrid,
+        out: &mut Vec<Message>,
+        problems: &mut Vec<Problem>,
+    ) {
         let stamp = grid.header.stamp.as_nanos();
-        let Some(mut b) = self.bodies.remove(topic) else {
-            return;
-        };
-        let refused = |s: &mut NodeStatus, fqn: &str, e: &MeshError| {
-            s.problem(
-                fqn,
+        let refused = |problems: &mut Vec<Problem>, e: &MeshError| {
+            problems.push((
                 "frame_refused",
                 format!("{topic}: frame at {} skipped: {e}", stamp_text(grid)),
-            );
+            ));
         };
         // Checks of the message itself, before the stream sees it.
         let pre = grid
@@ -221,8 +273,7 @@ impl MesherNode {
             .err();
         if let Some(e) = pre {
             b.stream.refuse(Some(stamp), &e);
-            refused(&mut self.status, &self.fqn, &e);
-            self.bodies.insert(topic.to_owned(), b);
+            refused(problems, &e);
             return;
         }
         // After an idle close the next accepted frame starts a new stream (the losses go on).
@@ -231,8 +282,7 @@ impl MesherNode {
             match b.stream.restarted() {
                 Ok(s) => next = Some(s),
                 Err(e) => {
-                    refused(&mut self.status, &self.fqn, &e);
-                    self.bodies.insert(topic.to_owned(), b);
+                    refused(problems, &e);
                     return;
                 }
             }
@@ -247,7 +297,7 @@ impl MesherNode {
                     // Refused as the first frame of a new stream: the old one stays closed.
                     b.stream.refuse(Some(stamp), &e);
                 }
-                refused(&mut self.status, &self.fqn, &e);
+                refused(problems, &e);
             }
             Ok(accepted) => {
                 if let Some(s) = next {
@@ -263,24 +313,29 @@ impl MesherNode {
                 if b.frame_id.is_empty() {
                     b.frame_id = grid.header.frame_id.clone();
                 }
-                self.after_push(topic, &mut b, accepted, out);
+                self.after_push(topic, b, accepted, out, problems);
             }
         }
-        self.bodies.insert(topic.to_owned(), b);
     }
 
-    fn after_push(&mut self, topic: &str, b: &mut Body, a: Accepted, out: &mut Vec<Message>) {
+    fn after_push(
+        &self,
+        topic: &str,
+        b: &mut Body,
+        a: Accepted,
+        out: &mut Vec<Message>,
+        problems: &mut Vec<Problem>,
+    ) {
         if a.clamped > 0 {
             let stamp = a.frames.last().map_or(0, |f| f.0);
-            self.status.problem(
-                &self.fqn,
+            problems.push((
                 "percent_out_of_range",
                 format!(
                     "{topic}: frame at {:.3} s: {}",
                     stamp as f64 * 1e-9,
                     MeshError::PercentOutOfRange { voxels: a.clamped }
                 ),
-            );
+            ));
         }
         if let Some(g) = &a.gap {
             let how = match g.kind {
@@ -290,8 +345,7 @@ impl MesherNode {
                 ),
                 _ => "one slab spans the gap".to_owned(),
             };
-            self.status.problem(
-                &self.fqn,
+            problems.push((
                 "frames_missing",
                 format!(
                     "{topic}: frames missing from {:.3} s to {:.3} s (stamps {} to {} ns): {}; {how}",
@@ -301,24 +355,16 @@ impl MesherNode {
                     g.to_ns,
                     g.reason
                 ),
-            );
+            ));
         }
-        for (stamp, slab) in a.frames {
-            self.accepted(topic, b, stamp, slab, out);
+        for (_, slab) in a.frames {
+            if let Some(slab) = slab {
+                self.accepted(topic, b, slab, out);
+            }
         }
     }
 
-    fn accepted(
-        &mut self,
-        topic: &str,
-        b: &mut Body,
-        _stamp: i64,
-        slab: Option<Slab>,
-        out: &mut Vec<Message>,
-    ) {
-        let Some(slab) = slab else {
-            return;
-        };
+    fn accepted(&self, topic: &str, b: &mut Body, slab: Slab, out: &mut Vec<Message>) {
         if slab.index == 0 {
             if let Some(m) = b
                 .stream
@@ -360,7 +406,7 @@ impl MesherNode {
                 .stream
                 .mesher()
                 .last_frame()
-                .and_then(|k| self.cap(topic, b, k, CapSide::High))
+                .and_then(|k| self.ctx().cap(topic, b, k, CapSide::High))
             {
                 out.push(m);
             }
@@ -459,6 +505,68 @@ impl Node for MesherNode {
             ),
         }
         self.status.published += (out.len() - before) as u64;
+    }
+
+    /// The bodies' frames of the batch are handled in parallel (each body's in order, on
+    /// rayon's pool); what they publish and the problems they count come out in the order
+    /// one-by-one handling gives.
+    fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
+        let body_of = |m: &Message| match &m.payload {
+            Payload::VoxelGrid(_) if self.bodies.contains_key(&*m.topic) => Some(m.topic.clone()),
+            _ => None,
+        };
+        let mut jobs: BTreeMap<Arc<str>, Vec<usize>> = BTreeMap::new();
+        for (i, m) in msgs.iter().enumerate() {
+            if let Some(t) = body_of(m) {
+                jobs.entry(t).or_default().push(i);
+            }
+        }
+        if jobs.len() < 2 || rayon::current_num_threads() < 2 {
+            for m in msgs {
+                self.on_message(m, out);
+            }
+            return;
+        }
+        let mut work: Vec<(Arc<str>, Body, Vec<usize>)> = jobs
+            .into_iter()
+            .filter_map(|(t, idx)| self.bodies.remove(&*t).map(|b| (t, b, idx)))
+            .collect();
+        let ctx = self.ctx();
+        let done: Vec<Vec<Handled>> = work
+            .par_iter_mut()
+            .map(|(topic, b, idx)| {
+                idx.iter()
+                    .map(|&i| {
+                        let (mut o, mut p) = (Vec::new(), Vec::new());
+                        if let Payload::VoxelGrid(g) = &msgs[i].payload {
+                            ctx.on_frame(topic, b, g, &mut o, &mut p);
+                        }
+                        (i, o, p)
+                    })
+                    .collect()
+            })
+            .collect();
+        for (topic, b, _) in work {
+            self.bodies.insert(topic.to_string(), b);
+        }
+        let mut results: Vec<Option<(Vec<Message>, Vec<Problem>)>> =
+            (0..msgs.len()).map(|_| None).collect();
+        for (i, o, p) in done.into_iter().flatten() {
+            results[i] = Some((o, p));
+        }
+        for (m, r) in msgs.iter().zip(results) {
+            match r {
+                None => self.on_message(m, out),
+                Some((o, problems)) => {
+                    self.status.received += 1;
+                    for (kind, text) in problems {
+                        self.status.problem(&self.fqn, kind, text);
+                    }
+                    self.status.published += o.len() as u64;
+                    out.extend(o);
+                }
+            }
+        }
     }
 
     fn runtime_parameters(&self) -> Vec<(String, ParamValue)> {
