@@ -232,7 +232,7 @@ fn the_display_copy_of_the_surfels_follows_the_workpiece_exactly_even_when_frame
         for m in zigzag(0, 300) {
             let mut out = Vec::new();
             n.on_message(&m, &mut out);
-            for f in out.iter().filter(|m| m.topic.ends_with("/occupancy")) {
+            for f in out.iter().filter(|m| m.topic.ends_with("/_frame")) {
                 frames += 1;
                 // Frames the display's queue dropped: it never sees them.
                 if missed_every > 0 && frames % missed_every == 0 {
@@ -252,6 +252,22 @@ fn the_display_copy_of_the_surfels_follows_the_workpiece_exactly_even_when_frame
         let last = full.last().expect("a whole cloud at the end");
         assert_eq!(last.data, n.workpiece().surfel_bytes(), "missed every {missed_every}");
         assert_eq!(last.width as usize, n.workpiece().surfels().len());
+        // The occupancy frames come from the display too, built from its own copy.
+        let grids: Vec<_> = shown
+            .iter()
+            .filter(|m| m.topic.ends_with("/occupancy"))
+            .filter_map(|m| match &m.payload {
+                Payload::VoxelGrid(g) => Some(g.clone()),
+                _ => None,
+            })
+            .collect();
+        assert!(!grids.is_empty());
+        assert_eq!(
+            grids.last().unwrap().data,
+            n.workpiece().occupancy_bits(),
+            "missed every {missed_every}"
+        );
+        assert!(!out.iter().any(|m| matches!(m.payload, Payload::VoxelGrid(_))));
         let changed = clouds(&shown, "/surfels_changed");
         assert!(!changed.is_empty());
         for c in &changed {

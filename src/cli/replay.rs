@@ -84,7 +84,12 @@ impl Selection {
     }
 
     pub(crate) fn wants(&self, topic: &str) -> bool {
-        self.only.as_ref().is_none_or(|o| o.contains(topic)) && !self.exclude.contains(topic)
+        let listed = match &self.only {
+            Some(o) => o.contains(topic),
+            // Hidden topics (between the parts of one node) only when named.
+            None => !crate::node::is_hidden_topic(topic),
+        };
+        listed && !self.exclude.contains(topic)
     }
 }
 

@@ -27,7 +27,7 @@ use serde::Serialize;
 
 use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time};
 use crate::node::launch::{NodeSpec, ParamValue};
-use crate::node::{Message, Node, NodeStatus, TopicRef};
+use crate::node::{is_hidden_topic, Message, Node, NodeStatus, TopicRef};
 use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut};
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
 
@@ -679,7 +679,8 @@ fn wire_topics(
     let outputs = publications
         .into_iter()
         .filter(|p| {
-            p.type_name != crate::msg::MeshSlab::TYPE_NAME || remote_subscribed.contains(&p.topic)
+            (p.type_name != crate::msg::MeshSlab::TYPE_NAME && !is_hidden_topic(&p.topic))
+                || remote_subscribed.contains(&p.topic)
         })
         .collect();
     (inputs.into_iter().collect(), outputs)

@@ -6,20 +6,15 @@
 //! frame, the whole cloud on `~/surfels` every `surfels_period_s` and at the end.
 //!
 //! It is two parts, so the force path never waits for a display frame: [`CarvingNode`]
-//! (poses, force, occupancy) and [`CarvingDisplay`] (`<name>/display`: the surfel clouds).
-//! The force part keeps a bit per changed surfel slot; when a frame is due it publishes the
-//! occupancy frame and parks the changed surfels ([`SurfelDelta`]) for the display, which
-//! applies them to its own copy of the cloud when the occupancy frame reaches it and builds
-//! the clouds there. A live launch runs the two on different threads (the force part may be
-//! `realtime`); a replay runs them one after the other on its bus, giving the same messages.
-//! If the display is behind, the changed bits keep accumulating until it has taken the
-//! last delta (counted as `display_behind`): nothing is lost and nothing waits.
-//!
-//! The model is [`crate::carving`]: a block sampled as a point grid with surfels on its
-//! surface, cut out by images (`cutouts`) at start, then carved by the knife or the
-//! triangular chisel, each move sweeping the tool from the previous pose to this one. The
-//! force of each move is computed and published before any workpiece frame that falls due,
-//! so the display rate never holds up the force.
+//! (poses, force) and [`CarvingDisplay`] (`<name>/display`: occupancy frames and surfel
+//! clouds). The force part keeps a bit per changed surfel slot and per changed occupancy
+//! byte; when a frame is due it parks the changes ([`SurfelDelta`]) for the display and says
+//! so on the hidden topic `~/_frame` (rosgraph_msgs/Clock, never on the wire). The display
+//! applies them to its own copies and builds the frames there. A live launch runs the two on
+//! different threads (the force part may be `realtime`); a replay runs them one after the
+//! other on its bus, giving the same messages. If the display is behind, the changes keep
+//! accumulating until it has taken the last delta (counted as `display_behind`): nothing is
+//! lost and nothing waits. Without a display (tests) the force part publishes the occupancy.
 //!
 //! Work is scheduled by the next due time, never by catching up: a pose publishes at most
 //! one workpiece frame, at the latest due time on the `occupancy_period_s` grid (periods in

@@ -623,6 +623,6 @@ impl Node for CheckerNode {
     }
 
     fn rank(&self) -> u8 {
-        2
+        3
     }
 }

@@ -44,7 +44,7 @@ pub fn mid_slab_plane(index: u64, scale: i32) -> PlaneValue {
 pub fn slice_with_sources(parts: &[&TetMesh], c: PlaneValue) -> (TriMesh, Vec<u32>) {
     let mut s = Slicer::new(3, c).with_sources();
     for p in parts {
-        s.add(p);
+        s.add_par(p);
     }
     s.finish_with_sources()
 }

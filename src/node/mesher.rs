@@ -679,6 +679,7 @@ impl Node for MesherNode {
     }
 
     fn rank(&self) -> u8 {
-        1
+        // After the carving display, whose last occupancy frame it meshes.
+        2
     }
 }
