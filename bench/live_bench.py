@@ -447,7 +447,7 @@ POSE_TOPIC = "/haptic/pose"
 WRENCH_TOPIC = "/carving/wrench"
 
 
-def carving_config(setup: str, frame_hz: float, realtime: bool = False) -> str:
+def carving_config(setup: str, frame_hz: float, realtime: bool = False, queue_depth: int = 0) -> str:
     """The launch config of a `carving --setup`, as ROS 2 launch YAML. The checker of the
     pipeline setups is given no `pairs`: /carving/occupancy is then a lone body, meshed and
     reported (a fixture body would have no publisher live)."""
@@ -473,8 +473,12 @@ def carving_config(setup: str, frame_hz: float, realtime: bool = False) -> str:
     lines += [f"    - {{name: {k}, value: {v}}}" for k, v in params]
     if s["pipeline"]:
         lines += ["- node:", "    pkg: chronotope", "    exec: mesher", "    name: mesher", "    param:",
-                  "    - {name: bodies, value: [/carving/occupancy]}",
-                  "- node:", "    pkg: chronotope", "    exec: checker", "    name: checker"]
+                  "    - {name: bodies, value: [/carving/occupancy]}"]
+        if queue_depth:
+            lines += [f"    - {{name: queue_depth, value: {queue_depth}}}"]
+        lines += ["- node:", "    pkg: chronotope", "    exec: checker", "    name: checker"]
+        if queue_depth:
+            lines += ["    param:", f"    - {{name: queue_depth, value: {queue_depth}}}"]
     return "\n".join(lines) + "\n"
 
 
@@ -709,7 +713,7 @@ def bench_carving(a, exe, domain, tmp):
 
     setup = CARVING_SETUPS[a.setup]
     cfg = tmp / f"carving-{a.setup}.yaml"
-    cfg.write_text(carving_config(a.setup, a.frame_hz, a.realtime))
+    cfg.write_text(carving_config(a.setup, a.frame_hz, a.realtime, a.queue_depth))
     summary = tmp / "summary.json"
     load0 = loadavg()
     launch = start_launch(exe, cfg, domain, int(a.seconds + 120), summary, tmp / "launch.log")
@@ -915,6 +919,8 @@ def main() -> int:
                     help="carving: display frames per second (occupancy_period_s = 1 / this)")
     ap.add_argument("--pose-hz", type=float, default=1000.0, help="carving: poses per second")
     ap.add_argument("--speed", type=float, default=0.05, help="carving: knife speed [m/s]")
+    ap.add_argument("--queue-depth", type=int, default=0,
+                    help="carving: queue_depth of the mesher and checker (builds that have the executor)")
     ap.add_argument("--realtime", action="store_true",
                     help="carving: mark the carving node realtime (builds that have the executor)")
     ap.add_argument("--display", action="store_true",

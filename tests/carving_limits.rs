@@ -116,10 +116,10 @@ fn frames_never_outnumber_poses_and_big_frames_are_throttled() {
     assert!(!n.status().problems.contains_key("occupancy_throttled"));
     assert_eq!(n.skipped_periods(), 19 * 9);
 
-    // A 64^3 block's frame (~0.8 MB) takes longer than 1 ms at the frame byte budget:
-    // frames every 2 ms, the periods left out counted.
+    // A 64^3 block's frame (~0.8 MB with the whole cloud every frame) takes longer than 1 ms
+    // at the frame byte budget: frames every 2 ms, the periods left out counted.
     let mut n = try_node(
-        "    - {name: workpiece_max, value: [0.064, 0.064, 0.064]}\n    - {name: spacing_m, value: 0.001}\n    - {name: occupancy_period_s, value: 0.001}\n",
+        "    - {name: workpiece_max, value: [0.064, 0.064, 0.064]}\n    - {name: spacing_m, value: 0.001}\n    - {name: occupancy_period_s, value: 0.001}\n    - {name: surfels_period_s, value: 0.001}\n",
     )
     .unwrap();
     let need_s = n.frame_bytes() as f64 / MAX_FRAME_BYTES_PER_S;

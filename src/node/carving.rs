@@ -281,10 +281,12 @@ impl CarvingNode {
         self.skipped_periods
     }
 
-    /// Bytes of one workpiece frame now (occupancy bits and surfel cloud: the display's
-    /// whole cloud, the larger of its two).
+    /// Bytes one workpiece frame costs now: the occupancy bits, and the whole surfel cloud's
+    /// share (it goes out every `surfels_period_s`, so a frame carries
+    /// `occupancy_period_s / surfels_period_s` of it; the changed surfels are small beside).
     pub fn frame_bytes(&self) -> usize {
-        self.work.occupancy_bits().len() + self.work.surfel_bytes().len()
+        let share = (self.period_ns as f64 / self.surfels_period_ns.max(1) as f64).min(1.0);
+        self.work.occupancy_bits().len() + (self.work.surfel_bytes().len() as f64 * share) as usize
     }
 
     /// Counts a problem of `kind`, logging (and keeping the text of) only its first one:
