@@ -372,7 +372,8 @@ pub struct TransportStatus {
     /// Samples dropped because a node's queue was full (summed over the nodes reading the
     /// topic; each node's own count is in its [`NodeRun`]).
     pub dropped: BTreeMap<String, u64>,
-    /// Samples that did not decode as the topic's type.
+    /// Samples that did not decode as the topic's type (each node reading the topic decodes
+    /// it; counted once).
     pub undecodable: BTreeMap<String, u64>,
     /// Messages written to the wire.
     pub sent: BTreeMap<String, u64>,
@@ -1000,8 +1001,10 @@ impl Coordinator {
                     *t.dropped.entry(topic.clone()).or_default() += n;
                 }
             }
+            // Every node reading a topic decodes the same samples: a sample counts once.
             for (topic, n) in &r.undecodable {
-                *t.undecodable.entry(topic.clone()).or_default() += n;
+                let e = t.undecodable.entry(topic.clone()).or_default();
+                *e = (*e).max(*n);
             }
             for (topic, l) in &r.lag {
                 if !self.inputs.iter().any(|i| &i.topic == topic) {
@@ -1015,7 +1018,10 @@ impl Coordinator {
         }
         for r in runs.values() {
             for m in &r.status.messages {
-                if m.contains("does not decode") && t.messages.len() < NodeStatus::KEPT {
+                if m.contains("does not decode")
+                    && !t.messages.contains(m)
+                    && t.messages.len() < NodeStatus::KEPT
+                {
                     t.messages.push(m.clone());
                 }
             }
