@@ -158,8 +158,17 @@ fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<
     };
     let mut remote_subscribed = BTreeSet::new();
     let mut local = Vec::new();
+    // A part of a node (the carving node's display, `<name>/display`) has no launch entry of
+    // its own: it runs where its node runs.
+    let owner = |fqn: &str| -> String {
+        if config.nodes.iter().any(|s| s.fqn == fqn) {
+            fqn.to_owned()
+        } else {
+            fqn.rsplit_once('/').map_or(fqn, |(p, _)| p).to_owned()
+        }
+    };
     for n in nodes {
-        if wanted(n.name()) {
+        if wanted(&owner(n.name())) {
             local.push(n);
         } else {
             remote_subscribed.extend(n.subscriptions().into_iter().map(|s| s.topic));

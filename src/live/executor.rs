@@ -527,6 +527,16 @@ fn wall_clock_ns() -> i64 {
         .map_or(0, |d| d.as_nanos() as i64)
 }
 
+impl Drop for Executor {
+    /// An executor dropped without [`Executor::finish`] (a transport that failed to start)
+    /// still ends its threads.
+    fn drop(&mut self) {
+        for u in &self.units {
+            let _ = u.tx.try_send(Input::Stop);
+        }
+    }
+}
+
 impl Executor {
     /// Starts every node on its thread. `wires[i]` takes what node `i` publishes to the
     /// wire; `tick` is how often the nodes see the clock.
