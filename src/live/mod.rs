@@ -499,6 +499,8 @@ impl WireOut for DdsOut {
 /// thread on the main participant.
 struct RealtimeOut {
     own: DdsOut,
+    /// Topics the writer thread writes (the main participants' writers).
+    bulk_topics: BTreeSet<String>,
     bulk: crossbeam_channel::Sender<Message>,
     status: Arc<Mutex<TransportStatus>>,
 }
@@ -507,7 +509,14 @@ impl WireOut for RealtimeOut {
     fn send(&self, m: &Message) {
         if self.own.writers.contains_key(&*m.topic) {
             self.own.write(m);
-        } else if let Err(e) = self.bulk.try_send(m.clone()) {
+            return;
+        }
+        // Topics the writer thread has no writer for are not for the wire (a hidden topic,
+        // mesh pieces no remote node reads).
+        if !self.bulk_topics.contains(&*m.topic) {
+            return;
+        }
+        if let Err(e) = self.bulk.try_send(m.clone()) {
             let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
             let why = match e {
                 crossbeam_channel::TrySendError::Full(_) => "the writer thread is behind",
@@ -812,6 +821,7 @@ pub fn run_nodes(
                 writers: io.own.writers.clone(),
                 status: status.clone(),
             },
+            bulk_topics: main_writers.keys().cloned().collect(),
             bulk: bulk_tx,
             status: status.clone(),
         }));
