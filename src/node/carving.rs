@@ -841,11 +841,8 @@ impl Node for CarvingDisplay {
         ]
     }
 
-    fn on_message(&mut self, _frame: &Message, out: &mut Vec<Message>) {
-        self.status.received += 1;
-        let before = out.len();
-        self.take(false, out);
-        self.status.published += (out.len() - before) as u64;
+    fn on_message(&mut self, frame: &Message, out: &mut Vec<Message>) {
+        self.on_messages(std::slice::from_ref(frame), out);
     }
 
     fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
