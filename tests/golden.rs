@@ -10,6 +10,8 @@
 //! and review the diff of `tests/golden/`. Output bags of every replay are also read by the
 //! independent Python readers, and a second replay must give the same bytes.
 
+mod pyenv;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -126,11 +128,11 @@ fn every_bag_replays_to_its_golden_report_and_bag() {
     }
     assert!(failures.is_empty(), "{}", failures.join("\n"));
     // Every output bag, every message, read by two readers nobody here wrote.
-    let o = Command::new("python3")
+    let o = pyenv::python()
         .arg(root().join("tests/py/read_bags.py"))
         .args(&outputs)
         .output()
-        .expect("python3 runs (install: pip install -r tests/py/requirements.txt)");
+        .unwrap_or_else(|e| panic!("python runs ({}): {e}", pyenv::INSTALL_HINT));
     assert!(
         o.status.success(),
         "python readers failed on output bags\n{}\n{}",

@@ -1,6 +1,8 @@
 //! Bags written here are read, every message, by two readers nobody here wrote (PyPI
 //! `rosbags` and `mcap-ros2-support`, installed by the README's test command / `.ci/run`).
 
+mod pyenv;
+
 use std::process::Command;
 
 #[test]
@@ -31,14 +33,14 @@ fn committed_and_generated_bags_read_with_independent_readers() {
         .collect();
     assert!(bags.len() >= 4, "committed bags missing: {bags:?}");
     bags.push(fresh);
-    let out = Command::new("python3")
+    let out = pyenv::python()
         .arg(format!("{root}/tests/py/read_bags.py"))
         .args(&bags)
         .output()
-        .expect("python3 runs (install: pip install -r tests/py/requirements.txt)");
+        .unwrap_or_else(|e| panic!("python runs ({}): {e}", pyenv::INSTALL_HINT));
     assert!(
         out.status.success(),
-        "python readers failed (are tests/py/requirements.txt installed?)\n{}\n{}",
+        "python readers failed (is the environment of tests/py/setup_env.py made?)\n{}\n{}",
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr)
     );

@@ -322,6 +322,74 @@ pub enum BagError {
         #[source]
         source: CdrError,
     },
+    /// A path that is neither an MCAP file, a rosbag2 SQLite file, a zstd-compressed one, nor
+    /// a rosbag2 directory (fatal).
+    #[error("{}: not a bag: {reason}", path.display())]
+    NotABag {
+        /// The path.
+        path: PathBuf,
+        /// Why, in words.
+        reason: String,
+    },
+    /// A rosbag2 directory's `metadata.yaml` cannot be used (fatal when nothing else says
+    /// which files the bag holds).
+    #[error("{}: {reason}", path.display())]
+    Metadata {
+        /// The `metadata.yaml` file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A split file of a rosbag2 directory that cannot be read at all (missing, unreadable,
+    /// not a bag, too large once decompressed); the other files are read.
+    #[error("{}: split file skipped: {reason}", path.display())]
+    SplitFile {
+        /// The split file.
+        path: PathBuf,
+        /// Why.
+        reason: String,
+    },
+    /// A rosbag2 SQLite file whose database cannot be read further (fatal for that file).
+    #[error("{}: cannot read the SQLite database: {reason}", path.display())]
+    Sqlite {
+        /// The `.db3` file.
+        path: PathBuf,
+        /// SQLite's own words.
+        reason: String,
+    },
+    /// One message row of a rosbag2 SQLite file that cannot be used; it is skipped.
+    #[error("{}: message row {row}: {reason}; it is skipped", path.display())]
+    BadRow {
+        /// The `.db3` file.
+        path: PathBuf,
+        /// The row's `id`.
+        row: i64,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A message of a bag written with rosbag2's per-message compression that does not
+    /// decompress; it is skipped.
+    #[error("{}: message on {topic} logged at {log_time_ns} ns does not decompress ({format}): {reason}; it is skipped", path.display())]
+    Decompression {
+        /// The storage file.
+        path: PathBuf,
+        /// The message's topic.
+        topic: String,
+        /// Its log time.
+        log_time_ns: u64,
+        /// The compression format (`zstd`).
+        format: String,
+        /// Why.
+        reason: String,
+    },
+    /// An error of one split file of a rosbag2 directory that ends that file's reading; the
+    /// next split files are read.
+    #[error("{source}; reading the next split file")]
+    InSplitFile {
+        /// What ended the file.
+        #[source]
+        source: Box<BagError>,
+    },
     /// Writing: the MCAP writer failed (usually an I/O error underneath).
     #[error("{}: MCAP writer failed: {source}", path.display())]
     Write {
@@ -339,6 +407,10 @@ impl BagError {
         !matches!(
             self,
             BagError::CorruptChunk { .. }
+                | BagError::SplitFile { .. }
+                | BagError::BadRow { .. }
+                | BagError::Decompression { .. }
+                | BagError::InSplitFile { .. }
                 | BagError::RecordTooLarge { .. }
                 | BagError::Skipped { .. }
                 | BagError::Duplicate { .. }

@@ -15,7 +15,8 @@ use std::sync::OnceLock;
 use serde::Serialize;
 
 use super::error::{BagError, FrameError};
-use super::reader::{BagMessage, BagReader, BagSchema};
+use super::reader::{BagMessage, BagSchema};
+use super::source::BagReader;
 use super::recovery::Recovery;
 use crate::msg::{decode_cdr, ros2msg_schema, RosMessage, VoxelGrid};
 
@@ -188,10 +189,16 @@ fn verdict(schema: Option<&BagSchema>, message_encoding: &str) -> Verdict {
     if schema.name != VoxelGrid::TYPE_NAME {
         return Verdict::NotVoxelGrid;
     }
+    // A schema that names the type and holds no definition: what rosbag2's SQLite storage
+    // records before Iron (no message_definitions table). The type name is all there is.
+    let named_only = schema.encoding.is_empty() && schema.data.is_empty();
     if message_encoding != "cdr" {
         return Verdict::Refused(format!(
             "message encoding is {message_encoding:?}; VoxelGrid frames are read as \"cdr\" only"
         ));
+    }
+    if named_only {
+        return Verdict::Frames;
     }
     if schema.encoding != "ros2msg" {
         return Verdict::Refused(format!(

@@ -23,14 +23,24 @@ mod frames;
 mod reader;
 mod records;
 mod recovery;
+mod rosbag2;
+mod source;
+mod sqlite;
 mod summary;
 mod writer;
 
 pub use error::{BagError, FrameError, RecordLocation};
 pub use frames::{voxel_channel_refusal, voxel_frames, voxel_topics, RefusedTopic, VoxelFrames};
 pub use reader::{
-    BagChannel, BagMessage, BagReadOptions, BagReader, BagSchema, DEFAULT_MAX_RECORD_BYTES,
-    MAX_CHANNELS, MAX_SCHEMA_BYTES,
+    BagChannel, BagMessage, BagReadOptions, BagSchema, McapReader,
+    DEFAULT_MAX_DECOMPRESSED_FILE_BYTES, DEFAULT_MAX_RECORD_BYTES, MAX_CHANNELS,
+    MAX_SCHEMA_BYTES,
 };
+pub use rosbag2::{
+    is_directory_path, Compression, MetadataTopic, Rosbag2Dir, MAX_METADATA_BYTES,
+    MAX_SPLIT_FILES, METADATA_FILE,
+};
+pub use source::{BagLayout, BagReader};
+pub use sqlite::PAGE_BYTES;
 pub use recovery::{BagLoss, LossKind, Recovery, MAX_LISTED_LOSSES};
 pub use writer::{BagCompression, BagWriteOptions, BagWriter, OFFERED_QOS_PROFILES};

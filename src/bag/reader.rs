@@ -58,13 +58,18 @@ const SCAN_BLOCK: usize = 1 << 16;
 /// Options of [`BagReader::open_with`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct BagReadOptions {
-    max_record_bytes: usize,
+    pub(crate) max_record_bytes: usize,
+    pub(crate) max_decompressed_file_bytes: u64,
 }
+
+/// Default of [`BagReadOptions::max_decompressed_file_bytes`]: 64 GiB.
+pub const DEFAULT_MAX_DECOMPRESSED_FILE_BYTES: u64 = 64 << 30;
 
 impl Default for BagReadOptions {
     fn default() -> Self {
         Self {
             max_record_bytes: DEFAULT_MAX_RECORD_BYTES,
+            max_decompressed_file_bytes: DEFAULT_MAX_DECOMPRESSED_FILE_BYTES,
         }
     }
 }
@@ -80,6 +85,15 @@ impl BagReadOptions {
     /// being allocated, so a corrupt file cannot make the reader allocate more than this.
     pub fn max_record_bytes(mut self, max_record_bytes: usize) -> Self {
         self.max_record_bytes = max_record_bytes;
+        self
+    }
+
+    /// The largest size a whole-file-compressed split file (`.mcap.zstd`, `.db3.zstd`) may
+    /// decompress to. It is decompressed into a temporary file (in `TMPDIR`), which is
+    /// deleted once the file has been read; beyond this size the split file is skipped and
+    /// reported, so a hostile file cannot fill the disk.
+    pub fn max_decompressed_file_bytes(mut self, bytes: u64) -> Self {
+        self.max_decompressed_file_bytes = bytes;
         self
     }
 }
@@ -167,7 +181,7 @@ impl<T: Read + Seek + Send> Source for T {}
 /// println!("{} messages lost", reader.recovery().messages_lost);
 /// # Ok::<(), chronotope::bag::BagError>(())
 /// ```
-pub struct BagReader {
+pub struct McapReader {
     src: BufReader<Box<dyn Source>>,
     /// Where `src` is positioned.
     cursor: u64,
@@ -241,7 +255,7 @@ impl RecentSet {
     }
 }
 
-impl BagReader {
+impl McapReader {
     /// Opens an MCAP file with the default options and reads its header and summary.
     ///
     /// # Errors
@@ -1376,7 +1390,7 @@ impl BagReader {
     }
 }
 
-impl Iterator for BagReader {
+impl Iterator for McapReader {
     type Item = Result<BagMessage, BagError>;
 
     fn next(&mut self) -> Option<Self::Item> {

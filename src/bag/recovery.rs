@@ -50,6 +50,13 @@ pub enum LossKind {
     TooManyChannels,
     /// The file ends in the middle of a record.
     Truncated,
+    /// A split file of a rosbag2 directory that could not be read at all.
+    SplitFile,
+    /// A rosbag2 SQLite database that could not be read further (its `offset` is the id of
+    /// the last message row read).
+    Database,
+    /// A message that does not decompress (rosbag2 per-message compression).
+    Decompression,
 }
 
 /// One damaged region of a bag and what it cost.

@@ -83,6 +83,8 @@ struct Topic {
     channel_id: u16,
     type_name: &'static str,
     next_sequence: u32,
+    /// Messages written.
+    count: u64,
 }
 
 /// Writes a rosbag2 MCAP file: profile `ros2`, one `ros2msg` schema per message type (the
@@ -106,6 +108,10 @@ pub struct BagWriter {
     path: PathBuf,
     inner: mcap::Writer<BufWriter<File>>,
     topics: HashMap<String, Topic>,
+    /// The rosbag2 directory being written, if the output is one.
+    dir: Option<PathBuf>,
+    /// Log times of the first and last message written.
+    span: Option<(u64, u64)>,
 }
 
 impl BagWriter {
@@ -121,11 +127,28 @@ impl BagWriter {
 
     /// Creates (or truncates) `path` and writes the MCAP header.
     ///
+    /// If `path` ends with `/` or is an existing directory, the bag is a rosbag2 directory:
+    /// the directory is created if needed, the messages go to its split file
+    /// `<dir>/<dir name>_0.mcap`, and [`finish`](Self::finish) writes its `metadata.yaml`
+    /// (version 9), so that `ros2 bag info` and `ros2 bag play` open it.
+    ///
     /// # Errors
     ///
     /// As [`BagWriter::create`].
     pub fn create_with(path: impl AsRef<Path>, options: BagWriteOptions) -> Result<Self, BagError> {
-        let path = path.as_ref().to_path_buf();
+        let given = path.as_ref();
+        let dir = super::rosbag2::is_directory_path(given).then(|| given.to_path_buf());
+        if let Some(dir) = &dir {
+            std::fs::create_dir_all(dir).map_err(|source| BagError::Io {
+                path: dir.clone(),
+                action: "cannot create the rosbag2 directory",
+                source,
+            })?;
+        }
+        let path = match &dir {
+            Some(d) => super::rosbag2::split_file_of(d),
+            None => given.to_path_buf(),
+        };
         let file = File::create(&path).map_err(|source| BagError::Io {
             path: path.clone(),
             action: "cannot create the bag",
@@ -153,6 +176,8 @@ impl BagWriter {
             path,
             inner,
             topics: HashMap::new(),
+            dir,
+            span: None,
         })
     }
 
@@ -225,6 +250,7 @@ impl BagWriter {
                 channel_id,
                 type_name,
                 next_sequence: 1,
+                count: 0,
             },
         );
         Ok(())
@@ -306,6 +332,11 @@ impl BagWriter {
             publish_time: publish_time_ns,
         };
         entry.next_sequence = entry.next_sequence.wrapping_add(1);
+        entry.count += 1;
+        self.span = Some(match self.span {
+            Some((a, b)) => (a.min(log_time_ns), b.max(log_time_ns)),
+            None => (log_time_ns, log_time_ns),
+        });
         self.inner
             .write_to_known_channel(&header, bytes)
             .map_err(|source| BagError::Write {
@@ -332,6 +363,29 @@ impl BagWriter {
                 action: "cannot flush the bag",
                 source: err.into_error(),
             })?;
+        if let Some(dir) = &self.dir {
+            let topics = self
+                .topics
+                .iter()
+                .map(|(name, t)| {
+                    (
+                        name.clone(),
+                        super::rosbag2::WrittenTopic {
+                            type_name: t.type_name.to_owned(),
+                            count: t.count,
+                        },
+                    )
+                })
+                .collect();
+            super::rosbag2::MetadataWriter {
+                dir,
+                file: &self.path,
+                topics: &topics,
+                start_ns: self.span.map(|s| s.0),
+                end_ns: self.span.map(|s| s.1),
+            }
+            .write()?;
+        }
         Ok(())
     }
 

@@ -16,7 +16,7 @@ use std::time::Instant;
 /// Options of `chronotope check`.
 #[derive(Debug, Clone, Args)]
 pub struct CheckArgs {
-    /// Input rosbag2 MCAP bag.
+    /// Input bag: a rosbag2 directory, or an MCAP or SQLite (.db3) file, zstd-compressed or not.
     pub bag: PathBuf,
     /// Write the report (CONTRACT.md, schema chronotope.report/1).
     #[arg(long)]

@@ -72,7 +72,7 @@ pub struct NodeArgs {
 /// Options of `chronotope play`.
 #[derive(Debug, Clone, Args)]
 pub struct PlayArgs {
-    /// rosbag2 MCAP bag to publish.
+    /// Bag to publish: a rosbag2 directory, or an MCAP or SQLite (.db3) file.
     pub bag: PathBuf,
     /// Speed factor (2 plays twice as fast).
     #[arg(long, default_value_t = 1.0)]
@@ -96,7 +96,8 @@ pub struct RecordArgs {
     /// Record what the nodes of this launch config publish (its recorder node's selection).
     #[arg(long)]
     pub launch: Option<PathBuf>,
-    /// Output bag.
+    /// Output bag: an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path
+    /// ends with `/` or is a directory.
     #[arg(long)]
     pub out: PathBuf,
     /// Stop after this many seconds (default: until Ctrl-C).

@@ -22,7 +22,7 @@ use std::time::Instant;
 /// Options of `chronotope mesh`.
 #[derive(Debug, Clone, Args)]
 pub struct MeshArgs {
-    /// Input rosbag2 MCAP bag.
+    /// Input bag: a rosbag2 directory, or an MCAP or SQLite (.db3) file, zstd-compressed or not.
     pub bag: PathBuf,
     /// Write statistics as JSON (CONTRACT.md format).
     #[arg(long)]

@@ -8,6 +8,7 @@ pub mod bench_carve;
 pub mod bench_check;
 pub mod bench_sampler;
 pub mod check;
+pub mod info;
 pub mod live;
 pub mod mesh;
 pub mod param;
@@ -44,6 +45,8 @@ pub enum Command {
     Launch(live::LaunchArgs),
     /// Run one node of a launch config on DDS (the others may run elsewhere).
     Node(live::NodeArgs),
+    /// Say what a bag holds (like `ros2 bag info`) and what the suite sees in it.
+    Info(info::InfoArgs),
     /// Publish a bag's topics on DDS with their recorded timing (and /clock).
     Play(live::PlayArgs),
     /// Record live topics into a rosbag2 MCAP bag.
@@ -227,6 +230,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Replay(a) => replay::run(&a),
         Command::Launch(a) => live::launch(&a),
         Command::Node(a) => live::node(&a),
+        Command::Info(a) => info::run(&a),
         Command::Play(a) => live::play(&a),
         Command::Record(a) => live::record(&a),
         Command::Param(a) => param::run(&a),

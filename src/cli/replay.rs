@@ -26,7 +26,7 @@ use crate::report::Report;
 /// Options of `chronotope replay`.
 #[derive(Debug, Clone, Args)]
 pub struct ReplayArgs {
-    /// Input rosbag2 MCAP bag.
+    /// Input bag: a rosbag2 directory, or an MCAP or SQLite (.db3) file, zstd-compressed or not.
     pub bag: PathBuf,
     /// Launch config (default: mesh every body, check every pair, resolutions for the body
     /// whose id sorts first).
@@ -35,7 +35,8 @@ pub struct ReplayArgs {
     /// Write the report (CONTRACT.md, schema chronotope.report/1).
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Write every topic the nodes published (or the recorder node's selection) to this bag.
+    /// Write every topic the nodes published (or the recorder node's selection) to this bag:
+    /// an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path ends with `/`.
     #[arg(long)]
     pub out: Option<PathBuf>,
 }
@@ -254,7 +255,7 @@ pub fn replay(
         Ok(t) => t,
         Err(crate::bag::BagError::NoVoxelTopics { .. }) => Vec::new(),
         // A damaged bag: the bodies are the VoxelGrid topics of what can be read.
-        Err(e) if !matches!(e, crate::bag::BagError::EmptyBag { .. }) && bag.is_file() => {
+        Err(e) if !matches!(e, crate::bag::BagError::EmptyBag { .. }) && bag.exists() => {
             tracing::error!("{e}; reading what can be read");
             let mut topics = BTreeSet::new();
             for m in BagReader::open(bag)? {

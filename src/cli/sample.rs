@@ -35,7 +35,8 @@ const STAMP_NS: i64 = crate::scene::SCENE_START_NS;
 pub struct SampleArgs {
     /// The scene file (YAML; examples under scenes/implicit/).
     pub scene: PathBuf,
-    /// Output bag (MCAP).
+    /// Output bag: an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path
+    /// ends with `/` or is a directory.
     #[arg(long)]
     pub out: PathBuf,
     /// Also write the samples as a PLY file.

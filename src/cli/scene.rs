@@ -14,7 +14,8 @@ pub struct SceneArgs {
     /// `machine-tool`, `four-spheres`, `periodic` (two spheres meeting every 2 s, 20 Hz, for
     /// as long as asked), or `carving-session` (haptic tool poses and a fixture).
     pub name: String,
-    /// Output bag.
+    /// Output bag: an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path
+    /// ends with `/` or is a directory.
     #[arg(long)]
     pub out: PathBuf,
     /// Voxels per edge of the cubic domain (default: the scene's).

@@ -1,0 +1,482 @@
+//! rosbag2 directories: what `ros2 bag record` writes (a `metadata.yaml` and one or more split
+//! storage files), read ([`Rosbag2Dir::open`]) and written ([`MetadataWriter`]).
+//!
+//! `metadata.yaml` versions 1 to 9 are read (a newer version is read as far as its fields
+//! are known, with a warning). What is used from it: the storage plugin, the split files in
+//! order (`relative_file_paths`), and the compression (`compression_format`, `compression_mode`:
+//! `FILE` compresses each split file as a whole, `MESSAGE` each message's data). Topics and
+//! counts are only reported (`chronotope info`); what the bag holds is decided from the storage
+//! files. A directory without `metadata.yaml` (a recording cut before rosbag2 wrote it) is read
+//! from its storage files in split order, with a warning.
+//!
+//! Written directories follow version 9 (Jazzy): one MCAP split file, `metadata.yaml` with the
+//! topics, their counts and offered QoS profiles, so `ros2 bag info` and `ros2 bag play` open
+//! them.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+use serde_yaml_ng::Value;
+
+use super::error::BagError;
+
+/// The metadata file of a rosbag2 directory.
+pub const METADATA_FILE: &str = "metadata.yaml";
+
+/// Largest `metadata.yaml` read: 16 MiB (a bag of the maximum number of topics and thousands
+/// of split files takes well under 1 MiB).
+pub const MAX_METADATA_BYTES: u64 = 16 << 20;
+
+/// Most split files read from one directory.
+pub const MAX_SPLIT_FILES: usize = 100_000;
+
+/// The newest `metadata.yaml` version this program knows.
+pub const METADATA_VERSION: u64 = 9;
+
+/// How a rosbag2 directory's storage files are compressed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Compression {
+    /// Not compressed (or compressed by the storage itself, as MCAP chunks are).
+    None,
+    /// Each split file compressed as a whole (`.mcap.zstd`, `.db3.zstd`).
+    File,
+    /// Each message's data compressed on its own.
+    Message,
+}
+
+/// A topic as `metadata.yaml` lists it.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct MetadataTopic {
+    /// The topic.
+    pub name: String,
+    /// Its type (`pkg/msg/Type`).
+    #[serde(rename = "type")]
+    pub type_name: String,
+    /// Its serialisation format (`cdr`).
+    pub serialization_format: String,
+    /// Its message count.
+    pub message_count: u64,
+}
+
+/// What a rosbag2 directory's `metadata.yaml` says (or, without one, what its files say).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Rosbag2Dir {
+    /// The directory.
+    pub dir: PathBuf,
+    /// The metadata version (`None` without `metadata.yaml`).
+    pub version: Option<u64>,
+    /// The storage plugin (`mcap`, `sqlite3`).
+    pub storage: String,
+    /// The split files, in order, as paths.
+    pub files: Vec<PathBuf>,
+    /// The compression format (`zstd`), if any.
+    pub compression_format: Option<String>,
+    /// How the compression applies.
+    pub compression: Compression,
+    /// The topics listed.
+    pub topics: Vec<MetadataTopic>,
+    /// Messages listed.
+    pub message_count: Option<u64>,
+    /// First message's time, nanoseconds since the epoch.
+    pub starting_time_ns: Option<u64>,
+    /// Duration, nanoseconds.
+    pub duration_ns: Option<u64>,
+    /// The ROS distribution that wrote it, if said.
+    pub ros_distro: Option<String>,
+    /// What was odd about the directory (a newer version, no metadata, a listed file that
+    /// does not exist), one line each.
+    pub warnings: Vec<String>,
+}
+
+impl Rosbag2Dir {
+    /// Reads the directory `dir`: its `metadata.yaml`, or without one its storage files.
+    ///
+    /// # Errors
+    /// [`BagError::Metadata`] if `metadata.yaml` is present but unusable (too large, not YAML,
+    /// no file list, an unknown storage or compression); [`BagError::NotABag`] if there is no
+    /// `metadata.yaml` and no storage file.
+    pub fn open(dir: &Path) -> Result<Self, BagError> {
+        let meta = dir.join(METADATA_FILE);
+        if meta.is_file() {
+            return Self::from_metadata(dir, &meta);
+        }
+        let mut files: Vec<(u64, PathBuf)> = Vec::new();
+        let entries = std::fs::read_dir(dir).map_err(|source| BagError::Io {
+            path: dir.to_path_buf(),
+            action: "cannot list the rosbag2 directory",
+            source,
+        })?;
+        for e in entries.flatten() {
+            let p = e.path();
+            let name = p.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+            if storage_of(name).is_some() && p.is_file() {
+                files.push((split_index(name), p));
+                if files.len() > MAX_SPLIT_FILES {
+                    break;
+                }
+            }
+        }
+        if files.is_empty() {
+            return Err(BagError::NotABag {
+                path: dir.to_path_buf(),
+                reason: format!(
+                    "the directory has no {METADATA_FILE} and no storage file (.mcap, .db3, \
+                     or either compressed as .zstd)"
+                ),
+            });
+        }
+        files.sort();
+        let storage = files
+            .iter()
+            .filter_map(|(_, p)| p.file_name()?.to_str().and_then(storage_of))
+            .next()
+            .unwrap_or("mcap")
+            .to_owned();
+        let compressed = files
+            .iter()
+            .any(|(_, p)| p.extension().is_some_and(|e| e == "zstd"));
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            version: None,
+            storage,
+            files: files.into_iter().map(|(_, p)| p).collect(),
+            compression_format: compressed.then(|| "zstd".to_owned()),
+            compression: if compressed {
+                Compression::File
+            } else {
+                Compression::None
+            },
+            topics: Vec::new(),
+            message_count: None,
+            starting_time_ns: None,
+            duration_ns: None,
+            ros_distro: None,
+            warnings: vec![format!(
+                "no {METADATA_FILE} (was the recording stopped before rosbag2 wrote it?): \
+                 reading the storage files in split order"
+            )],
+        })
+    }
+
+    fn from_metadata(dir: &Path, meta: &Path) -> Result<Self, BagError> {
+        let bad = |reason: String| BagError::Metadata {
+            path: meta.to_path_buf(),
+            reason,
+        };
+        let file = std::fs::File::open(meta).map_err(|source| BagError::Io {
+            path: meta.to_path_buf(),
+            action: "cannot open the metadata",
+            source,
+        })?;
+        let mut text = String::new();
+        file.take(MAX_METADATA_BYTES + 1)
+            .read_to_string(&mut text)
+            .map_err(|e| bad(format!("cannot read it as UTF-8 text: {e}")))?;
+        if text.len() as u64 > MAX_METADATA_BYTES {
+            return Err(bad(format!(
+                "it is larger than MAX_METADATA_BYTES = {MAX_METADATA_BYTES} bytes"
+            )));
+        }
+        let root: Value =
+            serde_yaml_ng::from_str(&text).map_err(|e| bad(format!("not valid YAML: {e}")))?;
+        let info = root
+            .get("rosbag2_bagfile_information")
+            .ok_or_else(|| bad("it has no rosbag2_bagfile_information section".to_owned()))?;
+        let mut warnings = Vec::new();
+        let version = info.get("version").and_then(Value::as_u64);
+        match version {
+            None => return Err(bad("it has no version".to_owned())),
+            Some(v) if v > METADATA_VERSION => warnings.push(format!(
+                "metadata version {v} is newer than the {METADATA_VERSION} this program knows; \
+                 reading the fields it knows"
+            )),
+            Some(_) => {}
+        }
+        let storage = info
+            .get("storage_identifier")
+            .and_then(Value::as_str)
+            .unwrap_or_default()
+            .to_owned();
+        if storage != "mcap" && storage != "sqlite3" {
+            return Err(bad(format!(
+                "storage_identifier is {storage:?}; this program reads \"mcap\" and \"sqlite3\""
+            )));
+        }
+        let format = info
+            .get("compression_format")
+            .and_then(Value::as_str)
+            .filter(|s| !s.is_empty())
+            .map(str::to_owned);
+        let mode = info
+            .get("compression_mode")
+            .and_then(Value::as_str)
+            .unwrap_or_default()
+            .to_ascii_lowercase();
+        let compression = match (mode.as_str(), format.as_deref()) {
+            ("" | "none", _) => Compression::None,
+            ("file", Some("zstd")) => Compression::File,
+            ("message", Some("zstd")) => Compression::Message,
+            (m, f) => {
+                return Err(bad(format!(
+                    "compression_mode {m:?} with compression_format {:?}: this program reads \
+                     zstd compression of files or messages",
+                    f.unwrap_or("")
+                )))
+            }
+        };
+        let paths = info
+            .get("relative_file_paths")
+            .and_then(Value::as_sequence)
+            .ok_or_else(|| bad("it has no relative_file_paths list".to_owned()))?;
+        if paths.len() > MAX_SPLIT_FILES {
+            return Err(bad(format!(
+                "it lists {} split files, more than MAX_SPLIT_FILES = {MAX_SPLIT_FILES}",
+                paths.len()
+            )));
+        }
+        let mut files = Vec::with_capacity(paths.len());
+        for p in paths {
+            let Some(p) = p.as_str() else {
+                return Err(bad("relative_file_paths holds a non-string entry".to_owned()));
+            };
+            // Before version 4 the paths included the directory's own name; rosbag2 and
+            // rosbags both take the file name alone.
+            let name = Path::new(p)
+                .file_name()
+                .ok_or_else(|| bad(format!("relative file path {p:?} names no file")))?;
+            files.push(dir.join(name));
+        }
+        let ns = |v: Option<&Value>, key: &str| v.and_then(|v| v.get(key)).and_then(Value::as_u64);
+        let topics = info
+            .get("topics_with_message_count")
+            .and_then(Value::as_sequence)
+            .map(|seq| {
+                seq.iter()
+                    .filter_map(|t| {
+                        let m = t.get("topic_metadata")?;
+                        let s = |k: &str| m.get(k).and_then(Value::as_str).map(str::to_owned);
+                        Some(MetadataTopic {
+                            name: s("name")?,
+                            type_name: s("type").unwrap_or_default(),
+                            serialization_format: s("serialization_format").unwrap_or_default(),
+                            message_count: t
+                                .get("message_count")
+                                .and_then(Value::as_u64)
+                                .unwrap_or(0),
+                        })
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        Ok(Self {
+            dir: dir.to_path_buf(),
+            version,
+            storage,
+            files,
+            compression_format: format,
+            compression,
+            topics,
+            message_count: info.get("message_count").and_then(Value::as_u64),
+            starting_time_ns: ns(info.get("starting_time"), "nanoseconds_since_epoch"),
+            duration_ns: ns(info.get("duration"), "nanoseconds"),
+            ros_distro: info
+                .get("ros_distro")
+                .and_then(Value::as_str)
+                .map(str::to_owned),
+            warnings,
+        })
+    }
+}
+
+/// The storage plugin a file name says (`mcap`, `sqlite3`), compressed or not.
+pub(crate) fn storage_of(name: &str) -> Option<&'static str> {
+    let name = name.strip_suffix(".zstd").unwrap_or(name);
+    if name.ends_with(".mcap") {
+        Some("mcap")
+    } else if name.ends_with(".db3") {
+        Some("sqlite3")
+    } else {
+        None
+    }
+}
+
+/// The split index of a rosbag2 file name (`name_3.mcap` -> 3; 0 if it has none).
+fn split_index(name: &str) -> u64 {
+    let stem = name.split('.').next().unwrap_or(name);
+    stem.rsplit('_')
+        .next()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(0)
+}
+
+/// Whether an output path names a rosbag2 directory: it ends with `/` or is an existing
+/// directory.
+pub fn is_directory_path(path: &Path) -> bool {
+    path.as_os_str().to_string_lossy().ends_with('/') || path.is_dir()
+}
+
+/// The split file a rosbag2 directory written by this program holds: `<dir>/<dir name>_0.mcap`.
+pub(crate) fn split_file_of(dir: &Path) -> PathBuf {
+    let name = dir
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .filter(|n| !n.is_empty() && n != "." && n != "..")
+        .unwrap_or_else(|| "bag".to_owned());
+    dir.join(format!("{name}_0.mcap"))
+}
+
+/// What [`MetadataWriter`] needs to know of one topic written.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct WrittenTopic {
+    pub type_name: String,
+    pub count: u64,
+}
+
+/// Writes the `metadata.yaml` of a rosbag2 directory holding one MCAP split file.
+pub(crate) struct MetadataWriter<'a> {
+    pub dir: &'a Path,
+    pub file: &'a Path,
+    pub topics: &'a BTreeMap<String, WrittenTopic>,
+    pub start_ns: Option<u64>,
+    pub end_ns: Option<u64>,
+}
+
+impl MetadataWriter<'_> {
+    /// The YAML text (version 9).
+    pub(crate) fn yaml(&self) -> String {
+        let count: u64 = self.topics.values().map(|t| t.count).sum();
+        let start = self.start_ns.unwrap_or(0);
+        let duration = self.end_ns.unwrap_or(start).saturating_sub(start);
+        let file = self
+            .file
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut y = String::new();
+        y.push_str("rosbag2_bagfile_information:\n");
+        y.push_str(&format!("  version: {METADATA_VERSION}\n"));
+        y.push_str("  storage_identifier: mcap\n");
+        y.push_str("  duration:\n");
+        y.push_str(&format!("    nanoseconds: {duration}\n"));
+        y.push_str("  starting_time:\n");
+        y.push_str(&format!("    nanoseconds_since_epoch: {start}\n"));
+        y.push_str(&format!("  message_count: {count}\n"));
+        if self.topics.is_empty() {
+            y.push_str("  topics_with_message_count: []\n");
+        } else {
+            y.push_str("  topics_with_message_count:\n");
+        }
+        for (name, t) in self.topics {
+            y.push_str("    - topic_metadata:\n");
+            y.push_str(&format!("        name: {}\n", yaml_str(name)));
+            y.push_str(&format!("        type: {}\n", yaml_str(&t.type_name)));
+            y.push_str("        serialization_format: cdr\n");
+            y.push_str("        offered_qos_profiles:\n");
+            for line in QOS_V9.lines() {
+                y.push_str("          ");
+                y.push_str(line);
+                y.push('\n');
+            }
+            y.push_str("        type_description_hash: \"\"\n");
+            y.push_str(&format!("      message_count: {}\n", t.count));
+        }
+        y.push_str("  compression_format: \"\"\n");
+        y.push_str("  compression_mode: \"\"\n");
+        y.push_str("  relative_file_paths:\n");
+        y.push_str(&format!("    - {}\n", yaml_str(&file)));
+        y.push_str("  files:\n");
+        y.push_str(&format!("    - path: {}\n", yaml_str(&file)));
+        y.push_str("      starting_time:\n");
+        y.push_str(&format!("        nanoseconds_since_epoch: {start}\n"));
+        y.push_str("      duration:\n");
+        y.push_str(&format!("        nanoseconds: {duration}\n"));
+        y.push_str(&format!("      message_count: {count}\n"));
+        y.push_str("  custom_data: {}\n");
+        y.push_str("  ros_distro: chronotope\n");
+        y
+    }
+
+    /// Writes `metadata.yaml` into the directory (through a temporary file, so a reader never
+    /// sees half of it).
+    pub(crate) fn write(&self) -> Result<(), BagError> {
+        let path = self.dir.join(METADATA_FILE);
+        let tmp = self.dir.join(format!(".{METADATA_FILE}.tmp"));
+        let io = |source| BagError::Io {
+            path: path.clone(),
+            action: "cannot write the metadata",
+            source,
+        };
+        std::fs::write(&tmp, self.yaml()).map_err(io)?;
+        std::fs::rename(&tmp, &path).map_err(io)
+    }
+}
+
+/// The offered QoS profile of every written topic, as version 9 writes it: the same profile as
+/// the MCAP channels' [`OFFERED_QOS_PROFILES`](super::OFFERED_QOS_PROFILES) (reliable,
+/// volatile, keep last 10, durations infinite), with enums by name.
+const QOS_V9: &str = "\
+- history: keep_last
+  depth: 10
+  reliability: reliable
+  durability: volatile
+  deadline:
+    sec: 9223372036
+    nsec: 854775807
+  lifespan:
+    sec: 9223372036
+    nsec: 854775807
+  liveliness: automatic
+  liveliness_lease_duration:
+    sec: 9223372036
+    nsec: 854775807
+  avoid_ros_namespace_conventions: false";
+
+/// A string as a YAML scalar: double-quoted with escapes (always valid, whatever it holds).
+fn yaml_str(s: &str) -> String {
+    serde_json::to_string(s).unwrap_or_else(|_| "\"\"".to_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn split_indexes_sort_numerically() {
+        assert_eq!(split_index("rec_10.mcap"), 10);
+        assert_eq!(split_index("rec_2.db3.zstd"), 2);
+        assert_eq!(split_index("rec.mcap"), 0);
+    }
+
+    #[test]
+    fn written_metadata_parses_back() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut topics = BTreeMap::new();
+        topics.insert(
+            "/a: b".to_owned(),
+            WrittenTopic {
+                type_name: "chronotope_msgs/msg/VoxelGrid".to_owned(),
+                count: 3,
+            },
+        );
+        let file = split_file_of(dir.path());
+        let w = MetadataWriter {
+            dir: dir.path(),
+            file: &file,
+            topics: &topics,
+            start_ns: Some(5),
+            end_ns: Some(25),
+        };
+        w.write().unwrap();
+        let back = Rosbag2Dir::open(dir.path()).unwrap();
+        assert_eq!(back.version, Some(9));
+        assert_eq!(back.files, vec![file]);
+        assert_eq!(back.topics[0].name, "/a: b");
+        assert_eq!(back.topics[0].message_count, 3);
+        assert_eq!(back.duration_ns, Some(20));
+        assert_eq!(back.message_count, Some(3));
+        assert!(back.warnings.is_empty());
+    }
+}
