@@ -61,7 +61,7 @@ try:
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
 except ImportError as e:  # pragma: no cover
-    print(f"cyclone_peer: cannot import cyclonedds ({e}); pip install -r tests/py/requirements.txt",
+    print(f"cyclone_peer: cannot import cyclonedds ({e}); python3 tests/py/setup_env.py makes target/py",
           file=sys.stderr)
     sys.exit(3)
 

@@ -4,7 +4,7 @@
 Usage:
     python3 tests/py/read_bags.py BAG.mcap [BAG.mcap ...]
 
-Needs `pip install rosbags mcap-ros2-support` (checked with rosbags 0.11.9,
+Needs rosbags and mcap-ros2-support (`python3 tests/py/setup_env.py` installs them under target/py) (checked with rosbags 0.11.9,
 mcap-ros2-support 0.6.0, mcap 1.6.0). A bag to try it on:
 
     CHRONOTOPE_SAMPLE_BAG=/tmp/sample.mcap cargo test --test bag_roundtrip sample_bag
