@@ -480,3 +480,43 @@ mod tests {
         assert!(back.warnings.is_empty());
     }
 }
+
+#[cfg(test)]
+mod hostile {
+    use super::*;
+
+    /// Mutated metadata files are refused or read, never a panic.
+    #[test]
+    fn mutated_metadata_never_panics() {
+        let good = "rosbag2_bagfile_information:\n  version: 9\n  storage_identifier: sqlite3\n  \
+                    relative_file_paths: [a_0.db3, a_1.db3]\n  compression_mode: FILE\n  \
+                    compression_format: zstd\n  topics_with_message_count:\n    - topic_metadata: \
+                    {name: /x, type: t, serialization_format: cdr}\n      message_count: 3\n";
+        let dir = tempfile::tempdir().unwrap();
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for _ in 0..2000 {
+            let mut bytes = good.as_bytes().to_vec();
+            for _ in 0..(next() % 4 + 1) {
+                let i = (next() % bytes.len() as u64) as usize;
+                match next() % 3 {
+                    0 => bytes[i] = (next() % 256) as u8,
+                    1 => {
+                        bytes.remove(i);
+                    }
+                    _ => bytes.insert(i, b"[]{}:-,\"'\n 9"[(next() % 12) as usize]),
+                }
+            }
+            std::fs::write(dir.path().join(METADATA_FILE), &bytes).unwrap();
+            if let Err(e) = Rosbag2Dir::open(dir.path()) {
+                let s = e.to_string();
+                assert!(!s.contains("{ ") && !s.is_empty(), "{s}");
+            }
+        }
+    }
+}

@@ -346,3 +346,73 @@ impl Iterator for Db3Reader {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rosbag2-shaped database with one good row and one of each fault.
+    fn faulty_db(path: &Path) {
+        let c = Connection::open(path).unwrap();
+        c.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+               timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             INSERT INTO topics VALUES (1, '/a', 'std_msgs/msg/String', 'cdr', '');
+             INSERT INTO messages VALUES (1, 1, 5, x'0001000003000000686900');
+             INSERT INTO messages VALUES (2, 7, 6, x'00');
+             INSERT INTO messages VALUES (3, 1, -1, x'00');
+             INSERT INTO messages VALUES (4, 1, 8, zeroblob(100));
+             INSERT INTO messages VALUES (5, 1, 9, x'00010000');",
+        )
+        .unwrap();
+    }
+
+    #[test]
+    fn bad_rows_are_named_and_skipped() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("f.db3");
+        faulty_db(&p);
+        let r = Db3Reader::open(&p, &p, 64).unwrap();
+        let items: Vec<_> = r.collect();
+        let ok: Vec<u64> = items
+            .iter()
+            .filter_map(|i| i.as_ref().ok().map(|m| m.log_time_ns))
+            .collect();
+        assert_eq!(ok, vec![5, 9]);
+        let errs: Vec<String> = items
+            .iter()
+            .filter_map(|i| i.as_ref().err().map(|e| e.to_string()))
+            .collect();
+        assert_eq!(errs.len(), 3, "{errs:?}");
+        assert!(errs[0].contains("row 2") && errs[0].contains("topic_id 7"), "{errs:?}");
+        assert!(errs[1].contains("row 3") && errs[1].contains("before 1970"), "{errs:?}");
+        assert!(errs[2].contains("row 4") && errs[2].contains("limit of 64"), "{errs:?}");
+        assert!(items.iter().all(|i| i.as_ref().err().is_none_or(|e| !e.is_fatal())));
+    }
+
+    #[test]
+    fn a_type_without_a_definition_gets_a_named_empty_schema() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("f.db3");
+        faulty_db(&p);
+        let r = Db3Reader::open(&p, &p, 1 << 20).unwrap();
+        let s = r.schema_of(1).unwrap();
+        assert_eq!(s.name, "std_msgs/msg/String");
+        assert!(s.encoding.is_empty() && s.data.is_empty());
+        assert_eq!(r.recovery().statistics_message_count, Some(5));
+    }
+
+    #[test]
+    fn a_database_without_the_tables_is_not_a_bag() {
+        let d = tempfile::tempdir().unwrap();
+        let p = d.path().join("f.db3");
+        Connection::open(&p)
+            .unwrap()
+            .execute_batch("CREATE TABLE other(x);")
+            .unwrap();
+        let e = Db3Reader::open(&p, &p, 64).err().unwrap();
+        assert!(e.to_string().contains("no `topics` table"), "{e}");
+    }
+}
