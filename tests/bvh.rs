@@ -504,8 +504,7 @@ fn early_exit_and_node_pairs() {
 
 /// Two bodies of the four-spheres scene meshed in full (all slabs concatenated).
 fn scene_meshes(grid: u32, frames: u32) -> Vec<(Vec<LatticePoint>, Vec<[u32; 4]>)> {
-    use chronotope::cli::frame_ref;
-    use chronotope::mesh::{Mesher, MesherOptions};
+        use chronotope::mesh::{Mesher, MesherOptions};
     use chronotope::msg::VoxelGrid;
     use chronotope::scene::{build_scene, Rasterizer, SceneName, SceneOptions};
     let opts = SceneOptions::for_scene(SceneName::FourSpheres)
@@ -520,7 +519,7 @@ fn scene_meshes(grid: u32, frames: u32) -> Vec<(Vec<LatticePoint>, Vec<[u32; 4]>
             for k in 0..scene.frame_count() {
                 let mut g = VoxelGrid::default();
                 scene.write_frame(body, k, &mut raster, &mut g).unwrap();
-                if let Some(slab) = m.push(&frame_ref(&g)).unwrap() {
+                if let Some(slab) = m.push(&g.frame_ref()).unwrap() {
                     let off = verts.len() as u32;
                     verts.extend_from_slice(&slab.mesh.vertices);
                     tets.extend(slab.mesh.tets.iter().map(|t| t.map(|i| i + off)));

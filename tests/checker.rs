@@ -4,7 +4,6 @@ mod common;
 
 use chronotope::checker::labels::LabelCounts;
 use chronotope::checker::{check_pair, check_pair_walked, CommonLattice, PairResult, StreamWalk};
-use chronotope::cli::frame_ref;
 use chronotope::mesh::glue::{BodyAssembler, BodyMesh};
 use chronotope::mesh::MesherOptions;
 use chronotope::msg::VoxelEncoding;
@@ -138,7 +137,7 @@ fn spheres(grid: u32, frames: u32) -> (Vec<String>, Vec<BodyMesh>) {
         .map(|b| {
             let mut asm = BodyAssembler::new(MesherOptions::default()).unwrap();
             for k in 0..scene.frame_count() {
-                asm.push(&frame_ref(&scene.frame(b, k))).unwrap();
+                asm.push(&scene.frame(b, k).frame_ref()).unwrap();
             }
             asm.finish()
         })
@@ -538,7 +537,7 @@ fn preparing_slab_by_slab_as_the_stream_arrives_changes_no_result() {
     };
     for k in 0..scene.frame_count() {
         for b in 0..n {
-            asms[b].push(&frame_ref(&scene.frame(b, k))).unwrap();
+            asms[b].push(&scene.frame(b, k).frame_ref()).unwrap();
             streamed[b].add(asms[b].mesh()).unwrap();
         }
         advance(&mut walks, &streamed);

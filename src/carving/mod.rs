@@ -33,6 +33,7 @@
 // a NaN must take the refusing branch.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
+mod cut_stats;
 pub mod cutout;
 pub mod edge;
 pub mod exact;
@@ -48,7 +49,8 @@ pub use force::{
     MAX_MOVE_DT_S,
 };
 pub use math::{Quat, Vec3};
-pub use sweep::{CutStats, MAX_SUBSTEPS, MAX_SWEEP_POINTS_PER_POSE, MAX_SWEEP_ROWS_PER_POSE};
+pub use cut_stats::CutStats;
+pub use sweep::{MAX_SUBSTEPS, MAX_SWEEP_POINTS_PER_POSE, MAX_SWEEP_ROWS_PER_POSE};
 pub use tool::{Tool, ToolKind};
 pub use workpiece::{
     Flag, Surfel, SurfelDelta, Workpiece, BYTES_PER_POINT, MAX_POINTS, SURFEL_BYTES,

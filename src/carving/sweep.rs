@@ -15,7 +15,7 @@ use super::tool::{Tool, ToolKind};
 use super::workpiece::{
     Workpiece, BOUND, COLOUR_BLOCK, COLOUR_CHISEL, COLOUR_EDGE, COLOUR_KNIFE, NO_SURFEL, OUTSIDE,
 };
-use super::{CarveError, ToolPose};
+use super::{CarveError, CutStats, ToolPose};
 
 /// Most rotation substeps of one move.
 pub const MAX_SUBSTEPS: u64 = 4096;
@@ -47,30 +47,6 @@ fn box_points(b: &GridBox) -> u64 {
     box_rows(b) * (b[0].1 - b[0].0 + 1) as u64
 }
 
-/// What one move removed.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct CutStats {
-    /// Grid points removed (the seed's `n`, eq. 8).
-    pub removed: u64,
-    /// Of them, points that were on the surface (had a normal).
-    pub removed_surface: u64,
-    /// Sum of the outward normals of the removed surface points (`n · n_avg` of eq. 8).
-    pub normal_sum: Vec3,
-    /// Material points newly exposed or re-oriented (surfels put or moved).
-    pub exposed: u64,
-    /// Surfels moved onto a chisel edge (eq. 6).
-    pub resampled: u64,
-    /// Rotation substeps used.
-    pub substeps: u32,
-    /// Material points in the layer one spacing ahead of the tool after the move
-    /// ([`Workpiece::material_ahead`]).
-    pub ahead: u64,
-    /// The cut cross-section read off the material ahead of the tool after the move, with
-    /// sub-voxel weights (m², [`Workpiece::section_ahead`]): what the `section` force uses.
-    pub ahead_area: f64,
-    /// Distance swept: the tool origin's displacement plus rotation angle x tool radius (m).
-    pub travel: f64,
-}
 
 /// A translation sweep of the tool at one orientation, in world coordinates.
 #[derive(Clone, Copy)]

@@ -528,7 +528,7 @@ impl Workpiece {
 
     /// Removes material point `idx` by a cut: counted in `stats` (with its surfel's normal
     /// for eq. 8) and remembered in `removed`, whose neighbours the cut then exposes.
-    pub(crate) fn cut_point(&mut self, idx: usize, stats: &mut super::sweep::CutStats) {
+    pub(crate) fn cut_point(&mut self, idx: usize, stats: &mut super::CutStats) {
         if let Some(n) = self.remove_point(idx) {
             stats.removed_surface += 1;
             for a in 0..3 {

@@ -5,7 +5,7 @@
 //! measures the end-to-end run from a bag.
 
 use super::CliError;
-use super::{frame_ref, EncodingArg};
+use super::EncodingArg;
 use crate::checker::oracle::{shortest_translation, MovingSphere};
 use crate::checker::resolve::{suggest_translation, Metric};
 use crate::checker::{bounds, check_pair, CommonLattice, PairResult, Prepared};
@@ -260,7 +260,7 @@ fn bench_accuracy(
                 let mut asm = BodyAssembler::new(MesherOptions::default())?.keep_frames(true);
                 for k in 0..scene.frame_count() {
                     scene.write_frame(b, k, &mut raster, &mut grid)?;
-                    asm.push(&frame_ref(&grid))?;
+                    asm.push(&grid.frame_ref())?;
                 }
                 bodies.push(asm.finish());
             }
@@ -481,7 +481,7 @@ fn bench_mesh(name: SceneName, o: &SceneOptions, validate: bool) -> Result<(), C
         let mut body_tets = 0u64;
         for f in &frames {
             let t0 = Instant::now();
-            let slab = m.push(&frame_ref(f))?;
+            let slab = m.push(&f.frame_ref())?;
             let ms = t0.elapsed().as_secs_f64() * 1e3;
             if let Some(slab) = slab {
                 slab_ms.push(ms);

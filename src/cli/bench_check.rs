@@ -21,7 +21,7 @@
 //!
 //! A sweep over frame counts then shows what each misses on all three of A's pairs.
 
-use super::{frame_ref, CliError, EncodingArg};
+use super::{CliError, EncodingArg};
 use crate::checker::prep::BodyPrep;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{
@@ -59,7 +59,7 @@ fn spheres(
             let mut asm = BodyAssembler::new(MesherOptions::default())?;
             for k in 0..scene.frame_count() {
                 scene.write_frame(b, k, &mut raster, &mut grid)?;
-                asm.push(&frame_ref(&grid))?;
+                asm.push(&grid.frame_ref())?;
             }
             Ok((topics[b].clone(), asm.finish()))
         })

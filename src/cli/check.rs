@@ -4,7 +4,7 @@
 //! (`chronotope.report/1`).
 
 use super::mesh::{mesher_options_from, MesherArgs};
-use super::{frame_ref, BagFrames, CliError};
+use super::{BagFrames, CliError};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::MesherOptions;
 use crate::report::{check_bodies, CheckPlan, Report};
@@ -76,7 +76,7 @@ pub fn load_bodies_with_frames(path: &Path, opts: MesherOptions) -> Result<Loade
             a.refuse(Some(stamp), &e);
             continue;
         }
-        match a.push(&frame_ref(&grid)) {
+        match a.push(&grid.frame_ref()) {
             Err(e) => tracing::warn!(topic = %topic, stamp_ns = stamp, "skipping frame: {e}"),
             Ok(pushed) => {
                 if frame_id.is_empty() {

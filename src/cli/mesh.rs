@@ -6,7 +6,7 @@
 //! decoded or meshed is logged with its topic, stamp and reason, counted, and skipped.
 
 use super::CliError;
-use super::{frame_ref, BagFrames};
+use super::BagFrames;
 use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
 use crate::mesh::stats::{BodyStats, StatsAccumulator};
 use crate::mesh::stream::BodyStream;
@@ -259,7 +259,7 @@ fn body_worker(
                 continue;
             }
         };
-        let f = frame_ref(&grid);
+        let f = grid.frame_ref();
         // The same rules as the mesher node and `check` (mesh::stream).
         if let Err(e) = grid.message_check(&frame_id) {
             tracing::warn!(topic = %topic, stamp_ns = f.stamp_ns, "skipping frame: {e}");

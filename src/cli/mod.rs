@@ -16,7 +16,6 @@ pub mod replay;
 pub mod sample;
 pub mod scene;
 
-use crate::mesh::FrameRef;
 use crate::msg::{VoxelEncoding, VoxelGrid};
 use clap::{Parser, Subcommand, ValueEnum};
 use std::path::PathBuf;
@@ -257,14 +256,3 @@ impl From<EncodingArg> for VoxelEncoding {
     }
 }
 
-/// The mesher's view of a VoxelGrid message.
-pub fn frame_ref(g: &VoxelGrid) -> FrameRef<'_> {
-    FrameRef {
-        stamp_ns: g.header.stamp.as_nanos(),
-        origin: [g.origin.x, g.origin.y, g.origin.z],
-        resolution: g.resolution,
-        size: [g.size_x, g.size_y, g.size_z],
-        encoding: g.encoding,
-        data: &g.data,
-    }
-}

@@ -77,17 +77,6 @@ pub struct Slab {
 }
 
 impl Slab {
-    /// The slab's parts, borrowed.
-    pub fn lateral_ref(&self) -> super::stats::LateralRef<'_> {
-        super::stats::LateralRef {
-            index: self.index,
-            stamps_ns: (self.stamp_lo_ns, self.stamp_hi_ns),
-            geometry: &self.geometry,
-            mesh: &self.mesh,
-            vanishes: self.vanishes,
-        }
-    }
-
     /// Lattice time of the first frame.
     pub fn t_lo(&self) -> i32 {
         self.geometry.scale * self.index as i32

@@ -94,6 +94,19 @@ pub struct LateralRef<'a> {
     pub vanishes: bool,
 }
 
+impl Slab {
+    /// The slab's parts, borrowed, as the statistics read them.
+    pub fn lateral_ref(&self) -> LateralRef<'_> {
+        LateralRef {
+            index: self.index,
+            stamps_ns: (self.stamp_lo_ns, self.stamp_hi_ns),
+            geometry: &self.geometry,
+            mesh: &self.mesh,
+            vanishes: self.vanishes,
+        }
+    }
+}
+
 /// Accumulates [`BodyStats`] slab by slab.
 #[derive(Debug, Default)]
 pub struct StatsAccumulator {

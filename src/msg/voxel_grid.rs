@@ -101,6 +101,18 @@ pub struct VoxelGrid {
 }
 
 impl VoxelGrid {
+    /// The mesher's view of this frame: its stamp, lattice and data, borrowed.
+    pub fn frame_ref(&self) -> crate::mesh::FrameRef<'_> {
+        crate::mesh::FrameRef {
+            stamp_ns: self.header.stamp.as_nanos(),
+            origin: [self.origin.x, self.origin.y, self.origin.z],
+            resolution: self.resolution,
+            size: [self.size_x, self.size_y, self.size_z],
+            encoding: self.encoding,
+            data: &self.data,
+        }
+    }
+
     /// The checks of a frame's message fields that its body's stream cannot make: `nanosec`
     /// below 10^9, and `header.frame_id` the same as the body's earlier frames
     /// (`body_frame_id`; empty before the body's first accepted frame).

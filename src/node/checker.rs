@@ -33,7 +33,6 @@ use crate::checker::labels::Label;
 use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
-use crate::cli::frame_ref;
 use crate::mesh::slice::Slicer;
 use crate::mesh::GridGeometry;
 use crate::mesh::{MesherOptions, OccupancyGrid};
@@ -258,7 +257,7 @@ impl CheckerNode {
         if g.message_check("").is_err() {
             return;
         }
-        if let Ok(grid) = OccupancyGrid::decode(&frame_ref(g), &self.opts.decode) {
+        if let Ok(grid) = OccupancyGrid::decode(&g.frame_ref(), &self.opts.decode) {
             let geometry = GridGeometry {
                 origin: [g.origin.x, g.origin.y, g.origin.z],
                 resolution: g.resolution,

@@ -15,7 +15,6 @@ use rayon::prelude::*;
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
 use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
-use crate::cli::frame_ref;
 use crate::mesh::slice::Slicer;
 use crate::mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
 use crate::mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
@@ -288,8 +287,8 @@ impl Ctx<'_> {
             }
         }
         let result = match next.as_mut() {
-            Some(s) => s.push(&frame_ref(grid)),
-            None => b.stream.push(&frame_ref(grid)),
+            Some(s) => s.push(&grid.frame_ref()),
+            None => b.stream.push(&grid.frame_ref()),
         };
         match result {
             Err(e) => {
