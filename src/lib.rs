@@ -20,7 +20,6 @@ pub mod live;
 pub mod mesh;
 pub mod msg;
 pub mod node;
-pub mod report;
 pub mod sampler;
 pub mod scene;
 pub mod yaml;

@@ -11,7 +11,7 @@ use chronotope::cli::check::check_bag;
 use chronotope::cli::replay::replay;
 use chronotope::mesh::MesherOptions;
 use chronotope::msg::{Time, VoxelGrid};
-use chronotope::report::Report;
+use chronotope::checker::report::Report;
 
 const T0: i64 = 1_000_000_000;
 const PERIOD: i64 = 100_000_000;
@@ -39,7 +39,12 @@ fn bag(dir: &Path, name: &str, frames: &[(&str, VoxelGrid)]) -> PathBuf {
 }
 
 /// Both reports, after checking `check` and `replay` give the same verdicts and frame counts.
-fn both(bag: &Path) -> (Report, chronotope::cli::replay::ReplayReport) {
+fn both(
+    bag: &Path,
+) -> (
+    chronotope::cli::check::CheckReport,
+    chronotope::cli::replay::ReplayReport,
+) {
     let c = check_bag(bag, MesherOptions::default(), None).expect("check reports");
     let r = replay(bag, None, None, false).expect("replay reports");
     let verdicts = |rep: &Report| {
@@ -66,7 +71,7 @@ fn both(bag: &Path) -> (Report, chronotope::cli::replay::ReplayReport) {
     (c, r)
 }
 
-fn pair<'a>(r: &'a Report, a: &str, b: &str) -> &'a chronotope::report::PairReport {
+fn pair<'a>(r: &'a Report, a: &str, b: &str) -> &'a chronotope::checker::report::PairReport {
     r.pairs
         .iter()
         .find(|p| p.a == a && p.b == b)
@@ -420,7 +425,7 @@ fn a_refused_channel_is_named_in_the_input_by_check_and_replay() {
     w.finish().unwrap();
     let (c, r) = both(&path);
     assert_eq!(verdicts(&c), clean_verdicts()[..1].to_vec());
-    for input in [c.input.as_ref().unwrap(), &r.input] {
+    for input in [&c.input, &r.input] {
         let refused: Vec<(&str, u64)> = input
             .refused_topics
             .iter()

@@ -17,7 +17,7 @@ use chronotope::cli::replay::replay;
 use chronotope::mesh::MesherOptions;
 use chronotope::msg::{Time, VoxelGrid};
 use chronotope::node::launch::LaunchConfig;
-use chronotope::report::Report;
+use chronotope::checker::report::Report;
 use chronotope::scene::{build_scene, periodic_contacts, Rasterizer, SceneName, SceneOptions};
 
 /// Writes scene `name` at `grid`³ with `frames` frames.

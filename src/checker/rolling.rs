@@ -45,8 +45,9 @@ use crate::mesh::glue::BodyMesh;
 use crate::mesh::march::Welder;
 use crate::mesh::stats::{LateralRef, StatsAccumulator};
 use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
-use crate::report::{
-    resolve, BodyReport, CheckPlan, PairLabels, PairReport, Report, Resolution, Timings,
+use crate::checker::pipeline::{resolve, CheckPlan};
+use crate::checker::report::{
+    BodyReport, PairLabels, PairReport, Report, Resolution, Timings,
 };
 
 /// Slabs kept behind the oldest undecided one, for windows that reach one slab further
@@ -2164,7 +2165,7 @@ impl RollingChecker {
             .filter(|p| !p.checked)
             .filter_map(|p| {
                 let why = p.stopped.as_ref()?;
-                Some(crate::report::UncheckedPair {
+                Some(crate::checker::report::UncheckedPair {
                     a: p.a.clone(),
                     b: p.b.clone(),
                     reason: why.clone(),
@@ -2181,7 +2182,6 @@ impl RollingChecker {
             timings_ms: Timings::default(),
             problems,
             unchecked_pairs,
-            input: None,
         }
     }
 }

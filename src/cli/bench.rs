@@ -449,7 +449,7 @@ fn error_plot(points: &[(String, f64, f64)]) -> String {
 /// Overlap hypervolume of two bodies from their intersected occupancy, and its bound (see
 /// `check`).
 fn overlap_hypervolume_of(a: &BodyMesh, b: &BodyMesh) -> (f64, f64) {
-    crate::report::overlap_hypervolume(a, b, MesherOptions::default())
+    crate::checker::pipeline::overlap_hypervolume(a, b, MesherOptions::default())
         .unwrap_or((f64::NAN, f64::NAN))
 }
 

@@ -7,7 +7,8 @@ use super::mesh::{mesher_options_from, MesherArgs};
 use super::{BagFrames, CliError};
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::MesherOptions;
-use crate::report::{check_bodies, CheckPlan, Report};
+use crate::checker::pipeline::{check_bodies, CheckPlan};
+use crate::checker::report::Report;
 use clap::Args;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -49,7 +50,7 @@ pub struct LoadedBag {
     /// Each body's `header.frame_id` (of its first accepted frame).
     pub frame_ids: BTreeMap<String, String>,
     /// What was read from the bag.
-    pub input: crate::report::InputCounts,
+    pub input: crate::cli::InputCounts,
 }
 
 /// [`load_bodies`], with each body's frame and what was read from the bag.
@@ -106,6 +107,24 @@ pub fn load_bodies_with_frames(path: &Path, opts: MesherOptions) -> Result<Loade
     })
 }
 
+/// The report of `chronotope check`: CONTRACT.md's fields, then what was read from the bag
+/// (extra field `input`).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CheckReport {
+    /// The check's report.
+    #[serde(flatten)]
+    pub report: Report,
+    /// What was read from the bag.
+    pub input: super::InputCounts,
+}
+
+impl std::ops::Deref for CheckReport {
+    type Target = Report;
+    fn deref(&self) -> &Report {
+        &self.report
+    }
+}
+
 /// Checks every pair of bodies of a bag; resolutions for the body whose id sorts first.
 ///
 /// # Errors
@@ -114,7 +133,7 @@ pub fn check_bag(
     path: &Path,
     opts: MesherOptions,
     time_scale: Option<f64>,
-) -> Result<Report, CliError> {
+) -> Result<CheckReport, CliError> {
     let start = Instant::now();
     let LoadedBag {
         bodies,
@@ -130,10 +149,9 @@ pub fn check_bag(
     let mut plan = CheckPlan::all_pairs_first_movable(&ids, time_scale);
     plan.frame_ids = frame_ids;
     let mut report = check_bodies(&bodies, &plan, opts)?.report;
-    report.input = Some(input);
     report.timings_ms.mesh = t_mesh.as_secs_f64() * 1e3;
     report.timings_ms.total = start.elapsed().as_secs_f64() * 1e3;
-    Ok(report)
+    Ok(CheckReport { report, input })
 }
 
 /// Runs `chronotope check`.

@@ -108,6 +108,29 @@ pub struct BagFrames {
     refused: std::collections::BTreeSet<String>,
 }
 
+/// What was read from the bag (extra field of the report of `check` and `replay`).
+#[derive(Debug, Clone, Default, serde::Serialize, PartialEq)]
+pub struct InputCounts {
+    /// Messages read.
+    pub messages: u64,
+    /// Messages given to a node.
+    pub delivered: u64,
+    /// Messages on topics no node reads.
+    pub unused: u64,
+    /// Per topic: messages that did not decode as the subscribed type.
+    pub undecodable: std::collections::BTreeMap<String, u64>,
+    /// Per topic: messages of another type than the node subscribed to expects.
+    pub wrong_type: std::collections::BTreeMap<String, u64>,
+    /// Problems with the bag itself (a corrupt chunk, a truncated file), in reading order.
+    pub bag_errors: Vec<String>,
+    /// VoxelGrid topics whose channel was refused (message encoding, schema), with why and
+    /// how many messages were skipped.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub refused_topics: Vec<crate::bag::RefusedTopic>,
+    /// What reading the bag cost: damaged regions, messages lost and their time spans.
+    pub recovery: Option<crate::bag::Recovery>,
+}
+
 /// Most bodies (VoxelGrid topics) read from one bag by `check`, `mesh` and `replay`: all
 /// pairs of 64 bodies are 2016 pairs, each checked window by window; 256 bodies would be
 /// 32 640 pairs, over a minute for even the tiniest bodies.
@@ -133,8 +156,8 @@ impl BagFrames {
 
 impl BagFrames {
     /// What was read, for the report's `input` (complete once iteration has ended).
-    pub fn input(&self) -> crate::report::InputCounts {
-        crate::report::InputCounts {
+    pub fn input(&self) -> InputCounts {
+        InputCounts {
             messages: self.messages,
             delivered: self.messages - self.undecodable.values().sum::<u64>(),
             unused: 0,

@@ -21,7 +21,7 @@ use crate::node::checker::CheckerNode;
 use crate::node::launch::{LaunchConfig, LaunchError, NodeKind, NodeSpec, Params};
 use crate::node::mesher::MesherNode;
 use crate::node::{Message, Node, NodeStatus, Payload};
-use crate::report::Report;
+use crate::checker::report::Report;
 
 /// Options of `chronotope replay`.
 #[derive(Debug, Clone, Args)]
@@ -41,7 +41,7 @@ pub struct ReplayArgs {
     pub out: Option<PathBuf>,
 }
 
-pub use crate::report::InputCounts;
+pub use crate::cli::InputCounts;
 
 /// The replay's report: CONTRACT.md's fields, then the input counts and node statuses.
 #[derive(Debug, Clone, Serialize)]
@@ -441,7 +441,6 @@ pub fn replay(
             timings_ms: Default::default(),
             problems: Vec::new(),
             unchecked_pairs: Vec::new(),
-            input: None,
         });
     let origin = report.time_origin_ns;
     for b in &mut report.bodies {
@@ -450,7 +449,7 @@ pub fn replay(
                 if let Some(l) = m.losses(&b.id) {
                     b.skipped_frames += l.refused_frames;
                     b.filled_frames += l.filled_frames;
-                    b.lost_spans.extend(crate::report::LostSpan::of(l, origin));
+                    b.lost_spans.extend(crate::checker::report::LostSpan::of(l, origin));
                 }
             }
         }
@@ -527,7 +526,7 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
     }
     for res in &rep.resolutions {
         let _ = match res {
-            crate::report::Resolution::Translate {
+            crate::checker::report::Resolution::Translate {
                 body,
                 vector,
                 distance,
@@ -546,7 +545,7 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
                 distance * 1e3,
                 if *verified_clear { "verified clear" } else { "NOT clear when checked again" }
             ),
-            crate::report::Resolution::TimeScale {
+            crate::checker::report::Resolution::TimeScale {
                 body,
                 t0_s,
                 scale,

@@ -41,7 +41,8 @@ use crate::msg::{
     PairInterference, ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time, Vector3,
     VoxelGrid,
 };
-use crate::report::{CheckPlan, Report, Resolution};
+use crate::checker::pipeline::CheckPlan;
+use crate::checker::report::{Report, Resolution};
 
 /// Label colours of the markers.
 const INTERFERENCE_COLOR: ColorRGBA = ColorRGBA::new(0.9, 0.05, 0.05, 1.0);

@@ -1,0 +1,335 @@
+//! One integer lattice for several bodies ([`CommonLattice`]): a common scale, integer origin
+//! offsets and a common time lattice, so that every predicate between their tets is exact;
+//! and how a body is placed on it ([`Placement`]).
+
+use super::*;
+
+/// A prepared body and one copy of it that is placed again and again by axis maps (the
+/// candidate moves of a resolution search): each placement rewrites the copy's
+/// coordinates, tree boxes and normals from the source in the copy's own buffers, so after
+/// the first one nothing is allocated (fresh allocations of this size cost more in page
+/// faults than the mapping itself). Tets, adjacency and leaf order are the source's.
+#[derive(Debug)]
+pub struct Placement<'a> {
+    source: &'a Prepared,
+    pub(super) body: Prepared,
+}
+
+impl<'a> Placement<'a> {
+    /// A copy of `source` to place: its topology now, its coordinates, boxes and normals
+    /// at the first placement.
+    pub fn new(source: &'a Prepared) -> Self {
+        Self {
+            source,
+            body: Prepared {
+                id: source.id.clone(),
+                mesh: TetMesh {
+                    vertices: Vec::new(),
+                    tets: source.mesh.tets.clone(),
+                },
+                bvh: Bvh::new(),
+                adjacency: source.adjacency.clone(),
+                normals: Vec::new(),
+                factor: source.factor,
+                geometry: source.geometry,
+                stamps_ns: source.stamps_ns.clone(),
+                original: source.original.clone(),
+            },
+        }
+    }
+
+    /// The body as prepared, before any placement.
+    pub fn source(&self) -> &'a Prepared {
+        self.source
+    }
+
+    /// The source mapped by x_k → mul_k·x_k + add_k on each axis (every `mul_k > 0`): the
+    /// tree's boxes are mapped, not rebuilt (an increasing map keeps every containment),
+    /// and the normals follow the cofactor rule (N'_k = N_k · Π_{j≠k} mul_j). `None` if some
+    /// `mul_k` is not positive or a coordinate would leave ±2^30 (the exact predicates'
+    /// far points must fit), never clamped; the copy is then unusable until the next
+    /// successful placement.
+    pub fn place(&mut self, mul: [i64; 4], add: [i64; 4]) -> Option<&Prepared> {
+        if mul.iter().any(|&m| m <= 0) {
+            return None;
+        }
+        let (src, body) = (self.source, &mut self.body);
+        body.mesh.vertices.clear();
+        for p in &src.mesh.vertices {
+            body.mesh.vertices.push(map_point(p, mul, add)?);
+        }
+        if !body.bvh.map_axes_from(&src.bvh, mul, add) {
+            return None;
+        }
+        map_normals(&src.normals, mul, &mut body.normals);
+        Some(&self.body)
+    }
+}
+
+/// `p` mapped by x_k → mul_k·x_k + add_k, or `None` if a coordinate would leave ±2^30.
+pub(super) fn map_point(p: &LatticePoint, mul: [i64; 4], add: [i64; 4]) -> Option<LatticePoint> {
+    let mut out = [0; 4];
+    for k in 0..4 {
+        let c = i64::from(p[k]).checked_mul(mul[k])?.checked_add(add[k])?;
+        if c.abs() >= 1 << 30 {
+            return None;
+        }
+        out[k] = c as i32;
+    }
+    Some(out)
+}
+
+/// Whether tet `t` of `a`, mapped by x_k → mul_k·x_k + add_k, has its first interior
+/// point strictly inside the body that `other` tests against (a decided crossing count,
+/// exact). Then `a` so mapped interferes with that body: a boundary point of one body in
+/// the other's interior makes their interiors overlap, and [`interferes`] finds it (that
+/// tet is labelled INSIDE or INTERFERENCE; should every point of its region be undecided
+/// there, the witness is the truer of the two). A cheap exact proof that a candidate move
+/// fails, needing neither the moved body's tree nor a walk.
+pub fn mapped_tet_inside(
+    a: &Prepared,
+    t: u32,
+    mul: [i64; 4],
+    add: [i64; 4],
+    other: &mut Inclusion,
+) -> bool {
+    let mut tet = tet_of(&a.mesh, t);
+    for p in &mut tet {
+        match map_point(p, mul, add) {
+            Some(q) => *p = q,
+            None => return false,
+        }
+    }
+    other.contains(&interior_point(&tet, &INTERIOR_WEIGHTS[0])) == Some(true)
+}
+
+/// The common lattice of a set of bodies.
+#[derive(Debug, Clone)]
+pub struct CommonLattice {
+    /// Largest lattice scale among the bodies (all are powers of two).
+    pub scale: i32,
+    /// Reference voxel-(0,0,0) centre (m).
+    pub voxel0_centre: [f64; 3],
+    /// Voxel edge (m).
+    pub resolution: f64,
+    /// Frame stamps of the union time lattice (ns).
+    pub stamps_ns: Vec<i64>,
+}
+
+impl CommonLattice {
+    /// The lattice shared by `bodies`.
+    ///
+    /// # Errors
+    /// Empty bodies, different resolutions or non-integer origin offsets, or frames that do
+    /// not lie on one time lattice (each body's frames must be a contiguous run of the
+    /// union of all stamps).
+    pub fn of(bodies: &[(&str, &BodyMesh)]) -> Result<Self, CheckError> {
+        let mut first: Option<(&str, GridGeometry)> = None;
+        let mut scale = 2;
+        let mut stamps: Vec<i64> = Vec::new();
+        for (id, b) in bodies {
+            let g = b
+                .geometry
+                .ok_or_else(|| CheckError::EmptyBody { id: id.to_string() })?;
+            if b.stamps_ns.len() < 2 {
+                return Err(CheckError::EmptyBody { id: id.to_string() });
+            }
+            if let Some((fid, f)) = &first {
+                if (g.resolution - f.resolution).abs() > 1e-9 * f.resolution {
+                    return Err(CheckError::LatticeMismatch {
+                        a: fid.to_string(),
+                        b: id.to_string(),
+                        reason: format!("resolution {} vs {}", f.resolution, g.resolution),
+                    });
+                }
+                origin_offset(&f.origin, &g.origin, f.resolution).map_err(|reason| {
+                    CheckError::LatticeMismatch {
+                        a: fid.to_string(),
+                        b: id.to_string(),
+                        reason,
+                    }
+                })?;
+            } else {
+                first = Some((id, g));
+            }
+            scale = scale.max(g.scale);
+            stamps.extend_from_slice(&b.stamps_ns);
+        }
+        stamps.sort_unstable();
+        stamps.dedup();
+        for (id, b) in bodies {
+            let start = stamps.binary_search(&b.stamps_ns[0]).unwrap_or(0);
+            let run = &stamps[start..(start + b.stamps_ns.len()).min(stamps.len())];
+            if run != b.stamps_ns.as_slice() {
+                let others: Vec<&str> =
+                    bodies.iter().map(|(o, _)| *o).filter(|o| o != id).collect();
+                return Err(CheckError::TimeMismatch {
+                    a: id.to_string(),
+                    b: others.join(", "),
+                    reason: format!(
+                        "its {} frames from {:.3} s are not a contiguous run of the common frame \
+                         times (different frame rates or phases are not resampled)",
+                        b.stamps_ns.len(),
+                        b.stamps_ns[0] as f64 * 1e-9
+                    ),
+                });
+            }
+        }
+        let (_, g) = first.expect("at least one body");
+        Ok(Self {
+            scale,
+            voxel0_centre: g.voxel0_centre(),
+            resolution: g.resolution,
+            stamps_ns: stamps,
+        })
+    }
+
+    /// Puts a body on this lattice (coordinates ×[`CHECKER_FACTOR`]), preparing it one
+    /// piece at a time as [`BodyMesh::pieces`] says it arrived (see [`prep`]).
+    ///
+    /// # Errors
+    /// The tree cannot be built (too many tets, a missing vertex) or the coordinates do
+    /// not fit the checker lattice.
+    pub fn prepare(&self, id: &str, b: &BodyMesh) -> Result<Prepared, CheckError> {
+        let local = BodyPrep::of(&b.mesh, &b.pieces).map_err(|e| prep_error(id, e))?;
+        self.place(id, b, local)
+    }
+
+    /// [`place`](Self::place) for a body fed to `prep` piece by piece as it was welded
+    /// (prepared again at once if `prep` did not see all of `b`'s tets).
+    ///
+    /// # Errors
+    /// As [`prepare`](Self::prepare).
+    pub fn place_prep(
+        &self,
+        id: &str,
+        b: &BodyMesh,
+        prep: BodyPrep,
+    ) -> Result<Prepared, CheckError> {
+        if prep.len() != b.mesh.tets.len() {
+            return self.prepare(id, b);
+        }
+        let local = prep.finish().map_err(|e| prep_error(id, e))?;
+        self.place(id, b, local)
+    }
+
+    /// Whether `b`, prepared in its own lattice, is already on this one (same scale, origin
+    /// and first frame): then [`place`](Self::place) leaves it as it is, and walks done
+    /// as its pieces arrived ([`StreamWalk`]) hold.
+    pub fn places_as_is(&self, b: &BodyMesh) -> bool {
+        matches!(self.axis_map(b), Ok((1, [0, 0, 0, 0])))
+    }
+
+    /// The map (common factor over the body's own × [`CHECKER_FACTOR`], shift) of `b`
+    /// onto this lattice.
+    fn axis_map(&self, b: &BodyMesh) -> Result<(i64, [i64; 4]), String> {
+        let g = b.geometry.ok_or("no lattice")?;
+        let ratio = i64::from(self.scale / g.scale.max(1)).max(1);
+        let voxels = origin_offset(
+            &self.voxel0_centre.map(|c| c - 0.5 * self.resolution),
+            &g.origin,
+            self.resolution,
+        )?;
+        let frame0 =
+            b.stamps_ns
+                .first()
+                .map_or(0, |s| self.stamps_ns.binary_search(s).unwrap_or(0)) as i64;
+        let step = self.per_step();
+        let shift = [voxels[0], voxels[1], voxels[2], frame0].map(|v| v.saturating_mul(step));
+        Ok((ratio, shift))
+    }
+
+    /// Puts a body prepared in its own lattice (by [`BodyPrep`], as its stream arrived) on
+    /// this lattice: nothing to do when the body's lattice is the reference one, otherwise
+    /// an increasing axis map of its coordinates and tree boxes.
+    ///
+    /// # Errors
+    /// The body has no lattice, its origin is not a whole number of voxels from the
+    /// reference, or its coordinates would not fit the checker lattice.
+    pub fn place(&self, id: &str, b: &BodyMesh, local: LocalPrep) -> Result<Prepared, CheckError> {
+        let g = b
+            .geometry
+            .ok_or_else(|| CheckError::EmptyBody { id: id.to_string() })?;
+        let (ratio, shift) = self
+            .axis_map(b)
+            .map_err(|reason| CheckError::LatticeMismatch {
+                a: "reference".into(),
+                b: id.to_string(),
+                reason,
+            })?;
+        let mut p = Prepared {
+            id: id.to_string(),
+            mesh: local.mesh,
+            bvh: local.bvh,
+            adjacency: local.adjacency.into(),
+            normals: local.normals,
+            factor: CHECKER_FACTOR * ratio as i32,
+            geometry: g,
+            stamps_ns: self.stamps_ns.clone(),
+            original: local.original.into(),
+        };
+        let mul = [ratio; 4];
+        if (mul != [1; 4] || shift != [0; 4]) && !p.map_in_place(mul, shift) {
+            // Checker coordinates must fit in i32 with room for far points (2^30): bodies
+            // far apart on a fine lattice are refused, never wrapped.
+            return Err(CheckError::LatticeMismatch {
+                a: "reference".into(),
+                b: id.to_string(),
+                reason: "checker lattice coordinates would overflow (bodies too far apart, or \
+                         grids too large for a common fine lattice)"
+                    .into(),
+            });
+        }
+        Ok(p)
+    }
+
+    /// Checker lattice units per voxel and per frame period.
+    pub fn per_step(&self) -> i64 {
+        i64::from(self.scale) * i64::from(CHECKER_FACTOR)
+    }
+
+    /// Seconds since `origin_ns` of checker time `t` (piecewise linear between frames).
+    pub fn time_s(&self, t: f64, origin_ns: i64) -> f64 {
+        crate::kernel::stamp_time_s(&self.stamps_ns, self.per_step() as f64, t, origin_ns)
+    }
+
+    /// Length of one frame period containing checker time `t` (s).
+    pub fn period_s(&self, t: f64) -> f64 {
+        let per = self.per_step() as f64;
+        let n = self.stamps_ns.len() as i64;
+        let k = ((t / per).floor() as i64).clamp(0, n - 2) as usize;
+        (self.stamps_ns[k + 1] - self.stamps_ns[k]) as f64 * 1e-9
+    }
+}
+
+/// A body's preparation error, named.
+pub(super) fn prep_error(id: &str, e: PrepError) -> CheckError {
+    match e {
+        PrepError::Tree(source) => CheckError::Bvh {
+            id: id.to_string(),
+            source,
+        },
+        PrepError::Overflow { .. } => CheckError::LatticeMismatch {
+            a: "reference".into(),
+            b: id.to_string(),
+            reason: e.to_string(),
+        },
+    }
+}
+
+/// Whole-voxel offset from origin `a` to origin `b`, or why there is none.
+pub(crate) fn origin_offset(a: &[f64; 3], b: &[f64; 3], res: f64) -> Result<[i64; 3], String> {
+    let mut out = [0i64; 3];
+    for k in 0..3 {
+        let v = (b[k] - a[k]) / res;
+        let r = v.round();
+        if (v - r).abs() > 1e-6 || !r.is_finite() || r.abs() > 1e9 {
+            return Err(format!(
+                "origins differ by {v} voxels along axis {k}, not a whole number"
+            ));
+        }
+        out[k] = r as i64;
+    }
+    Ok(out)
+}
+
