@@ -12,6 +12,7 @@ pub mod info;
 pub mod live;
 pub mod mesh;
 pub mod param;
+pub mod render;
 pub mod replay;
 pub mod sample;
 pub mod scene;
@@ -44,6 +45,8 @@ pub enum Command {
     Launch(live::LaunchArgs),
     /// Run one node of a launch config on DDS (the others may run elsewhere).
     Node(live::NodeArgs),
+    /// Draw the checker's labelled slices of one instant from an output bag to a PNG.
+    Render(render::RenderArgs),
     /// Say what a bag holds (like `ros2 bag info`) and what the suite sees in it.
     Info(info::InfoArgs),
     /// Publish a bag's topics on DDS with their recorded timing (and /clock).
@@ -253,6 +256,7 @@ pub fn run(cli: Cli) -> Result<(), CliError> {
         Command::Launch(a) => live::launch(&a),
         Command::Node(a) => live::node(&a),
         Command::Info(a) => info::run(&a),
+        Command::Render(a) => render::run(&a),
         Command::Play(a) => live::play(&a),
         Command::Record(a) => live::record(&a),
         Command::Param(a) => param::run(&a),

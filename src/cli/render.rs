@@ -1,0 +1,344 @@
+//! `chronotope render BAG --out FILE.png [--time S]`: a picture of the checker's answer. The
+//! checker publishes, per body and frame period, the body's boundary at that instant (its
+//! 4D mesh sliced at a time plane) as a triangle list coloured by label: red where the tet
+//! interferes with another body, orange where it lies inside one, the body's own colour where
+//! it is clear (`/checker/markers`). This command takes those markers from an output bag
+//! (`replay --out`), picks one instant, and draws every body's slice in an oblique view with
+//! a depth buffer and simple shading, to a PNG. It shows what rviz2 or Foxglove show for that
+//! instant, without either.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use clap::{Args, ValueEnum};
+
+use super::CliError;
+use crate::bag::BagReader;
+use crate::msg::{decode_cdr, Marker, MarkerArray, RosMessage};
+
+/// Largest image side accepted (pixels).
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
+/// Most triangles drawn (the rest of a huge slice is refused by name).
+pub const MAX_TRIANGLES: usize = 1 << 24;
+
+/// The direction the picture is seen from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum View {
+    /// From in front, to the right and above (35° elevation).
+    Oblique,
+    /// From above (+z), x to the right.
+    Top,
+    /// From the front (−y), z up.
+    Front,
+}
+
+/// Options of `chronotope render`.
+#[derive(Debug, Clone, Args)]
+pub struct RenderArgs {
+    /// An output bag holding the checker's markers (`replay --out`, `record`).
+    pub bag: PathBuf,
+    /// The PNG to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Seconds since the first marker's stamp; the frame period containing it is drawn
+    /// (default: the period with the most interfering triangles, or the first).
+    #[arg(long)]
+    pub time: Option<f64>,
+    /// The MarkerArray topic.
+    #[arg(long, default_value = "/checker/markers")]
+    pub topic: String,
+    /// Image width and height (pixels).
+    #[arg(long, default_value_t = 900)]
+    pub size: u32,
+    /// Where it is seen from.
+    #[arg(long, value_enum, default_value_t = View::Oblique)]
+    pub view: View,
+}
+
+/// One triangle to draw: corners (m) and colour.
+#[derive(Clone, Copy)]
+struct Tri {
+    p: [[f64; 3]; 3],
+    rgb: [f64; 3],
+}
+
+fn is_red(m: &Marker, k: usize) -> bool {
+    m.colors
+        .get(k)
+        .is_some_and(|c| c.r > 0.8 && c.g < 0.2 && c.b < 0.2)
+}
+
+/// Reads the markers on `topic`: per stamp, the number of interfering triangles; calls `keep`
+/// for every marker.
+fn scan(
+    a: &RenderArgs,
+    mut keep: impl FnMut(i64, &Marker),
+) -> Result<BTreeMap<i64, u64>, CliError> {
+    let mut red: BTreeMap<i64, u64> = BTreeMap::new();
+    for item in BagReader::open(&a.bag)? {
+        let m = match item {
+            Ok(m) => m,
+            Err(e) if e.is_fatal() => return Err(e.into()),
+            Err(e) => {
+                tracing::warn!("{e}");
+                continue;
+            }
+        };
+        if m.topic != a.topic || m.schema_name != MarkerArray::TYPE_NAME {
+            continue;
+        }
+        let Ok(arr) = decode_cdr::<MarkerArray>(&m.data) else {
+            tracing::warn!("a MarkerArray on {} does not decode; skipped", a.topic);
+            continue;
+        };
+        for mk in &arr.markers {
+            if mk.r#type != Marker::TRIANGLE_LIST || mk.action != Marker::ADD {
+                continue;
+            }
+            let stamp = mk.header.stamp.as_nanos();
+            let n = (0..mk.points.len() / 3)
+                .filter(|&t| is_red(mk, 3 * t))
+                .count() as u64;
+            *red.entry(stamp).or_default() += n;
+            keep(stamp, mk);
+        }
+    }
+    Ok(red)
+}
+
+/// Writes the picture; the stamp drawn and the triangles drawn.
+///
+/// # Errors
+/// The bag cannot be read, holds no markers on the topic, the options are out of range, or
+/// the PNG cannot be written.
+pub fn render(a: &RenderArgs) -> Result<(i64, usize), CliError> {
+    if a.size < 16 || a.size > MAX_IMAGE_SIDE {
+        return Err(CliError::Usage(format!(
+            "--size {}: must be between 16 and MAX_IMAGE_SIDE = {MAX_IMAGE_SIDE} pixels",
+            a.size
+        )));
+    }
+    if let Some(t) = a.time.filter(|t| !t.is_finite() || *t < 0.0) {
+        return Err(CliError::Usage(format!(
+            "--time {t}: must be a non-negative number of seconds"
+        )));
+    }
+    let red = scan(a, |_, _| {})?;
+    let Some(&first) = red.keys().next() else {
+        return Err(CliError::Usage(format!(
+            "{}: no TRIANGLE_LIST markers on {} (replay a bag with a checker and --out first)",
+            a.bag.display(),
+            a.topic
+        )));
+    };
+    let stamp = match a.time {
+        // The last stamp at or before the time asked (markers are stamped mid-period).
+        Some(t) => {
+            let want = first + (t * 1e9) as i64;
+            let mut best = first;
+            for &s in red.keys() {
+                if (s - want).abs() < (best - want).abs() {
+                    best = s;
+                }
+            }
+            best
+        }
+        None => red
+            .iter()
+            .max_by_key(|(s, n)| (**n, std::cmp::Reverse(**s)))
+            .map_or(first, |(s, _)| *s),
+    };
+    let mut tris: Vec<Tri> = Vec::new();
+    let mut over = false;
+    scan(a, |s, mk| {
+        if s != stamp {
+            return;
+        }
+        for t in 0..mk.points.len() / 3 {
+            if tris.len() >= MAX_TRIANGLES {
+                over = true;
+                return;
+            }
+            let p = [0, 1, 2].map(|k| {
+                let q = &mk.points[3 * t + k];
+                [q.x, q.y, q.z]
+            });
+            let c = mk.colors.get(3 * t).copied().unwrap_or(mk.color);
+            tris.push(Tri {
+                p,
+                rgb: [f64::from(c.r), f64::from(c.g), f64::from(c.b)],
+            });
+        }
+    })?;
+    if over {
+        tracing::warn!("more than MAX_TRIANGLES = {MAX_TRIANGLES} triangles: the rest is not drawn");
+    }
+    let img = rasterise(&tris, a.size, a.view);
+    write_png(&a.out, a.size, &img)?;
+    Ok((stamp, tris.len()))
+}
+
+/// The view's rotation: rows are the screen's right, up and towards-the-viewer axes.
+fn view_basis(view: View) -> [[f64; 3]; 3] {
+    match view {
+        View::Top => [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        View::Front => [[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]],
+        View::Oblique => {
+            // Towards the viewer: in front (−y), to the right (+x) and above.
+            let (phi, el) = ((-50f64).to_radians(), 35f64.to_radians());
+            let toward = [el.cos() * phi.cos(), el.cos() * phi.sin(), el.sin()];
+            let right = [-phi.sin(), phi.cos(), 0.0];
+            // up = toward × right, so that right × up = toward.
+            let up = [
+                toward[1] * right[2] - toward[2] * right[1],
+                toward[2] * right[0] - toward[0] * right[2],
+                toward[0] * right[1] - toward[1] * right[0],
+            ];
+            [right, up, toward]
+        }
+    }
+}
+
+fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// Draws the triangles (orthographic, depth-buffered, shaded by the angle to the viewer) on a
+/// white square of `size` pixels; RGB bytes.
+fn rasterise(tris: &[Tri], size: u32, view: View) -> Vec<u8> {
+    let n = size as usize;
+    let mut rgb = vec![255u8; n * n * 3];
+    let mut depth = vec![f64::NEG_INFINITY; n * n];
+    let basis = view_basis(view);
+    let proj: Vec<[[f64; 3]; 3]> = tris
+        .iter()
+        .map(|t| t.p.map(|p| [dot(&basis[0], &p), dot(&basis[1], &p), dot(&basis[2], &p)]))
+        .collect();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for q in proj.iter().flatten() {
+        for k in 0..2 {
+            lo[k] = lo[k].min(q[k]);
+            hi[k] = hi[k].max(q[k]);
+        }
+    }
+    if proj.is_empty() {
+        return rgb;
+    }
+    let margin = 0.05 * n as f64;
+    let span = (hi[0] - lo[0]).max(hi[1] - lo[1]).max(1e-12);
+    let s = (n as f64 - 2.0 * margin) / span;
+    let off = [
+        margin + 0.5 * ((n as f64 - 2.0 * margin) - s * (hi[0] - lo[0])),
+        margin + 0.5 * ((n as f64 - 2.0 * margin) - s * (hi[1] - lo[1])),
+    ];
+    for (t, q) in tris.iter().zip(&proj) {
+        // Screen coordinates (y down).
+        let v = q.map(|p| {
+            [
+                off[0] + s * (p[0] - lo[0]),
+                n as f64 - (off[1] + s * (p[1] - lo[1])),
+                p[2],
+            ]
+        });
+        let e1 = [v[1][0] - v[0][0], v[1][1] - v[0][1]];
+        let e2 = [v[2][0] - v[0][0], v[2][1] - v[0][1]];
+        let area = e1[0] * e2[1] - e1[1] * e2[0];
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        // Shade: |cos| of the angle between the triangle's normal and the view direction.
+        let a3 = [q[1][0] - q[0][0], q[1][1] - q[0][1], q[1][2] - q[0][2]];
+        let b3 = [q[2][0] - q[0][0], q[2][1] - q[0][1], q[2][2] - q[0][2]];
+        let normal = [
+            a3[1] * b3[2] - a3[2] * b3[1],
+            a3[2] * b3[0] - a3[0] * b3[2],
+            a3[0] * b3[1] - a3[1] * b3[0],
+        ];
+        let nl = dot(&normal, &normal).sqrt().max(1e-300);
+        let shade = 0.35 + 0.65 * (normal[2] / nl).abs();
+        let colour = t.rgb.map(|c| ((c * shade).clamp(0.0, 1.0) * 255.0).round() as u8);
+        let x0 = v.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min).floor().max(0.0) as usize;
+        let x1 = v.iter().map(|p| p[0]).fold(f64::NEG_INFINITY, f64::max).ceil().min(n as f64 - 1.0) as usize;
+        let y0 = v.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min).floor().max(0.0) as usize;
+        let y1 = v.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max).ceil().min(n as f64 - 1.0) as usize;
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
+                let w1 = ((px - v[0][0]) * e2[1] - (py - v[0][1]) * e2[0]) / area;
+                let w2 = (e1[0] * (py - v[0][1]) - e1[1] * (px - v[0][0])) / area;
+                let w0 = 1.0 - w1 - w2;
+                if w0 < 0.0 || w1 < 0.0 || w2 < 0.0 {
+                    continue;
+                }
+                let z = w0 * v[0][2] + w1 * v[1][2] + w2 * v[2][2];
+                let i = y * n + x;
+                if z > depth[i] {
+                    depth[i] = z;
+                    rgb[3 * i..3 * i + 3].copy_from_slice(&colour);
+                }
+            }
+        }
+    }
+    rgb
+}
+
+fn write_png(path: &std::path::Path, size: u32, rgb: &[u8]) -> Result<(), CliError> {
+    let io = |source| CliError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(io)?;
+    }
+    let file = std::fs::File::create(path).map_err(io)?;
+    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size, size);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let png_err = |e: png::EncodingError| {
+        io(std::io::Error::other(format!("cannot write the PNG: {e}")))
+    };
+    let mut w = enc.write_header().map_err(png_err)?;
+    w.write_image_data(rgb).map_err(png_err)?;
+    w.finish().map_err(png_err)
+}
+
+/// `chronotope render`.
+///
+/// # Errors
+/// See [`render`].
+pub fn run(a: &RenderArgs) -> Result<(), CliError> {
+    let (stamp, n) = render(a)?;
+    println!(
+        "{}: {n} triangles of the slice stamped {:.3} s, seen {:?}",
+        a.out.display(),
+        stamp as f64 * 1e-9,
+        a.view
+    );
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_triangle_is_drawn_in_its_colour_and_the_nearer_one_wins() {
+        let far = Tri {
+            p: [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]],
+            rgb: [0.0, 0.0, 1.0],
+        };
+        let near = Tri {
+            p: [[0.0, 0.0, 0.5], [0.5, 0.0, 0.5], [0.0, 0.5, 0.5]],
+            rgb: [1.0, 0.0, 0.0],
+        };
+        let img = rasterise(&[far, near], 64, View::Top);
+        let px = |x: usize, y: usize| &img[3 * (y * 64 + x)..3 * (y * 64 + x) + 3];
+        // Near the origin corner (bottom left): the near, red one.
+        assert!(px(6, 57)[0] > 200 && px(6, 57)[2] < 50, "{:?}", px(6, 57));
+        // Further along x, only the far, blue one.
+        assert!(px(45, 57)[2] > 200 && px(45, 57)[0] < 50, "{:?}", px(45, 57));
+        // Beyond the hypotenuse: background.
+        assert_eq!(px(60, 4), &[255, 255, 255]);
+    }
+}
