@@ -12,6 +12,7 @@
 //! `/diagnostics` with each node's counters, problems and CPU use, and its own.
 
 pub mod executor;
+pub mod graph;
 pub mod wire;
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
@@ -29,6 +30,7 @@ use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage
 use crate::node::launch::{NodeSpec, ParamValue};
 use crate::node::{is_hidden_topic, Message, Node, NodeStatus, TopicRef};
 use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut};
+use graph::GraphAnnouncer;
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
 
 /// A writer of serialised messages.
@@ -230,11 +232,7 @@ impl Participant {
         params: &BTreeMap<String, ParamValue>,
         setter: Option<crossbeam_channel::Sender<Input>>,
     ) -> Result<ros2_client::Node, LiveError> {
-        let (ns, name) = match fqn.rsplit_once('/') {
-            Some(("", n)) => ("/", n),
-            Some((ns, n)) => (ns, n),
-            None => ("/", fqn),
-        };
+        let (ns, name) = graph::split_fqn(fqn);
         let node_name = ros2_client::NodeName::new(ns, name)
             .map_err(|e| format!("{e:?}"))
             .map_err(dds_err(format!("ROS node {fqn}")))?;
@@ -539,6 +537,8 @@ const BULK_QUEUE: usize = 8;
 struct RealtimeIo {
     participant: Arc<Participant>,
     own: DdsOut,
+    /// Its readers: topic and GUID (for the ROS graph).
+    readers: Vec<(String, rustdds::GUID)>,
     start: crossbeam_channel::Sender<executor::Injector>,
     thread: std::thread::JoinHandle<()>,
 }
@@ -582,7 +582,11 @@ fn start_realtime_io(
                     return;
                 }
             };
-            let _ = ready_tx.send(Ok((participant.clone(), writers)));
+            let reader_ids = readers
+                .iter()
+                .map(|(t, r)| (t.topic.clone(), rustdds::RTPSEntity::guid(r)))
+                .collect();
+            let _ = ready_tx.send(Ok((participant.clone(), writers, reader_ids)));
             let Ok(injector) = start_rx.recv() else {
                 return;
             };
@@ -611,12 +615,13 @@ fn start_realtime_io(
         })
         .map_err(LiveError::Runtime)?;
     match ready_rx.recv() {
-        Ok(Ok((participant, writers))) => Ok(RealtimeIo {
+        Ok(Ok((participant, writers, readers))) => Ok(RealtimeIo {
             participant,
             own: DdsOut {
                 writers,
                 status: status_out,
             },
+            readers,
             start: start_tx,
             thread,
         }),
@@ -671,6 +676,18 @@ async fn read_into(
             );
         }
     }
+}
+
+/// The ROS node (a launch spec's name) a node of the process shows under in the ROS graph:
+/// the spec of its own name, else the one it is a part of (`/carving/display` is a part of
+/// `/carving`: its topics are `/carving`'s, and it runs where `/carving` runs). `None` for a
+/// node no spec names (it is not a ROS node).
+fn ros_owner<'a>(name: &str, specs: &'a [NodeSpec]) -> Option<&'a str> {
+    specs
+        .iter()
+        .map(|s| s.fqn.as_str())
+        .filter(|f| name == *f || name.strip_prefix(f).is_some_and(|r| r.starts_with('/')))
+        .max_by_key(|f| f.len())
 }
 
 /// Topics to read from the wire (what local nodes read and no local node writes) and to
@@ -746,6 +763,36 @@ pub fn run_nodes(
         .collect();
 
     let (inputs, outputs) = wire_topics(&nodes, &opts.remote_subscribed);
+    // What each node reads and writes, and the ROS node it shows under in the graph.
+    let graph_plan: Vec<(Option<String>, Vec<TopicRef>, Vec<TopicRef>)> = nodes
+        .iter()
+        .map(|n| {
+            (
+                ros_owner(n.name(), specs).map(str::to_owned),
+                n.publications(),
+                n.subscriptions(),
+            )
+        })
+        .collect();
+    // A real-time node writes its small outputs on its own participant: the main one has no
+    // writer for them (unless another node publishes the topic too).
+    let rt_small: BTreeSet<String> = {
+        let small = |realtime: bool| -> BTreeSet<String> {
+            nodes
+                .iter()
+                .zip(&unit_options)
+                .filter(|(_, o)| o.realtime == realtime)
+                .flat_map(|(n, _)| n.publications())
+                .filter(|p| !is_bulk(p.type_name) && outputs.contains(p))
+                .map(|p| p.topic)
+                .collect()
+        };
+        let shared = small(false);
+        small(true)
+            .into_iter()
+            .filter(|t| !shared.contains(t))
+            .collect()
+    };
     // Large outputs (frames, clouds, meshes, markers, labels) go through a participant of
     // their own: resending their fragments to a slow reader keeps a RustDDS event loop busy
     // for seconds, and the inputs must not wait behind that.
@@ -756,6 +803,7 @@ pub fn run_nodes(
     };
     let main_writers: BTreeMap<String, Arc<Mutex<RawWriter>>> = outputs
         .iter()
+        .filter(|t| !rt_small.contains(&t.topic))
         .map(|t| {
             let p = match &bulk_participant {
                 Some(b) if is_bulk(t.type_name) => b,
@@ -794,7 +842,7 @@ pub fn run_nodes(
         let small: Vec<TopicRef> = n
             .publications()
             .into_iter()
-            .filter(|p| !is_bulk(p.type_name) && main_writers.contains_key(&p.topic))
+            .filter(|p| !is_bulk(p.type_name) && outputs.contains(p))
             .collect();
         let io = start_realtime_io(
             opts.domain_id,
@@ -852,6 +900,8 @@ pub fn run_nodes(
         ros_nodes.push(n);
     }
 
+    // Readers on the main participant: topic, GUID and the nodes they feed.
+    let mut main_readers: Vec<(String, rustdds::GUID, Vec<usize>)> = Vec::new();
     for t in &inputs {
         let targets: Vec<usize> = exec
             .readers_of(&t.topic)
@@ -864,6 +914,11 @@ pub fn run_nodes(
         }
         let reader = participant.reader(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
         tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
+        main_readers.push((
+            t.topic.clone(),
+            rustdds::RTPSEntity::guid(&reader),
+            targets.clone(),
+        ));
         runtime.spawn(read_into(
             reader,
             t.clone(),
@@ -877,6 +932,46 @@ pub fn run_nodes(
         let _ = io.start.send(injector.clone());
     }
 
+    // The ROS graph: every endpoint under the ROS node it serves.
+    let mut graph = GraphAnnouncer::new(&participant)?;
+    let diagnostics_id = rustdds::RTPSEntity::guid(&diagnostics);
+    let mut rt_ios = rt_io.iter();
+    for (i, (owner, pubs, subs)) in graph_plan.iter().enumerate() {
+        let rt = if unit_options[i].realtime {
+            rt_ios.next()
+        } else {
+            None
+        };
+        let Some(owner) = owner else {
+            continue;
+        };
+        graph.add_writer(owner, diagnostics_id);
+        for p in pubs {
+            let own = rt.and_then(|io| io.own.writers.get(&p.topic));
+            if let Some(w) = own.or_else(|| main_writers.get(&p.topic)) {
+                let id = rustdds::RTPSEntity::guid(&*w.lock().unwrap_or_else(|e| e.into_inner()));
+                graph.add_writer(owner, id);
+            }
+        }
+        for s in subs {
+            let own = rt.and_then(|io| io.readers.iter().find(|(t, _)| *t == s.topic));
+            if let Some((_, id)) = own {
+                graph.add_reader(owner, *id);
+            }
+            for (_, id, _) in main_readers
+                .iter()
+                .filter(|(t, _, targets)| *t == s.topic && targets.contains(&i))
+            {
+                graph.add_reader(owner, *id);
+            }
+        }
+    }
+    graph.announce(Instant::now());
+    tracing::info!(
+        nodes = ros_nodes.len(),
+        "announced in the ROS graph (ros_discovery_info)"
+    );
+
     let mut coordinator = Coordinator {
         participants: std::iter::once(participant.clone())
             .chain(bulk_participant.iter().cloned())
@@ -886,11 +981,13 @@ pub fn run_nodes(
         diagnostics,
         status: status.clone(),
         wrong_writers: BTreeSet::new(),
+        graph,
     };
     let start = Instant::now();
     let mut last_diag = start;
     while !(stop.load(Ordering::Relaxed) || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
         std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
+        coordinator.graph.poll(Instant::now());
         if last_diag.elapsed() >= opts.diagnostics_period {
             last_diag = Instant::now();
             coordinator.check_foreign_types();
@@ -936,6 +1033,8 @@ struct Coordinator {
     status: Arc<Mutex<TransportStatus>>,
     /// Writers already counted as publishing a wrong type.
     wrong_writers: BTreeSet<rustdds::GUID>,
+    /// The process's nodes in the ROS graph.
+    graph: GraphAnnouncer,
 }
 
 impl Coordinator {
@@ -1195,6 +1294,25 @@ mod tests {
         let d = node_diagnostic("/carving", &r);
         assert_eq!(d.level, DiagnosticStatus::ERROR);
         assert!(d.message.contains("boom"), "{}", d.message);
+    }
+
+    #[test]
+    fn a_part_of_a_node_shows_under_its_node() {
+        let spec = |fqn: &str| NodeSpec {
+            kind: crate::node::launch::NodeKind::Checker,
+            fqn: fqn.to_owned(),
+            params: BTreeMap::new(),
+            remaps: BTreeMap::new(),
+        };
+        let specs = [spec("/carving"), spec("/cell/carving"), spec("/checker")];
+        assert_eq!(ros_owner("/carving", &specs), Some("/carving"));
+        assert_eq!(ros_owner("/carving/display", &specs), Some("/carving"));
+        assert_eq!(
+            ros_owner("/cell/carving/display", &specs),
+            Some("/cell/carving")
+        );
+        assert_eq!(ros_owner("/carvingx", &specs), None);
+        assert_eq!(ros_owner("/mesher", &specs), None);
     }
 
     #[test]
