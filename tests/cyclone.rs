@@ -5,13 +5,15 @@
 //! every label array (length, counts, sha256) and the markers (ids, points, sha256 of the
 //! points).
 //!
-//! Needs `pip install -r tests/py/requirements.txt`. Without `cyclonedds` the test is
+//! Needs the Python environment of `python3 tests/py/setup_env.py` (the README's test command). Without `cyclonedds` the test is
 //! skipped with a message, unless `CI` is set: then it fails.
 //!
 //! Markers (16 MarkerArray of ~1.1 MB, thousands of fragments each) are the slow part: lost
 //! fragments are repaired in bursts several seconds apart, so the last one arrives
 //! after the last frame (measured: 5-23 s; the peer waits 30 s). `CHRONOTOPE_CYCLONE_NO_MARKERS=1`
 //! leaves them out (the test then takes ~10 s).
+
+mod pyenv;
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -54,7 +56,7 @@ impl Drop for KillOnDrop {
 }
 
 fn cyclonedds_available() -> bool {
-    Command::new("python3")
+    pyenv::python()
         .args(["-c", "import cyclonedds"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -85,7 +87,7 @@ fn launch_on(config: &Path, domain: &str, duration_s: &str) -> KillOnDrop {
 /// `python3 tests/py/cyclone_peer.py --bag BAG --out JSON` on `domain` (15 s to match,
 /// 30 s for the results after the last frame); more arguments go after these.
 fn peer_command(bag: &Path, json: &Path, domain: &str) -> Command {
-    let mut c = Command::new("python3");
+    let mut c = pyenv::python();
     c.arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/py/cyclone_peer.py"))
         .arg("--bag")
         .arg(bag)
@@ -109,7 +111,7 @@ fn cyclone_or_skip(test: &str) -> bool {
     if cyclonedds_available() {
         return true;
     }
-    let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
+    let why = "the test Python cannot import cyclonedds (run `python3 tests/py/setup_env.py`)";
     assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
     eprintln!("SKIPPED {test}: {why}");
     false
@@ -567,7 +569,7 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
             &off.markers.len().to_string(),
         ]);
     }
-    let mut peer = KillOnDrop(Some(peer.spawn().expect("python3 runs")), "cyclone_peer.py");
+    let mut peer = KillOnDrop(Some(peer.spawn().expect("the test Python runs")), "cyclone_peer.py");
     let deadline = Instant::now() + Duration::from_secs(60);
     let status = loop {
         let c = peer.0.as_mut().unwrap();
@@ -658,7 +660,7 @@ fn periodic_contacts_are_published_while_the_stream_goes_on() {
     let json = dir.path().join("periodic.json");
     let status = peer_command(&bag, &json, &domain)
         .status()
-        .expect("python3 runs");
+        .expect("the test Python runs");
     launch.stop();
     assert!(status.success(), "cyclone_peer.py failed ({status})");
     let live: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();

@@ -9,8 +9,10 @@
 //! on a participant of its own, its display's clouds and the checker's labels and markers on
 //! the bulk participant), and one process per node (the mesh pieces then on the wire).
 //!
-//! Needs `pip install -r tests/py/requirements.txt`. Without `cyclonedds` the tests are
+//! Needs the Python environment of `python3 tests/py/setup_env.py` (the README's test command). Without `cyclonedds` the tests are
 //! skipped with a message, unless `CI` is set: then they fail.
+
+mod pyenv;
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -60,7 +62,7 @@ fn domain(k: u32) -> String {
 }
 
 fn cyclonedds_available() -> bool {
-    Command::new("python3")
+    pyenv::python()
         .args(["-c", "import cyclonedds"])
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -74,7 +76,7 @@ fn cyclone_or_skip(test: &str) -> bool {
     if cyclonedds_available() {
         return true;
     }
-    let why = "python3 cannot import cyclonedds (pip install -r tests/py/requirements.txt)";
+    let why = "the test Python cannot import cyclonedds (run `python3 tests/py/setup_env.py`)";
     assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
     eprintln!("SKIPPED {test}: {why}");
     false
@@ -120,7 +122,7 @@ fn wait_announced(procs: &mut [(KillOnDrop, PathBuf)]) {
 
 /// The graph as the Cyclone peer read it, joining `domain` now.
 fn read_graph(domain: &str, out: &Path) -> Value {
-    let status = Command::new("python3")
+    let status = pyenv::python()
         .arg(root().join("tests/py/graph_peer.py"))
         .arg("--out")
         .arg(out)
@@ -133,7 +135,7 @@ fn read_graph(domain: &str, out: &Path) -> Value {
             "5",
         ])
         .status()
-        .expect("python3 runs");
+        .expect("the test Python runs");
     assert!(status.success(), "graph_peer.py failed ({status})");
     serde_json::from_str(&std::fs::read_to_string(out).unwrap()).unwrap()
 }

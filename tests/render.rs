@@ -33,7 +33,7 @@ fn a_replay_renders_with_its_interference_in_red() {
     assert_eq!((info.width, info.height), (300, 300));
     let px: Vec<&[u8]> = buf[..info.buffer_size()].chunks(3).collect();
     let red = px.iter().filter(|p| p[0] > 150 && p[1] < 40 && p[2] < 40).count();
-    let background = px.iter().filter(|p| p == &&[255u8, 255, 255][..]).count();
+    let background = px.iter().filter(|p| **p == [255u8, 255, 255]).count();
     assert!(red > 20, "{red} red pixels");
     assert!(background > 300 * 300 / 10 && background < 300 * 300 * 9 / 10, "{background}");
     // A bag without markers is refused by name.
