@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Live benchmarks of the suite on DDS (issue 5), each a rerunnable command:
+"""Live benchmarks of the suite on DDS, each a rerunnable command:
 
   python3 bench/live_bench.py cyclone   [--loops 3] [--hz 10]
       A Cyclone DDS peer (PyPI cyclonedds, tests/py/cyclone_peer.py's types) publishes the

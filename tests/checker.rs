@@ -1,4 +1,4 @@
-//! The checker on scenes with known answers, and the stiff cases of issue 3.
+//! The checker on scenes with known answers, and the stiff cases.
 
 mod common;
 

@@ -1,5 +1,5 @@
 //! Error bounds of the checker's answers from the lattice: voxel edge h, frame period Δt
-//! and the relative speed of the two boundaries (README, "Error bounds").
+//! and the relative speed of the two boundaries (docs/checker.md, "Error bounds").
 //!
 //! Each body's 4D mesh places its boundary within h/2 of the sampled one in space (a
 //! marching-cubes vertex lies on the edge between an occupied and a free sample, where the

@@ -121,7 +121,7 @@ pub struct PairReport {
     /// Voxel edge (m), the space resolution of the input (extra field).
     pub voxel_size_m: f64,
     /// Bound on the error of `first_contact_s` (s): Δt/2 + h/v at closing speed v; null
-    /// for a grazing contact or one not made by crossing boundaries (extra field; README,
+    /// for a grazing contact or one not made by crossing boundaries (extra field; docs/checker.md,
     /// "Error bounds").
     pub first_contact_error_bound_s: Option<f64>,
     /// The closing speed v of the two boundaries at the first contact (m/s, extra field).

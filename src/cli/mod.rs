@@ -55,7 +55,7 @@ pub enum Command {
     Record(live::RecordArgs),
     /// Read or set a running node's parameters (the ROS parameter services).
     Param(param::ParamArgs),
-    /// Benchmarks that print the figures the README quotes.
+    /// Benchmarks that print the figures docs/performance.md and docs/accuracy.md quote.
     Bench(bench::BenchArgs),
     /// Sample points uniformly on an implicit scene (seed 001); write a PointCloud2 bag.
     Sample(sample::SampleArgs),

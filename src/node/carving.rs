@@ -50,7 +50,7 @@ use crate::msg::{
 
 /// Most bytes of workpiece frames (occupancy bits plus surfel cloud) the node publishes per
 /// second of pose time: 512 MiB/s, a third of the ~1.5 GB/s a frame's copy was measured at
-/// (README, carving speed: 10 ms for 15 MB at 256³), so frames take at most about a third
+/// (docs/carving.md, speed: 10 ms for 15 MB at 256³), so frames take at most about a third
 /// of the node's core and the 1 kHz force loop keeps the rest.
 pub const MAX_FRAME_BYTES_PER_S: f64 = 512.0 * 1024.0 * 1024.0;
 
