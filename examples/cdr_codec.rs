@@ -72,16 +72,18 @@ fn main() {
     let cloud = PointCloud2 {
         height: 1,
         width: n,
-        fields: ["x", "y", "z", "normal_x", "normal_y", "normal_z", "rgb", "pad"]
-            .iter()
-            .enumerate()
-            .map(|(i, f)| PointField {
-                name: (*f).to_owned(),
-                offset: 4 * i as u32,
-                datatype: 7,
-                count: 1,
-            })
-            .collect(),
+        fields: [
+            "x", "y", "z", "normal_x", "normal_y", "normal_z", "rgb", "pad",
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, f)| PointField {
+            name: (*f).to_owned(),
+            offset: 4 * i as u32,
+            datatype: 7,
+            count: 1,
+        })
+        .collect(),
         point_step: 32,
         row_step: 32 * n,
         data: (0..32 * n as usize).map(|i| (i * 31 % 251) as u8).collect(),
@@ -121,6 +123,9 @@ fn main() {
     measure("VoxelGrid 128³ percent", &grid);
     measure("MarkerArray, 100k triangles", &markers);
     let data: Vec<u8> = cloud.data.clone();
-    measure("uint8[] 35 MB, serde_bytes", &BulkBytes { data: data.clone() });
+    measure(
+        "uint8[] 35 MB, serde_bytes",
+        &BulkBytes { data: data.clone() },
+    );
     measure("uint8[] 35 MB, plain Vec<u8>", &PlainBytes { data });
 }

@@ -71,23 +71,62 @@ fn comparable(mut r: Value) -> Value {
 #[test]
 fn rosbag2_directories_replay_to_the_single_file_report() {
     let d = tempfile::tempdir().unwrap();
-    let reference = comparable(replay(&root().join(SOURCE), &d.path().join("ref.json"), None));
+    let reference = comparable(replay(
+        &root().join(SOURCE),
+        &d.path().join("ref.json"),
+        None,
+    ));
     let variants: [(&str, &[&str]); 6] = [
         ("mcap1", &["--storage", "mcap"]),
-        ("mcap3_file", &["--storage", "mcap", "--splits", "3", "--compression", "file"]),
-        ("mcap2_msg", &["--storage", "mcap", "--splits", "2", "--compression", "message"]),
+        (
+            "mcap3_file",
+            &[
+                "--storage",
+                "mcap",
+                "--splits",
+                "3",
+                "--compression",
+                "file",
+            ],
+        ),
+        (
+            "mcap2_msg",
+            &[
+                "--storage",
+                "mcap",
+                "--splits",
+                "2",
+                "--compression",
+                "message",
+            ],
+        ),
         ("db2", &["--storage", "sqlite3", "--splits", "2"]),
         (
             "db3_msg_v8",
-            &["--storage", "sqlite3", "--splits", "3", "--compression", "message", "--version", "8"],
+            &[
+                "--storage",
+                "sqlite3",
+                "--splits",
+                "3",
+                "--compression",
+                "message",
+                "--version",
+                "8",
+            ],
         ),
-        ("db2_humble", &["--storage", "sqlite3", "--splits", "2", "--humble"]),
+        (
+            "db2_humble",
+            &["--storage", "sqlite3", "--splits", "2", "--humble"],
+        ),
     ];
     for (name, args) in variants {
         let dir = d.path().join(name);
         write_dir(&dir, args);
         let r = comparable(replay(&dir, &d.path().join(format!("{name}.json")), None));
-        assert_eq!(r, reference, "{name}: report differs from the single-file bag's");
+        assert_eq!(
+            r, reference,
+            "{name}: report differs from the single-file bag's"
+        );
     }
     // The split file given alone (an MCAP file) and the metadata.yaml path both work too.
     let alone = d.path().join("db2").join("db2_0.db3");
@@ -101,7 +140,11 @@ fn rosbag2_directories_replay_to_the_single_file_report() {
     assert_eq!(r, reference);
     // A directory whose metadata.yaml is lost (recording cut) is read from its files.
     std::fs::remove_file(d.path().join("db2").join("metadata.yaml")).unwrap();
-    let r = comparable(replay(&d.path().join("db2"), &d.path().join("nometa.json"), None));
+    let r = comparable(replay(
+        &d.path().join("db2"),
+        &d.path().join("nometa.json"),
+        None,
+    ));
     assert_eq!(r, reference, "without metadata.yaml");
 }
 
@@ -152,7 +195,10 @@ fn damaged_and_missing_split_files_are_reported_and_the_rest_is_read() {
         .unwrap();
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("metadata.yaml") && err.contains("not valid YAML"), "{err}");
+    assert!(
+        err.contains("metadata.yaml") && err.contains("not valid YAML"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -160,7 +206,11 @@ fn output_directories_are_read_by_rosbags_and_info() {
     let d = tempfile::tempdir().unwrap();
     let single = d.path().join("out.mcap");
     let dir = d.path().join("outdir/");
-    replay(&root().join(SOURCE), &d.path().join("a.json"), Some(&single));
+    replay(
+        &root().join(SOURCE),
+        &d.path().join("a.json"),
+        Some(&single),
+    );
     replay(&root().join(SOURCE), &d.path().join("b.json"), Some(&dir));
     assert!(dir.join("metadata.yaml").is_file());
     // rosbags' rosbag2 reader: the metadata's counts, and every message read.
@@ -250,6 +300,9 @@ fn info_names_the_bodies_and_their_timing() {
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("Bodies (VoxelGrid topics the suite reads): 4"), "{text}");
+    assert!(
+        text.contains("Bodies (VoxelGrid topics the suite reads): 4"),
+        "{text}"
+    );
     assert!(text.contains("16.00 Hz"), "{text}");
 }

@@ -240,7 +240,9 @@ impl Rosbag2Dir {
         let mut files = Vec::with_capacity(paths.len());
         for p in paths {
             let Some(p) = p.as_str() else {
-                return Err(bad("relative_file_paths holds a non-string entry".to_owned()));
+                return Err(bad(
+                    "relative_file_paths holds a non-string entry".to_owned()
+                ));
             };
             // Before version 4 the paths included the directory's own name; rosbag2 and
             // rosbags both take the file name alone.

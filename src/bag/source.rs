@@ -22,9 +22,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use super::error::BagError;
-use super::reader::{
-    BagChannel, BagMessage, BagReadOptions, BagSchema, McapReader, MAX_CHANNELS,
-};
+use super::reader::{BagChannel, BagMessage, BagReadOptions, BagSchema, McapReader, MAX_CHANNELS};
 use super::recovery::{BagLoss, LossKind, Recovery};
 use super::rosbag2::{storage_of, Compression, Rosbag2Dir, METADATA_FILE};
 use super::sqlite::{Db3Reader, SQLITE_MAGIC};
@@ -311,7 +309,9 @@ impl BagReader {
                 Some(p) => {
                     let r = p.part.recovery();
                     all_summaries &= r.summary_used;
-                    statistics = statistics.zip(r.statistics_message_count).map(|(a, b)| a + b);
+                    statistics = statistics
+                        .zip(r.statistics_message_count)
+                        .map(|(a, b)| a + b);
                     for c in p.part.channels() {
                         let schema = p.part.schema_of(c.id);
                         reader.merge_channel(&c.topic, &c.message_encoding, schema.as_deref());
@@ -371,7 +371,10 @@ impl BagReader {
         if self.single {
             return self.current.as_ref()?.part.schema_of(id);
         }
-        self.merged.get(usize::from(id).checked_sub(1)?)?.schema.clone()
+        self.merged
+            .get(usize::from(id).checked_sub(1)?)?
+            .schema
+            .clone()
     }
 
     /// The merged id of a channel (registering it); `None` if it is refused by
@@ -396,12 +399,7 @@ impl BagReader {
             return None;
         }
         let id = self.merged.len() as u16 + 1;
-        let schema = schema.map(|s| {
-            Arc::new(BagSchema {
-                id,
-                ..s.clone()
-            })
-        });
+        let schema = schema.map(|s| Arc::new(BagSchema { id, ..s.clone() }));
         self.merged.push(Merged {
             channel: BagChannel {
                 id,
@@ -446,7 +444,8 @@ impl BagReader {
                         topics: Default::default(),
                     });
                     self.total = self.base.clone();
-                    self.pending.push_back(BagError::SplitFile { path: file, reason });
+                    self.pending
+                        .push_back(BagError::SplitFile { path: file, reason });
                 }
             }
         }
@@ -703,7 +702,10 @@ fn open_file(path: &Path, options: &BagReadOptions) -> Result<(OpenPart, BagLayo
         ));
     }
     if !head.starts_with(&MAGIC) {
-        let name = path.file_name().and_then(|n| n.to_str()).unwrap_or_default();
+        let name = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .unwrap_or_default();
         if storage_of(name).is_none() && n > 0 {
             return Err(BagError::NotMcap {
                 path: path.to_path_buf(),
@@ -761,8 +763,8 @@ fn decompress_file(path: &Path, limit: u64) -> Result<tempfile::NamedTempFile, B
     let decoder = zstd::stream::read::Decoder::new(std::io::BufReader::new(input))
         .map_err(|e| fail(e.to_string()))?;
     let mut limited = decoder.take(limit.saturating_add(1));
-    let copied = std::io::copy(&mut limited, temp.as_file_mut())
-        .map_err(|e| fail(e.to_string()))?;
+    let copied =
+        std::io::copy(&mut limited, temp.as_file_mut()).map_err(|e| fail(e.to_string()))?;
     if copied > limit {
         return Err(fail(format!(
             "it decompresses to more than the reader's limit of {limit} bytes \
@@ -777,9 +779,8 @@ fn decompress_file(path: &Path, limit: u64) -> Result<tempfile::NamedTempFile, B
 
 /// Decompresses one message's data (a zstd frame), at most `limit` bytes.
 fn decompress_message(data: &[u8], limit: usize) -> Result<Vec<u8>, String> {
-    let declared = zstd::zstd_safe::get_frame_content_size(data).map_err(|_| {
-        "it is not a zstd frame".to_owned()
-    })?;
+    let declared = zstd::zstd_safe::get_frame_content_size(data)
+        .map_err(|_| "it is not a zstd frame".to_owned())?;
     if let Some(size) = declared {
         if size > limit as u64 {
             return Err(format!(

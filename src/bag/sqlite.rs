@@ -243,23 +243,24 @@ impl Db3Reader {
             let topic_id: i64 = row.get(1)?;
             let timestamp: i64 = row.get(2)?;
             let len: i64 = row.get::<_, Option<i64>>(3)?.unwrap_or(0);
-            let mut lose = |kind: LossKind, reason: String, topic: Option<&str>, at: Option<u64>| {
-                recovery.push(BagLoss {
-                    offset: id.max(0) as u64,
-                    bytes: None,
-                    kind,
-                    reason: format!("message row {id}: {reason}"),
-                    messages: Some(1),
-                    start_ns: at,
-                    end_ns: at,
-                    topics: topic.into_iter().map(|t| (t.to_owned(), 1)).collect(),
-                });
-                BagError::BadRow {
-                    path: path.clone(),
-                    row: id,
-                    reason,
-                }
-            };
+            let mut lose =
+                |kind: LossKind, reason: String, topic: Option<&str>, at: Option<u64>| {
+                    recovery.push(BagLoss {
+                        offset: id.max(0) as u64,
+                        bytes: None,
+                        kind,
+                        reason: format!("message row {id}: {reason}"),
+                        messages: Some(1),
+                        start_ns: at,
+                        end_ns: at,
+                        topics: topic.into_iter().map(|t| (t.to_owned(), 1)).collect(),
+                    });
+                    BagError::BadRow {
+                        path: path.clone(),
+                        row: id,
+                        reason,
+                    }
+                };
             let item = if let Some(name) = refused.get(&topic_id) {
                 let reason = format!(
                     "topic {name} is beyond the limit of MAX_CHANNELS = {MAX_CHANNELS} topics \
@@ -269,7 +270,12 @@ impl Db3Reader {
             } else if let Some(t) = topics.get(&topic_id) {
                 if timestamp < 0 {
                     let reason = format!("its timestamp {timestamp} ns is before 1970");
-                    Err(lose(LossKind::MalformedRecord, reason, Some(&t.topic), None))
+                    Err(lose(
+                        LossKind::MalformedRecord,
+                        reason,
+                        Some(&t.topic),
+                        None,
+                    ))
                 } else if len as u64 > *limit as u64 {
                     let reason = format!(
                         "its data is {len} bytes, more than the reader's limit of {limit} bytes"
@@ -386,10 +392,21 @@ mod tests {
             .filter_map(|i| i.as_ref().err().map(|e| e.to_string()))
             .collect();
         assert_eq!(errs.len(), 3, "{errs:?}");
-        assert!(errs[0].contains("row 2") && errs[0].contains("topic_id 7"), "{errs:?}");
-        assert!(errs[1].contains("row 3") && errs[1].contains("before 1970"), "{errs:?}");
-        assert!(errs[2].contains("row 4") && errs[2].contains("limit of 64"), "{errs:?}");
-        assert!(items.iter().all(|i| i.as_ref().err().is_none_or(|e| !e.is_fatal())));
+        assert!(
+            errs[0].contains("row 2") && errs[0].contains("topic_id 7"),
+            "{errs:?}"
+        );
+        assert!(
+            errs[1].contains("row 3") && errs[1].contains("before 1970"),
+            "{errs:?}"
+        );
+        assert!(
+            errs[2].contains("row 4") && errs[2].contains("limit of 64"),
+            "{errs:?}"
+        );
+        assert!(items
+            .iter()
+            .all(|i| i.as_ref().err().is_none_or(|e| !e.is_fatal())));
     }
 
     #[test]

@@ -332,4 +332,3 @@ pub(crate) fn origin_offset(a: &[f64; 3], b: &[f64; 3], res: f64) -> Result<[i64
     }
     Ok(out)
 }
-

@@ -38,8 +38,8 @@ pub mod window;
 #[allow(unused_imports)]
 use {lattice::*, normals::*, walk::*};
 
-pub use lattice::{mapped_tet_inside, CommonLattice, Placement};
 pub(crate) use lattice::origin_offset;
+pub use lattice::{mapped_tet_inside, CommonLattice, Placement};
 pub(crate) use normals::{t_range, tet_normal, tet_of};
 pub use walk::{
     check_pair, check_pair_detailed, check_pair_walked, interferes, merge_ranges, CrossingPair,
@@ -185,4 +185,3 @@ impl Prepared {
         Some(placement.body)
     }
 }
-

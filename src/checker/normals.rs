@@ -179,4 +179,3 @@ pub(super) fn straddles(s: &[i8; 4]) -> bool {
     );
     hi > 0 && lo < 0
 }
-

@@ -212,4 +212,3 @@ pub enum Resolution {
         episode_s: [f64; 2],
     },
 }
-

@@ -101,7 +101,12 @@ pub fn check_pair_walked(a: &Prepared, b: &Prepared, walked: StreamWalk) -> Pair
 }
 
 /// The labels and the rest of a [`PairResult`] after the walk (`all`, started at `start`).
-pub(super) fn finish_pair(a: &Prepared, b: &Prepared, all: Part, start: std::time::Instant) -> PairResult {
+pub(super) fn finish_pair(
+    a: &Prepared,
+    b: &Prepared,
+    all: Part,
+    start: std::time::Instant,
+) -> PairResult {
     let mut r = PairResult {
         candidate_pairs: all.candidate_pairs,
         interfering_pairs: all.interfering_pairs,

@@ -227,7 +227,10 @@ impl BodyAcc {
         v.sort_unstable();
         let m = v[v.len() / 2];
         self.median = Some(m);
-        self.gaps += v.iter().filter(|&&d| d as f64 > GAP_FACTOR * m as f64).count() as u64;
+        self.gaps += v
+            .iter()
+            .filter(|&&d| d as f64 > GAP_FACTOR * m as f64)
+            .count() as u64;
     }
 }
 
@@ -334,8 +337,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
                 return None;
             }
             Some(
-                match crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
-                {
+                match crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding) {
                     Some(reason) => Err(reason),
                     None => Ok(()),
                 },
@@ -431,7 +433,11 @@ pub fn text(i: &BagInfo) -> String {
     let mut line = |k: &str, v: String| o.push_str(&format!("{k:<14}{v}\n"));
     let mut kind = i.kind.clone();
     if i.kind == "rosbag2 directory" {
-        kind.push_str(&format!(", {} storage, {} split file(s)", i.storage, i.files.len()));
+        kind.push_str(&format!(
+            ", {} storage, {} split file(s)",
+            i.storage,
+            i.files.len()
+        ));
         if let Some(v) = i.metadata_version {
             kind.push_str(&format!(", metadata version {v}"));
         }
@@ -467,7 +473,12 @@ pub fn text(i: &BagInfo) -> String {
     line("Messages:", count);
     o.push_str("Topics:\n");
     let w = i.topics.iter().map(|t| t.topic.len()).max().unwrap_or(0);
-    let tw = i.topics.iter().map(|t| t.type_name.len()).max().unwrap_or(0);
+    let tw = i
+        .topics
+        .iter()
+        .map(|t| t.type_name.len())
+        .max()
+        .unwrap_or(0);
     for t in &i.topics {
         let rate = t
             .rate_hz
@@ -498,7 +509,11 @@ pub fn text(i: &BagInfo) -> String {
             .map(|s| format!("{}x{}x{}", s[0], s[1], s[2]))
             .collect();
         let res: Vec<String> = b.resolutions.iter().map(|r| format!("{r} m")).collect();
-        let enc: Vec<String> = b.encodings.iter().map(|(k, n)| format!("{k} {n}")).collect();
+        let enc: Vec<String> = b
+            .encodings
+            .iter()
+            .map(|(k, n)| format!("{k} {n}"))
+            .collect();
         o.push_str(&format!("  {}\n", b.topic));
         o.push_str(&format!(
             "    frames {} ({} undecodable); grid {} at {}; encoding {}; frame_id {}\n",
@@ -520,7 +535,10 @@ pub fn text(i: &BagInfo) -> String {
             }
             timing.push_str(&format!("; gaps over {GAP_FACTOR} periods: {}", b.gaps));
             if let (Some((d, at)), true) = (b.longest_gap, b.gaps > 0) {
-                timing.push_str(&format!(" (longest {:.1} ms, ending at {at:.3} s)", d * 1e3));
+                timing.push_str(&format!(
+                    " (longest {:.1} ms, ending at {at:.3} s)",
+                    d * 1e3
+                ));
             }
             if b.out_of_order > 0 {
                 timing.push_str(&format!("; {} stamps not increasing", b.out_of_order));
@@ -532,7 +550,10 @@ pub fn text(i: &BagInfo) -> String {
     if !i.refused.is_empty() {
         o.push_str("Refused topics:\n");
         for r in &i.refused {
-            o.push_str(&format!("  {} ({} messages): {}\n", r.topic, r.messages, r.reason));
+            o.push_str(&format!(
+                "  {} ({} messages): {}\n",
+                r.topic, r.messages, r.reason
+            ));
         }
     }
     if i.recovery.is_clean() && i.errors.is_empty() {

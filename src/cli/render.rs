@@ -172,7 +172,9 @@ pub fn render(a: &RenderArgs) -> Result<(i64, usize), CliError> {
         }
     })?;
     if over {
-        tracing::warn!("more than MAX_TRIANGLES = {MAX_TRIANGLES} triangles: the rest is not drawn");
+        tracing::warn!(
+            "more than MAX_TRIANGLES = {MAX_TRIANGLES} triangles: the rest is not drawn"
+        );
     }
     let img = rasterise(&tris, a.size, a.view);
     write_png(&a.out, a.size, &img)?;
@@ -213,7 +215,9 @@ fn rasterise(tris: &[Tri], size: u32, view: View) -> Vec<u8> {
     let basis = view_basis(view);
     let proj: Vec<[[f64; 3]; 3]> = tris
         .iter()
-        .map(|t| t.p.map(|p| [dot(&basis[0], &p), dot(&basis[1], &p), dot(&basis[2], &p)]))
+        .map(|t| {
+            t.p.map(|p| [dot(&basis[0], &p), dot(&basis[1], &p), dot(&basis[2], &p)])
+        })
         .collect();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
     for q in proj.iter().flatten() {
@@ -257,11 +261,33 @@ fn rasterise(tris: &[Tri], size: u32, view: View) -> Vec<u8> {
         ];
         let nl = dot(&normal, &normal).sqrt().max(1e-300);
         let shade = 0.35 + 0.65 * (normal[2] / nl).abs();
-        let colour = t.rgb.map(|c| ((c * shade).clamp(0.0, 1.0) * 255.0).round() as u8);
-        let x0 = v.iter().map(|p| p[0]).fold(f64::INFINITY, f64::min).floor().max(0.0) as usize;
-        let x1 = v.iter().map(|p| p[0]).fold(f64::NEG_INFINITY, f64::max).ceil().min(n as f64 - 1.0) as usize;
-        let y0 = v.iter().map(|p| p[1]).fold(f64::INFINITY, f64::min).floor().max(0.0) as usize;
-        let y1 = v.iter().map(|p| p[1]).fold(f64::NEG_INFINITY, f64::max).ceil().min(n as f64 - 1.0) as usize;
+        let colour = t
+            .rgb
+            .map(|c| ((c * shade).clamp(0.0, 1.0) * 255.0).round() as u8);
+        let x0 = v
+            .iter()
+            .map(|p| p[0])
+            .fold(f64::INFINITY, f64::min)
+            .floor()
+            .max(0.0) as usize;
+        let x1 = v
+            .iter()
+            .map(|p| p[0])
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil()
+            .min(n as f64 - 1.0) as usize;
+        let y0 = v
+            .iter()
+            .map(|p| p[1])
+            .fold(f64::INFINITY, f64::min)
+            .floor()
+            .max(0.0) as usize;
+        let y1 = v
+            .iter()
+            .map(|p| p[1])
+            .fold(f64::NEG_INFINITY, f64::max)
+            .ceil()
+            .min(n as f64 - 1.0) as usize;
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let (px, py) = (x as f64 + 0.5, y as f64 + 0.5);
@@ -295,9 +321,8 @@ fn write_png(path: &std::path::Path, size: u32, rgb: &[u8]) -> Result<(), CliErr
     let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size, size);
     enc.set_color(png::ColorType::Rgb);
     enc.set_depth(png::BitDepth::Eight);
-    let png_err = |e: png::EncodingError| {
-        io(std::io::Error::other(format!("cannot write the PNG: {e}")))
-    };
+    let png_err =
+        |e: png::EncodingError| io(std::io::Error::other(format!("cannot write the PNG: {e}")));
     let mut w = enc.write_header().map_err(png_err)?;
     w.write_image_data(rgb).map_err(png_err)?;
     w.finish().map_err(png_err)
@@ -337,7 +362,11 @@ mod tests {
         // Near the origin corner (bottom left): the near, red one.
         assert!(px(6, 57)[0] > 200 && px(6, 57)[2] < 50, "{:?}", px(6, 57));
         // Further along x, only the far, blue one.
-        assert!(px(45, 57)[2] > 200 && px(45, 57)[0] < 50, "{:?}", px(45, 57));
+        assert!(
+            px(45, 57)[2] > 200 && px(45, 57)[0] < 50,
+            "{:?}",
+            px(45, 57)
+        );
         // Beyond the hypotenuse: background.
         assert_eq!(px(60, 4), &[255, 255, 255]);
     }

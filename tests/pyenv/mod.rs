@@ -27,4 +27,5 @@ pub fn python() -> Command {
 }
 
 /// What to do when the interpreter or a package is missing.
-pub const INSTALL_HINT: &str = "run `python3 tests/py/setup_env.py` (the README's test command does)";
+pub const INSTALL_HINT: &str =
+    "run `python3 tests/py/setup_env.py` (the README's test command does)";

@@ -1,0 +1,1150 @@
+//! The rolling checker: the planned pairs of bodies checked frame period by frame period as
+//! their mesh pieces arrive, with memory bounded by a window instead of the history.
+//!
+//! Each body's stream comes as the mesher's pieces (first cap, one lateral slab per frame
+//! period, last cap) and, for the overlap measure and the windows' artificial caps, its
+//! decoded frames. For each pair, the frame period starting at stamp `s` is checked as soon
+//! as both bodies' slabs for it are in, with what follows each of them (the next slab, or
+//! the last cap): see [`window`](super::window) for why one slab closed by two caps gives
+//! exactly the labels and crossings of the full check. What a period gives (labels of its
+//! tets, ranges of overlap, crossing pairs) is folded into the pair's running answer:
+//! label counts, intervals (merged exactly as the full check merges them), closing speeds
+//! at each interval's ends (from the crossings within one frame period of the end), and
+//! the overlap hypervolume (the intersection of the two bodies' frames, meshed by its own
+//! rolling mesher). Then the period's pieces and frames are dropped, unless a later window
+//! or a resolution horizon still needs them.
+//!
+//! **Streams.** A period is decided once it is known what both bodies have there. A body
+//! that has not started yet, or whose stream stopped, has nothing there: the other body's
+//! slab is labelled OUTSIDE against it. A body that is merely behind is waited for, up to
+//! [`RollingConfig::max_lead_frames`] slabs of the other; then the other's slab is decided
+//! without it, and its late pieces for that time are refused by the pair (counted, with the
+//! time span). Stamps that do not line up between two bodies (frames of one body falling
+//! between the other's) stop that pair with a problem; every other pair goes on.
+//!
+//! **Memory.** Per body: the slabs not yet decided by every pair (at most
+//! `max_lead_frames` ahead of the slowest partner), [`CONTEXT_SLABS`] behind them, the
+//! slabs of the resolution horizon, and the decoded frames at their stamps. Per pair: the
+//! crossings of the last two periods and the intervals found (the report's answer).
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::bounds;
+use super::labels::{Label, LabelCounts};
+
+use super::window::{
+    check_window, prepare_window, PreparedWindow, TakenLabels, WindowBody, WindowResult,
+};
+use super::{check_pair, CommonLattice, PairResult};
+use super::{origin_offset, CHECKER_FACTOR};
+use crate::checker::pipeline::{resolve, CheckPlan};
+use crate::checker::report::{BodyReport, PairLabels, PairReport, Report, Resolution, Timings};
+use crate::kernel::float::tet_normal as float_normal;
+use crate::mesh::glue::BodyMesh;
+use crate::mesh::march::Welder;
+use crate::mesh::stats::{LateralRef, StatsAccumulator};
+use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
+
+mod episodes;
+mod report;
+mod windows;
+
+#[allow(unused_imports)]
+use {report::*, windows::*};
+
+/// Slabs kept behind the oldest undecided one, for windows that reach one slab further
+/// (another body's real cap in their time plane).
+pub const CONTEXT_SLABS: usize = 1;
+
+/// After this many frame periods the pair's time coordinates start again at the current
+/// period (they must stay within the exact predicates' range).
+const REBASE_FRAMES: i64 = 1 << 16;
+
+/// Limits and switches of the rolling checker.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RollingConfig {
+    /// Slabs one body may run ahead of a pair partner that has nothing there yet before
+    /// they are decided without it.
+    pub max_lead_frames: usize,
+    /// Report each slab's labels ([`RollOut::Labels`]).
+    pub labels: bool,
+    /// Report each slab when every pair has labelled it ([`RollOut::SlabDone`], for
+    /// markers).
+    pub slabs_done: bool,
+    /// Most intervals kept per pair in the report (older ones are dropped and counted).
+    pub max_intervals: usize,
+    /// Time (s) on each side of a contact episode that its resolutions are checked over;
+    /// contacts closer than twice this are one episode.
+    pub horizon_s: f64,
+    /// A contact episode longer than this (s) is resolved over its first this many
+    /// seconds, and what follows is a new episode.
+    pub max_episode_s: f64,
+    /// Most resolutions kept in the report (older ones are dropped and counted).
+    pub max_resolutions: usize,
+    /// Most tets of lateral slabs kept for resolutions alone (all bodies together): older
+    /// slabs are dropped first, and an episode is then resolved over the horizon that is
+    /// left (said as a problem, `resolution_horizon_cut`).
+    pub max_horizon_tets: usize,
+    /// Most bytes of decoded frames kept per body (for overlaps and resolution caps).
+    pub max_frame_bytes: u64,
+}
+
+impl Default for RollingConfig {
+    fn default() -> Self {
+        Self {
+            max_lead_frames: 64,
+            labels: true,
+            slabs_done: false,
+            max_intervals: 4096,
+            horizon_s: 1.0,
+            max_episode_s: 4.0,
+            max_resolutions: 1024,
+            max_horizon_tets: 1_500_000,
+            max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
+        }
+    }
+}
+
+/// Which piece of a body's mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PieceKind {
+    /// Closes the body at its first frame.
+    CapStart,
+    /// Tets between frames `index` and `index + 1`.
+    Lateral,
+    /// Closes the body at its last frame.
+    CapEnd,
+}
+
+/// One mesh piece of a body, as the mesher sent it.
+#[derive(Debug, Clone)]
+pub struct PieceIn {
+    /// Body id.
+    pub body: String,
+    /// Which piece.
+    pub kind: PieceKind,
+    /// Frame index (a slab: its earlier frame).
+    pub index: u32,
+    /// Stamps of its frames (a cap: twice its frame's).
+    pub stamps_ns: (i64, i64),
+    /// The body's lattice.
+    pub geometry: GridGeometry,
+    /// Occupied voxels of the later frame (a cap: of its frame).
+    pub occupied: u64,
+    /// The body vanishes between the slab's frames.
+    pub vanishes: bool,
+    /// The tets, in the body's lattice.
+    pub mesh: Arc<TetMesh>,
+    /// The body's `header.frame_id`: bodies in different frames are not compared.
+    pub frame_id: String,
+}
+
+/// A slab's labels against one other body.
+#[derive(Debug, Clone)]
+pub struct SlabLabels {
+    /// The labelled body.
+    pub body: String,
+    /// The body they are labelled against.
+    pub other: String,
+    /// The slab's frame index in the body's stream.
+    pub index: u32,
+    /// Stamps of the slab's frames.
+    pub stamps_ns: (i64, i64),
+    /// The labels start with the body's first cap.
+    pub with_cap_start: bool,
+    /// The labels end with the body's last cap.
+    pub with_cap_end: bool,
+    /// One label per tet (first cap, slab, last cap), [`Label`] as `u8`.
+    pub labels: Vec<u8>,
+    /// Counts of `labels`.
+    pub counts: LabelCounts,
+}
+
+/// A slab that every pair of its body has labelled: its tets with the strongest label of
+/// each over the pairs.
+#[derive(Debug, Clone)]
+pub struct SlabDone {
+    /// The body.
+    pub body: String,
+    /// Frame index of the slab's earlier frame.
+    pub index: u32,
+    /// Stamps of its frames.
+    pub stamps_ns: (i64, i64),
+    /// The body's lattice.
+    pub geometry: GridGeometry,
+    /// The slab's tets (body lattice).
+    pub mesh: Arc<TetMesh>,
+    /// Strongest label of each tet over the pairs ([`Label`] as `u8`).
+    pub worst: Vec<u8>,
+}
+
+/// What happened to a contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactPhase {
+    /// A new contact: its interval so far.
+    Begin,
+    /// It went on through another frame period.
+    Ongoing,
+    /// It ended: its interval is final.
+    End,
+}
+
+/// A contact of a pair, as it is found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactUpdate {
+    /// First body (ids in sorted order).
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// Begin, ongoing or end.
+    pub phase: ContactPhase,
+    /// The contact's place among the pair's contacts (0, 1, ...).
+    pub index: u64,
+    /// Interval start (s since the time origin).
+    pub start_s: f64,
+    /// Interval end so far (s).
+    pub end_s: f64,
+    /// Bound on the start's error (s), once the crossings after the start are in.
+    pub start_bound_s: Option<f64>,
+    /// Bound on the end's error (s), at the end.
+    pub end_bound_s: Option<f64>,
+    /// Stamp of the later frame of the period that found or extended it (ns).
+    pub stamp_ns: i64,
+}
+
+/// What the rolling checker gives as the streams go on.
+#[derive(Debug, Clone)]
+pub enum RollOut {
+    /// A slab's labels against one other body.
+    Labels(SlabLabels),
+    /// A slab labelled by every pair.
+    SlabDone(SlabDone),
+    /// A contact began, went on or ended.
+    Contact(ContactUpdate),
+    /// A contact episode of a movable body was resolved (the report's resolutions grew).
+    Resolved,
+    /// Something in the input was wrong or lost (kind, text).
+    Problem(&'static str, String),
+}
+
+#[derive(Debug)]
+struct RSlab {
+    run: u64,
+    index: u32,
+    hi: i64,
+    mesh: Arc<TetMesh>,
+    /// Number of the slab's first tet in the body's run (first cap, slabs, last cap).
+    first_tet: u64,
+    /// Strongest label per tet over the pairs so far (if slabs are reported).
+    worst: Vec<u8>,
+}
+
+#[derive(Debug)]
+struct Run {
+    id: u64,
+    geometry: GridGeometry,
+    first_stamp: i64,
+    first_cap: Arc<TetMesh>,
+    first_occupied: u64,
+    /// Stamp of the latest frame (the last slab's upper one).
+    frontier: i64,
+    next_index: u32,
+    /// The closing cap came (stamp, cap), or the run was closed without one.
+    end: Option<RunEnd>,
+    tets: u64,
+    acc: StatsAccumulator,
+    /// The run's statistics, once it ended.
+    stats: Option<crate::mesh::stats::BodyStats>,
+}
+
+impl Run {
+    /// The run's figures without its meshes (for the report).
+    fn clone_summary(&self) -> Run {
+        Run {
+            id: self.id,
+            geometry: self.geometry,
+            first_stamp: self.first_stamp,
+            first_cap: self.first_cap.clone(),
+            first_occupied: self.first_occupied,
+            frontier: self.frontier,
+            next_index: self.next_index,
+            end: self.end.clone(),
+            tets: self.tets,
+            acc: StatsAccumulator::new(),
+            stats: self.stats.clone(),
+        }
+    }
+
+    /// Ends the run at its latest frame, with its closing cap if one came.
+    fn close(&mut self, cap: Option<(Arc<TetMesh>, u64)>) {
+        if self.end.is_some() {
+            return;
+        }
+        let acc = std::mem::take(&mut self.acc);
+        let last = cap.as_ref().map(|(c, o)| (c.as_ref(), *o));
+        let frames = u64::from(self.next_index) + 1;
+        self.stats = Some(acc.finish(
+            frames,
+            Some((self.first_cap.as_ref(), self.first_occupied)),
+            last,
+        ));
+        self.end = Some((self.frontier, cap));
+    }
+
+    fn ended(&self) -> bool {
+        self.end.is_some()
+    }
+    fn last_cap_at(&self, stamp: i64) -> Option<&Arc<TetMesh>> {
+        match &self.end {
+            Some((s, Some((cap, _)))) if *s == stamp => Some(cap),
+            _ => None,
+        }
+    }
+}
+
+/// Cumulative figures of a body's finished runs.
+#[derive(Debug, Default, Clone)]
+struct Totals {
+    frames: u64,
+    tets: u64,
+    vertices: u64,
+    hypervolume_m3s: f64,
+    vanishing: u64,
+    closed: bool,
+    runs: u64,
+}
+
+/// How a run ended: the stamp of its last frame, and its last cap with its occupied voxels
+/// (`None`: closed without one).
+type RunEnd = (i64, Option<(Arc<TetMesh>, u64)>);
+
+#[derive(Debug, Default)]
+struct BodyStream {
+    runs: Vec<Run>,
+    next_run: u64,
+    slabs: BTreeMap<i64, RSlab>,
+    frames: BTreeMap<i64, KeptGrid>,
+    totals: Totals,
+    /// The lattice of its latest stream.
+    geometry: Option<GridGeometry>,
+    joined_late: bool,
+    /// Pairs it is in.
+    pairs: usize,
+    /// End stamp of the latest slab dropped for `max_horizon_tets` (0: none).
+    horizon_cut_until: i64,
+    /// `header.frame_id` of its latest piece.
+    frame_id: String,
+}
+
+/// Default of [`RollingConfig::max_frame_bytes`]: 1 GiB of decoded frames per body.
+pub const DEFAULT_MAX_FRAME_BYTES: u64 = 1 << 30;
+
+/// A decoded frame of a body and the lattice it came on.
+#[derive(Debug, Clone)]
+struct KeptGrid {
+    geometry: GridGeometry,
+    grid: Arc<OccupancyGrid>,
+}
+
+impl BodyStream {
+    /// The body's frame at `stamp` on lattice `g`, as its mesher accepted it: the frame
+    /// received there if it is on `g`; otherwise (a frame the mesher filled in, the received
+    /// one refused) the union of the nearest frames on `g` around it, which is what the mesher
+    /// filled the gap with.
+    fn frame_at(&self, stamp: i64, g: &GridGeometry) -> Option<Arc<OccupancyGrid>> {
+        if let Some(k) = self.frames.get(&stamp) {
+            if k.geometry == *g {
+                return Some(k.grid.clone());
+            }
+        }
+        let below = self
+            .frames
+            .range(..stamp)
+            .rev()
+            .find(|(_, k)| k.geometry == *g)?;
+        let above = self
+            .frames
+            .range(stamp + 1..)
+            .find(|(_, k)| k.geometry == *g)?;
+        below.1.grid.union(&above.1.grid).map(Arc::new)
+    }
+
+    fn current(&self) -> Option<&Run> {
+        self.runs.last()
+    }
+    fn run(&self, id: u64) -> Option<&Run> {
+        self.runs.iter().find(|r| r.id == id)
+    }
+    /// What the body has at stamp `s`: a slab, nothing for sure, or not known yet.
+    fn status(&self, s: i64, finishing: bool) -> Status {
+        if self.slabs.contains_key(&s) {
+            return Status::Has;
+        }
+        for r in self.runs.iter().rev() {
+            if s >= r.first_stamp && s < r.frontier {
+                return Status::Mismatch;
+            }
+        }
+        match self.current() {
+            Some(r) if !r.ended() && s >= r.frontier && !finishing => Status::Maybe,
+            Some(r) if r.ended() && s >= r.frontier && !finishing => Status::Maybe,
+            None if !finishing => Status::Maybe,
+            _ => Status::Never,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Status {
+    Has,
+    Never,
+    Maybe,
+    Mismatch,
+}
+
+/// A crossing kept for the closing speeds: checker times, tets (body run numbers), normals.
+#[derive(Debug, Clone, Copy)]
+struct Record {
+    t: (f64, f64),
+    tets: (u64, u64),
+    normals: ([f64; 4], [f64; 4]),
+}
+
+#[derive(Debug, Clone)]
+struct Interval {
+    /// Checker times (pair base).
+    t: (f64, f64),
+    /// Seconds since the origin.
+    s: (f64, f64),
+    /// Closing speeds at start and end (voxels per frame period), once known.
+    speeds: (Option<Option<f64>>, Option<Option<f64>>),
+    /// Frame periods (s) at start and end.
+    periods: (f64, f64),
+    index: u64,
+}
+
+#[derive(Debug, Default)]
+struct Overlap {
+    /// Overlap and bound of the runs of periods closed by a gap (see `overlap_push`).
+    closed: (f64, f64),
+    mesher: Option<Mesher>,
+    acc: StatsAccumulator,
+    first_cap: Option<TetMesh>,
+    sums: (f64, f64),
+    last_pushed: Option<i64>,
+    stamps: (i64, i64, u64),
+    unknown: bool,
+    geometry: Option<GridGeometry>,
+}
+
+#[derive(Debug)]
+struct PairRoll {
+    a: String,
+    b: String,
+    /// Stamp of the next period to decide.
+    next: Option<i64>,
+    /// Common frame index of `next`, and of the time origin of the checker coordinates.
+    index: i64,
+    base: i64,
+    /// Stamps of recent common frame indices.
+    stamps: BTreeMap<i64, i64>,
+    counts: (LabelCounts, LabelCounts),
+    candidates: u64,
+    crossings: u64,
+    intervals: VecDeque<Interval>,
+    dropped_intervals: u64,
+    open: Option<Interval>,
+    contacts: u64,
+    records: VecDeque<Record>,
+    overlap: Overlap,
+    stopped: Option<String>,
+    /// Steps per frame period of the pair's lattice (0 until the first window).
+    per: i64,
+    /// Spent any window: the pair is in the report.
+    checked: bool,
+    undecided: u64,
+    /// Said once per absence that the partner is late.
+    partner_absent: bool,
+}
+
+/// The rolling checker of a set of pairs.
+#[derive(Debug)]
+pub struct RollingChecker {
+    cfg: RollingConfig,
+    opts: MesherOptions,
+    plan: CheckPlan,
+    bodies: BTreeMap<String, BodyStream>,
+    pairs: Vec<PairRoll>,
+    origin_ns: Option<i64>,
+    union: UnionStamps,
+    finishing: bool,
+    /// Problems for the report.
+    problems: Vec<String>,
+    dropped_problems: u64,
+    /// Per movable body: contacts ending before this (s) are resolved.
+    resolved_until: BTreeMap<String, f64>,
+    resolutions: VecDeque<Resolution>,
+    dropped_resolutions: u64,
+    /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
+    prefetched: Vec<Prefetched>,
+    /// Per body, its latest prepared window (one per body at most): a body in several pairs
+    /// has the same window in each, prepared once.
+    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+    /// The lateral piece just accepted still has to be added to its run's statistics
+    /// (run id, and the run's first cap if the piece is its first slab): done while the
+    /// windows it makes ready are checked.
+    pending_stats: Option<(u64, Option<Arc<TetMesh>>)>,
+}
+
+/// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
+/// a pump starts are checked at once on rayon's pool, then taken in pair order by the
+/// sequential steps. A step uses one only if the window it builds is the same (same
+/// pieces, caps and placement); otherwise it checks its own, so the answer never depends
+/// on what was checked ahead, nor on the thread count.
+#[derive(Debug)]
+struct Prefetched {
+    pair: usize,
+    s: i64,
+    specs: (WindowSpec, WindowSpec),
+    result: WindowChecked,
+}
+
+/// Distinct frame stamps over the checked bodies: first, last and how many.
+#[derive(Debug, Default)]
+struct UnionStamps {
+    recent: BTreeSet<i64>,
+    first: Option<i64>,
+    last: Option<i64>,
+    count: u64,
+}
+
+impl UnionStamps {
+    fn add(&mut self, s: i64) {
+        if self.recent.insert(s) {
+            self.count += 1;
+            self.first = Some(self.first.map_or(s, |f| f.min(s)));
+            self.last = Some(self.last.map_or(s, |l| l.max(s)));
+            while self.recent.len() > 4096 {
+                self.recent.pop_first();
+            }
+        }
+    }
+    /// Mean frame period (s), as the full check's common lattice gives it.
+    fn period_s(&self) -> Option<f64> {
+        let (f, l) = (self.first?, self.last?);
+        (self.count >= 2).then(|| (l - f) as f64 * 1e-9 / (self.count - 1) as f64)
+    }
+}
+
+/// Problems kept for the report.
+const KEPT_PROBLEMS: usize = 256;
+
+impl RollingChecker {
+    /// A checker of the plan's pairs (`plan.pairs` must name them).
+    pub fn new(plan: CheckPlan, opts: MesherOptions, cfg: RollingConfig) -> Self {
+        let plan_copy = plan.clone();
+        let mut pairs: Vec<(String, String)> = plan
+            .pairs
+            .clone()
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|(a, b)| a != b)
+            .map(|(a, b)| if a < b { (a, b) } else { (b, a) })
+            .collect();
+        pairs.sort();
+        pairs.dedup();
+        let mut bodies: BTreeMap<String, BodyStream> = BTreeMap::new();
+        for (a, b) in &pairs {
+            bodies.entry(a.clone()).or_default().pairs += 1;
+            bodies.entry(b.clone()).or_default().pairs += 1;
+        }
+        Self {
+            cfg,
+            opts,
+            plan,
+            bodies,
+            pairs: pairs
+                .into_iter()
+                .map(|(a, b)| PairRoll {
+                    a,
+                    b,
+                    next: None,
+                    index: 0,
+                    base: 0,
+                    stamps: BTreeMap::new(),
+                    counts: Default::default(),
+                    candidates: 0,
+                    crossings: 0,
+                    intervals: VecDeque::new(),
+                    dropped_intervals: 0,
+                    open: None,
+                    contacts: 0,
+                    records: VecDeque::new(),
+                    overlap: Overlap::default(),
+                    stopped: None,
+                    per: 0,
+                    checked: false,
+                    undecided: 0,
+                    partner_absent: false,
+                })
+                .collect(),
+            origin_ns: None,
+            union: UnionStamps::default(),
+            finishing: false,
+            problems: Vec::new(),
+            dropped_problems: 0,
+            resolved_until: plan_movable(&plan_copy),
+            resolutions: VecDeque::new(),
+            dropped_resolutions: 0,
+            prefetched: Vec::new(),
+            prepared: BTreeMap::new(),
+            pending_stats: None,
+        }
+    }
+
+    /// The bodies of the checked pairs.
+    pub fn bodies(&self) -> impl Iterator<Item = &str> {
+        self.bodies.keys().map(String::as_str)
+    }
+
+    fn problem(&mut self, out: &mut Vec<RollOut>, kind: &'static str, text: String) {
+        if self.problems.len() < KEPT_PROBLEMS {
+            self.problems.push(text.clone());
+        } else {
+            self.dropped_problems += 1;
+        }
+        out.push(RollOut::Problem(kind, text));
+    }
+
+    /// A decoded frame of a body (for the overlap and the windows' caps).
+    pub fn on_frame(
+        &mut self,
+        body: &str,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: OccupancyGrid,
+        out: &mut Vec<RollOut>,
+    ) {
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        // The first frame at a stamp is the one a mesher keeps (a repeated stamp is refused).
+        b.frames.entry(stamp_ns).or_insert(KeptGrid {
+            geometry,
+            grid: Arc::new(grid),
+        });
+        self.pump(out);
+    }
+
+    /// Also reports `body`, which is in no pair (a lone body): its pieces are taken for its
+    /// figures and dropped as they come.
+    pub fn track_body(&mut self, body: &str) {
+        self.bodies.entry(body.to_owned()).or_default();
+    }
+
+    /// One mesh piece of a body.
+    pub fn on_piece(&mut self, p: PieceIn, out: &mut Vec<RollOut>) {
+        if !self.bodies.contains_key(&p.body) {
+            return;
+        }
+        self.pending_stats = None;
+        if let Err((kind, text)) = self.accept(&p) {
+            self.problem(out, kind, text);
+        }
+        let Some((run, first_cap)) = self.pending_stats.take() else {
+            self.pump(out);
+            return;
+        };
+        // The body's statistics of the piece (closedness, hypervolume) and the windows it
+        // makes ready are independent: both at once.
+        let acc = self
+            .bodies
+            .get_mut(&p.body)
+            .and_then(|b| b.runs.iter_mut().find(|r| r.id == run))
+            .map(|r| std::mem::take(&mut r.acc));
+        let Some(mut acc) = acc else {
+            self.pump(out);
+            return;
+        };
+        let lateral = LateralRef {
+            index: u64::from(p.index),
+            stamps_ns: p.stamps_ns,
+            geometry: &p.geometry,
+            mesh: &p.mesh,
+            vanishes: p.vanishes,
+        };
+        let (_, ahead) = rayon::join(
+            || acc.add_lateral(lateral, first_cap.as_deref()),
+            || self.prefetch(1),
+        );
+        if let Some(r) = self
+            .bodies
+            .get_mut(&p.body)
+            .and_then(|b| b.runs.iter_mut().find(|r| r.id == run))
+        {
+            r.acc = acc;
+        }
+        self.prefetched = ahead;
+        self.pump_prefetched(out);
+    }
+
+    fn accept(&mut self, p: &PieceIn) -> Result<(), (&'static str, String)> {
+        let id = p.body.clone();
+        // What a window relies on: a lattice step that is a power of two (so two bodies'
+        // lattices map onto their common one exactly), and tets that name their vertices.
+        let scale = p.geometry.scale;
+        if scale < 1 || scale.count_ones() != 1 {
+            return Err((
+                "bad_piece",
+                format!(
+                    "{id}: a piece with lattice scale {scale} (a power of two is needed); ignored"
+                ),
+            ));
+        }
+        let nv = p.mesh.vertices.len();
+        if let Some(t) = p
+            .mesh
+            .tets
+            .iter()
+            .position(|t| t.iter().any(|&v| v as usize >= nv))
+        {
+            return Err((
+                "bad_piece",
+                format!("{id}: tet {t} of a piece names a vertex past its {nv}; ignored"),
+            ));
+        }
+        let origin = &mut self.origin_ns;
+        let union = &mut self.union;
+        let b = self.bodies.get_mut(&id).expect("checked above");
+        if b.frame_id != p.frame_id {
+            b.frame_id.clone_from(&p.frame_id);
+        }
+        match p.kind {
+            PieceKind::CapStart => {
+                let mut restarted = None;
+                if let Some(r) = b.runs.last_mut() {
+                    if !r.ended() {
+                        r.close(None);
+                        restarted = Some(format!(
+                            "{id}: the mesh starts again at {} ns without a closing cap after \
+                             {} slab(s) (a restarted mesher?); the earlier stream is checked up to \
+                             its last slab",
+                            p.stamps_ns.0, r.next_index
+                        ));
+                    }
+                }
+                if b.runs.last().is_some_and(|r| p.stamps_ns.0 <= r.frontier) {
+                    return Err((
+                        "bad_piece",
+                        format!(
+                            "{id}: a stream starting at {} ns, not after the previous one's last \
+                             frame; ignored",
+                            p.stamps_ns.0
+                        ),
+                    ));
+                }
+                let run = Run {
+                    id: b.next_run,
+                    geometry: p.geometry,
+                    first_stamp: p.stamps_ns.0,
+                    first_cap: p.mesh.clone(),
+                    first_occupied: p.occupied,
+                    frontier: p.stamps_ns.0,
+                    next_index: 0,
+                    end: None,
+                    tets: p.mesh.tets.len() as u64,
+                    acc: StatsAccumulator::new(),
+                    stats: None,
+                };
+                b.next_run += 1;
+                b.joined_late = false;
+                b.geometry = Some(p.geometry);
+                b.runs.push(run);
+                *origin = Some(origin.map_or(p.stamps_ns.0, |o: i64| o.min(p.stamps_ns.0)));
+                union.add(p.stamps_ns.0);
+                if let Some(why) = restarted {
+                    return Err(("stream_restarted", why));
+                }
+                Ok(())
+            }
+            PieceKind::Lateral | PieceKind::CapEnd => {
+                let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
+                    if b.joined_late {
+                        return Ok(());
+                    }
+                    b.joined_late = true;
+                    return Err((
+                        "joined_mid_stream",
+                        format!(
+                            "{id}: the first piece seen is index {} (this node started after the \
+                             body's stream did, or missed its start): the pieces before are gone, \
+                             so this stream of the body is skipped; it is checked from its next \
+                             stream",
+                            p.index
+                        ),
+                    ));
+                };
+                if p.geometry != r.geometry {
+                    return Err((
+                        "bad_piece",
+                        format!("{id}: a piece on another lattice; ignored"),
+                    ));
+                }
+                if p.kind == PieceKind::CapEnd {
+                    if r.next_index == 0 || p.index != r.next_index {
+                        return Err((
+                            "piece_out_of_order",
+                            format!(
+                                "{id}: closing cap at index {} (expected index {}); ignored",
+                                p.index, r.next_index
+                            ),
+                        ));
+                    }
+                    r.tets += p.mesh.tets.len() as u64;
+                    r.close(Some((p.mesh.clone(), p.occupied)));
+                    return Ok(());
+                }
+                if p.index != r.next_index
+                    || p.stamps_ns.0 != r.frontier
+                    || p.stamps_ns.1 <= p.stamps_ns.0
+                {
+                    return Err((
+                        "piece_out_of_order",
+                        format!(
+                            "{id}: piece index {} out of order (expected index {}); ignored, the \
+                             body's mesh will not be closed",
+                            p.index, r.next_index
+                        ),
+                    ));
+                }
+                // Added to the run's statistics by `on_piece`, while windows are checked.
+                self.pending_stats = Some((r.id, (r.next_index == 0).then(|| r.first_cap.clone())));
+                let first_tet = r.tets;
+                r.tets += p.mesh.tets.len() as u64;
+                r.next_index += 1;
+                r.frontier = p.stamps_ns.1;
+                union.add(p.stamps_ns.1);
+                let worst = if self.cfg.slabs_done {
+                    vec![0; p.mesh.tets.len()]
+                } else {
+                    Vec::new()
+                };
+                b.slabs.insert(
+                    p.stamps_ns.0,
+                    RSlab {
+                        run: r.id,
+                        index: p.index,
+                        hi: p.stamps_ns.1,
+                        mesh: p.mesh.clone(),
+                        first_tet,
+                        worst,
+                    },
+                );
+                Ok(())
+            }
+        }
+    }
+
+    /// The inputs have ended: every open stream is closed at its last slab, every period
+    /// decided with what there is, every open contact closed.
+    pub fn finish(&mut self, out: &mut Vec<RollOut>) {
+        self.finishing = true;
+        for b in self.bodies.values_mut() {
+            if let Some(r) = b.runs.last_mut() {
+                r.close(None);
+            }
+        }
+        self.pump(out);
+        for i in 0..self.pairs.len() {
+            self.close_open(i, out);
+            self.finish_speeds(i, true);
+        }
+        self.prune(out);
+    }
+
+    /// Decides every period that can be decided, then drops what nothing needs any more.
+    fn pump(&mut self, out: &mut Vec<RollOut>) {
+        self.prefetched = self.prefetch(2);
+        self.pump_prefetched(out);
+    }
+
+    /// [`Self::pump`] with the windows checked ahead already in `self.prefetched`.
+    fn pump_prefetched(&mut self, out: &mut Vec<RollOut>) {
+        for i in 0..self.pairs.len() {
+            while self.pairs[i].stopped.is_none() {
+                if !self.step(i, out) {
+                    break;
+                }
+            }
+        }
+        self.prefetched.clear();
+        self.resolve_episodes(out);
+        self.prune(out);
+    }
+
+    /// The window pair `i` would check next, if it is plainly ready: both bodies have their
+    /// slab at the next stamp and what follows it, on one lattice and in one frame. Anything
+    /// less plain is left to [`Self::step`].
+    fn ready_window(&self, i: usize) -> Option<(i64, WindowSpec, WindowSpec)> {
+        let p = &self.pairs[i];
+        if p.stopped.is_some() {
+            return None;
+        }
+        let s = self.next_stamp(i)?;
+        if p.next.is_some_and(|n| s > n) {
+            return None;
+        }
+        let (a, b) = (&self.bodies[&p.a], &self.bodies[&p.b]);
+        if a.status(s, self.finishing) != Status::Has || b.status(s, self.finishing) != Status::Has
+        {
+            return None;
+        }
+        let (sa, sb) = (a.slabs.get(&s)?, b.slabs.get(&s)?);
+        let hi = sa.hi;
+        let known = |body: &BodyStream, run: u64| {
+            body.slabs.contains_key(&hi) || body.run(run).is_some_and(|r| r.ended())
+        };
+        if sb.hi != hi || !known(a, sa.run) || !known(b, sb.run) || a.frame_id != b.frame_id {
+            return None;
+        }
+        let (ga, gb) = (a.run(sa.run)?.geometry, b.run(sb.run)?.geometry);
+        let lattice = pair_lattice(&ga, &gb).ok()?;
+        let k = self.period_index(i, s);
+        let per = i64::from(lattice.scale) * i64::from(CHECKER_FACTOR);
+        let base = if k - p.base > REBASE_FRAMES {
+            k - CONTEXT_SLABS as i64
+        } else {
+            p.base
+        };
+        let wa = self.window_spec(
+            &p.a,
+            &p.b,
+            s,
+            k,
+            (base, per),
+            (lattice.shift_a, lattice.ratio_a),
+        )?;
+        let wb = self.window_spec(
+            &p.b,
+            &p.a,
+            s,
+            k,
+            (base, per),
+            (lattice.shift_b, lattice.ratio_b),
+        )?;
+        (!apart(&wa, &wb)).then_some((s, wa, wb))
+    }
+
+    /// The windows ready for checking at the start of a pump, checked on rayon's pool, if
+    /// there are at least `least` (one window alone splits its own check over the cores).
+    fn prefetch(&self, least: usize) -> Vec<Prefetched> {
+        let ready: Vec<(usize, i64, WindowSpec, WindowSpec)> = (0..self.pairs.len())
+            .filter_map(|i| self.ready_window(i).map(|(s, wa, wb)| (i, s, wa, wb)))
+            .collect();
+        if ready.len() < least.max(1) {
+            return Vec::new();
+        }
+        ready
+            .into_par_iter()
+            .map(|(i, s, wa, wb)| {
+                let p = &self.pairs[i];
+                let result = check_specs((&p.a, &wa), (&p.b, &wb), &self.prepared);
+                Prefetched {
+                    pair: i,
+                    s,
+                    specs: (wa, wb),
+                    result,
+                }
+            })
+            .collect()
+    }
+
+    /// The next stamp pair `i` has to decide, if any body has a slab at or after it.
+    fn next_stamp(&self, i: usize) -> Option<i64> {
+        let p = &self.pairs[i];
+        let from = p.next.unwrap_or(i64::MIN);
+        let first = |id: &str| self.bodies[id].slabs.range(from..).next().map(|(s, _)| *s);
+        match (first(&p.a), first(&p.b)) {
+            (Some(x), Some(y)) => Some(x.min(y)),
+            (x, y) => x.or(y),
+        }
+    }
+
+    /// Common frame index of the period of pair `i` that starts at `s` (the next one).
+    fn period_index(&self, i: usize, s: i64) -> i64 {
+        let p = &self.pairs[i];
+        match p.next {
+            None => 0,
+            Some(n) if n == s => p.index,
+            Some(_) => p.index + 1,
+        }
+    }
+
+    /// Slabs of `id` at or after `s`.
+    fn lead(&self, id: &str, s: i64) -> usize {
+        self.bodies[id].slabs.range(s..).count()
+    }
+
+    /// Decides one period of pair `i`; `false` if it must wait.
+    fn step(&mut self, i: usize, out: &mut Vec<RollOut>) -> bool {
+        let finishing = self.finishing;
+        let Some(s) = self.next_stamp(i) else {
+            return false;
+        };
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let over = |me: &Self, n: i64| me.lead(&a, n).max(me.lead(&b, n)) > me.cfg.max_lead_frames;
+        // Nothing of either body at the expected stamp: the next slab of either starts
+        // later. Wait while a body may still send the expected one.
+        if let Some(n) = self.pairs[i].next {
+            if s > n {
+                let (sa, sb) = (
+                    self.bodies[&a].status(n, finishing),
+                    self.bodies[&b].status(n, finishing),
+                );
+                if [sa, sb].contains(&Status::Maybe) && !over(self, n) {
+                    return false;
+                }
+            }
+        }
+        let (sa, sb) = (
+            self.bodies[&a].status(s, finishing),
+            self.bodies[&b].status(s, finishing),
+        );
+        if sa == Status::Mismatch || sb == Status::Mismatch {
+            let why = format!(
+                "pair {a} x {b}: frames at different times (a frame of one body falls between two \
+                 of the other's at {:.3} s); the pair is not checked from there on (different \
+                 frame rates or phases are not resampled)",
+                self.seconds_of_stamp(s)
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "time_mismatch", why);
+            return false;
+        }
+        match (sa, sb) {
+            (Status::Has, Status::Has) => self.window(i, s, out),
+            (Status::Has, other) | (other, Status::Has) => {
+                let (me, partner) = if sa == Status::Has {
+                    (&a, &b)
+                } else {
+                    (&b, &a)
+                };
+                if other == Status::Maybe && !over(self, s) {
+                    return false;
+                }
+                // A partner that stopped is gone; one that never said anything is late.
+                let stopped = self.bodies[partner]
+                    .runs
+                    .iter()
+                    .any(|r| r.ended() && r.frontier <= s);
+                if stopped && !self.pairs[i].partner_absent {
+                    self.pairs[i].partner_absent = true;
+                    let why = format!(
+                        "{partner}: its frames end before {:.3} s while {me} goes on (the \
+                         stream stopped); pair {a} x {b} has nothing to check from there until \
+                         it comes back",
+                        self.seconds_of_stamp(s)
+                    );
+                    self.problem(out, "partner_stopped", why);
+                } else if other == Status::Maybe && !self.pairs[i].partner_absent {
+                    self.pairs[i].partner_absent = true;
+                    let hi = self.bodies[me].slabs[&s].hi;
+                    let why = format!(
+                        "pair {a} x {b}: {partner} has nothing for {:.3}-{:.3} s while {me} is \
+                         {} slabs ahead; {me} is checked without it from there (pieces of \
+                         {partner} that come later for that time are refused)",
+                        self.seconds_of_stamp(s),
+                        self.seconds_of_stamp(hi),
+                        self.cfg.max_lead_frames
+                    );
+                    self.problem(out, "partner_late", why);
+                }
+                let me = me.clone();
+                self.alone(i, &me, s, out);
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+fn plan_movable(plan: &CheckPlan) -> BTreeMap<String, f64> {
+    plan.movable
+        .iter()
+        .map(|m| (m.clone(), f64::NEG_INFINITY))
+        .collect()
+}
+
+/// Seconds since `origin` and the frame period (s) at checker time `t` of pair `p`, from
+/// the stamps of the frames around it (as the full check's common lattice gives them).
+fn time_at(p: &PairRoll, t: f64, origin: i64) -> Option<(f64, f64)> {
+    let per = p.per as f64;
+    if per <= 0.0 {
+        return None;
+    }
+    let k_raw = (t / per).floor().max(0.0) as i64 + p.base;
+    // The last known frame: the period before it (as the full check clamps to its last).
+    let last = *p.stamps.keys().next_back()?;
+    let k = k_raw.min(last - 1);
+    let frac = t / per - (k - p.base) as f64;
+    let (a, b) = (*p.stamps.get(&k)?, *p.stamps.get(&(k + 1))?);
+    let s = ((a - origin) as f64 + frac * (b - a) as f64) * 1e-9;
+    // The period: of [k_raw, k_raw + 1] where that is known.
+    let period = match (p.stamps.get(&k_raw), p.stamps.get(&(k_raw + 1))) {
+        (Some(x), Some(y)) => (y - x) as f64 * 1e-9,
+        _ => (b - a) as f64 * 1e-9,
+    };
+    Some((s, period))
+}
+
+/// The closing speed of two boundary patches from the crossings near a contact's end (see
+/// `contact_speeds` in the checker): normals summed once per tet, exact in `f64`.
+fn speed<'a>(records: impl Iterator<Item = &'a Record>) -> Option<f64> {
+    let mut a: BTreeMap<u64, [f64; 4]> = BTreeMap::new();
+    let mut b: BTreeMap<u64, [f64; 4]> = BTreeMap::new();
+    for r in records {
+        a.insert(r.tets.0, r.normals.0);
+        b.insert(r.tets.1, r.normals.1);
+    }
+    if a.is_empty() {
+        return None;
+    }
+    let surface = |m: &BTreeMap<u64, [f64; 4]>| {
+        let mut n = [0.0f64; 4];
+        for v in m.values() {
+            (0..4).for_each(|k| n[k] += v[k]);
+        }
+        let ns = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        (ns > 0.0).then(|| -n[3] / ns)
+    };
+    Some(surface(&a)? + surface(&b)?)
+}
+
+/// Running sums of |N_s| and |N_t| over tets (see [`bounds::hypervolume_bound`]).
+fn add_normals(mut sums: (f64, f64), m: &TetMesh) -> (f64, f64) {
+    for t in &m.tets {
+        let n = float_normal(&t.map(|v| m.vertices[v as usize]));
+        let ns = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        sums = (sums.0 + ns, sums.1 + n[3].abs());
+    }
+    sums
+}
+
+fn add_run(t: &mut Totals, r: Run) {
+    let Some(stats) = &r.stats else { return };
+    let closed = stats.closed.is_closed() && matches!(r.end, Some((_, Some(_))));
+    t.closed = if t.runs == 0 {
+        closed
+    } else {
+        t.closed && closed
+    };
+    t.runs += 1;
+    t.frames += stats.frames;
+    t.tets += stats.tets;
+    t.vertices += stats.vertices;
+    t.hypervolume_m3s += stats.hypervolume_m3s;
+    t.vanishing += stats.vanishing_slabs;
+}

@@ -1,0 +1,801 @@
+//! Deciding a pair's frame period: which slabs make its window, checking it, folding what
+//! it gives into the pair's running answer (labels, intervals, contact events, closing
+//! speeds), and the overlap measure.
+
+use super::*;
+
+impl RollingChecker {
+    pub(super) fn seconds_of_stamp(&self, s: i64) -> f64 {
+        (s - self.origin_ns.unwrap_or(s)) as f64 * 1e-9
+    }
+
+    /// The slab of `body` at `s` is decided for pair `i` without the other body: OUTSIDE.
+    pub(super) fn alone(&mut self, i: usize, body: &str, s: i64, out: &mut Vec<RollOut>) {
+        let (hi, index, run, lateral) = {
+            let sl = &self.bodies[body].slabs[&s];
+            (sl.hi, sl.index, sl.run, sl.mesh.tets.len())
+        };
+        if self.cfg.labels {
+            let b = &self.bodies[body];
+            let r = b.run(run);
+            let cap_start = r
+                .filter(|r| r.first_stamp == s)
+                .map(|r| r.first_cap.tets.len());
+            let cap_end = r.and_then(|r| r.last_cap_at(hi)).map(|c| c.tets.len());
+            let n = cap_start.unwrap_or(0) + lateral + cap_end.unwrap_or(0);
+            let p = &self.pairs[i];
+            let other = if p.a == body { &p.b } else { &p.a };
+            out.push(RollOut::Labels(SlabLabels {
+                body: body.to_string(),
+                other: other.clone(),
+                index,
+                stamps_ns: (s, hi),
+                with_cap_start: cap_start.is_some(),
+                with_cap_end: cap_end.is_some(),
+                labels: vec![Label::Outside as u8; n],
+                counts: LabelCounts {
+                    outside: n as u64,
+                    ..LabelCounts::default()
+                },
+            }));
+        }
+        let k = self.period_index(i, s);
+        self.advance(i, s, hi, k, out);
+    }
+
+    /// Moves pair `i` past the period [s, hi] of common index `k`.
+    pub(super) fn advance(&mut self, i: usize, s: i64, hi: i64, k: i64, out: &mut Vec<RollOut>) {
+        let p = &mut self.pairs[i];
+        p.stamps.insert(k, s);
+        p.stamps.insert(k + 1, hi);
+        p.next = Some(hi);
+        p.index = k + 1;
+        while p
+            .stamps
+            .first_key_value()
+            .is_some_and(|(j, _)| *j < k - CONTEXT_SLABS as i64)
+        {
+            p.stamps.pop_first();
+        }
+        // Nothing later can start before the end of this period, and nothing goes on past
+        // it where either body's stream ends there.
+        let hi_t = ((k + 1 - p.base) * p.per) as f64;
+        let before_end = p.open.as_ref().is_some_and(|o| o.t.1 < hi_t);
+        let (a, b) = (p.a.clone(), p.b.clone());
+        let ends_here = |id: &str| {
+            let body = &self.bodies[id];
+            body.slabs
+                .get(&s)
+                .and_then(|x| body.run(x.run))
+                .is_some_and(|r| r.last_cap_at(hi).is_some())
+        };
+        if before_end || ends_here(&a) || ends_here(&b) {
+            self.close_open(i, out);
+        }
+        self.finish_speeds(i, false);
+    }
+
+    /// What one body's window is made of (owned, so that the pair can be changed while it
+    /// is checked).
+    pub(super) fn window_spec(
+        &self,
+        me: &str,
+        other: &str,
+        s: i64,
+        k: i64,
+        (base, per): (i64, i64),
+        (shift, ratio): ([i64; 3], i64),
+    ) -> Option<WindowSpec> {
+        let body = &self.bodies[me];
+        let centre_slab = body.slabs.get(&s)?;
+        let r = body.run(centre_slab.run)?;
+        let o = self.bodies[other].run(self.bodies[other].slabs.get(&s)?.run)?;
+        let hi = centre_slab.hi;
+        let prev = |stamp: i64| {
+            body.slabs
+                .range(..stamp)
+                .next_back()
+                .filter(|(_, x)| x.hi == stamp && x.run == r.id)
+                .map(|(key, x)| (*key, x))
+        };
+        let mut slabs: VecDeque<(i64, &RSlab)> = VecDeque::from([(s, centre_slab)]);
+        let mut centre = 0;
+        let mut lo_stamp = s;
+        let mut hi_stamp = hi;
+        // The other body's real cap in an end plane: reach one slab further.
+        if o.first_stamp == s {
+            if let Some(x) = prev(s) {
+                slabs.push_front(x);
+                centre += 1;
+                lo_stamp = x.0;
+            }
+        }
+        if o.last_cap_at(hi).is_some() {
+            if let Some(x) = body.slabs.get(&hi).filter(|x| x.run == r.id) {
+                slabs.push_back((hi, x));
+                hi_stamp = x.hi;
+            }
+        }
+        let low = (r.first_stamp == lo_stamp).then(|| r.first_cap.clone());
+        let high = r.last_cap_at(hi_stamp).cloned();
+        let lo_common = k - centre as i64;
+        Some(WindowSpec {
+            geometry: r.geometry,
+            lo: slabs[0].1.index,
+            slabs: slabs.iter().map(|(_, x)| x.mesh.clone()).collect(),
+            centre,
+            low,
+            high,
+            mul: ratio,
+            add: [
+                shift[0] * per,
+                shift[1] * per,
+                shift[2] * per,
+                (lo_common - base) * per,
+            ],
+            first_tet: if r.first_stamp == s {
+                0
+            } else {
+                centre_slab.first_tet
+            },
+        })
+    }
+
+    /// Checks the period of pair `i` starting at `s` where both bodies have a slab; `false`
+    /// if it must wait for what follows a slab or for a frame.
+    pub(super) fn window(&mut self, i: usize, s: i64, out: &mut Vec<RollOut>) -> bool {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let (hi, hb) = (self.bodies[&a].slabs[&s].hi, self.bodies[&b].slabs[&s].hi);
+        if hi != hb {
+            let why = format!(
+                "pair {a} x {b}: frames at different times (the periods from {:.3} s end at \
+                 {:.3} s and {:.3} s); the pair is not checked from there on",
+                self.seconds_of_stamp(s),
+                self.seconds_of_stamp(hi),
+                self.seconds_of_stamp(hb)
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "time_mismatch", why);
+            return false;
+        }
+        // What follows each slab must be known: the next slab, or the end of its stream.
+        let known = |me: &Self, id: &str| {
+            let body = &me.bodies[id];
+            body.slabs.contains_key(&hi) || body.run(body.slabs[&s].run).is_some_and(|r| r.ended())
+        };
+        if !known(self, &a) || !known(self, &b) {
+            // Nothing follows a slab while the other body runs far ahead: the stream stalled
+            // (a lost piece or cap). Its run is closed there, so that the pair goes on and
+            // the other body's slabs do not pile up.
+            if self.lead(&a, s).max(self.lead(&b, s)) <= self.cfg.max_lead_frames {
+                return false;
+            }
+            for id in [&a, &b] {
+                if known(self, id) {
+                    continue;
+                }
+                let why = format!(
+                    "{id}: nothing follows its slab at {:.3} s while its partner is more than \
+                     {} slabs ahead (a lost piece or cap); its stream is taken as ended there",
+                    self.seconds_of_stamp(s),
+                    self.cfg.max_lead_frames
+                );
+                let body = self.bodies.get_mut(id.as_str()).expect("a paired body");
+                let run = body.slabs[&s].run;
+                if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
+                    r.close(None);
+                }
+                self.problem(out, "stream_stalled", why);
+            }
+            if !known(self, &a) || !known(self, &b) {
+                return false;
+            }
+        }
+        let geometry = |id: &str| {
+            let body = &self.bodies[id];
+            body.run(body.slabs[&s].run).map(|r| r.geometry)
+        };
+        let (Some(ga), Some(gb)) = (geometry(&a), geometry(&b)) else {
+            return false;
+        };
+        let (fa, fb) = (&self.bodies[&a].frame_id, &self.bodies[&b].frame_id);
+        if fa != fb {
+            let why = format!(
+                "pair {a} x {b}: not checked: {a} is in frame {fa:?} and {b} in frame {fb:?}: \
+                 bodies in different frames are not compared (publish them in one frame)"
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "frame_mismatch", why);
+            return false;
+        }
+        let lattice = match pair_lattice(&ga, &gb) {
+            Ok(l) => l,
+            Err(reason) => {
+                let why = format!(
+                    "pair {a} x {b}: not on one lattice ({reason}); the pair is not checked from \
+                     there on"
+                );
+                self.pairs[i].stopped = Some(why.clone());
+                self.problem(out, "lattice_mismatch", why);
+                return false;
+            }
+        };
+        let k = self.period_index(i, s);
+        let per = i64::from(lattice.scale) * i64::from(CHECKER_FACTOR);
+        let base = {
+            let p = &self.pairs[i];
+            if k - p.base > REBASE_FRAMES {
+                k - CONTEXT_SLABS as i64
+            } else {
+                p.base
+            }
+        };
+        let specs = (
+            self.window_spec(
+                &a,
+                &b,
+                s,
+                k,
+                (base, per),
+                (lattice.shift_a, lattice.ratio_a),
+            ),
+            self.window_spec(
+                &b,
+                &a,
+                s,
+                k,
+                (base, per),
+                (lattice.shift_b, lattice.ratio_b),
+            ),
+        );
+        self.rebase(i, base, per);
+        let (Some(wa), Some(wb)) = specs else {
+            // A frame for a cap has not come (yet).
+            let behind = self.lead(&a, s).max(self.lead(&b, s)) > self.cfg.max_lead_frames;
+            if !self.finishing && !behind {
+                return false;
+            }
+            let why = format!(
+                "pair {a} x {b}: no frame to close the period {:.3}-{:.3} s (a frame the mesher \
+                 filled in, or one that never came); that period is not checked",
+                self.seconds_of_stamp(s),
+                self.seconds_of_stamp(hi)
+            );
+            self.problem(out, "period_unchecked", why);
+            self.pairs[i].overlap.unknown = true;
+            self.advance(i, s, hi, k, out);
+            return true;
+        };
+        let r = if apart(&wa, &wb) {
+            // Boxes apart in space: no tet meets the other body, every one is outside.
+            WindowResult {
+                labels: [wa.all_outside(), wb.all_outside()],
+                ..WindowResult::default()
+            }
+        } else {
+            let ahead = self.prefetched.iter().position(|x| {
+                x.pair == i && x.s == s && x.specs.0.same_as(&wa) && x.specs.1.same_as(&wb)
+            });
+            let result = match ahead {
+                Some(n) => self.prefetched.swap_remove(n).result,
+                None => check_specs((&a, &wa), (&b, &wb), &self.prepared),
+            };
+            match result {
+                Ok((r, [pa, pb])) => {
+                    self.prepared.insert(a.clone(), (wa.clone(), pa));
+                    self.prepared.insert(b.clone(), (wb.clone(), pb));
+                    r
+                }
+                Err(e) => {
+                    let why = format!(
+                        "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
+                        self.seconds_of_stamp(s),
+                        self.seconds_of_stamp(hi)
+                    );
+                    self.problem(out, "period_unchecked", why);
+                    self.advance(i, s, hi, k, out);
+                    return true;
+                }
+            }
+        };
+        self.overlap_push(i, s, hi);
+        {
+            let p = &mut self.pairs[i];
+            p.stamps.insert(k, s);
+            p.stamps.insert(k + 1, hi);
+        }
+        self.fold(i, s, hi, &r, (wa.first_tet, wb.first_tet), out);
+        self.advance(i, s, hi, k, out);
+        true
+    }
+
+    /// Moves pair `i`'s checker-time origin to common frame `base` (the crossings and the
+    /// open interval kept shift with it) and sets its lattice step.
+    pub(super) fn rebase(&mut self, i: usize, base: i64, per: i64) {
+        let p = &mut self.pairs[i];
+        if base != p.base {
+            let d = ((base - p.base) * p.per) as f64;
+            for r in &mut p.records {
+                r.t = (r.t.0 - d, r.t.1 - d);
+            }
+            if let Some(o) = &mut p.open {
+                o.t = (o.t.0 - d, o.t.1 - d);
+            }
+            for o in &mut p.intervals {
+                o.t = (o.t.0 - d, o.t.1 - d);
+            }
+            p.base = base;
+        }
+        p.per = per;
+    }
+
+    /// Folds a window's result into pair `i`'s answer.
+    pub(super) fn fold(
+        &mut self,
+        i: usize,
+        s: i64,
+        hi: i64,
+        r: &WindowResult,
+        starts: (u64, u64),
+        out: &mut Vec<RollOut>,
+    ) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        {
+            let p = &mut self.pairs[i];
+            p.checked = true;
+            p.partner_absent = false;
+            p.candidates += r.candidate_pairs;
+            p.crossings += r.crossings.len() as u64;
+            p.undecided += u64::from(r.undecided);
+            for (c, l) in [
+                (&mut p.counts.0, &r.labels[0]),
+                (&mut p.counts.1, &r.labels[1]),
+            ] {
+                c.interference += l.counts.interference;
+                c.inside += l.counts.inside;
+            }
+            for c in &r.crossings {
+                p.records.push_back(Record {
+                    t: c.t,
+                    tets: (
+                        starts.0 + u64::from(c.tets.0),
+                        starts.1 + u64::from(c.tets.1),
+                    ),
+                    normals: c.normals,
+                });
+            }
+        }
+        for (k, (me, other)) in [(&a, &b), (&b, &a)].into_iter().enumerate() {
+            let l = &r.labels[k];
+            if self.cfg.labels {
+                let index = self.bodies[me].slabs[&s].index;
+                out.push(RollOut::Labels(SlabLabels {
+                    body: me.clone(),
+                    other: other.clone(),
+                    index,
+                    stamps_ns: (s, hi),
+                    with_cap_start: l.pieces[0] > 0,
+                    with_cap_end: l.pieces[2] > 0,
+                    labels: l.labels.clone(),
+                    counts: l.counts,
+                }));
+            }
+            if self.cfg.slabs_done {
+                let lateral = &l.labels[l.pieces[0]..l.pieces[0] + l.pieces[1]];
+                if let Some(sl) = self
+                    .bodies
+                    .get_mut(me.as_str())
+                    .and_then(|b| b.slabs.get_mut(&s))
+                {
+                    for (w, &x) in sl.worst.iter_mut().zip(lateral) {
+                        *w = (*w).max(x);
+                    }
+                }
+            }
+        }
+        // The window's ranges merged (so that a contact begins with all this period gives
+        // it, whatever order the walk found them in), then in order: merged into the open
+        // interval, or closing it and opening another.
+        let mut ranges = r.ranges.clone();
+        ranges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
+        let mut merged: Vec<(f64, f64)> = Vec::new();
+        for (t0, t1) in ranges {
+            match merged.last_mut() {
+                Some(m) if t0 <= m.1 => m.1 = m.1.max(t1),
+                _ => merged.push((t0, t1)),
+            }
+        }
+        for (t0, t1) in merged {
+            let merges = self.pairs[i].open.as_ref().is_some_and(|o| t0 <= o.t.1);
+            if merges {
+                let mut extended = false;
+                if let Some(o) = &mut self.pairs[i].open {
+                    if t1 > o.t.1 {
+                        o.t.1 = t1;
+                        extended = true;
+                    }
+                }
+                if extended {
+                    self.convert_open(i);
+                    out.extend(self.update(i, ContactPhase::Ongoing, hi));
+                }
+                continue;
+            }
+            self.close_open(i, out);
+            let p = &mut self.pairs[i];
+            let index = p.contacts;
+            p.contacts += 1;
+            p.open = Some(Interval {
+                t: (t0, t1),
+                s: (0.0, 0.0),
+                speeds: (None, None),
+                periods: (0.0, 0.0),
+                index,
+            });
+            self.convert_open(i);
+            out.extend(self.update(i, ContactPhase::Begin, hi));
+        }
+    }
+
+    /// Seconds and periods of the open interval's ends (the start once, when it opens).
+    pub(super) fn convert_open(&mut self, i: usize) {
+        let origin = self.origin_ns.unwrap_or(0);
+        let p = &mut self.pairs[i];
+        let Some(mut o) = p.open.take() else { return };
+        if o.periods.0 == 0.0 {
+            if let Some(x) = time_at(p, o.t.0, origin) {
+                o.s.0 = x.0;
+                o.periods.0 = x.1;
+            }
+        }
+        if let Some(y) = time_at(p, o.t.1, origin) {
+            o.s.1 = y.0;
+            o.periods.1 = y.1;
+        }
+        p.open = Some(o);
+    }
+
+    pub(super) fn update(&self, i: usize, phase: ContactPhase, stamp_ns: i64) -> Option<RollOut> {
+        let p = &self.pairs[i];
+        let o = match phase {
+            ContactPhase::End => p.intervals.back()?,
+            _ => p.open.as_ref()?,
+        };
+        let bound = |speed: Option<Option<f64>>, period: f64| {
+            bounds::contact_time_bound(period, speed.flatten())
+        };
+        Some(RollOut::Contact(ContactUpdate {
+            a: p.a.clone(),
+            b: p.b.clone(),
+            phase,
+            index: o.index,
+            start_s: o.s.0,
+            end_s: o.s.1,
+            start_bound_s: bound(o.speeds.0, o.periods.0),
+            end_bound_s: bound(o.speeds.1, o.periods.1),
+            stamp_ns,
+        }))
+    }
+
+    /// Closes pair `i`'s open interval (its end speed from the crossings near its end).
+    pub(super) fn close_open(&mut self, i: usize, out: &mut Vec<RollOut>) {
+        let p = &mut self.pairs[i];
+        let Some(mut o) = p.open.take() else { return };
+        let per = p.per as f64;
+        let end = o.t.1;
+        o.speeds.1 = Some(
+            speed(
+                p.records
+                    .iter()
+                    .filter(|r| r.t.1 <= end && r.t.1 >= end - per),
+            )
+            .map(|v| -v),
+        );
+        let stamp = p.next.unwrap_or(0);
+        p.intervals.push_back(o);
+        if p.intervals.len() > self.cfg.max_intervals {
+            p.intervals.pop_front();
+            p.dropped_intervals += 1;
+        }
+        out.extend(self.update(i, ContactPhase::End, stamp));
+    }
+
+    /// Start speeds that can be decided: no crossing can start before the start plus one
+    /// frame period any more (or the pair is done); crossings nothing needs are dropped.
+    pub(super) fn finish_speeds(&mut self, i: usize, all: bool) {
+        let p = &mut self.pairs[i];
+        let per = p.per as f64;
+        let done_t = ((p.index - p.base) * p.per) as f64;
+        let records = &p.records;
+        let decide = |o: &mut Interval| {
+            if o.speeds.0.is_none() && (all || o.t.0 + per < done_t) {
+                o.speeds.0 = Some(speed(
+                    records
+                        .iter()
+                        .filter(|r| r.t.0 >= o.t.0 && r.t.0 <= o.t.0 + per),
+                ));
+            }
+        };
+        for o in p.intervals.iter_mut().rev().take(4) {
+            decide(o);
+        }
+        if let Some(o) = &mut p.open {
+            decide(o);
+        }
+        let keep = done_t - 3.0 * per;
+        let pending = p
+            .intervals
+            .iter()
+            .rev()
+            .take(4)
+            .chain(p.open.iter())
+            .filter(|o| o.speeds.0.is_none())
+            .map(|o| o.t.0)
+            .fold(f64::INFINITY, f64::min);
+        while p
+            .records
+            .front()
+            .is_some_and(|r| r.t.1 < keep && r.t.0 < pending)
+        {
+            p.records.pop_front();
+        }
+    }
+
+    /// Feeds the intersection of the two bodies' frames at `s` and `hi` to the pair's
+    /// overlap mesher.
+    pub(super) fn overlap_push(&mut self, i: usize, s: i64, hi: i64) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let opts = self.opts;
+        let geometry = |id: &str| {
+            let body = &self.bodies[id];
+            body.run(body.slabs[&s].run).map(|r| r.geometry)
+        };
+        let (ga, gb) = (geometry(&a), geometry(&b));
+        // Periods left out since the last one (a partner absent or stopped): the intersection
+        // stream has a gap there. Its run so far is closed and counted, and a new one starts.
+        let gap = {
+            let ov = &self.pairs[i].overlap;
+            !ov.unknown && ov.last_pushed.is_some_and(|l| l != s)
+        };
+        if gap {
+            let ov = &mut self.pairs[i].overlap;
+            match run_overlap(ov) {
+                Some((hv, b)) => {
+                    ov.closed.0 += hv;
+                    ov.closed.1 += b;
+                    ov.mesher = None;
+                    ov.acc = StatsAccumulator::default();
+                    ov.first_cap = None;
+                    ov.sums = (0.0, 0.0);
+                    ov.last_pushed = None;
+                    ov.stamps = (0, 0, 0);
+                }
+                None => ov.unknown = true,
+            }
+        }
+        for stamp in [s, hi] {
+            let ov = &self.pairs[i].overlap;
+            if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
+                continue;
+            }
+            let (Some(ga), Some(gb)) = (ga, gb) else {
+                self.pairs[i].overlap.unknown = true;
+                continue;
+            };
+            let (fa, fb) = (
+                self.bodies[&a].frame_at(stamp, &ga),
+                self.bodies[&b].frame_at(stamp, &gb),
+            );
+            let ov = &mut self.pairs[i].overlap;
+            let (Some(fa), Some(fb)) = (fa, fb) else {
+                ov.unknown = true;
+                continue;
+            };
+            let Some((both, ga)) = crate::mesh::grid::intersect_across(&fa, &ga, &fb, &gb) else {
+                ov.unknown = true;
+                continue;
+            };
+            if ov.geometry.is_some_and(|g| g != ga) {
+                ov.unknown = true;
+                continue;
+            }
+            if ov.mesher.is_none() {
+                match Mesher::new(opts) {
+                    Ok(m) => ov.mesher = Some(m),
+                    Err(_) => {
+                        ov.unknown = true;
+                        continue;
+                    }
+                }
+            }
+            let m = ov.mesher.as_mut().expect("set above");
+            ov.geometry = Some(ga);
+            match m.push_decoded(stamp, ga, both) {
+                Ok(slab) => {
+                    ov.last_pushed = Some(stamp);
+                    ov.stamps = if ov.stamps.2 == 0 {
+                        (stamp, stamp, 1)
+                    } else {
+                        (ov.stamps.0, stamp, ov.stamps.2 + 1)
+                    };
+                    if let Some(slab) = slab {
+                        if slab.index == 0 {
+                            let cap = m.first_frame().and_then(|k| m.cap(k, CapSide::Low));
+                            if let Some(cap) = &cap {
+                                ov.sums = add_normals(ov.sums, cap);
+                            }
+                            ov.first_cap = cap;
+                        }
+                        ov.acc
+                            .add_lateral(slab.lateral_ref(), ov.first_cap.as_ref());
+                        ov.sums = add_normals(ov.sums, &slab.mesh);
+                    }
+                }
+                Err(_) => ov.unknown = true,
+            }
+        }
+    }
+}
+
+/// What one body's window is made of (see [`WindowBody`]).
+#[derive(Debug, Clone)]
+pub(super) struct WindowSpec {
+    pub(super) geometry: GridGeometry,
+    pub(super) lo: u32,
+    pub(super) slabs: Vec<Arc<TetMesh>>,
+    pub(super) centre: usize,
+    pub(super) low: Option<Arc<TetMesh>>,
+    pub(super) high: Option<Arc<TetMesh>>,
+    pub(super) mul: i64,
+    pub(super) add: [i64; 4],
+    /// Run number of the first taken tet.
+    pub(super) first_tet: u64,
+}
+
+/// Whether two windows' boxes are apart (a gap on some spatial axis) on the pair's
+/// lattice: then no tet of one meets the other body, nor lies inside it.
+pub(super) fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
+    let (Some(x), Some(y)) = (a.spatial_box(), b.spatial_box()) else {
+        return true;
+    };
+    (0..3).any(|k| x.1[k] < y.0[k] || y.1[k] < x.0[k])
+}
+
+/// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
+///
+/// A body's window prepared for another pair's period is taken from `cache` when it is the
+/// same window (a body in several pairs is then prepared once per period); the two prepared
+/// windows are returned with the result, for the cache.
+pub(super) fn check_specs(
+    (a, wa): (&str, &WindowSpec),
+    (b, wb): (&str, &WindowSpec),
+    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+) -> WindowChecked {
+    let prepared = |id: &str, w: &WindowSpec| match cache.get(id).filter(|c| c.0.same_as(w)) {
+        Some((_, p)) => Ok(p.clone()),
+        None => prepare_window(&w.body(id)).map(Arc::new),
+    };
+    let (ra, rb) = rayon::join(|| prepared(a, wa), || prepared(b, wb));
+    let (pa, pb) = (ra?, rb?);
+    Ok((check_window(&pa, &pb), [pa, pb]))
+}
+
+/// A window's result, with the two bodies' prepared windows.
+pub(super) type WindowChecked =
+    Result<(WindowResult, [Arc<PreparedWindow>; 2]), crate::checker::window::WindowError>;
+
+impl WindowSpec {
+    /// The same window: the same pieces (by identity), placement and numbering.
+    fn same_as(&self, o: &WindowSpec) -> bool {
+        let same = |x: &Arc<TetMesh>, y: &Arc<TetMesh>| Arc::ptr_eq(x, y);
+        let same_opt = |x: &Option<Arc<TetMesh>>, y: &Option<Arc<TetMesh>>| match (x, y) {
+            (Some(x), Some(y)) => same(x, y),
+            (None, None) => true,
+            _ => false,
+        };
+        self.geometry == o.geometry
+            && self.lo == o.lo
+            && self.slabs.len() == o.slabs.len()
+            && self.slabs.iter().zip(&o.slabs).all(|(x, y)| same(x, y))
+            && self.centre == o.centre
+            && same_opt(&self.low, &o.low)
+            && same_opt(&self.high, &o.high)
+            && self.mul == o.mul
+            && self.add == o.add
+            && self.first_tet == o.first_tet
+    }
+
+    /// The box of every vertex of the window on the pair's lattice, spatial axes only
+    /// (`None` for a window without vertices).
+    fn spatial_box(&self) -> Option<([i64; 3], [i64; 3])> {
+        let mut lo = [i64::MAX; 3];
+        let mut hi = [i64::MIN; 3];
+        let parts = self
+            .low
+            .iter()
+            .chain(self.slabs.iter())
+            .chain(self.high.iter());
+        for m in parts {
+            for v in &m.vertices {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(i64::from(v[k]));
+                    hi[k] = hi[k].max(i64::from(v[k]));
+                }
+            }
+        }
+        if lo[0] > hi[0] {
+            return None;
+        }
+        let f = i64::from(CHECKER_FACTOR) * self.mul;
+        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + self.add[k]);
+        Some((map(lo), map(hi)))
+    }
+
+    /// Every taken tet OUTSIDE.
+    fn all_outside(&self) -> TakenLabels {
+        let n = self.slabs.len();
+        let pieces = [
+            if self.centre == 0 {
+                self.low.as_ref().map_or(0, |m| m.tets.len())
+            } else {
+                0
+            },
+            self.slabs[self.centre].tets.len(),
+            if self.centre + 1 == n {
+                self.high.as_ref().map_or(0, |m| m.tets.len())
+            } else {
+                0
+            },
+        ];
+        let total: usize = pieces.iter().sum();
+        TakenLabels {
+            labels: vec![Label::Outside as u8; total],
+            counts: LabelCounts {
+                outside: total as u64,
+                ..LabelCounts::default()
+            },
+            pieces,
+        }
+    }
+
+    fn body<'a>(&'a self, id: &'a str) -> WindowBody<'a> {
+        WindowBody {
+            id,
+            geometry: self.geometry,
+            lo: self.lo,
+            slabs: self.slabs.iter().map(|m| m.as_ref()).collect(),
+            centre: self.centre,
+            low: self.low.as_deref(),
+            high: self.high.as_deref(),
+            mul: self.mul,
+            add: self.add,
+        }
+    }
+}
+
+/// The map of two bodies onto their pair's lattice.
+pub(super) struct PairLattice {
+    pub(super) scale: i32,
+    pub(super) ratio_a: i64,
+    pub(super) ratio_b: i64,
+    pub(super) shift_a: [i64; 3],
+    pub(super) shift_b: [i64; 3],
+}
+
+pub(super) fn pair_lattice(ga: &GridGeometry, gb: &GridGeometry) -> Result<PairLattice, String> {
+    if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
+        return Err(format!(
+            "voxel edges of {} m and {} m",
+            ga.resolution, gb.resolution
+        ));
+    }
+    let off = origin_offset(&ga.origin, &gb.origin, ga.resolution)?;
+    let scale = ga.scale.max(gb.scale).max(2);
+    Ok(PairLattice {
+        scale,
+        ratio_a: i64::from(scale / ga.scale.max(1)).max(1),
+        ratio_b: i64::from(scale / gb.scale.max(1)).max(1),
+        shift_a: [0; 3],
+        shift_b: off,
+    })
+}
