@@ -1,13 +1,9 @@
-//! The stochastic sampler (issue 7): uniformity on figures with exact answers, the stiff and
-//! extreme cases, the command, and an independent cross-check of the mesh + checker pipeline
-//! against the sampled 4D collision set of two moving bodies.
+//! The stochastic sampler: uniformity on figures with exact answers, the stiff and extreme
+//! cases, the adaptation of the default settings and the quality they report, and the
+//! command. (The cross-check of the checker by the sampler is in tests/sampler_checker.rs.)
 
-use chronotope::checker::labels::Label;
-use chronotope::checker::{check_pair, CommonLattice};
-use chronotope::mesh::glue::BodyAssembler;
-use chronotope::mesh::{FrameRef, MesherOptions};
-use chronotope::msg::VoxelEncoding;
-use chronotope::sampler::exact::{ks_statistic, sphere_x_cdf, TorusTheta};
+use chronotope::sampler::exact::{ks_statistic, sphere_coordinate_cdf, sphere_x_cdf, TorusTheta};
+use chronotope::sampler::quality::ess;
 use chronotope::sampler::{
     sample, surface_points, Body, Field, Figure, LambdaPolicy, SamplerError, SamplerOptions,
     Scheme, Shape, ShapeAxis, Wall, Q,
@@ -62,9 +58,11 @@ fn every_scheme_is_uniform_on_the_torus_and_metropolis_is_exactly_so() {
     // KS of 40 000 correlated samples from 32 walkers is 0.01-0.03 (mixing); a sampler that
     // ignores the curvature (uniform in θ) scores r/(2πR) = 0.064 whatever the run length.
     for scheme in Scheme::ALL {
+        // The old defaults (dt 1e-3, thin 5): what these fixed-step checks were written for.
         let o = SamplerOptions::default()
             .scheme(scheme)
             .dt(1e-3)
+            .thin(5)
             .samples(40_000)
             .walkers(32)
             .seed(3);
@@ -142,6 +140,7 @@ fn gradient_varying_a_thousandfold_changes_nothing() {
         let o = SamplerOptions::default()
             .scheme(scheme)
             .dt(1e-3)
+            .thin(5)
             .samples(40_000)
             .walkers(32)
             .seed(5);
@@ -166,6 +165,7 @@ fn explicit_lambda_near_two_is_stable_above_two_refused_or_clamped() {
     let base = SamplerOptions::default()
         .scheme(Scheme::Explicit)
         .dt(1e-3)
+        .thin(5)
         .samples(2000)
         .burn_in(200)
         .seed(1);
@@ -211,12 +211,35 @@ fn bad_options_are_refused_with_their_name() {
         (SamplerOptions::default().thin(0), "thin"),
         (SamplerOptions::default().tol(0.0), "tol"),
         (SamplerOptions::default().samples(usize::MAX), "samples"),
+        (SamplerOptions::default().samples(0), "samples"),
+        // The step and thinning are tuned in burn-in: too short a burn-in is refused...
+        (SamplerOptions::default().burn_in(10), "burn_in"),
+        (
+            SamplerOptions::default().target_acceptance(1.0),
+            "target_acceptance",
+        ),
+        (
+            SamplerOptions::default().target_acceptance(f64::NAN),
+            "target_acceptance",
+        ),
     ] {
         match sample(&fig, &o) {
             Err(SamplerError::BadParameter { name: n, .. }) => assert_eq!(n, name),
             other => panic!("{name}: {:?}", other.map(|s| s.stats)),
         }
     }
+    // ... but not when nothing is tuned.
+    assert!(sample(
+        &fig,
+        &SamplerOptions::default()
+            .dt(1e-3)
+            .thin(1)
+            .burn_in(0)
+            .samples(10)
+    )
+    .is_ok());
+    let e = SamplerOptions::default().samples(0).validate().unwrap_err();
+    assert!(e.to_string().contains("samples = 0"), "{e}");
     assert!(matches!(
         Figure::new(3, vec![torus(1.0, 0.4); 3]),
         Err(SamplerError::BadFigure(_))
@@ -247,6 +270,7 @@ fn cone_apex_where_the_gradient_vanishes() {
         let o = SamplerOptions::default()
             .scheme(scheme)
             .dt(1e-3)
+            .thin(5)
             .burn_in(2000)
             .samples(8000)
             .walkers(32)
@@ -375,24 +399,58 @@ impl Field for TwoSpheres {
 }
 
 #[test]
-fn disconnected_components_are_each_reached_but_not_weighted_by_area() {
+fn disconnected_components_small_steps_stay_large_steps_jump() {
     let f = TwoSpheres(sphere([-1.0, 0.0, 0.0], 0.6), sphere([1.2, 0.0, 0.0], 0.3));
     let fig = boxed(vec![Arc::new(f)], 2.0);
-    let s = sample(
-        &fig,
-        &SamplerOptions::default().samples(6400).walkers(64).seed(6),
-    )
-    .unwrap();
-    let left = s.points.iter().filter(|q| q[0] < 0.0).count() as f64 / s.points.len() as f64;
-    eprintln!("two spheres: fraction on the larger {left:.3} (by area it would be 0.8)");
-    // Diffusion never crosses between components: each walker stays on the one it was
-    // projected onto, so both are covered, in proportion to the walkers that landed there.
-    assert!(left > 0.05 && left < 0.95, "{left}");
-    for q in &s.points {
+    let on_figure = |q: &Q| {
         let on_a = ((q[0] + 1.0).powi(2) + q[1] * q[1] + q[2] * q[2]).sqrt() - 0.6;
         let on_b = ((q[0] - 1.2).powi(2) + q[1] * q[1] + q[2] * q[2]).sqrt() - 0.3;
-        assert!(on_a.abs() < 1e-9 || on_b.abs() < 1e-9);
-    }
+        on_a.abs() < 1e-9 || on_b.abs() < 1e-9
+    };
+    let left = |p: &[Q]| p.iter().filter(|q| q[0] < 0.0).count() as f64 / p.len() as f64;
+    // Small fixed steps (0.045 m) never cross the 1.3 m gap: each walker stays on the
+    // sphere it was put on, so the spheres are weighted by the walkers that landed there,
+    // not by area, and the run says so (R-hat of x).
+    let small = sample(
+        &fig,
+        &SamplerOptions::default()
+            .dt(1e-3)
+            .thin(5)
+            .samples(6400)
+            .walkers(64)
+            .seed(6),
+    )
+    .unwrap();
+    assert!(small.points.iter().all(on_figure));
+    let rhat = small.quality.rhat[0].unwrap();
+    eprintln!(
+        "two spheres, small steps: fraction on the larger {:.3} (by area 0.8), R-hat of x {rhat:.2}",
+        left(&small.points)
+    );
+    assert!(rhat > chronotope::sampler::quality::RHAT_WARNING, "{rhat}");
+    assert!(small.quality.describe().contains("walkers disagree on x"));
+    assert!(left(&small.points) > 0.05 && left(&small.points) < 0.95);
+    // The tuned steps are as large as the spheres: a proposal projected onto the other
+    // sphere and passing the reverse check is a reversible jump, so the walkers cross and
+    // the spheres are weighted by area (0.36 : 0.09).
+    let tuned = sample(
+        &fig,
+        &SamplerOptions::default().samples(3200).walkers(32).seed(6),
+    )
+    .unwrap();
+    assert!(tuned.points.iter().all(on_figure));
+    let rhat = tuned.quality.rhat[0].unwrap();
+    eprintln!(
+        "two spheres, tuned steps: fraction on the larger {:.3} (by area 0.8), R-hat of x {rhat:.3}",
+        left(&tuned.points)
+    );
+    assert!(
+        (left(&tuned.points) - 0.8).abs() < 0.05,
+        "{}",
+        left(&tuned.points)
+    );
+    assert!(rhat < chronotope::sampler::quality::RHAT_WARNING, "{rhat}");
+    eprintln!("  thin {}", tuned.quality.adaptation.thin);
 }
 
 #[test]
@@ -513,208 +571,6 @@ fn surface_points_give_outward_normals() {
 }
 
 // ---------------------------------------------------------------------------------------
-// Cross-check: the checker on voxelised bodies against the sampled 4D collision set.
-
-const GRID: u32 = 20;
-const FRAMES: u32 = 21;
-
-struct Pair {
-    a: (chronotope::scene::Shape, [f64; 3]),
-    b: (chronotope::scene::Shape, [f64; 3]),
-    fa: Body,
-    fb: Body,
-}
-
-/// A static sphere (r 0.2 at (0.65, 0.5, 0.5)) and a box (half 0.15) crossing it along x
-/// at `vx`, in the unit cube over 1 s.
-fn pair(b_x0: f64, vx: f64) -> Pair {
-    use chronotope::scene::Shape as S;
-    let (c, r) = ([0.65, 0.5, 0.5], 0.2);
-    let (bc, h) = ([b_x0, 0.5, 0.55], 0.15);
-    Pair {
-        a: (S::sphere(c, r), [0.0; 3]),
-        b: (
-            S::cuboid(bc.map(|x| x - h), bc.map(|x| x + h)),
-            [vx, 0.0, 0.0],
-        ),
-        fa: sphere(c, r),
-        fb: Body::fixed(Shape::Box {
-            centre: bc,
-            half: [h; 3],
-            rounding: Some(0.0),
-        })
-        .moving([vx, 0.0, 0.0], 0.0),
-    }
-}
-
-struct Checked {
-    intervals_s: Vec<(f64, f64)>,
-    /// World bounding boxes (x, y, z, t) of INTERFERENCE tets of both bodies.
-    boxes: Vec<([f64; 4], [f64; 4])>,
-    period: f64,
-    voxel: f64,
-}
-
-fn check(p: &Pair) -> Checked {
-    let lattice = chronotope::scene::VoxelLattice::cube([0.0; 3], 1.0, GRID);
-    let mut raster = chronotope::scene::Rasterizer::new();
-    let mut data = Vec::new();
-    let period_ns = 1_000_000_000 / i64::from(FRAMES - 1);
-    let mut meshes = Vec::new();
-    for (shape, v) in [&p.a, &p.b] {
-        let mut asm = BodyAssembler::new(MesherOptions::default()).unwrap();
-        for k in 0..FRAMES {
-            let t = f64::from(k) / f64::from(FRAMES - 1);
-            raster.rasterize(
-                &[*shape],
-                v.map(|c| c * t),
-                &lattice,
-                VoxelEncoding::Bits,
-                &mut data,
-            );
-            asm.push(&FrameRef {
-                stamp_ns: i64::from(k) * period_ns,
-                origin: lattice.origin,
-                resolution: lattice.resolution,
-                size: lattice.size,
-                encoding: VoxelEncoding::Bits.code(),
-                data: &data,
-            })
-            .unwrap();
-        }
-        meshes.push(asm.finish());
-    }
-    let named = [("a", &meshes[0]), ("b", &meshes[1])];
-    let lat = CommonLattice::of(&named).unwrap();
-    let pa = lat.prepare("a", &meshes[0]).unwrap();
-    let pb = lat.prepare("b", &meshes[1]).unwrap();
-    let r = check_pair(&pa, &pb);
-    let origin = lat.stamps_ns[0];
-    let per = lat.per_step() as f64;
-    let world = |v: &[i32; 4]| -> [f64; 4] {
-        [
-            lat.voxel0_centre[0] + f64::from(v[0]) / per * lat.resolution,
-            lat.voxel0_centre[1] + f64::from(v[1]) / per * lat.resolution,
-            lat.voxel0_centre[2] + f64::from(v[2]) / per * lat.resolution,
-            lat.time_s(f64::from(v[3]), origin),
-        ]
-    };
-    let mut boxes = Vec::new();
-    for (prep, labels) in [(&pa, &r.labels_a), (&pb, &r.labels_b)] {
-        for (tet, l) in prep.mesh.tets.iter().zip(&labels.labels) {
-            if *l != Label::Interference {
-                continue;
-            }
-            let mut lo = [f64::INFINITY; 4];
-            let mut hi = [f64::NEG_INFINITY; 4];
-            for &vi in tet {
-                let w = world(&prep.mesh.vertices[vi as usize]);
-                for i in 0..4 {
-                    lo[i] = lo[i].min(w[i]);
-                    hi[i] = hi[i].max(w[i]);
-                }
-            }
-            boxes.push((lo, hi));
-        }
-    }
-    Checked {
-        intervals_s: r
-            .intervals
-            .iter()
-            .map(|&(s, e)| (lat.time_s(s, origin), lat.time_s(e, origin)))
-            .collect(),
-        boxes,
-        period: period_ns as f64 * 1e-9,
-        voxel: lattice.resolution,
-    }
-}
-
-fn collision_set(p: &Pair) -> Result<Vec<Q>, SamplerError> {
-    let fig = Figure::new(4, vec![Arc::new(p.fa), Arc::new(p.fb)])?.wall(Wall::Box {
-        min: [0.0, 0.0, 0.0, 0.0],
-        max: [1.0, 1.0, 1.0, 1.0],
-    })?;
-    let o = SamplerOptions::default()
-        .dt(1e-4)
-        .samples(3000)
-        .walkers(32)
-        .seed(11);
-    let s = sample(&fig, &o)?;
-    assert!(s.points.iter().all(|q| fig.residual(q) < 1e-9));
-    Ok(s.points)
-}
-
-#[test]
-fn every_sample_of_the_4d_collision_set_lies_where_the_checker_found_interference() {
-    let p = pair(0.2, 0.6);
-    let c = check(&p);
-    let samples = collision_set(&p).unwrap();
-    // The box's face reaches the sphere at t = (0.45 - 0.35)/0.6 = 0.167 s; they still cross
-    // at the end of the run.
-    let (tmin, tmax) = samples.iter().fold((f64::INFINITY, 0.0f64), |a, q| {
-        (a.0.min(q[3]), a.1.max(q[3]))
-    });
-    assert!(tmin > 0.1 && tmin < 0.25 && tmax > 0.95, "{tmin} {tmax}");
-    assert!(
-        !c.intervals_s.is_empty(),
-        "the checker found no interference"
-    );
-    // Tolerances: voxelisation moves each surface by up to half a voxel diagonal, so a
-    // sample may sit up to one voxel diagonal from the nearest INTERFERENCE tet of the
-    // voxel bodies, and the time of first contact may shift by that over the closing speed
-    // (0.6 m/s), plus a frame period for the piecewise-linear time interpolation.
-    let diag = 3f64.sqrt() * c.voxel;
-    let t_tol = c.period + diag / 0.6;
-    let mut outside = Vec::new();
-    for q in &samples {
-        let in_interval = c
-            .intervals_s
-            .iter()
-            .any(|&(s, e)| q[3] >= s - t_tol && q[3] <= e + t_tol);
-        assert!(
-            in_interval,
-            "sample at t = {} outside the checker's intervals {:?}",
-            q[3], c.intervals_s
-        );
-        let in_box = c.boxes.iter().any(|(lo, hi)| {
-            (0..3).all(|i| q[i] >= lo[i] - diag && q[i] <= hi[i] + diag)
-                && q[3] >= lo[3] - t_tol
-                && q[3] <= hi[3] + t_tol
-        });
-        if !in_box {
-            outside.push(*q);
-        }
-    }
-    assert!(
-        outside.is_empty(),
-        "{} of {} samples far from every INTERFERENCE tet, e.g. {:?}",
-        outside.len(),
-        samples.len(),
-        &outside[..outside.len().min(3)]
-    );
-    // And the other way round: the checker's interval is covered by samples (it would also
-    // fail if the checker reported interference where the bodies never cross).
-    for &(s, e) in &c.intervals_s {
-        assert!(
-            (s - tmin).abs() < t_tol && (e - tmax).abs() < t_tol,
-            "checker {s}..{e} vs samples {tmin}..{tmax}"
-        );
-    }
-}
-
-#[test]
-fn bodies_that_never_meet_have_no_collision_set_and_no_interference() {
-    // The box moves away from the sphere.
-    let p = pair(0.2, -0.1);
-    let c = check(&p);
-    assert!(c.intervals_s.is_empty() && c.boxes.is_empty());
-    assert!(matches!(
-        collision_set(&p),
-        Err(SamplerError::NoStart { .. })
-    ));
-}
-
-// ---------------------------------------------------------------------------------------
 // The command.
 
 #[test]
@@ -740,8 +596,25 @@ fn sample_command_writes_point_clouds_and_ply() {
         thin: None,
         lambda: None,
         clamp: false,
+        project: false,
+        target_acceptance: None,
+        summary: None,
     };
     run(&args).unwrap();
+    // The quality summary goes next to the bag.
+    let summary = dir.path().join("s.quality.json");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let q = &j["quality"];
+    assert_eq!(q["samples"], 500);
+    assert_eq!(q["dim"], 4);
+    for i in 0..4 {
+        assert!(q["ess"][i].as_f64().unwrap() > 0.0, "{q}");
+    }
+    assert!(q["acceptance"].as_f64().unwrap() > 0.05);
+    assert!(q["max_residual"].as_f64().unwrap() < 1e-9);
+    assert_eq!(q["adaptation"]["dt_tuned"], true);
+    assert_eq!(q["adaptation"]["thin_chosen"], true);
     let msgs: Vec<_> = BagReader::open(&out).unwrap().map(|m| m.unwrap()).collect();
     assert_eq!(msgs.len(), 2);
     for m in &msgs {
@@ -763,6 +636,263 @@ fn sample_command_writes_point_clouds_and_ply() {
     // A bad scene is an error that names the problem.
     let bad = dir.path().join("bad.yaml");
     std::fs::write(&bad, "dim: 3\nbodies: []\nsample: [nothing]\n").unwrap();
-    let e = run(&SampleArgs { scene: bad, ..args }).unwrap_err();
+    let e = run(&SampleArgs {
+        scene: bad,
+        ..args.clone()
+    })
+    .unwrap_err();
     assert!(e.to_string().contains("nothing"), "{e}");
+    // Bad options are refused with the option and the reason, before anything is written.
+    for (patch, want) in [
+        (
+            SampleArgs {
+                samples: Some(0),
+                ..args.clone()
+            },
+            "samples = 0",
+        ),
+        (
+            SampleArgs {
+                walkers: Some(0),
+                ..args.clone()
+            },
+            "walkers = 0",
+        ),
+        (
+            SampleArgs {
+                thin: Some(0),
+                ..args.clone()
+            },
+            "thin = 0",
+        ),
+        (
+            SampleArgs {
+                burn_in: Some(5),
+                ..args.clone()
+            },
+            "burn_in = 5",
+        ),
+        (
+            SampleArgs {
+                dt: Some(f64::NAN),
+                ..args.clone()
+            },
+            "dt = NaN",
+        ),
+        (
+            SampleArgs {
+                target_acceptance: Some(0.0),
+                ..args.clone()
+            },
+            "target_acceptance = 0",
+        ),
+    ] {
+        let fresh = dir.path().join("refused.mcap");
+        let e = run(&SampleArgs {
+            out: fresh.clone(),
+            ..patch
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains(want), "{want}: {e}");
+        assert!(!fresh.exists(), "{want}: nothing written");
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Adaptation and quality.
+
+fn sphere_07() -> Figure {
+    Figure::new(
+        3,
+        vec![Arc::new(sphere([0.3, -0.2, 0.1], 0.7)) as Arc<dyn Field>],
+    )
+    .unwrap()
+    .wall(Wall::Box {
+        min: [-2.0; 4],
+        max: [2.0; 4],
+    })
+    .unwrap()
+}
+
+/// ESS of coordinate `i` over every lag, walkers as chains (samples are drawn round-robin).
+fn full_ess(points: &[Q], walkers: usize, i: usize) -> f64 {
+    let chains: Vec<Vec<f64>> = (0..walkers)
+        .map(|w| {
+            points
+                .iter()
+                .skip(w)
+                .step_by(walkers)
+                .map(|p| p[i])
+                .collect()
+        })
+        .collect();
+    let refs: Vec<&[f64]> = chains.iter().map(|c| &c[..]).collect();
+    ess(&refs).unwrap().value
+}
+
+#[test]
+fn default_settings_give_nearly_independent_samples() {
+    // A new user's first try: a sphere of radius 0.7 off the origin, 20 000 samples at the
+    // defaults. Before adaptation (dt 1e-3, thin 5) the azimuth's KS distance was 0.059 and
+    // the ESS about N/100.
+    let fig = sphere_07();
+    let n = 20_000;
+    let s = sample(&fig, &SamplerOptions::default().samples(n).seed(1)).unwrap();
+    let q = &s.quality;
+    assert!(q.adaptation.dt_tuned && q.adaptation.thin_chosen, "{q:?}");
+    assert!(
+        (q.acceptance - 0.5).abs() < 0.1,
+        "acceptance {}",
+        q.acceptance
+    );
+    let c = [0.3, -0.2, 0.1];
+    for i in 0..3 {
+        let e = full_ess(&s.points, q.walkers, i);
+        let own = q.ess[i].unwrap();
+        assert!(e >= 0.5 * n as f64, "coordinate {i}: ESS {e}");
+        // The sampler's running estimate agrees with the one over every lag.
+        assert!((own / e - 1.0).abs() < 0.1, "coordinate {i}: {own} vs {e}");
+        let mut v: Vec<f64> = s.points.iter().map(|p| p[i]).collect();
+        let ks = ks_statistic(&mut v, sphere_coordinate_cdf(c[i], 0.7));
+        // 2.5/√N: exceeded with probability ~1e-4 by N/2 independent samples.
+        assert!(ks < 2.5 / (n as f64).sqrt(), "coordinate {i}: KS {ks}");
+    }
+    let az = |p: &Q| (p[1] - c[1]).atan2(p[0] - c[0]);
+    let mut a: Vec<f64> = s.points.iter().map(az).collect();
+    let ks = ks_statistic(&mut a, |x| {
+        (x + std::f64::consts::PI) / (2.0 * std::f64::consts::PI)
+    });
+    assert!(ks < 2.5 / (n as f64).sqrt(), "azimuth KS {ks}");
+    // The same checks fail for the old defaults: the test can fail.
+    let old = sample(
+        &fig,
+        &SamplerOptions::default()
+            .dt(1e-3)
+            .burn_in(500)
+            .thin(5)
+            .samples(n)
+            .seed(1),
+    )
+    .unwrap();
+    let e = full_ess(&old.points, old.quality.walkers, 0);
+    assert!(e < 0.1 * n as f64, "old defaults: ESS {e}");
+    let mut a: Vec<f64> = old.points.iter().map(az).collect();
+    let ks_old = ks_statistic(&mut a, |x| {
+        (x + std::f64::consts::PI) / (2.0 * std::f64::consts::PI)
+    });
+    assert!(
+        ks_old > 2.5 / (n as f64).sqrt(),
+        "old defaults: azimuth KS {ks_old}"
+    );
+    eprintln!(
+        "sphere r 0.7: tuned dt {:.3e} (step {:.3} m), thin {}, ESS/N {:.2}; old defaults: ESS/N {:.3}, azimuth KS {ks_old:.4}",
+        q.adaptation.dt,
+        q.adaptation.step_m,
+        q.adaptation.thin,
+        q.ess_fraction.unwrap(),
+        e / n as f64
+    );
+}
+
+#[test]
+fn adaptation_is_deterministic_and_stops_before_the_first_sample() {
+    let fig = boxed(vec![torus(1.0, 0.4)], 2.0);
+    let o = SamplerOptions::default().samples(2000).seed(4);
+    let mut a = chronotope::sampler::Sampler::new(&fig, &o).unwrap();
+    let mut b = chronotope::sampler::Sampler::new(&fig, &o).unwrap();
+    let before = a.adaptation().clone();
+    assert_eq!(&before, b.adaptation());
+    assert!(before.dt_tuned && before.thin_chosen && before.thin >= 1);
+    let burn = a.stats().burn_in_steps;
+    assert_eq!(
+        burn,
+        a.stats().steps,
+        "nothing but burn-in before the first draw"
+    );
+    let pa: Vec<Q> = (0..2000).map(|_| a.draw()).collect();
+    let pb: Vec<Q> = (0..2000).map(|_| b.draw()).collect();
+    assert_eq!(pa, pb);
+    // Fixed from the first sample on: the same step and thinning, the burn-in unchanged,
+    // and exactly thin steps per sample.
+    assert_eq!(a.adaptation(), &before);
+    assert_eq!(a.stats().burn_in_steps, burn);
+    assert_eq!(
+        a.stats().steps - burn,
+        2000 * before.thin as u64,
+        "sampling steps"
+    );
+    // A different seed adapts to about the same step.
+    let c = chronotope::sampler::Sampler::new(&fig, &o.clone().seed(5)).unwrap();
+    let r = c.adaptation().dt / before.dt;
+    assert!(
+        r > 0.7 && r < 1.4,
+        "tuned steps {} and {}",
+        before.dt,
+        c.adaptation().dt
+    );
+    // A given step and thinning are kept as given.
+    let d = chronotope::sampler::Sampler::new(&fig, &o.clone().dt(1e-3).thin(3)).unwrap();
+    assert!(!d.adaptation().dt_tuned && !d.adaptation().thin_chosen);
+    assert_eq!((d.adaptation().dt, d.adaptation().thin), (1e-3, 3));
+}
+
+#[test]
+fn the_explicit_scheme_reports_its_distance_off_the_figure_and_project_removes_it() {
+    let fig = sphere_07();
+    let o = SamplerOptions::default()
+        .scheme(Scheme::Explicit)
+        .thin(10)
+        .samples(3000)
+        .seed(2);
+    let raw = sample(&fig, &o).unwrap();
+    let off = |p: &Q| {
+        (((p[0] - 0.3).powi(2) + (p[1] + 0.2).powi(2) + (p[2] - 0.1).powi(2)).sqrt() - 0.7).abs()
+    };
+    let worst = raw.points.iter().map(off).fold(0.0, f64::max);
+    // Seed eq. (2) leaves the walkers off the sphere by O(step), and the run says how far.
+    assert!(worst > 1e-4, "{worst}");
+    assert!((raw.quality.off_figure_max / worst - 1.0).abs() < 1e-6);
+    assert!(raw.quality.off_figure_rms > 0.0 && raw.quality.off_figure_rms <= worst);
+    assert!(raw.quality.describe().contains("off the figure"));
+    let proj = sample(&fig, &o.clone().project(true)).unwrap();
+    assert!(proj.points.iter().all(|p| off(p) < 1e-9));
+    assert!(proj.quality.max_residual < 1e-9 && proj.quality.projected);
+    // The walk itself is untouched: the same distances off the figure before projection,
+    // and each sample is the nearest point of the sphere to the walker's.
+    assert_eq!(proj.quality.off_figure_max, raw.quality.off_figure_max);
+    for (a, b) in raw.points.iter().zip(&proj.points) {
+        let d = ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt();
+        assert!((d - off(a)).abs() < 1e-9, "{a:?} → {b:?}");
+    }
+}
+
+/// The KS distance of samples worth N_eff independent ones is about 0.869/√N_eff on
+/// average (the mean of Kolmogorov's distribution). Over 60 seeds of the sphere of radius
+/// 0.7 off the origin at the defaults, KS·√ESS must average that: a bias would raise it, an
+/// ESS estimate too high as well. 30 s in a test build, so not in CI:
+/// `cargo test --test sampler -- --ignored ks_of_default_samples`.
+#[test]
+#[ignore]
+fn ks_of_default_samples_is_that_of_independent_ones() {
+    let fig = sphere_07();
+    let c = [0.3, -0.2, 0.1];
+    let n = 20_000;
+    let (mut sum, mut over, mut runs) = (0.0, 0, 0);
+    for seed in 100..160 {
+        let s = sample(&fig, &SamplerOptions::default().samples(n).seed(seed)).unwrap();
+        for i in 0..3 {
+            let mut v: Vec<f64> = s.points.iter().map(|p| p[i]).collect();
+            let ks = ks_statistic(&mut v, sphere_coordinate_cdf(c[i], 0.7));
+            sum += ks * full_ess(&s.points, s.quality.walkers, i).sqrt();
+            over += usize::from(ks > 1.5 / (n as f64).sqrt());
+            runs += 1;
+        }
+    }
+    let mean = sum / runs as f64;
+    eprintln!(
+        "mean KS·√ESS {mean:.3} (independent samples: 0.869); KS > 1.5/√N in {over} of {runs}"
+    );
+    // The mean of 180 values with a standard deviation of about 0.26: ±0.06 is 3 SE.
+    assert!((mean - 0.869).abs() < 0.06, "{mean}");
 }

@@ -31,21 +31,27 @@ fn torus() -> Figure {
 #[test]
 fn total_steps_are_limited_by_name_before_any_step() {
     let fig = torus();
+    // With the thinning to be chosen in burn-in, the least it can be (1) is counted.
     for (o, total) in [
         // --burn-in 2e6 with the default 16 walkers.
         (
             SamplerOptions::default().burn_in(2_000_000),
-            16 * 2_000_000u128 + 10_000 * 5,
+            16 * 2_000_000u128 + 10_000,
         ),
         // --thin 1e6 with the default 10 000 samples.
         (
             SamplerOptions::default().thin(1_000_000),
-            16 * 500 + 10_000 * 1_000_000u128,
+            16 * 1000 + 10_000 * 1_000_000u128,
         ),
-        // --samples 3e7 (the maximum) at the default thin 5.
+        // --samples 3e7 (the maximum) with the default burn-in.
         (
             SamplerOptions::default().samples(MAX_SAMPLES),
-            16 * 500 + 5 * MAX_SAMPLES as u128,
+            16 * 1000 + MAX_SAMPLES as u128,
+        ),
+        // --samples 1e7 at thin 5.
+        (
+            SamplerOptions::default().samples(10_000_000).thin(5),
+            16 * 1000 + 5 * 10_000_000u128,
         ),
     ] {
         let t = std::time::Instant::now();
@@ -68,13 +74,50 @@ fn total_steps_are_limited_by_name_before_any_step() {
         assert!(chronotope::sampler::Sampler::new(&fig, &o).is_err());
         assert!(t.elapsed().as_millis() < 100);
     }
-    // The maximum of samples runs at thin 1 without burn-in.
+    // The maximum of samples runs at a given step, thin 1, without burn-in.
     SamplerOptions::default()
         .samples(MAX_SAMPLES)
+        .dt(1e-3)
         .thin(1)
         .burn_in(0)
         .validate()
         .unwrap();
+}
+
+#[test]
+fn a_chosen_thinning_stays_within_the_step_budget() {
+    // 1e7 samples leave 2 steps per sample after burn-in: the thinning chosen is capped
+    // there (and said), however slowly the walk mixes. Checked on the options' arithmetic
+    // only: the run itself would take half a minute.
+    let o = SamplerOptions::default().samples(10_000_000);
+    o.validate().unwrap();
+    // A slow walk (tiny fixed step) on a small run: the pilot extends, then the thinning is
+    // capped at MAX_AUTO_THIN and the shortfall reported.
+    let fig = torus();
+    let s = chronotope::sampler::Sampler::new(
+        &fig,
+        &SamplerOptions::default().dt(1e-7).samples(100).walkers(4),
+    )
+    .unwrap();
+    let a = s.adaptation();
+    assert!(a.thin_chosen && a.thin_capped, "{a:?}");
+    assert_eq!(a.thin, chronotope::sampler::MAX_AUTO_THIN);
+    assert!(a.thin_wanted > a.thin);
+    assert!(a.pilot_steps <= chronotope::sampler::MAX_PILOT_STEPS);
+    assert!(s.stats().steps <= MAX_TOTAL_STEPS);
+    // With more samples the automatic choice's own step budget caps it first (the burn-in
+    // alone is run here: no sample is drawn).
+    let s = chronotope::sampler::Sampler::new(
+        &fig,
+        &SamplerOptions::default()
+            .dt(1e-7)
+            .samples(20_000)
+            .walkers(4),
+    )
+    .unwrap();
+    let budget = chronotope::sampler::AUTO_THIN_STEPS as usize / 20_000;
+    assert_eq!(s.adaptation().thin, budget);
+    assert!(s.adaptation().thin_capped);
 }
 
 #[test]
@@ -110,8 +153,12 @@ fn the_cli_streams_the_same_samples_to_the_bag_and_the_ply() {
         thin: None,
         lambda: None,
         clamp: false,
+        project: false,
+        target_acceptance: None,
+        summary: Some(dir.path().join("q.json")),
     })
     .unwrap();
+    assert!(dir.path().join("q.json").exists());
     // The reference: the same options, collected in memory.
     let s = SceneFile::read(&scene).unwrap().build().unwrap();
     let want = sample(&s.figure, &s.options.clone().seed(7).samples(n)).unwrap();

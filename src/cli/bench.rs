@@ -92,18 +92,29 @@ pub enum BenchWhich {
         #[arg(long)]
         no_sweep: bool,
     },
-    /// The stochastic sampler (issue 7): uniformity error (KS) against run time and
-    /// evaluations per scheme and step on three figures with exact answers.
+    /// The stochastic sampler: at default settings, KS of each coordinate and effective
+    /// sample size on spheres, a torus, the seed's figures and 4D sets, with the cost per
+    /// effective sample; then uniformity error (KS) against run time and evaluations per
+    /// scheme and step on three figures with exact answers.
     Sampler {
         /// Time steps (noise variance 2·dt per coordinate).
         #[arg(long, value_delimiter = ',', default_value = "0.01,0.003,0.001")]
         dts: Vec<f64>,
-        /// Samples of the longest run.
+        /// Samples of the longest error-against-time run.
         #[arg(long, default_value_t = 256_000)]
         samples: usize,
         /// The KS level at which samples per second are compared.
         #[arg(long, default_value_t = 0.01)]
         target: f64,
+        /// Samples of each default-settings run (N).
+        #[arg(long, default_value_t = 20_000)]
+        n: usize,
+        /// Seeds over which the default-settings pass rates are counted.
+        #[arg(long, default_value_t = 10)]
+        seeds: u64,
+        /// Only the default-settings section (no error-against-time runs).
+        #[arg(long)]
+        no_sweep: bool,
         /// Write the Markdown report here (e.g. docs/sampler-error.md).
         #[arg(long)]
         out: Option<std::path::PathBuf>,
@@ -189,12 +200,20 @@ fn run_in_pool(a: &BenchArgs) -> Result<(), CliError> {
             dts,
             samples,
             target,
+            n,
+            seeds,
+            no_sweep,
             out,
             svg,
         } => super::bench_sampler::bench_sampler(
-            dts,
-            (*samples).clamp(1000, crate::sampler::MAX_SAMPLES),
-            *target,
+            &super::bench_sampler::BenchSamplerOptions {
+                dts: dts.clone(),
+                max_samples: (*samples).clamp(1000, crate::sampler::MAX_SAMPLES / 2),
+                target: *target,
+                n: (*n).clamp(100, 1_000_000),
+                seeds: (*seeds).clamp(1, 1000),
+                no_sweep: *no_sweep,
+            },
             out.as_deref(),
             svg.as_deref(),
         ),

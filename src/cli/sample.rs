@@ -11,12 +11,18 @@
 //! the scene's start; together they are the samples, in the order drawn), and the PLY is
 //! written point by point. The run's steps are bounded by
 //! [`crate::sampler::MAX_TOTAL_STEPS`].
+//!
+//! Every run reports its quality ([`crate::sampler::Quality`]: effective sample size per
+//! coordinate, acceptance rate, largest residual, the step and thinning used and how they
+//! were found, and for the explicit scheme how far its points lie off the figure): printed,
+//! and written as JSON next to the bag (`--summary`, default the bag's path with the
+//! extension `quality.json`).
 
 use super::CliError;
 use crate::bag::BagWriter;
 use crate::msg::{Header, PointCloud2, PointField, Time};
 use crate::sampler::scene_file::{SceneFile, SceneFileError};
-use crate::sampler::{LambdaPolicy, Sampler, Scheme, Q};
+use crate::sampler::{LambdaPolicy, Quality, SampleStats, Sampler, Scheme, Q};
 use clap::Args;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -51,16 +57,19 @@ pub struct SampleArgs {
     /// RNG seed.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Time step (noise variance 2·α·dt per coordinate).
+    /// Time step (noise variance 2·α·dt per coordinate). Default: tuned during burn-in
+    /// (metropolis), 1e-3 (explicit, projected).
     #[arg(long)]
     pub dt: Option<f64>,
-    /// Walkers.
+    /// Walkers (default 16).
     #[arg(long)]
     pub walkers: Option<usize>,
-    /// Burn-in steps per walker.
+    /// Burn-in steps per walker (default 1000; the step is tuned and the thinning chosen
+    /// in them).
     #[arg(long)]
     pub burn_in: Option<usize>,
-    /// Steps between samples of one walker.
+    /// Steps between samples of one walker. Default: chosen from the burn-in's
+    /// autocorrelation, so that the samples are close to independent.
     #[arg(long)]
     pub thin: Option<usize>,
     /// Explicit scheme: λ = Kαdt (must be < 2).
@@ -69,6 +78,40 @@ pub struct SampleArgs {
     /// Explicit scheme: clamp λ ≥ 2 to 1 instead of refusing.
     #[arg(long)]
     pub clamp: bool,
+    /// Finish each sample with a Newton projection onto the figure (the explicit scheme's
+    /// points lie off it by about a step).
+    #[arg(long)]
+    pub project: bool,
+    /// The acceptance rate the metropolis step is tuned to (default 0.5).
+    #[arg(long)]
+    pub target_acceptance: Option<f64>,
+    /// Where to write the run's quality summary (JSON). Default: the bag's path with the
+    /// extension `quality.json`.
+    #[arg(long)]
+    pub summary: Option<PathBuf>,
+}
+
+/// The JSON summary of one `chronotope sample` run.
+#[derive(Debug, serde::Serialize)]
+pub struct SampleSummary {
+    /// The scene file.
+    pub scene: String,
+    /// The bag written.
+    pub out: String,
+    /// The RNG seed.
+    pub seed: u64,
+    /// Wall-clock seconds of the run (start-up, burn-in, sampling and writing).
+    pub seconds: f64,
+    /// Effective sample size, acceptance, residuals, the adapted settings.
+    pub quality: Quality,
+    /// Every counter of the run.
+    pub stats: SampleStats,
+}
+
+/// Where the summary of a run writing `out` goes by default: `out` with the extension
+/// `quality.json` (`s.mcap` → `s.quality.json`).
+pub fn default_summary_path(out: &Path) -> PathBuf {
+    out.with_extension("quality.json")
 }
 
 /// Samples the scene and writes the bag (and PLY).
@@ -86,7 +129,7 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
         o.samples = v;
     }
     if let Some(v) = a.dt {
-        o.dt = v;
+        o.dt = Some(v);
     }
     if let Some(v) = a.walkers {
         o.walkers = v;
@@ -95,7 +138,7 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
         o.burn_in = v;
     }
     if let Some(v) = a.thin {
-        o.thin = v;
+        o.thin = Some(v);
     }
     if let Some(v) = a.lambda {
         o.lambda = v;
@@ -103,6 +146,12 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
     if a.clamp {
         o.on_unstable = LambdaPolicy::Clamp;
     }
+    if let Some(v) = a.target_acceptance {
+        o.target_acceptance = v;
+    }
+    o.project = a.project;
+    // Refused with the option's name before anything is written.
+    o.validate().map_err(SceneFileError::from)?;
     let t0 = std::time::Instant::now();
     let fig = &scene.figure;
     let dim = fig.dim();
@@ -145,10 +194,6 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
             })?;
         }
     }
-    if o.samples == 0 {
-        // An empty cloud still says the run happened.
-        w.write(POINTS_TOPIC, STAMP_NS as u64, &point_cloud(&[], dim, None))?;
-    }
     w.finish()?;
     if let (Some(f), Some(p)) = (ply, &a.ply) {
         f.finish().map_err(|source| CliError::Io {
@@ -157,19 +202,20 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
         })?;
     }
     let secs = t0.elapsed().as_secs_f64();
-    let st = sampler.stats();
+    let st = sampler.stats().clone();
     if let Some(l) = st.clamped_lambda {
         tracing::warn!("λ = {l} ≥ 2 clamped to 1");
     }
+    let quality = sampler.quality();
     println!(
-        "{drawn} samples ({} scheme, dt {}, {} walkers) in {secs:.3} s: {} steps, {} function evaluations, max |F|/|∇F| {:.2e}",
+        "{drawn} samples ({} scheme, {} walkers) in {secs:.3} s: {} steps ({} in burn-in), {} function evaluations",
         o.scheme.as_str(),
-        o.dt,
-        o.walkers,
+        sampler.walkers(),
         st.steps,
+        st.burn_in_steps,
         st.evals,
-        st.max_residual
     );
+    println!("{}", quality.describe());
     println!(
         "  rejected: walls {}, metropolis {}, reverse check {}; failed projections {}; singular {}; guarded {}",
         st.rejected_walls,
@@ -179,6 +225,25 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
         st.singular,
         st.guarded
     );
+    let path = a
+        .summary
+        .clone()
+        .unwrap_or_else(|| default_summary_path(&a.out));
+    let summary = SampleSummary {
+        scene: a.scene.display().to_string(),
+        out: a.out.display().to_string(),
+        seed: a.seed,
+        seconds: secs,
+        quality,
+        stats: st,
+    };
+    let text = serde_json::to_string_pretty(&summary)
+        .map_err(|e| CliError::Usage(format!("quality summary: {e}")))?;
+    std::fs::write(&path, text + "\n").map_err(|source| CliError::Io {
+        path: path.clone(),
+        source,
+    })?;
+    println!("  quality summary: {}", path.display());
     Ok(())
 }
 

@@ -43,6 +43,90 @@ impl TorusTheta {
     pub fn mean_cos(&self) -> f64 {
         self.minor / (2.0 * self.major)
     }
+
+    /// The CDF of the axial coordinate (z for a torus around z, relative to its centre):
+    /// `z = r sin θ`, and the two branches of θ weigh `(R ± r cos θ)/(r |cos θ|)`, which sum
+    /// to `2R/(r cos θ)`: the arcsine law `1/2 + asin(z/r)/π`.
+    pub fn axial_cdf(&self, z: f64) -> f64 {
+        0.5 + (z / self.minor).clamp(-1.0, 1.0).asin() / std::f64::consts::PI
+    }
+
+    /// The CDF of a coordinate across the axis (x or y for a torus around z, relative to
+    /// its centre), tabulated at `points + 1` values: for a tube angle θ the point lies on a
+    /// circle of radius `ρ = R + r cos θ` with a uniform azimuth φ, so
+    /// `P(X ≤ s) = ∫ (ρ/(2πR)) (1 - acos(s/ρ)/π) dθ` (Simpson on 4096 intervals of θ).
+    pub fn across_cdf(&self, points: usize) -> TabulatedCdf {
+        let (big, r) = (self.major, self.minor);
+        let (lo, hi) = (-(big + r), big + r);
+        let pi = std::f64::consts::PI;
+        let values = (0..=points)
+            .map(|i| {
+                let s = lo + (hi - lo) * i as f64 / points.max(1) as f64;
+                let f = |th: f64| {
+                    let rho = big + r * th.cos();
+                    rho / (2.0 * pi * big) * (1.0 - (s / rho).clamp(-1.0, 1.0).acos() / pi)
+                };
+                simpson(f, -pi, pi, 4096).clamp(0.0, 1.0)
+            })
+            .collect();
+        TabulatedCdf { lo, hi, values }
+    }
+}
+
+/// A CDF tabulated at equally spaced points of `[lo, hi]` and interpolated linearly
+/// (0 below, 1 above).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TabulatedCdf {
+    /// The first point.
+    pub lo: f64,
+    /// The last point.
+    pub hi: f64,
+    /// The CDF at `lo + i (hi - lo)/(len - 1)`, non-decreasing from 0 to 1.
+    pub values: Vec<f64>,
+}
+
+impl TabulatedCdf {
+    /// The CDF at `x`.
+    pub fn eval(&self, x: f64) -> f64 {
+        let n = self.values.len();
+        if n < 2 || !(x > self.lo) {
+            return if x >= self.hi { 1.0 } else { 0.0 };
+        }
+        if x >= self.hi {
+            return 1.0;
+        }
+        let u = (x - self.lo) / (self.hi - self.lo) * (n - 1) as f64;
+        let i = (u.floor() as usize).min(n - 2);
+        let f = u - i as f64;
+        self.values[i] + f * (self.values[i + 1] - self.values[i])
+    }
+
+    /// The largest difference from another CDF at `points` evenly spread over `[lo, hi]`.
+    pub fn max_difference(&self, other: impl Fn(f64) -> f64, points: usize) -> f64 {
+        (0..=points)
+            .map(|i| {
+                let x = self.lo + (self.hi - self.lo) * i as f64 / points.max(1) as f64;
+                (self.eval(x) - other(x)).abs()
+            })
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Composite Simpson rule of `f` on `[a, b]` with `n` (made even) intervals.
+fn simpson(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
+    let n = n.max(2) & !1;
+    let h = (b - a) / n as f64;
+    let mut s = f(a) + f(b);
+    for k in 1..n {
+        s += f(a + k as f64 * h) * if k % 2 == 1 { 4.0 } else { 2.0 };
+    }
+    s * h / 3.0
+}
+
+/// Each coordinate of a uniform point on a sphere of radius `radius` about `centre_i` (in
+/// that coordinate) is uniform on `[centre_i - radius, centre_i + radius]` (Archimedes).
+pub fn sphere_coordinate_cdf(centre_i: f64, radius: f64) -> impl Fn(f64) -> f64 {
+    move |x| ((x - centre_i + radius) / (2.0 * radius)).clamp(0.0, 1.0)
 }
 
 /// The unit sphere given by the non-distance function `(|q|² - 1) e^{k x}` (any k): x of a
@@ -137,6 +221,45 @@ mod tests {
         };
         assert!(t.cdf(-std::f64::consts::PI).abs() < 1e-15);
         assert!((t.cdf(std::f64::consts::PI) - 1.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn torus_coordinate_marginals_match_a_direct_count() {
+        // Area-weighted grid over (θ, φ): the fraction of the area with x ≤ s and z ≤ s.
+        let t = TorusTheta {
+            major: 1.0,
+            minor: 0.4,
+        };
+        let across = t.across_cdf(2000);
+        let n = 1000;
+        let mut pts = Vec::new();
+        let mut total = 0.0;
+        for i in 0..n {
+            let th =
+                -std::f64::consts::PI + 2.0 * std::f64::consts::PI * (i as f64 + 0.5) / n as f64;
+            for j in 0..n {
+                let ph = 2.0 * std::f64::consts::PI * (j as f64 + 0.5) / n as f64;
+                let w = 1.0 + 0.4 * th.cos();
+                pts.push(((1.0 + 0.4 * th.cos()) * ph.cos(), 0.4 * th.sin(), w));
+                total += w;
+            }
+        }
+        for s in [-1.2, -0.7, -0.3, 0.0, 0.45, 0.9, 1.3] {
+            let x: f64 = pts.iter().filter(|p| p.0 <= s).map(|p| p.2).sum::<f64>() / total;
+            assert!(
+                (x - across.eval(s)).abs() < 2e-3,
+                "x ≤ {s}: {x} vs {}",
+                across.eval(s)
+            );
+        }
+        for s in [-0.35, -0.1, 0.0, 0.2, 0.39] {
+            let z: f64 = pts.iter().filter(|p| p.1 <= s).map(|p| p.2).sum::<f64>() / total;
+            assert!(
+                (z - t.axial_cdf(s)).abs() < 2e-3,
+                "z ≤ {s}: {z} vs {}",
+                t.axial_cdf(s)
+            );
+        }
     }
 
     #[test]

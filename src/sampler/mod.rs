@@ -27,6 +27,14 @@
 //! warped or steep functions are treated alike. Deterministic for a given seed. Pure
 //! numerics: no ROS, MCAP or I/O (the CLI writes the samples).
 //!
+//! Adapted to the figure ([`Sampler::new`], docs/sampler.md): walkers start from points spread over
+//! the figure (farthest-point choice among projected candidates); during burn-in the
+//! Metropolis step is tuned to an acceptance rate and the thinning is chosen from the
+//! measured autocorrelation; both are then fixed before the first sample is kept, so the
+//! chain that gives the samples is an ordinary fixed-kernel chain. Every run reports its
+//! [`Quality`]: effective sample size per coordinate, acceptance rate, largest residual
+//! and, for the explicit scheme, how far its points lie off the figure.
+//!
 //! ```
 //! use chronotope::sampler::{sample, Body, Figure, SamplerOptions, Shape, Wall};
 //! use std::sync::Arc;
@@ -37,6 +45,7 @@
 //! let s = sample(&fig, &SamplerOptions::default().samples(200).seed(1)).unwrap();
 //! assert_eq!(s.points.len(), 200);
 //! assert!(s.points.iter().all(|q| fig.residual(q) < 1e-8));
+//! println!("ESS of x: {:?}, acceptance {:.2}", s.quality.ess[0], s.quality.acceptance);
 //! ```
 
 // `!(x > 0.0)` is meant: it rejects NaN as well as non-positive values. The index loops over
@@ -50,14 +59,17 @@
 pub mod exact;
 mod field;
 mod figure;
+pub mod quality;
+pub mod reference;
 mod rng;
 pub mod scene_file;
 mod walk;
 
 pub use field::{Body, Field, Shape, ShapeAxis, Q};
 pub use figure::{Figure, Wall, MAX_CONSTRAINTS};
+pub use quality::Quality;
 pub use rng::Rng;
-pub use walk::Sampler;
+pub use walk::{Adaptation, Sampler};
 
 use std::sync::Arc;
 
@@ -67,15 +79,44 @@ pub const LAMBDA_LIMIT: f64 = 2.0;
 pub const MAX_SAMPLES: usize = 30_000_000;
 /// Most walkers.
 pub const MAX_WALKERS: usize = 100_000;
-/// Most steps of one run, all walkers together: `walkers × burn_in + samples × thin`.
-/// 3e7 steps take about a minute at the slowest rate measured, 0.5M steps/s (Metropolis
-/// on the torus, docs/sampler-error.md: 128 000 samples × 2 steps + 32 × 200 burn-in steps
-/// in 0.499 s, release build, one core of a 2-core AMD EPYC), with the default 20 Newton
-/// iterations per projection.
+/// Most steps of one run, all walkers together: `walkers × burn_in + samples × thin`, plus
+/// any extension of the burn-in's pilot ([`MAX_PILOT_STEPS`]). 3e7 steps take about 100 s
+/// at the slowest rate measured, 0.3M steps/s (Metropolis with the tuned step on the 4D
+/// collision set of two tori, docs/sampler-error.md; 0.5-0.7M steps/s on the 3D figures),
+/// with the default 20 Newton iterations per projection.
 pub const MAX_TOTAL_STEPS: u64 = 30_000_000;
 /// Most samples [`sample`] collects in memory (32 bytes each: 512 MiB). Draw more with
 /// [`Sampler::draw`] and write them as they come (`chronotope sample` does).
 pub const MAX_COLLECTED_SAMPLES: usize = 1 << 24;
+/// The time step of the explicit and projected schemes when none is given (m² with α = 1:
+/// steps of ~0.045 m on a surface). Their density has an O(dt) bias, so their step is an
+/// accuracy setting and is not tuned.
+pub const DEFAULT_DT: f64 = 1e-3;
+/// The acceptance rate the Metropolis step is tuned to during burn-in when no `dt` is given
+/// (docs/sampler.md: of 0.3, 0.5 and 0.7 none was the cheapest per effective sample on
+/// every benchmark figure; 0.5 was within about 25 % of the cheapest on each).
+pub const DEFAULT_TARGET_ACCEPTANCE: f64 = 0.5;
+/// With `thin` chosen during burn-in: the correlation of successive samples of one walker
+/// aimed at (the pilot's autocorrelation at lag `thin`, every coordinate). 0.05 makes the
+/// integrated autocorrelation time of the samples about (1 + 0.05)/(1 - 0.05) = 1.1, i.e.
+/// an effective sample size of about 0.9 N.
+pub const AUTO_THIN_CORRELATION: f64 = 0.05;
+/// Largest `thin` chosen during burn-in; a walk that needs more is reported with its
+/// effective sample size below N/2 ([`quality::Quality`]) instead of running for hours.
+pub const MAX_AUTO_THIN: usize = 1000;
+/// Most sampling steps a chosen `thin` may cost (`samples × thin`): about 30 s at the
+/// slowest rate measured ([`MAX_TOTAL_STEPS`]). A walk that would need more (a figure whose parts the walk
+/// crosses between only rarely, a tiny fixed step) is capped there and its shortfall
+/// reported; a `thin` given by the caller is bounded by [`MAX_TOTAL_STEPS`] only.
+pub const AUTO_THIN_STEPS: u64 = 10_000_000;
+/// Fewest burn-in steps per walker when the step or the thinning is tuned during burn-in.
+pub const MIN_ADAPT_BURN_IN: usize = 100;
+/// Most steps per walker of the burn-in's pilot (the part whose autocorrelation chooses
+/// `thin`), extension included. The pilot keeps the positions of at most
+/// [`PILOT_CHAINS`] walkers: 16 × 16384 × 32 bytes = 8 MiB.
+pub const MAX_PILOT_STEPS: usize = 1 << 14;
+/// Walkers whose pilot positions are kept.
+pub const PILOT_CHAINS: usize = 16;
 
 /// Why sampling could not start.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -98,7 +139,7 @@ pub enum SamplerError {
         expected: &'static str,
     },
     /// The run would take more steps than [`MAX_TOTAL_STEPS`].
-    #[error("walkers × burn_in + samples × thin = {walkers} × {burn_in} + {samples} × {thin} = {total} steps ({per_walker} per walker): at most {max} in one run (MAX_TOTAL_STEPS, about a minute at 0.5M steps/s); lower burn_in, thin or samples")]
+    #[error("walkers × burn_in + samples × thin = {walkers} × {burn_in} + {samples} × {thin} = {total} steps ({per_walker} per walker): at most {max} in one run (MAX_TOTAL_STEPS, 1-2 minutes at 0.3-0.7M steps/s); lower burn_in, thin or samples")]
     TooManySteps {
         /// Walkers.
         walkers: usize,
@@ -106,7 +147,7 @@ pub enum SamplerError {
         burn_in: usize,
         /// Samples.
         samples: usize,
-        /// Steps between samples of one walker.
+        /// Steps between samples of one walker (1 when it is to be chosen: the least).
         thin: usize,
         /// Steps of the whole run.
         total: u128,
@@ -180,14 +221,20 @@ pub enum LambdaPolicy {
 }
 
 /// Sampling options. Start from `SamplerOptions::default()` and adjust with the builders.
+///
+/// With the defaults nothing about the figure needs to be known: the Metropolis step is
+/// tuned during burn-in to [`Self::target_acceptance`] and the thinning chosen from the
+/// burn-in's measured autocorrelation, both then fixed before the first sample is kept
+/// (docs/sampler.md).
 #[derive(Debug, Clone, PartialEq)]
 pub struct SamplerOptions {
     /// Scheme (default Metropolis).
     pub scheme: Scheme,
     /// Time step; the noise has variance `2 α dt` per coordinate, so the step length is
-    /// about `sqrt(2 α dt (N - M))`. Default 1e-3 (m² with α = 1): steps of ~0.045 m on a
-    /// surface, suited to features of ~0.1-10 m. Limits: `0 < dt ≤ 1e3`.
-    pub dt: f64,
+    /// about `sqrt(2 α dt (N - M))`. `None` (the default): the Metropolis scheme tunes it
+    /// during burn-in to [`Self::target_acceptance`]; the explicit and projected schemes use
+    /// [`DEFAULT_DT`]. Limits: `0 < dt ≤ 1e3`.
+    pub dt: Option<f64>,
     /// Diffusion constant α > 0 (default 1).
     pub alpha: f64,
     /// Constraint strength K of the explicit scheme; `None`: from [`Self::lambda`].
@@ -197,13 +244,17 @@ pub struct SamplerOptions {
     pub lambda: f64,
     /// What to do with λ ≥ 2.
     pub on_unstable: LambdaPolicy,
-    /// Independent walkers (default 16, at most [`MAX_WALKERS`]).
+    /// Independent walkers (default 16, at most [`MAX_WALKERS`]; at most `samples` are used).
     pub walkers: usize,
-    /// Steps each walker takes before its first sample (default 500).
+    /// Steps each walker takes before its first sample (default 1000): step tuning (first
+    /// 40 %, when `dt` is `None` and the scheme is Metropolis), equilibration, and the pilot
+    /// whose autocorrelation chooses `thin` (last 40 %, when `thin` is `None`).
     pub burn_in: usize,
-    /// Steps between two samples of one walker (default 5, ≥ 1).
-    pub thin: usize,
-    /// Samples to draw (default 10 000, at most [`MAX_SAMPLES`]).
+    /// Steps between two samples of one walker (≥ 1). `None` (the default): the least lag
+    /// at which the burn-in pilot's autocorrelation falls to [`AUTO_THIN_CORRELATION`] in
+    /// every coordinate, at most [`MAX_AUTO_THIN`].
+    pub thin: Option<usize>,
+    /// Samples to draw (default 10 000, 1 to [`MAX_SAMPLES`]).
     pub samples: usize,
     /// RNG seed.
     pub seed: u64,
@@ -214,28 +265,37 @@ pub struct SamplerOptions {
     /// Guard: a step or a projection moving further than `max_jump` × the figure's scale is
     /// not taken (default 0.5).
     pub max_jump: f64,
-    /// Start points (cycled over walkers); empty: uniform in the figure's start box.
+    /// Start points (cycled over walkers); empty: spread over the figure from the start box.
     pub starts: Vec<Q>,
+    /// The acceptance rate the Metropolis step is tuned to (default
+    /// [`DEFAULT_TARGET_ACCEPTANCE`], in [0.05, 0.95]).
+    pub target_acceptance: f64,
+    /// Finish each sample with a Newton projection onto the figure (Gauss-Newton along
+    /// the gradients, to `tol`); the walker itself goes on from where it was. Meant for the
+    /// explicit scheme, whose samples lie off the figure by O(step).
+    pub project: bool,
 }
 
 impl Default for SamplerOptions {
     fn default() -> Self {
         Self {
             scheme: Scheme::Metropolis,
-            dt: 1e-3,
+            dt: None,
             alpha: 1.0,
             k: None,
             lambda: 1.0,
             on_unstable: LambdaPolicy::Refuse,
             walkers: 16,
-            burn_in: 500,
-            thin: 5,
+            burn_in: 1000,
+            thin: None,
             samples: 10_000,
             seed: 0,
             tol: 1e-10,
             max_newton: 20,
             max_jump: 0.5,
             starts: Vec::new(),
+            target_acceptance: DEFAULT_TARGET_ACCEPTANCE,
+            project: false,
         }
     }
 }
@@ -253,9 +313,10 @@ macro_rules! builder {
 }
 
 impl SamplerOptions {
-    builder!(scheme: Scheme, dt: f64, alpha: f64, lambda: f64, on_unstable: LambdaPolicy,
-        walkers: usize, burn_in: usize, thin: usize, samples: usize, seed: u64, tol: f64,
-        max_newton: usize, max_jump: f64, starts: Vec<Q>);
+    builder!(scheme: Scheme, alpha: f64, lambda: f64, on_unstable: LambdaPolicy,
+        walkers: usize, burn_in: usize, samples: usize, seed: u64, tol: f64,
+        max_newton: usize, max_jump: f64, starts: Vec<Q>, target_acceptance: f64,
+        project: bool);
 
     /// With the explicit scheme's K set directly (λ = Kα dt).
     pub fn k(mut self, k: f64) -> Self {
@@ -263,10 +324,33 @@ impl SamplerOptions {
         self
     }
 
+    /// With a fixed time step (no tuning).
+    pub fn dt(mut self, dt: f64) -> Self {
+        self.dt = Some(dt);
+        self
+    }
+
+    /// With a fixed thinning (no choice from the burn-in's autocorrelation).
+    pub fn thin(mut self, thin: usize) -> Self {
+        self.thin = Some(thin);
+        self
+    }
+
+    /// Whether the step is tuned during burn-in (Metropolis without a given `dt`).
+    pub fn tunes_step(&self) -> bool {
+        self.scheme == Scheme::Metropolis && self.dt.is_none()
+    }
+
+    /// Whether the thinning is chosen during burn-in (no `thin` given).
+    pub fn chooses_thin(&self) -> bool {
+        self.thin.is_none()
+    }
+
     /// Checks every limit.
     ///
     /// # Errors
-    /// [`SamplerError::BadParameter`] naming the first parameter out of range.
+    /// [`SamplerError::BadParameter`] naming the first parameter out of range,
+    /// [`SamplerError::TooManySteps`] for a run over [`MAX_TOTAL_STEPS`].
     pub fn validate(&self) -> Result<(), SamplerError> {
         let bad = |name, value: f64, expected| {
             Err(SamplerError::BadParameter {
@@ -275,8 +359,10 @@ impl SamplerOptions {
                 expected,
             })
         };
-        if !(self.dt > 0.0 && self.dt <= 1e3) {
-            return bad("dt", self.dt, "0 < dt ≤ 1e3");
+        if let Some(dt) = self.dt {
+            if !(dt > 0.0 && dt <= 1e3) {
+                return bad("dt", dt, "0 < dt ≤ 1e3");
+            }
         }
         if !(self.alpha > 0.0 && self.alpha <= 1e6) {
             return bad("alpha", self.alpha, "0 < α ≤ 1e6");
@@ -288,31 +374,61 @@ impl SamplerOptions {
         } else if !(self.lambda > 0.0 && self.lambda.is_finite()) {
             return bad("lambda", self.lambda, "λ > 0 (stable below 2)");
         }
+        if self.samples == 0 {
+            return bad("samples", 0.0, "1 ≤ samples ≤ 3e7 (MAX_SAMPLES)");
+        }
+        if self.samples > MAX_SAMPLES {
+            return bad(
+                "samples",
+                self.samples as f64,
+                "1 ≤ samples ≤ 3e7 (MAX_SAMPLES)",
+            );
+        }
         if !(1..=MAX_WALKERS).contains(&self.walkers) {
             return bad("walkers", self.walkers as f64, "1..=100000");
         }
-        if self.thin == 0 || self.thin > 1_000_000 {
-            return bad("thin", self.thin as f64, "1..=1000000");
+        if let Some(t) = self.thin {
+            if t == 0 || t > 1_000_000 {
+                return bad(
+                    "thin",
+                    t as f64,
+                    "1..=1000000 (or left out: chosen in burn-in)",
+                );
+            }
         }
         if self.burn_in > MAX_TOTAL_STEPS as usize {
             return bad("burn_in", self.burn_in as f64, "≤ 3e7 (MAX_TOTAL_STEPS)");
         }
-        if self.samples > MAX_SAMPLES {
-            return bad("samples", self.samples as f64, "≤ 3e7 (MAX_SAMPLES)");
+        if (self.tunes_step() || self.chooses_thin()) && self.burn_in < MIN_ADAPT_BURN_IN {
+            return bad(
+                "burn_in",
+                self.burn_in as f64,
+                "≥ 100 while the step or the thinning is tuned during burn-in (give dt and thin to run with less)",
+            );
         }
+        if !(self.target_acceptance >= 0.05 && self.target_acceptance <= 0.95) {
+            return bad(
+                "target_acceptance",
+                self.target_acceptance,
+                "0.05 ≤ target acceptance ≤ 0.95",
+            );
+        }
+        // Walkers past the samples' count would never give a sample: at most `samples` run.
+        let walkers = self.walkers.min(self.samples);
+        let thin = self.thin.unwrap_or(1);
         let (w, b, n, t) = (
-            self.walkers as u128,
+            walkers as u128,
             self.burn_in as u128,
             self.samples as u128,
-            self.thin as u128,
+            thin as u128,
         );
         let total = w * b + n * t;
         if total > u128::from(MAX_TOTAL_STEPS) {
             return Err(SamplerError::TooManySteps {
-                walkers: self.walkers,
+                walkers,
                 burn_in: self.burn_in,
                 samples: self.samples,
-                thin: self.thin,
+                thin,
                 total,
                 per_walker: b + n.div_ceil(w) * t,
                 max: MAX_TOTAL_STEPS,
@@ -341,6 +457,10 @@ pub struct SampleStats {
     pub samples: u64,
     /// Steps taken by all walkers (burn-in included).
     pub steps: u64,
+    /// Steps taken before the first sample (tuning, equilibration, pilot).
+    pub burn_in_steps: u64,
+    /// Steps that moved their walker (burn-in included).
+    pub accepted: u64,
     /// Evaluations of a constraint function with its gradient (all constraints, all
     /// purposes: steps, projections, curvature differences, start-up).
     pub evals: u64,
@@ -360,8 +480,16 @@ pub struct SampleStats {
     pub guarded: u64,
     /// The λ asked for, if it was clamped to 1.
     pub clamped_lambda: Option<f64>,
-    /// Largest `|F|/|∇F|` over the samples.
+    /// Largest `|F|/|∇F|` over the samples as returned (after `project`, if asked).
     pub max_residual: f64,
+    /// Largest `|F|/|∇F|` of the walkers where the samples were taken (before `project`):
+    /// how far the explicit scheme's points lie off the figure (m, to first order).
+    pub max_off_figure: f64,
+    /// Sum of the squares of those distances (m²), for their root mean square.
+    pub sum_sq_off_figure: f64,
+    /// Samples whose final projection (`project`) did not converge inside the walls; they
+    /// are returned where the walker was.
+    pub failed_final_projections: u64,
 }
 
 /// Samples and what it took to draw them.
@@ -371,6 +499,8 @@ pub struct Samples {
     pub points: Vec<Q>,
     /// Counters.
     pub stats: SampleStats,
+    /// Effective sample size, acceptance, residuals and the adapted settings.
+    pub quality: Quality,
 }
 
 /// Draws `opts.samples` points uniformly on `fig`, collected in memory.
@@ -400,6 +530,7 @@ pub fn sample(fig: &Figure, opts: &SamplerOptions) -> Result<Samples, SamplerErr
     Ok(Samples {
         points,
         stats: s.stats().clone(),
+        quality: s.quality(),
     })
 }
 

@@ -131,7 +131,7 @@ pub enum WallEntry {
 pub struct SamplerEntry {
     /// Scheme.
     pub scheme: Option<Scheme>,
-    /// Time step.
+    /// Time step (left out: tuned during burn-in for Metropolis).
     pub dt: Option<f64>,
     /// Samples.
     pub samples: Option<usize>,
@@ -139,7 +139,7 @@ pub struct SamplerEntry {
     pub walkers: Option<usize>,
     /// Burn-in steps.
     pub burn_in: Option<usize>,
-    /// Steps between samples.
+    /// Steps between samples (left out: chosen from the burn-in's autocorrelation).
     pub thin: Option<usize>,
 }
 
@@ -369,7 +369,7 @@ impl SceneFile {
                     number(v)
                 ));
             }
-            o.dt = v;
+            o.dt = Some(v);
         }
         if let Some(v) = s.samples {
             o.samples = v;
@@ -381,7 +381,7 @@ impl SceneFile {
             o.burn_in = v;
         }
         if let Some(v) = s.thin {
-            o.thin = v;
+            o.thin = Some(v);
         }
         o.validate()?;
         Ok(ImplicitScene {
