@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod bag;
+pub mod bench;
 pub mod carving;
 pub mod checker;
 pub mod cli;

@@ -5,10 +5,10 @@
 
 use super::mesh::{mesher_options_from, MesherArgs};
 use super::{BagFrames, CliError};
-use crate::mesh::glue::{BodyAssembler, BodyMesh};
-use crate::mesh::MesherOptions;
 use crate::checker::pipeline::{check_bodies, CheckPlan};
 use crate::checker::report::Report;
+use crate::mesh::glue::{BodyAssembler, BodyMesh};
+use crate::mesh::MesherOptions;
 use clap::Args;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -5,8 +5,8 @@
 //! few frames and one slab per body, whatever the bag's length. A frame that cannot be
 //! decoded or meshed is logged with its topic, stamp and reason, counted, and skipped.
 
-use super::CliError;
 use super::BagFrames;
+use super::CliError;
 use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
 use crate::mesh::stats::{BodyStats, StatsAccumulator};
 use crate::mesh::stream::BodyStream;
@@ -197,7 +197,7 @@ pub fn mesh_bag(
     Ok(MeshRun {
         bodies,
         seconds_total: start.elapsed().as_secs_f64(),
-        peak_rss_mb: super::peak_rss_mb(),
+        peak_rss_mb: crate::bench::peak_rss_mb(),
         bag_errors: errors,
     })
 }

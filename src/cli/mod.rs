@@ -4,9 +4,6 @@
 //! the same code the binary runs.
 
 pub mod bench;
-pub mod bench_carve;
-pub mod bench_check;
-pub mod bench_sampler;
 pub mod check;
 pub mod info;
 pub mod live;
@@ -90,6 +87,9 @@ pub enum CliError {
     /// An implicit scene cannot be sampled.
     #[error(transparent)]
     Sample(#[from] crate::sampler::scene_file::SceneFileError),
+    /// A benchmark failed.
+    #[error(transparent)]
+    Bench(#[from] crate::bench::BenchError),
 }
 
 /// The VoxelGrid frames of a bag with its problems handled once for every command: an
@@ -228,21 +228,6 @@ impl Iterator for BagFrames {
     }
 }
 
-/// Peak resident set size of this process so far (MB) (Linux: VmHWM), 0 if unknown.
-pub fn peak_rss_mb() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| {
-                l.split_whitespace()
-                    .nth(1)
-                    .and_then(|v| v.parse::<f64>().ok())
-            })
-        })
-        .map(|kb| kb / 1024.0)
-        .unwrap_or(0.0)
-}
-
 /// Runs a parsed command line.
 ///
 /// # Errors
@@ -282,4 +267,3 @@ impl From<EncodingArg> for VoxelEncoding {
         }
     }
 }
-

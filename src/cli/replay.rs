@@ -15,13 +15,13 @@ use serde::Serialize;
 
 use super::CliError;
 use crate::bag::{BagReader, BagWriter};
+use crate::checker::report::Report;
 use crate::node::bus::Bus;
 use crate::node::carving::CarvingNode;
 use crate::node::checker::CheckerNode;
 use crate::node::launch::{LaunchConfig, LaunchError, NodeKind, NodeSpec, Params};
 use crate::node::mesher::MesherNode;
 use crate::node::{Message, Node, NodeStatus, Payload};
-use crate::checker::report::Report;
 
 /// Options of `chronotope replay`.
 #[derive(Debug, Clone, Args)]
@@ -449,7 +449,8 @@ pub fn replay(
                 if let Some(l) = m.losses(&b.id) {
                     b.skipped_frames += l.refused_frames;
                     b.filled_frames += l.filled_frames;
-                    b.lost_spans.extend(crate::checker::report::LostSpan::of(l, origin));
+                    b.lost_spans
+                        .extend(crate::checker::report::LostSpan::of(l, origin));
                 }
             }
         }

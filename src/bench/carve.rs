@@ -10,15 +10,15 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use super::CliError;
+use super::BenchError;
 use crate::carving::exact::{box_signed_distance, BoxSweep, SweptSolid};
 use crate::carving::{
     ForceModel, ForceParams, ForceRenderer, Quat, Tool, ToolPose, Vec3, Workpiece,
 };
 use crate::mesh::stats::percentile;
 
-fn err(e: impl std::fmt::Display) -> CliError {
-    CliError::Usage(e.to_string())
+fn err(e: impl std::fmt::Display) -> BenchError {
+    BenchError::Usage(e.to_string())
 }
 
 /// The knife with its blade face towards +x (tool z → world x, tool x → world -z): it
@@ -115,7 +115,7 @@ fn frame_build_ms(work: &Workpiece) -> f64 {
 ///
 /// # Errors
 /// A workpiece or tool the model refuses.
-pub fn bench_carve(poses: usize) -> Result<(), CliError> {
+pub fn bench_carve(poses: usize) -> Result<(), BenchError> {
     let h = 1e-3;
     println!("Knife planing passes along x at 1 kHz (0.5 spacing per pose: 0.5 m/s at 1 mm), blade 4 spacings deep,");
     println!("each pass half a blade width further along y; {poses} poses per row; spacing 1 mm.");
@@ -123,7 +123,7 @@ pub fn bench_carve(poses: usize) -> Result<(), CliError> {
     println!();
     println!("| workpiece | points | surfels | knife (spacings) | removed/pose | median µs | p99 µs | max µs | frame build ms |");
     println!("|---|---|---|---|---|---|---|---|---|");
-    let row = |name: &str, dims: [usize; 3], knife: [f64; 3]| -> Result<(), CliError> {
+    let row = |name: &str, dims: [usize; 3], knife: [f64; 3]| -> Result<(), BenchError> {
         let hi = dims.map(|d| d as f64 * h);
         let mut work = Workpiece::block([0.0; 3], hi, h).map_err(err)?;
         let tool = Tool::knife(knife[0] * h, knife[1] * h, knife[2] * h, h).map_err(err)?;
@@ -179,7 +179,7 @@ fn knife_half(tool: &Tool) -> Vec3 {
     e
 }
 
-fn accuracy_case(h: f64, per_frame: f64, rotate: bool) -> Result<Accuracy, CliError> {
+fn accuracy_case(h: f64, per_frame: f64, rotate: bool) -> Result<Accuracy, BenchError> {
     // Block 60 x 40 x 20 mm; knife 8 mm (deep, along -z) x 6 mm (y) x 2 mm (x); a 40 mm
     // stroke from (10, 12) to (50, 28) mm with the blade 4 mm into the top.
     let lo = [0.0, 0.0, 0.0];
@@ -375,7 +375,7 @@ fn force_cv(
     filtered: bool,
     angle_deg: f64,
     ahead: Ahead,
-) -> Result<ForceStats, CliError> {
+) -> Result<ForceStats, BenchError> {
     let speed = 0.05; // m/s
     let dt = 1e-3;
     let poses = 1000;
@@ -438,7 +438,7 @@ fn force_cv(
 
 /// Median time (µs) of reading the layer ahead by counting points and with sub-voxel
 /// weights, on a steady diagonal cut at `angle_deg`, spacing `h`.
-fn ahead_cost_us(h: f64, angle_deg: f64) -> Result<(f64, f64), CliError> {
+fn ahead_cost_us(h: f64, angle_deg: f64) -> Result<(f64, f64), BenchError> {
     let (sin, cos) = angle_deg.to_radians().sin_cos();
     let mut work = Workpiece::block([0.0, 0.0, 0.01], [0.04, 0.04, 0.02], h).map_err(err)?;
     let tool = Tool::knife(0.008, 0.006, 0.002, h).map_err(err)?;
@@ -510,7 +510,7 @@ fn point_segment(p: Vec3, a: Vec3, b: Vec3) -> f64 {
 /// `angle_deg` to the grid's x axis, apex 1 mm below the top of a 40 x 30 x 10 mm block, in
 /// moves of half a spacing; its two groove edges on the top face against the edge surfels
 /// and the eq. 7 strip.
-fn edge_case(h: f64, angle_deg: f64) -> Result<EdgeAccuracy, CliError> {
+fn edge_case(h: f64, angle_deg: f64) -> Result<EdgeAccuracy, BenchError> {
     use crate::carving::edge::EDGE_POLYGON_WIDTH_SPACINGS;
     let lo = [0.0, 0.0, 0.0];
     let hi = [0.04, 0.03, 0.01];
@@ -636,7 +636,7 @@ struct Agreement {
 /// The seed's eqs. 3-5 against the grid's classification of the tool surfels of one knife
 /// move (8 x 6 x 2 mm, crossing a 6 mm wide, 3 mm deep slot cut before it, or the plain
 /// block), against the exact workpiece.
-fn eq3_case(h: f64, slot: bool) -> Result<(usize, Agreement, Agreement), CliError> {
+fn eq3_case(h: f64, slot: bool) -> Result<(usize, Agreement, Agreement), BenchError> {
     use crate::carving::toolsurfel::{sweep_surfels, ToolClass};
     let lo = [0.0, 0.0, 0.0];
     let hi = [0.04, 0.03, 0.02];
@@ -718,7 +718,7 @@ fn eq3_case(h: f64, slot: bool) -> Result<(usize, Agreement, Agreement), CliErro
 pub fn bench_carve_accuracy(
     spacings_mm: &[f64],
     out: Option<&std::path::Path>,
-) -> Result<(), CliError> {
+) -> Result<(), BenchError> {
     let mut md = String::new();
     md.push_str("# Carving accuracy (`chronotope bench carve --accuracy --out docs/carving-accuracy.md`)\n\n");
     md.push_str(
@@ -975,7 +975,7 @@ pub fn bench_carve_accuracy(
     }
     md.push_str(&t);
     if let Some(path) = out {
-        std::fs::write(path, md).map_err(|source| CliError::Io {
+        std::fs::write(path, md).map_err(|source| BenchError::Io {
             path: path.to_owned(),
             source,
         })?;

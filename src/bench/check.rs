@@ -21,7 +21,7 @@
 //!
 //! A sweep over frame counts then shows what each misses on all three of A's pairs.
 
-use super::{CliError, EncodingArg};
+use super::BenchError;
 use crate::checker::prep::BodyPrep;
 use crate::checker::resolve::{suggest_time_scaling, suggest_translation, Metric};
 use crate::checker::{
@@ -30,6 +30,7 @@ use crate::checker::{
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::slice::{slice_mesh, PlaneValue, TriMesh as SliceMesh};
 use crate::mesh::MesherOptions;
+use crate::msg::VoxelEncoding;
 use crate::msg::VoxelGrid;
 use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions, FOUR_SPHERES};
 use parry3d::math::{Pose, Vector};
@@ -42,18 +43,18 @@ use std::time::Instant;
 fn spheres(
     grid: u32,
     frames: u32,
-    encoding: EncodingArg,
+    encoding: VoxelEncoding,
     which: &[usize],
-) -> Result<Vec<(String, BodyMesh)>, CliError> {
+) -> Result<Vec<(String, BodyMesh)>, BenchError> {
     let o = SceneOptions::for_scene(SceneName::FourSpheres)
         .grid(grid)
         .frames(frames)
         .encoding(encoding.into());
     let scene = build_scene(SceneName::FourSpheres, &o)?;
     let topics = scene.topics();
-    let out: Vec<Result<(String, BodyMesh), CliError>> = which
+    let out: Vec<Result<(String, BodyMesh), BenchError>> = which
         .par_iter()
-        .map(|&b| -> Result<(String, BodyMesh), CliError> {
+        .map(|&b| -> Result<(String, BodyMesh), BenchError> {
             let mut raster = Rasterizer::new();
             let mut grid = VoxelGrid::default();
             let mut asm = BodyAssembler::new(MesherOptions::default())?;
@@ -71,7 +72,7 @@ fn spheres(
 /// seconds spent preparing (lattice, trees, adjacency).
 fn detect(
     bodies: &[(String, BodyMesh)],
-) -> Result<(CommonLattice, Vec<Prepared>, f64, Vec<PairResult>), CliError> {
+) -> Result<(CommonLattice, Vec<Prepared>, f64, Vec<PairResult>), BenchError> {
     let t0 = Instant::now();
     let named: Vec<(&str, &BodyMesh)> = bodies.iter().map(|(id, b)| (id.as_str(), b)).collect();
     let lat = CommonLattice::of(&named)?;
@@ -93,7 +94,7 @@ fn detect(
 /// placement, and the pair result.
 fn detect_streamed(
     bodies: &[(String, BodyMesh)],
-) -> Result<(Vec<f64>, f64, f64, PairResult), CliError> {
+) -> Result<(Vec<f64>, f64, f64, PairResult), BenchError> {
     let mut preps = [BodyPrep::new(), BodyPrep::new()];
     let mut walk = StreamWalk::new();
     let mut per_piece = Vec::new();
@@ -110,7 +111,7 @@ fn detect_streamed(
             let end = b.pieces.get(k + 1).copied().unwrap_or(b.mesh.tets.len());
             let t = Instant::now();
             p.add_up_to(&b.mesh, end)
-                .map_err(|e| CliError::Usage(e.to_string()))?;
+                .map_err(|e| BenchError::Usage(e.to_string()))?;
             per_piece.push(t.elapsed().as_secs_f64());
         }
         let t = Instant::now();
@@ -220,10 +221,10 @@ fn median(v: &mut [f64]) -> f64 {
 /// Bad scene options, or a body that cannot be checked.
 pub fn bench_check(
     grid: u32,
-    encoding: EncodingArg,
+    encoding: VoxelEncoding,
     reps: usize,
     sweep: &[u32],
-) -> Result<(), CliError> {
+) -> Result<(), BenchError> {
     let frames = grid + 1;
     let t0 = Instant::now();
     let bodies = spheres(grid, frames, encoding, &[0, 1])?;
@@ -355,7 +356,7 @@ pub fn bench_check(
 }
 
 /// What each method finds on A's three pairs as frames get sparse.
-fn misses(grid: u32, encoding: EncodingArg, sweep: &[u32]) -> Result<(), CliError> {
+fn misses(grid: u32, encoding: VoxelEncoding, sweep: &[u32]) -> Result<(), BenchError> {
     println!();
     println!("what each misses: A against B, C, D at {grid}^3 voxels, frames spread over 1 s ({encoding:?})");
     println!();

@@ -20,7 +20,7 @@
 //!    effective sample. The long-run error of a mean (`E[cos θ]`, `E[x]`, `E[t]`) with its
 //!    standard error over walkers separates the bias floor from the mixing noise.
 
-use super::CliError;
+use super::BenchError;
 use crate::sampler::exact::{
     ks_statistic, sphere_coordinate_cdf, sphere_x_cdf, PassingSpheres, TorusTheta,
 };
@@ -186,8 +186,8 @@ pub fn bench_sampler(
     o: &BenchSamplerOptions,
     out: Option<&std::path::Path>,
     svg: Option<&std::path::Path>,
-) -> Result<(), CliError> {
-    let usage = |e: crate::sampler::SamplerError| CliError::Usage(e.to_string());
+) -> Result<(), BenchError> {
+    let usage = |e: crate::sampler::SamplerError| BenchError::Usage(e.to_string());
     let command = format!(
         "chronotope bench sampler --n {} --seeds {} --samples {} --target {}{} --out docs/sampler-error.md --svg docs/sampler-error.svg",
         o.n,
@@ -230,13 +230,13 @@ pub fn bench_sampler(
     }
     print!("{md}");
     if let Some(p) = out {
-        std::fs::write(p, &md).map_err(|source| CliError::Io {
+        std::fs::write(p, &md).map_err(|source| BenchError::Io {
             path: p.to_owned(),
             source,
         })?;
     }
     if let (Some(p), false) = (svg, o.no_sweep) {
-        std::fs::write(p, plot(&cases, &runs)).map_err(|source| CliError::Io {
+        std::fs::write(p, plot(&cases, &runs)).map_err(|source| BenchError::Io {
             path: p.to_owned(),
             source,
         })?;
