@@ -41,7 +41,8 @@ pub struct RenderArgs {
     /// The PNG to write.
     #[arg(long)]
     pub out: PathBuf,
-    /// Seconds since the first marker's stamp; the frame period containing it is drawn
+    /// Seconds since the first marker's stamp; the frame period whose marker stamp is
+    /// nearest is drawn
     /// (default: the period with the most interfering triangles, or the first).
     #[arg(long)]
     pub time: Option<f64>,
@@ -133,7 +134,7 @@ pub fn render(a: &RenderArgs) -> Result<(i64, usize), CliError> {
         )));
     };
     let stamp = match a.time {
-        // The last stamp at or before the time asked (markers are stamped mid-period).
+        // The stamp nearest the time asked (markers are stamped mid-period).
         Some(t) => {
             let want = first + (t * 1e9) as i64;
             let mut best = first;
