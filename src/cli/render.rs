@@ -42,8 +42,7 @@ pub struct RenderArgs {
     #[arg(long)]
     pub out: PathBuf,
     /// Seconds since the first marker's stamp; the frame period whose marker stamp is
-    /// nearest is drawn
-    /// (default: the period with the most interfering triangles, or the first).
+    /// nearest is drawn (default: the period with the most interfering triangles).
     #[arg(long)]
     pub time: Option<f64>,
     /// The MarkerArray topic.
