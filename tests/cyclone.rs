@@ -55,14 +55,6 @@ impl Drop for KillOnDrop {
     }
 }
 
-fn cyclonedds_available() -> bool {
-    pyenv::python()
-        .args(["-c", "import cyclonedds"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
 
 /// A float the peer wrote as the hex of its bits.
 /// `chronotope launch CONFIG` on `domain`, stopped when dropped.
@@ -105,17 +97,6 @@ fn peer_command(bag: &Path, json: &Path, domain: &str) -> Command {
     c
 }
 
-/// Whether the test can run: `false` (said) where python3 cannot import cyclonedds, which
-/// fails the test under CI.
-fn cyclone_or_skip(test: &str) -> bool {
-    if cyclonedds_available() {
-        return true;
-    }
-    let why = "the test Python cannot import cyclonedds (run `python3 tests/py/setup_env.py`)";
-    assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
-    eprintln!("SKIPPED {test}: {why}");
-    false
-}
 
 fn f(v: &Value) -> f64 {
     let s = v
@@ -509,7 +490,7 @@ fn hex(bytes: &[u8]) -> String {
 
 #[test]
 fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
-    if !cyclone_or_skip("live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does") {
+    if !pyenv::cyclone_or_skip("live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does") {
         return;
     }
     let root = env!("CARGO_MANIFEST_DIR");
@@ -628,7 +609,7 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
 /// printed (speed is a benchmark figure, not asserted here).
 #[test]
 fn periodic_contacts_are_published_while_the_stream_goes_on() {
-    if !cyclone_or_skip("periodic_contacts_are_published_while_the_stream_goes_on") {
+    if !pyenv::cyclone_or_skip("periodic_contacts_are_published_while_the_stream_goes_on") {
         return;
     }
     let root = env!("CARGO_MANIFEST_DIR");

@@ -61,26 +61,7 @@ fn domain(k: u32) -> String {
     (200 + (std::process::id() % 16) * 2 + k).to_string()
 }
 
-fn cyclonedds_available() -> bool {
-    pyenv::python()
-        .args(["-c", "import cyclonedds"])
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success())
-}
 
-/// Whether the test can run: `false` (said) where python3 cannot import cyclonedds, which
-/// fails the test under CI.
-fn cyclone_or_skip(test: &str) -> bool {
-    if cyclonedds_available() {
-        return true;
-    }
-    let why = "the test Python cannot import cyclonedds (run `python3 tests/py/setup_env.py`)";
-    assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
-    eprintln!("SKIPPED {test}: {why}");
-    false
-}
 
 /// `chronotope ARGS` on `domain` from the repository root (the config's cut-out images are
 /// found from there), its log in `log`.
@@ -278,7 +259,7 @@ fn checker_publishes() -> Vec<(&'static str, &'static str)> {
 /// mesher and the checker. The occupancy and the mesh pieces pass in memory: no endpoint.
 #[test]
 fn every_node_of_a_launch_lists_its_topics_in_the_ros_graph() {
-    if !cyclone_or_skip("every_node_of_a_launch_lists_its_topics_in_the_ros_graph") {
+    if !pyenv::cyclone_or_skip("every_node_of_a_launch_lists_its_topics_in_the_ros_graph") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -316,7 +297,7 @@ fn every_node_of_a_launch_lists_its_topics_in_the_ros_graph() {
 /// pieces on the wire and the checker reads them; both read the carving node's occupancy.
 #[test]
 fn nodes_in_separate_processes_list_the_topics_between_them() {
-    if !cyclone_or_skip("nodes_in_separate_processes_list_the_topics_between_them") {
+    if !pyenv::cyclone_or_skip("nodes_in_separate_processes_list_the_topics_between_them") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();

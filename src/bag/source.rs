@@ -193,27 +193,7 @@ impl BagReader {
             return Self::open_dir(path, &dir, options);
         }
         let (part, layout) = open_file(&path, &options)?;
-        let profile = part.part.profile().to_owned();
-        let total = part.part.recovery().clone();
-        Ok(Self {
-            path,
-            options,
-            layout,
-            files: VecDeque::new(),
-            current: Some(part),
-            single: true,
-            message_compression: false,
-            merged: Vec::new(),
-            keys: HashMap::new(),
-            part_ids: HashMap::new(),
-            refused_topics: HashMap::new(),
-            base: Recovery::default(),
-            total,
-            seen: (0, 0, 0, 0),
-            undelivered: 0,
-            pending: VecDeque::new(),
-            profile,
-        })
+        Ok(Self::single(path, options, layout, part))
     }
 
     /// A reader of an MCAP file held in memory; errors name the file as `name`.
@@ -241,20 +221,27 @@ impl BagReader {
     }
 
     fn single_mcap(path: PathBuf, reader: McapReader) -> Self {
-        let profile = reader.profile().to_owned();
-        let total = reader.recovery().clone();
+        let layout = BagLayout::File {
+            storage: "mcap",
+            compressed: false,
+        };
+        let part = OpenPart {
+            part: Part::Mcap(Box::new(reader)),
+            _temp: None,
+        };
+        Self::single(path, BagReadOptions::default(), layout, part)
+    }
+
+    /// A reader of one storage file, already opened: its channels and losses are the file's.
+    fn single(path: PathBuf, options: BagReadOptions, layout: BagLayout, part: OpenPart) -> Self {
+        let profile = part.part.profile().to_owned();
+        let total = part.part.recovery().clone();
         Self {
             path,
-            options: BagReadOptions::default(),
-            layout: BagLayout::File {
-                storage: "mcap",
-                compressed: false,
-            },
+            options,
+            layout,
             files: VecDeque::new(),
-            current: Some(OpenPart {
-                part: Part::Mcap(Box::new(reader)),
-                _temp: None,
-            }),
+            current: Some(part),
             single: true,
             message_compression: false,
             merged: Vec::new(),

@@ -29,3 +29,25 @@ pub fn python() -> Command {
 /// What to do when the interpreter or a package is missing.
 pub const INSTALL_HINT: &str =
     "run `python3 tests/py/setup_env.py` (the README's test command does)";
+
+/// Whether the test Python can import cyclonedds.
+pub fn cyclonedds_available() -> bool {
+    python()
+        .args(["-c", "import cyclonedds"])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+}
+
+/// Whether a test that needs a Cyclone DDS peer can run: `false` (said) where the test
+/// Python cannot import cyclonedds, which fails the test under CI.
+pub fn cyclone_or_skip(test: &str) -> bool {
+    if cyclonedds_available() {
+        return true;
+    }
+    let why = "the test Python cannot import cyclonedds (run `python3 tests/py/setup_env.py`)";
+    assert!(std::env::var_os("CI").is_none(), "CI is set and {why}");
+    eprintln!("SKIPPED {test}: {why}");
+    false
+}
