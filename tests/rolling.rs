@@ -12,35 +12,14 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use chronotope::bag::BagWriter;
+use chronotope::checker::report::Report;
 use chronotope::cli::check::check_bag;
 use chronotope::cli::replay::replay;
 use chronotope::mesh::MesherOptions;
 use chronotope::msg::{Time, VoxelGrid};
 use chronotope::node::launch::LaunchConfig;
-use chronotope::checker::report::Report;
-use chronotope::scene::{build_scene, periodic_contacts, Rasterizer, SceneName, SceneOptions};
-
-/// Writes scene `name` at `grid`³ with `frames` frames.
-fn scene_bag(dir: &Path, name: SceneName, grid: u32, frames: u32) -> PathBuf {
-    let path = dir.join(format!("{name}-{grid}-{frames}.mcap"));
-    let opts = SceneOptions::for_scene(name).grid(grid).frames(frames);
-    let scene = build_scene(name, &opts).unwrap();
-    let mut w = BagWriter::create(&path).unwrap();
-    let topics = scene.topics();
-    for t in &topics {
-        w.add_topic::<VoxelGrid>(t).unwrap();
-    }
-    let mut raster = Rasterizer::new();
-    let mut g = VoxelGrid::default();
-    for k in 0..scene.frame_count() {
-        for (b, t) in topics.iter().enumerate() {
-            scene.write_frame(b, k, &mut raster, &mut g).unwrap();
-            w.write(t, scene.stamp_ns(k) as u64, &g).unwrap();
-        }
-    }
-    w.finish().unwrap();
-    path
-}
+use chronotope::scene::{periodic_contacts, SceneName};
+use common::scene_bag;
 
 /// The answers both paths must agree on, digit for digit.
 fn answers(r: &Report) -> String {

@@ -154,7 +154,13 @@ fn ray_crossings(
 fn inside_tet(t: &[LatticePoint; 4], n: &V4, x: &V4) -> bool {
     let f = |q: &LatticePoint| q.map(f64::from);
     (0..4).all(|i| {
-        let face: Vec<V4> = (0..4).filter(|&j| j != i).map(|j| f(&t[j])).collect();
+        let others: [usize; 3] = match i {
+            0 => [1, 2, 3],
+            1 => [0, 2, 3],
+            2 => [0, 1, 3],
+            _ => [0, 1, 2],
+        };
+        let face: [V4; 3] = others.map(|j| f(&t[j]));
         let sub = |a: &V4, b: &V4| [a[0] - b[0], a[1] - b[1], a[2] - b[2], a[3] - b[3]];
         let g = |y: &V4| {
             det4(

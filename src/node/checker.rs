@@ -16,7 +16,9 @@
 //! time around a contact episode its resolutions are checked over), `max_episode_s` (double,
 //! default 4: a longer contact is resolved over its first this many seconds),
 //! `resolve_max_tets` (int, default 1 500 000: most tets of slabs kept for resolutions alone,
-//! all bodies together; older ones are dropped first), and the mesher's
+//! all bodies together; older ones are dropped first), `resolve_in_flight` (int, default 1:
+//! resolutions computed on their own pool while the windows go on; 0 = on the node's
+//! thread, in turn), and the mesher's
 //! decoding parameters (`iso_percent`, `unknown_occupied`, `percent_scale`, `max_slab_tets`),
 //! which must match the mesher's.
 
@@ -30,6 +32,8 @@ use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
+use crate::checker::pipeline::CheckPlan;
+use crate::checker::report::{Report, Resolution};
 use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
@@ -41,8 +45,6 @@ use crate::msg::{
     PairInterference, ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time, Vector3,
     VoxelGrid,
 };
-use crate::checker::pipeline::CheckPlan;
-use crate::checker::report::{Report, Resolution};
 
 /// Label colours of the markers.
 const INTERFERENCE_COLOR: ColorRGBA = ColorRGBA::new(0.9, 0.05, 0.05, 1.0);
@@ -70,6 +72,9 @@ pub struct CheckerNode {
     /// Episodes resolved so far, and when the suggestions were last published (the report
     /// keeps a bounded number of resolutions, so their count stops telling).
     resolved: (u64, u64),
+    /// A live transport's clock has ticked: resolutions are published as soon as they are
+    /// done (a replay takes them at points that do not depend on their speed).
+    live: bool,
     status: NodeStatus,
 }
 
@@ -119,6 +124,7 @@ impl CheckerNode {
         let horizon_s = p.double("resolve_horizon_s", 1.0, 0.0..=3600.0)?;
         let max_episode_s = p.double("max_episode_s", 4.0, 0.001..=86_400.0)?;
         let max_horizon_tets = p.int("resolve_max_tets", 1_500_000, 0..=1_000_000_000)?;
+        let in_flight = p.int("resolve_in_flight", 1, 0..=16)?;
         let opts = mesher_options(&mut p)?;
         let report_topic = p.resolve("~/report", "~/report")?;
         let contacts_topic = p.resolve("~/contacts", "~/contacts")?;
@@ -168,6 +174,7 @@ impl CheckerNode {
             horizon_s,
             max_episode_s,
             max_horizon_tets: max_horizon_tets as usize,
+            resolve_in_flight: in_flight as usize,
             ..RollingConfig::default()
         };
         Ok(Self {
@@ -192,6 +199,7 @@ impl CheckerNode {
             latest_ns: 0,
             dirty: false,
             resolved: (0, 0),
+            live: false,
             status: NodeStatus::default(),
         })
     }
@@ -421,6 +429,18 @@ impl CheckerNode {
         self.report = Some(report);
     }
 
+    /// Publishes the resolutions that have finished on the resolver's pool.
+    fn poll_resolutions(&mut self, out: &mut Vec<Message>) {
+        if self.engine.resolutions_in_flight() == 0 {
+            return;
+        }
+        let mut rolled = Vec::new();
+        self.engine.poll_resolutions(&mut rolled);
+        if !rolled.is_empty() {
+            self.emit(rolled, out);
+        }
+    }
+
     /// A MarkerArray with one body's slice a little after the middle of a frame period, its
     /// triangles coloured by the strongest label of their tet over the body's pairs.
     fn marker(&self, topic: &str, d: &SlabDone) -> Message {
@@ -609,6 +629,14 @@ impl Node for CheckerNode {
                 ),
             ),
         }
+        if self.live {
+            self.poll_resolutions(out);
+        }
+    }
+
+    fn on_tick(&mut self, _now_ns: i64, out: &mut Vec<Message>) {
+        self.live = true;
+        self.poll_resolutions(out);
     }
 
     fn finish(&mut self, out: &mut Vec<Message>) {

@@ -184,3 +184,32 @@ pub fn box_frame(x0: u32, vx: u32, y0: u32, k: u32, t0_ns: i64) -> chronotope::m
         data,
     }
 }
+
+/// Writes scene `name` at `grid`³ with `frames` frames.
+pub fn scene_bag(
+    dir: &std::path::Path,
+    name: chronotope::scene::SceneName,
+    grid: u32,
+    frames: u32,
+) -> std::path::PathBuf {
+    let path = dir.join(format!("{name}-{grid}-{frames}.mcap"));
+    let opts = chronotope::scene::SceneOptions::for_scene(name)
+        .grid(grid)
+        .frames(frames);
+    let scene = chronotope::scene::build_scene(name, &opts).unwrap();
+    let mut w = chronotope::bag::BagWriter::create(&path).unwrap();
+    let topics = scene.topics();
+    for t in &topics {
+        w.add_topic::<chronotope::msg::VoxelGrid>(t).unwrap();
+    }
+    let mut raster = chronotope::scene::Rasterizer::new();
+    let mut g = chronotope::msg::VoxelGrid::default();
+    for k in 0..scene.frame_count() {
+        for (b, t) in topics.iter().enumerate() {
+            scene.write_frame(b, k, &mut raster, &mut g).unwrap();
+            w.write(t, scene.stamp_ns(k) as u64, &g).unwrap();
+        }
+    }
+    w.finish().unwrap();
+    path
+}

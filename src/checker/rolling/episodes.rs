@@ -117,6 +117,11 @@ impl RollingChecker {
             ep[0] = ep[0].max(from);
         }
         let lo = lo_kept;
+        // At most `resolve_in_flight` resolutions hold their horizon bodies at once: the
+        // oldest is waited for before this one's are built.
+        while self.cfg.resolve_in_flight > 0 && self.in_flight.len() >= self.cfg.resolve_in_flight {
+            self.take_oldest(true, out);
+        }
         let mut meshes: BTreeMap<String, BodyMesh> = BTreeMap::new();
         for id in &ids {
             if let Some(b) = self.horizon_body(id, lo, hi) {
@@ -126,64 +131,118 @@ impl RollingChecker {
         if !meshes.contains_key(m) {
             return;
         }
-        let named: Vec<(&str, &BodyMesh)> = meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
-        let result = CommonLattice::of(&named).and_then(|lat| {
-            // One body at a time: preparing them side by side saved 7 % of a periodic
-            // replay's time for 15 % more peak memory.
-            let prepared = named
+        let job = ResolveJob {
+            movable: m.to_string(),
+            episode: ep,
+            meshes,
+            pairs: pair_ids
                 .iter()
-                .map(|(id, b)| lat.prepare(id, b))
-                .collect::<Result<Vec<_>, _>>()?;
-            Ok((lat, prepared))
-        });
-        let (lat, prepared) = match result {
-            Ok(x) => x,
-            Err(e) => {
-                let why = format!(
-                    "{m}: the contact episode {:.3}-{:.3} s cannot be resolved: {e}",
-                    ep[0], ep[1]
-                );
-                self.problem(out, "resolution_failed", why);
-                return;
-            }
+                .map(|&i| (self.pairs[i].a.clone(), self.pairs[i].b.clone()))
+                .collect(),
+            time_scale: self.plan.time_scale,
+            period_s: self.union.period_s(),
+            origin_ns: origin,
         };
-        let index = |id: &str| named.iter().position(|(k, _)| *k == id);
-        let Some(im) = index(m) else { return };
-        let mut others = Vec::new();
-        let mut rs: Vec<PairResult> = Vec::new();
-        for &i in &pair_ids {
-            let p = &self.pairs[i];
-            let (Some(ia), Some(ib)) = (index(&p.a), index(&p.b)) else {
-                continue;
-            };
-            let r = check_pair(&prepared[ia], &prepared[ib]);
-            if ia == im {
-                others.push(&prepared[ib]);
-                rs.push(r);
-            } else {
-                others.push(&prepared[ia]);
-                rs.push(r.swapped());
-            }
-        }
-        if !rs.iter().any(|r| r.interfering()) {
+        self.submit(job, out);
+    }
+
+    /// Hands a resolution to the resolver's pool, or runs it here if none is wanted.
+    fn submit(&mut self, job: ResolveJob, out: &mut Vec<RollOut>) {
+        if self.cfg.resolve_in_flight == 0 {
+            let outcome = job.run();
+            self.apply(outcome, out);
             return;
         }
-        let resolution = prepared[im].geometry.resolution;
-        let c = self
-            .plan
-            .time_scale
-            .or_else(|| self.union.period_s().map(|p| resolution / p))
-            .unwrap_or(resolution);
-        let rs: Vec<&PairResult> = rs.iter().collect();
-        let found = resolve(&prepared[im], &others, &rs, &lat, c, origin, ep);
-        for r in found {
-            self.resolutions.push_back(r);
-            if self.resolutions.len() > self.cfg.max_resolutions {
-                self.resolutions.pop_front();
-                self.dropped_resolutions += 1;
+        if self.resolver.is_none() {
+            // Its own pool, as many threads as rayon's: a resolution's long sequential
+            // parts never hold up the windows' parallel work, and the system shares the
+            // cores between the two.
+            let built = rayon::ThreadPoolBuilder::new()
+                .num_threads(rayon::current_num_threads())
+                .thread_name(|i| format!("resolver-{i}"))
+                .build();
+            match built {
+                Ok(pool) => self.resolver = Some(pool),
+                Err(e) => {
+                    tracing::warn!("no thread pool for resolutions ({e}): they run in turn");
+                    self.cfg.resolve_in_flight = 0;
+                    let outcome = job.run();
+                    self.apply(outcome, out);
+                    return;
+                }
             }
         }
-        out.push(RollOut::Resolved);
+        let Some(pool) = &self.resolver else { return };
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        pool.spawn(move || {
+            // The receiver is gone only if the checker was dropped: nobody to tell.
+            let _ = tx.send(job.run());
+        });
+        self.in_flight.push_back(std::sync::Mutex::new(rx));
+    }
+
+    /// Takes the oldest resolution's result, waiting for it if `wait`; false if there is
+    /// none, or it is not ready and `wait` is false.
+    fn take_oldest(&mut self, wait: bool, out: &mut Vec<RollOut>) -> bool {
+        let Some(rx) = self.in_flight.front_mut() else {
+            return false;
+        };
+        let rx = match rx.get_mut() {
+            Ok(rx) => &*rx,
+            Err(poisoned) => &*poisoned.into_inner(),
+        };
+        let outcome = if wait {
+            rx.recv().ok()
+        } else {
+            match rx.try_recv() {
+                Ok(o) => Some(o),
+                Err(std::sync::mpsc::TryRecvError::Empty) => return false,
+                Err(std::sync::mpsc::TryRecvError::Disconnected) => None,
+            }
+        };
+        self.in_flight.pop_front();
+        // A job that panicked dropped its sender: said, and the others go on.
+        let outcome = outcome.unwrap_or_else(|| {
+            ResolveOutcome::Failed(
+                "a resolution stopped unexpectedly (a bug: please report it)".into(),
+            )
+        });
+        self.apply(outcome, out);
+        true
+    }
+
+    /// The results of the resolutions that have finished, oldest first, up to the first
+    /// that has not (a live transport's clock tick calls this; a replay never does, so
+    /// that its output does not depend on how fast the resolutions run).
+    pub fn poll_resolutions(&mut self, out: &mut Vec<RollOut>) {
+        while self.take_oldest(false, out) {}
+    }
+
+    /// Waits for every resolution still running and takes its results, oldest first.
+    pub(super) fn join_resolutions(&mut self, out: &mut Vec<RollOut>) {
+        while self.take_oldest(true, out) {}
+    }
+
+    /// Resolutions handed to the pool whose results are not taken yet.
+    pub fn resolutions_in_flight(&self) -> usize {
+        self.in_flight.len()
+    }
+
+    fn apply(&mut self, outcome: ResolveOutcome, out: &mut Vec<RollOut>) {
+        match outcome {
+            ResolveOutcome::Clear => {}
+            ResolveOutcome::Failed(why) => self.problem(out, "resolution_failed", why),
+            ResolveOutcome::Found(found) => {
+                for r in found {
+                    self.resolutions.push_back(r);
+                    if self.resolutions.len() > self.cfg.max_resolutions {
+                        self.resolutions.pop_front();
+                        self.dropped_resolutions += 1;
+                    }
+                }
+                out.push(RollOut::Resolved);
+            }
+        }
     }
 
     /// Body `id` between stamps `lo` and `hi` as a closed mesh: its kept slabs there (of
@@ -429,5 +488,95 @@ impl RollingChecker {
             }
             total -= n;
         }
+    }
+}
+
+/// A contact episode's resolution, with everything it needs: it runs on the resolver's pool
+/// while the checker goes on.
+pub(super) struct ResolveJob {
+    movable: String,
+    episode: [f64; 2],
+    /// The horizon bodies (the movable one and its partners).
+    meshes: BTreeMap<String, BodyMesh>,
+    /// The movable body's pairs, in the report's order.
+    pairs: Vec<(String, String)>,
+    time_scale: Option<f64>,
+    period_s: Option<f64>,
+    origin_ns: i64,
+}
+
+/// What a resolution gave.
+#[derive(Debug)]
+pub(super) enum ResolveOutcome {
+    /// Nothing interferes over the horizon: nothing to resolve.
+    Clear,
+    /// The suggestions, each verified.
+    Found(Vec<Resolution>),
+    /// It could not be done (why).
+    Failed(String),
+}
+
+impl ResolveJob {
+    /// Checks the horizon bodies, then suggests and verifies a translation and a time
+    /// scaling of the movable body.
+    fn run(self) -> ResolveOutcome {
+        let (m, ep) = (self.movable.as_str(), self.episode);
+        let named: Vec<(&str, &BodyMesh)> =
+            self.meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
+        let result = CommonLattice::of(&named).and_then(|lat| {
+            // One body at a time: preparing them side by side saved 7 % of a periodic
+            // replay's time for 15 % more peak memory.
+            let prepared = named
+                .iter()
+                .map(|(id, b)| lat.prepare(id, b))
+                .collect::<Result<Vec<_>, _>>()?;
+            Ok((lat, prepared))
+        });
+        let (lat, prepared) = match result {
+            Ok(x) => x,
+            Err(e) => {
+                return ResolveOutcome::Failed(format!(
+                    "{m}: the contact episode {:.3}-{:.3} s cannot be resolved: {e}",
+                    ep[0], ep[1]
+                ))
+            }
+        };
+        let index = |id: &str| named.iter().position(|(k, _)| *k == id);
+        let Some(im) = index(m) else {
+            return ResolveOutcome::Clear;
+        };
+        let mut others = Vec::new();
+        let mut rs: Vec<PairResult> = Vec::new();
+        for (a, b) in &self.pairs {
+            let (Some(ia), Some(ib)) = (index(a), index(b)) else {
+                continue;
+            };
+            let r = check_pair(&prepared[ia], &prepared[ib]);
+            if ia == im {
+                others.push(&prepared[ib]);
+                rs.push(r);
+            } else {
+                others.push(&prepared[ia]);
+                rs.push(r.swapped());
+            }
+        }
+        if !rs.iter().any(|r| r.interfering()) {
+            return ResolveOutcome::Clear;
+        }
+        let resolution = prepared[im].geometry.resolution;
+        let c = self
+            .time_scale
+            .or_else(|| self.period_s.map(|p| resolution / p))
+            .unwrap_or(resolution);
+        let rs: Vec<&PairResult> = rs.iter().collect();
+        ResolveOutcome::Found(resolve(
+            &prepared[im],
+            &others,
+            &rs,
+            &lat,
+            c,
+            self.origin_ns,
+            ep,
+        ))
     }
 }

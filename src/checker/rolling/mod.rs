@@ -52,6 +52,7 @@ mod episodes;
 mod report;
 mod windows;
 
+use episodes::ResolveOutcome;
 #[allow(unused_imports)]
 use {report::*, windows::*};
 
@@ -90,6 +91,11 @@ pub struct RollingConfig {
     pub max_horizon_tets: usize,
     /// Most bytes of decoded frames kept per body (for overlaps and resolution caps).
     pub max_frame_bytes: u64,
+    /// Most resolutions running on the resolver's pool at once, while the checker goes on;
+    /// when one more is handed over, the oldest is waited for. 0: each runs in turn on the
+    /// checker's own thread. Results are taken oldest first, so the answers and their order
+    /// never depend on it; only when they are published does.
+    pub resolve_in_flight: usize,
 }
 
 impl Default for RollingConfig {
@@ -104,6 +110,7 @@ impl Default for RollingConfig {
             max_resolutions: 1024,
             max_horizon_tets: 1_500_000,
             max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
+            resolve_in_flight: 1,
         }
     }
 }
@@ -497,6 +504,11 @@ pub struct RollingChecker {
     /// (run id, and the run's first cap if the piece is its first slab): done while the
     /// windows it makes ready are checked.
     pending_stats: Option<(u64, Option<Arc<TetMesh>>)>,
+    /// The resolver's pool (made when the first resolution is handed over).
+    resolver: Option<rayon::ThreadPool>,
+    /// Resolutions running there, oldest first (in a mutex only to let the checker be
+    /// shared with rayon's workers: nothing else takes it).
+    in_flight: VecDeque<std::sync::Mutex<std::sync::mpsc::Receiver<ResolveOutcome>>>,
 }
 
 /// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
@@ -602,6 +614,8 @@ impl RollingChecker {
             prefetched: Vec::new(),
             prepared: BTreeMap::new(),
             pending_stats: None,
+            resolver: None,
+            in_flight: VecDeque::new(),
         }
     }
 
@@ -863,6 +877,7 @@ impl RollingChecker {
             self.finish_speeds(i, true);
         }
         self.prune(out);
+        self.join_resolutions(out);
     }
 
     /// Decides every period that can be decided, then drops what nothing needs any more.
