@@ -149,6 +149,11 @@ pub(crate) fn build_nodes(
         }
         checkers.push(CheckerNode::from_spec(&spec, &meshed)?);
     }
+    // Each checker's markers (if asked for) are sliced by a part of its own, after it.
+    let marker_parts: Vec<_> = checkers
+        .iter_mut()
+        .filter_map(CheckerNode::markers_part)
+        .collect();
     if !checkers.is_empty() {
         let used: BTreeSet<String> = checkers
             .iter()
@@ -190,6 +195,7 @@ pub(crate) fn build_nodes(
     }
     nodes.extend(meshers.into_iter().map(|m| Box::new(m) as Box<dyn Node>));
     nodes.extend(checkers.into_iter().map(|c| Box::new(c) as Box<dyn Node>));
+    nodes.extend(marker_parts.into_iter().map(|c| Box::new(c) as Box<dyn Node>));
     // One topic, one message type: a config that routes a topic to two meanings is refused.
     let uses = crate::node::routes::topic_uses(config, &nodes);
     crate::node::routes::check_topic_types(&uses)?;

@@ -292,17 +292,7 @@ impl CarvingNode {
     /// Counts a problem of `kind`, logging (and keeping the text of) only its first one:
     /// for kinds that may recur at the pose rate.
     fn count_quietly(&mut self, kind: &str, n: u64, text: impl FnOnce() -> String) {
-        if n == 0 {
-            return;
-        }
-        if let Some(c) = self.status.problems.get_mut(kind) {
-            *c += n;
-        } else {
-            self.status.problem(&self.fqn, kind, text());
-            if let Some(c) = self.status.problems.get_mut(kind) {
-                *c += n - 1;
-            }
-        }
+        self.status.count_quietly(&self.fqn, kind, n, text);
     }
 
     /// Publishes the frame due at or before `stamp`, if any: one frame, at the latest due

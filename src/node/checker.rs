@@ -23,7 +23,7 @@
 //! which must match the mesher's.
 
 use std::collections::BTreeSet;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use rayon::prelude::*;
 
@@ -72,6 +72,11 @@ pub struct CheckerNode {
     /// Episodes resolved so far, and when the suggestions were last published (the report
     /// keeps a bounded number of resolutions, so their count stops telling).
     resolved: (u64, u64),
+    /// The markers part's queue, once [`CheckerNode::markers_part`] made it: slabs go
+    /// there instead of being sliced here.
+    markers_queue: Option<Arc<Mutex<MarkerQueue>>>,
+    /// Hidden topic (`~/_slabs_done`, Clock) telling the markers part slabs are queued.
+    slabs_done_topic: String,
     /// A live transport's clock has ticked: resolutions are published as soon as they are
     /// done (a replay takes them at points that do not depend on their speed).
     live: bool,
@@ -137,6 +142,7 @@ impl CheckerNode {
         let markers_topic = markers
             .then(|| p.resolve("~/markers", "~/markers"))
             .transpose()?;
+        let slabs_done_topic = p.resolve("~/_slabs_done", "~/_slabs_done")?;
         p.finish()?;
         let defaulted = pairs.is_none();
         let pairs = pairs.unwrap_or_else(|| {
@@ -199,6 +205,8 @@ impl CheckerNode {
             latest_ns: 0,
             dirty: false,
             resolved: (0, 0),
+            markers_queue: None,
+            slabs_done_topic,
             live: false,
             status: NodeStatus::default(),
         })
@@ -304,7 +312,9 @@ impl CheckerNode {
         let mut report: Option<Report> = None;
         // The periods' markers (a slice of each body's slab) are independent: built on
         // rayon's pool first, published in their place below.
+        let mut queued: Option<i64> = None;
         let mut markers: Vec<Option<Message>> = match self.markers_topic.as_deref() {
+            Some(_) if self.markers_queue.is_some() => Vec::new(),
             Some(topic)
                 if rolled
                     .iter()
@@ -350,7 +360,19 @@ impl CheckerNode {
                     ));
                 }
                 RollOut::SlabDone(d) => {
-                    if let Some(m) = markers.get_mut(n).and_then(Option::take) {
+                    if let Some(q) = &self.markers_queue {
+                        queued = Some(queued.map_or(d.stamps_ns.1, |s| s.max(d.stamps_ns.1)));
+                        let dropped = q.lock().map_or(0, |mut q| q.push(&self.frame_id, d));
+                        if dropped > 0 {
+                            self.status.count_quietly(&self.fqn, "markers_behind", dropped, || {
+                                format!(
+                                    "the markers part is behind: the oldest slabs waiting \
+                                     for it were dropped (at most {MARKER_QUEUE_TETS} tets \
+                                     wait); labels, contacts and the report are complete"
+                                )
+                            });
+                        }
+                    } else if let Some(m) = markers.get_mut(n).and_then(Option::take) {
                         out.push(m);
                     } else if let Some(topic) = self.markers_topic.clone() {
                         out.push(self.marker(&topic, &d));
@@ -394,6 +416,15 @@ impl CheckerNode {
                 }
                 RollOut::Problem(kind, text) => self.status.problem(&self.fqn, kind, text),
             }
+        }
+        if let Some(stamp) = queued {
+            out.push(Message::new(
+                &self.slabs_done_topic,
+                stamp,
+                Payload::Clock(Arc::new(crate::msg::Clock {
+                    clock: Time::from_nanos(stamp),
+                })),
+            ));
         }
         if self.dirty {
             let report = report.unwrap_or_else(|| self.engine.report());
@@ -441,32 +472,166 @@ impl CheckerNode {
         }
     }
 
-    /// A MarkerArray with one body's slice a little after the middle of a frame period, its
-    /// triangles coloured by the strongest label of their tet over the body's pairs.
+    /// A MarkerArray with one body's slice (see [`slab_marker`]).
     fn marker(&self, topic: &str, d: &SlabDone) -> Message {
-        let g = d.geometry;
-        // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
-        let mut slicer = Slicer::new(3, mid_slab_plane(u64::from(d.index), g.scale)).with_sources();
-        slicer.add_par(&d.mesh);
-        let (tri, src) = slicer.finish_with_sources();
-        let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
-        let base = body_color(&d.body);
-        let outside = ColorRGBA { a: 0.45, ..base };
-        let marker = triangle_list(self.header(stamp), &d.body, 0, &g, &tri, |t| {
-            match d.worst.get(src[t] as usize).copied() {
-                Some(x) if x == Label::Interference as u8 => INTERFERENCE_COLOR,
-                Some(x) if x == Label::Inside as u8 => INSIDE_COLOR,
-                _ => outside,
-            }
-        });
-        Message::new(
-            topic,
-            stamp,
-            Payload::MarkerArray(Arc::new(MarkerArray {
-                markers: vec![marker],
-            })),
-        )
+        slab_marker(&self.frame_id, topic, d)
     }
+
+
+    /// The markers part: a node of its own (`<name>/markers`, its own thread in a live
+    /// launch) that slices the slabs every pair has labelled and publishes `~/markers`, so
+    /// that the checker's thread goes on with the next windows. `None` without `markers`.
+    pub fn markers_part(&mut self) -> Option<CheckerMarkers> {
+        let topic = self.markers_topic.clone()?;
+        let queue = Arc::new(Mutex::new(MarkerQueue::default()));
+        self.markers_queue = Some(queue.clone());
+        Some(CheckerMarkers {
+            fqn: format!("{}/markers", self.fqn),
+            slabs_done_topic: self.slabs_done_topic.clone(),
+            markers_topic: topic,
+            queue,
+            status: NodeStatus::default(),
+        })
+    }
+}
+
+/// Most tets of slabs waiting for the markers part; beyond it the oldest are dropped.
+pub const MARKER_QUEUE_TETS: usize = 4_000_000;
+
+/// Slabs waiting for the markers part, oldest first.
+#[derive(Debug, Default)]
+pub struct MarkerQueue {
+    /// Each slab with the checker's `frame_id`.
+    slabs: std::collections::VecDeque<(String, SlabDone)>,
+    tets: usize,
+}
+
+impl MarkerQueue {
+    /// Queues `d`; returns how many of the oldest were dropped to stay within
+    /// [`MARKER_QUEUE_TETS`] (the newest always stays).
+    fn push(&mut self, frame_id: &str, d: SlabDone) -> u64 {
+        self.tets += d.mesh.tets.len();
+        self.slabs.push_back((frame_id.to_owned(), d));
+        let mut dropped = 0;
+        while self.tets > MARKER_QUEUE_TETS && self.slabs.len() > 1 {
+            if let Some((_, old)) = self.slabs.pop_front() {
+                self.tets -= old.mesh.tets.len();
+                dropped += 1;
+            }
+        }
+        dropped
+    }
+
+    fn take(&mut self) -> Vec<(String, SlabDone)> {
+        self.tets = 0;
+        self.slabs.drain(..).collect()
+    }
+}
+
+/// The checker's markers part (see [`CheckerNode::markers_part`]).
+pub struct CheckerMarkers {
+    fqn: String,
+    slabs_done_topic: String,
+    markers_topic: String,
+    queue: Arc<Mutex<MarkerQueue>>,
+    status: NodeStatus,
+}
+
+impl CheckerMarkers {
+    /// Slices every queued slab (on rayon's pool when there are several), in queue order.
+    fn publish(&mut self, out: &mut Vec<Message>) {
+        let slabs = self.queue.lock().map(|mut q| q.take()).unwrap_or_default();
+        let topic = self.markers_topic.as_str();
+        let made: Vec<Message> = if slabs.len() > 1 {
+            slabs
+                .par_iter()
+                .map(|(f, d)| slab_marker(f, topic, d))
+                .collect()
+        } else {
+            slabs.iter().map(|(f, d)| slab_marker(f, topic, d)).collect()
+        };
+        self.status.published += made.len() as u64;
+        out.extend(made);
+    }
+}
+
+impl Node for CheckerMarkers {
+    fn as_any(&self) -> &dyn std::any::Any {
+        self
+    }
+
+    fn name(&self) -> &str {
+        &self.fqn
+    }
+
+    fn subscriptions(&self) -> Vec<TopicRef> {
+        vec![TopicRef {
+            topic: self.slabs_done_topic.clone(),
+            type_name: crate::msg::Clock::TYPE_NAME,
+        }]
+    }
+
+    fn publications(&self) -> Vec<TopicRef> {
+        vec![TopicRef {
+            topic: self.markers_topic.clone(),
+            type_name: MarkerArray::TYPE_NAME,
+        }]
+    }
+
+    fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
+        let _ = msg;
+        self.status.received += 1;
+        self.publish(out);
+    }
+
+    fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
+        // Several nudges waiting: the queue holds all their slabs; one pass takes them.
+        self.status.received += msgs.len() as u64;
+        self.publish(out);
+    }
+
+    fn finish(&mut self, out: &mut Vec<Message>) {
+        self.publish(out);
+    }
+
+    fn status(&self) -> &NodeStatus {
+        &self.status
+    }
+
+    fn rank(&self) -> u8 {
+        4
+    }
+}
+
+/// A MarkerArray with one body's slice a little after the middle of a frame period, its
+    /// triangles coloured by the strongest label of their tet over the body's pairs.
+pub fn slab_marker(frame_id: &str, topic: &str, d: &SlabDone) -> Message {
+    let g = d.geometry;
+    // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
+    let mut slicer = Slicer::new(3, mid_slab_plane(u64::from(d.index), g.scale)).with_sources();
+    slicer.add_par(&d.mesh);
+    let (tri, src) = slicer.finish_with_sources();
+    let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
+    let base = body_color(&d.body);
+    let outside = ColorRGBA { a: 0.45, ..base };
+    let header = Header {
+        stamp: Time::from_nanos(stamp),
+        frame_id: frame_id.to_owned(),
+    };
+    let marker = triangle_list(header, &d.body, 0, &g, &tri, |t| {
+        match d.worst.get(src[t] as usize).copied() {
+            Some(x) if x == Label::Interference as u8 => INTERFERENCE_COLOR,
+            Some(x) if x == Label::Inside as u8 => INSIDE_COLOR,
+            _ => outside,
+        }
+    });
+    Message::new(
+        topic,
+        stamp,
+        Payload::MarkerArray(Arc::new(MarkerArray {
+            markers: vec![marker],
+        })),
+    )
 }
 
 fn nan_if_none(v: Option<f64>) -> f64 {
@@ -598,10 +763,15 @@ impl Node for CheckerNode {
                 type_name: ContactEvent::TYPE_NAME,
             },
         ];
+        // With a markers part, the part publishes the markers and this node tells it when.
+        let (markers_topic, markers_type) = match &self.markers_queue {
+            Some(_) => (Some(self.slabs_done_topic.clone()), crate::msg::Clock::TYPE_NAME),
+            None => (self.markers_topic.clone(), MarkerArray::TYPE_NAME),
+        };
         let optional = [
             (&self.labels_topic, TetLabels::TYPE_NAME),
             (&self.suggestions_topic, ResolveSuggestions::TYPE_NAME),
-            (&self.markers_topic, MarkerArray::TYPE_NAME),
+            (&markers_topic, markers_type),
         ];
         for (topic, type_name) in optional {
             p.extend(topic.iter().map(|t| TopicRef {

@@ -180,6 +180,22 @@ impl NodeStatus {
         }
     }
 
+    /// Counts `n` problems of `kind`, logging (and keeping the text of) only the first one
+    /// of that kind: for kinds that may recur at a message rate.
+    pub fn count_quietly(&mut self, node: &str, kind: &str, n: u64, text: impl FnOnce() -> String) {
+        if n == 0 {
+            return;
+        }
+        if let Some(c) = self.problems.get_mut(kind) {
+            *c += n;
+        } else {
+            self.problem(node, kind, text());
+            if let Some(c) = self.problems.get_mut(kind) {
+                *c += n - 1;
+            }
+        }
+    }
+
     /// All problems counted.
     pub fn problem_count(&self) -> u64 {
         self.problems.values().sum()
