@@ -195,7 +195,11 @@ pub(crate) fn build_nodes(
     }
     nodes.extend(meshers.into_iter().map(|m| Box::new(m) as Box<dyn Node>));
     nodes.extend(checkers.into_iter().map(|c| Box::new(c) as Box<dyn Node>));
-    nodes.extend(marker_parts.into_iter().map(|c| Box::new(c) as Box<dyn Node>));
+    nodes.extend(
+        marker_parts
+            .into_iter()
+            .map(|c| Box::new(c) as Box<dyn Node>),
+    );
     // One topic, one message type: a config that routes a topic to two meanings is refused.
     let uses = crate::node::routes::topic_uses(config, &nodes);
     crate::node::routes::check_topic_types(&uses)?;

@@ -364,13 +364,14 @@ impl CheckerNode {
                         queued = Some(queued.map_or(d.stamps_ns.1, |s| s.max(d.stamps_ns.1)));
                         let dropped = q.lock().map_or(0, |mut q| q.push(&self.frame_id, d));
                         if dropped > 0 {
-                            self.status.count_quietly(&self.fqn, "markers_behind", dropped, || {
-                                format!(
-                                    "the markers part is behind: the oldest slabs waiting \
+                            self.status
+                                .count_quietly(&self.fqn, "markers_behind", dropped, || {
+                                    format!(
+                                        "the markers part is behind: the oldest slabs waiting \
                                      for it were dropped (at most {MARKER_QUEUE_TETS} tets \
                                      wait); labels, contacts and the report are complete"
-                                )
-                            });
+                                    )
+                                });
                         }
                     } else if let Some(m) = markers.get_mut(n).and_then(Option::take) {
                         out.push(m);
@@ -477,7 +478,6 @@ impl CheckerNode {
         slab_marker(&self.frame_id, topic, d)
     }
 
-
     /// The markers part: a node of its own (`<name>/markers`, its own thread in a live
     /// launch) that slices the slabs every pair has labelled and publishes `~/markers`, so
     /// that the checker's thread goes on with the next windows. `None` without `markers`.
@@ -548,7 +548,10 @@ impl CheckerMarkers {
                 .map(|(f, d)| slab_marker(f, topic, d))
                 .collect()
         } else {
-            slabs.iter().map(|(f, d)| slab_marker(f, topic, d)).collect()
+            slabs
+                .iter()
+                .map(|(f, d)| slab_marker(f, topic, d))
+                .collect()
         };
         self.status.published += made.len() as u64;
         out.extend(made);
@@ -604,7 +607,7 @@ impl Node for CheckerMarkers {
 }
 
 /// A MarkerArray with one body's slice a little after the middle of a frame period, its
-    /// triangles coloured by the strongest label of their tet over the body's pairs.
+/// triangles coloured by the strongest label of their tet over the body's pairs.
 pub fn slab_marker(frame_id: &str, topic: &str, d: &SlabDone) -> Message {
     let g = d.geometry;
     // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
@@ -765,7 +768,10 @@ impl Node for CheckerNode {
         ];
         // With a markers part, the part publishes the markers and this node tells it when.
         let (markers_topic, markers_type) = match &self.markers_queue {
-            Some(_) => (Some(self.slabs_done_topic.clone()), crate::msg::Clock::TYPE_NAME),
+            Some(_) => (
+                Some(self.slabs_done_topic.clone()),
+                crate::msg::Clock::TYPE_NAME,
+            ),
             None => (self.markers_topic.clone(), MarkerArray::TYPE_NAME),
         };
         let optional = [
@@ -822,5 +828,49 @@ impl Node for CheckerNode {
 
     fn rank(&self) -> u8 {
         3
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::TetMesh;
+
+    fn slab(index: u32, tets: usize) -> SlabDone {
+        SlabDone {
+            body: "/a".into(),
+            index,
+            stamps_ns: (i64::from(index), i64::from(index) + 1),
+            geometry: GridGeometry {
+                origin: [0.0; 3],
+                resolution: 0.1,
+                size: [2, 2, 2],
+                encoding: VoxelGrid::ENCODING_BITS,
+                scale: 2,
+            },
+            mesh: Arc::new(TetMesh {
+                vertices: Vec::new(),
+                tets: vec![[0, 0, 0, 0]; tets],
+            }),
+            worst: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn the_markers_queue_drops_its_oldest_slabs_beyond_its_tet_limit_and_keeps_the_newest() {
+        let mut q = MarkerQueue::default();
+        let third = MARKER_QUEUE_TETS / 3;
+        assert_eq!(q.push("w", slab(0, third)), 0);
+        assert_eq!(q.push("w", slab(1, third)), 0);
+        assert_eq!(q.push("w", slab(2, third)), 0);
+        // A fourth third is over the limit: the oldest goes.
+        assert_eq!(q.push("w", slab(3, third)), 1);
+        // A slab over the limit on its own still waits (the newest is never dropped).
+        assert_eq!(q.push("w", slab(4, MARKER_QUEUE_TETS + 1)), 3);
+        let left = q.take();
+        assert_eq!(left.len(), 1);
+        assert_eq!(left[0].1.index, 4);
+        assert_eq!(left[0].0, "w");
+        assert!(q.take().is_empty());
     }
 }

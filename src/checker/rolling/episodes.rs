@@ -173,31 +173,27 @@ impl RollingChecker {
             }
         }
         let Some(pool) = &self.resolver else { return };
-        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        let (tx, rx) = crossbeam_channel::bounded(1);
         pool.spawn(move || {
             // The receiver is gone only if the checker was dropped: nobody to tell.
             let _ = tx.send(job.run());
         });
-        self.in_flight.push_back(std::sync::Mutex::new(rx));
+        self.in_flight.push_back(rx);
     }
 
     /// Takes the oldest resolution's result, waiting for it if `wait`; false if there is
     /// none, or it is not ready and `wait` is false.
     fn take_oldest(&mut self, wait: bool, out: &mut Vec<RollOut>) -> bool {
-        let Some(rx) = self.in_flight.front_mut() else {
+        let Some(rx) = self.in_flight.front() else {
             return false;
-        };
-        let rx = match rx.get_mut() {
-            Ok(rx) => &*rx,
-            Err(poisoned) => &*poisoned.into_inner(),
         };
         let outcome = if wait {
             rx.recv().ok()
         } else {
             match rx.try_recv() {
                 Ok(o) => Some(o),
-                Err(std::sync::mpsc::TryRecvError::Empty) => return false,
-                Err(std::sync::mpsc::TryRecvError::Disconnected) => None,
+                Err(crossbeam_channel::TryRecvError::Empty) => return false,
+                Err(crossbeam_channel::TryRecvError::Disconnected) => None,
             }
         };
         self.in_flight.pop_front();

@@ -506,9 +506,8 @@ pub struct RollingChecker {
     pending_stats: Option<(u64, Option<Arc<TetMesh>>)>,
     /// The resolver's pool (made when the first resolution is handed over).
     resolver: Option<rayon::ThreadPool>,
-    /// Resolutions running there, oldest first (in a mutex only to let the checker be
-    /// shared with rayon's workers: nothing else takes it).
-    in_flight: VecDeque<std::sync::Mutex<std::sync::mpsc::Receiver<ResolveOutcome>>>,
+    /// Resolutions running there, oldest first: where each one's result will come.
+    in_flight: VecDeque<crossbeam_channel::Receiver<ResolveOutcome>>,
 }
 
 /// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
