@@ -496,8 +496,23 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
     let root = env!("CARGO_MANIFEST_DIR");
     let exe = env!("CARGO_BIN_EXE_chronotope");
     let bag = Path::new(root).join(BAG);
-    let launch = Path::new(root).join(LAUNCH);
     let dir = tempfile::tempdir().unwrap();
+    // The bundled config with a longer idle timeout: the Python peer decodes the markers
+    // it takes while it plays (about half a second each), and a frame written more than
+    // `idle_timeout_s` (2 s) after the one before would look like a stream that stopped
+    // and started again. The offline replay has no clock, so the answers are the same.
+    let text = std::fs::read_to_string(Path::new(root).join(LAUNCH)).unwrap();
+    let bodies_line = "    - {name: bodies, value: [/sphere_a/occupancy, /sphere_b/occupancy, /sphere_c/occupancy, /sphere_d/occupancy]}\n";
+    assert!(text.contains(bodies_line), "{LAUNCH} names the mesher's bodies as expected");
+    let launch = dir.path().join("four_spheres.yaml");
+    std::fs::write(
+        &launch,
+        text.replace(
+            bodies_line,
+            &format!("{bodies_line}    - {{name: idle_timeout_s, value: 10.0}}\n"),
+        ),
+    )
+    .unwrap();
     let t = Instant::now();
 
     // Offline first: the reference.
