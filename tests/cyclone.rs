@@ -503,7 +503,10 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
     // and started again. The offline replay has no clock, so the answers are the same.
     let text = std::fs::read_to_string(Path::new(root).join(LAUNCH)).unwrap();
     let bodies_line = "    - {name: bodies, value: [/sphere_a/occupancy, /sphere_b/occupancy, /sphere_c/occupancy, /sphere_d/occupancy]}\n";
-    assert!(text.contains(bodies_line), "{LAUNCH} names the mesher's bodies as expected");
+    assert!(
+        text.contains(bodies_line),
+        "{LAUNCH} names the mesher's bodies as expected"
+    );
     let launch = dir.path().join("four_spheres.yaml");
     std::fs::write(
         &launch,
