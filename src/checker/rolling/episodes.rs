@@ -154,14 +154,7 @@ impl RollingChecker {
             return;
         }
         if self.resolver.is_none() {
-            // Its own pool, as many threads as rayon's: a resolution's long sequential
-            // parts never hold up the windows' parallel work, and the system shares the
-            // cores between the two.
-            let built = rayon::ThreadPoolBuilder::new()
-                .num_threads(rayon::current_num_threads())
-                .thread_name(|i| format!("resolver-{i}"))
-                .build();
-            match built {
+            match resolver_pool() {
                 Ok(pool) => self.resolver = Some(pool),
                 Err(e) => {
                     tracing::warn!("no thread pool for resolutions ({e}): they run in turn");
@@ -173,18 +166,22 @@ impl RollingChecker {
             }
         }
         let Some(pool) = &self.resolver else { return };
+        let what = format!(
+            "{}: the contact episode {:.3}-{:.3} s",
+            job.movable, job.episode[0], job.episode[1]
+        );
         let (tx, rx) = crossbeam_channel::bounded(1);
         pool.spawn(move || {
             // The receiver is gone only if the checker was dropped: nobody to tell.
             let _ = tx.send(job.run());
         });
-        self.in_flight.push_back(rx);
+        self.in_flight.push_back((what, rx));
     }
 
     /// Takes the oldest resolution's result, waiting for it if `wait`; false if there is
     /// none, or it is not ready and `wait` is false.
     fn take_oldest(&mut self, wait: bool, out: &mut Vec<RollOut>) -> bool {
-        let Some(rx) = self.in_flight.front() else {
+        let Some((_, rx)) = self.in_flight.front() else {
             return false;
         };
         let outcome = if wait {
@@ -196,12 +193,17 @@ impl RollingChecker {
                 Err(crossbeam_channel::TryRecvError::Disconnected) => None,
             }
         };
-        self.in_flight.pop_front();
+        let what = self
+            .in_flight
+            .pop_front()
+            .map(|(w, _)| w)
+            .unwrap_or_default();
         // A job that panicked dropped its sender: said, and the others go on.
         let outcome = outcome.unwrap_or_else(|| {
-            ResolveOutcome::Failed(
-                "a resolution stopped unexpectedly (a bug: please report it)".into(),
-            )
+            ResolveOutcome::Failed(format!(
+                "{what} is not resolved: its resolution stopped unexpectedly (a bug: please \
+                 report it)"
+            ))
         });
         self.apply(outcome, out);
         true
@@ -487,6 +489,26 @@ impl RollingChecker {
     }
 }
 
+/// The resolver's pool: as many threads as rayon's, so that a resolution's long sequential
+/// parts never hold up the windows' parallel work and the system shares the cores between
+/// the two.
+fn resolver_pool() -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(rayon::current_num_threads())
+        .thread_name(|i| format!("resolver-{i}"))
+        // A resolution that panics (a bug) must not abort the process, rayon's default:
+        // its result channel closes and the checker says so.
+        .panic_handler(|p| {
+            let text = p
+                .downcast_ref::<&str>()
+                .map(|s| (*s).to_owned())
+                .or_else(|| p.downcast_ref::<String>().cloned())
+                .unwrap_or_default();
+            tracing::error!("a resolution panicked: {text}");
+        })
+        .build()
+}
+
 /// A contact episode's resolution, with everything it needs: it runs on the resolver's pool
 /// while the checker goes on.
 pub(super) struct ResolveJob {
@@ -574,5 +596,55 @@ impl ResolveJob {
             self.origin_ns,
             ep,
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_resolution_that_panics_is_said_and_the_checker_goes_on() {
+        let plan = CheckPlan {
+            pairs: Some(vec![("/a".into(), "/b".into())]),
+            movable: vec!["/a".into()],
+            time_scale: None,
+            frame_ids: Default::default(),
+        };
+        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let pool = resolver_pool().unwrap();
+        let (tx, rx) = crossbeam_channel::bounded::<ResolveOutcome>(1);
+        pool.spawn(move || {
+            let _keep = tx;
+            panic!("a bug");
+        });
+        c.in_flight
+            .push_back(("/a: the contact episode 1.000-2.000 s".into(), rx));
+        // The pool survives the panic and runs the next job.
+        let (tx2, rx2) = crossbeam_channel::bounded(1);
+        pool.spawn(move || {
+            let _ = tx2.send(ResolveOutcome::Clear);
+        });
+        c.in_flight.push_back(("/a: the next".into(), rx2));
+        let mut out = Vec::new();
+        c.join_resolutions(&mut out);
+        assert_eq!(c.resolutions_in_flight(), 0);
+        let said: Vec<&str> = out
+            .iter()
+            .filter_map(|r| match r {
+                RollOut::Problem(kind, text) => Some((*kind, text.as_str())),
+                _ => None,
+            })
+            .map(|(k, t)| {
+                assert_eq!(k, "resolution_failed");
+                t
+            })
+            .collect();
+        assert_eq!(said.len(), 1, "{said:?}");
+        assert!(
+            said[0].contains("1.000-2.000 s is not resolved"),
+            "{}",
+            said[0]
+        );
     }
 }

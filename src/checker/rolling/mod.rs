@@ -506,8 +506,9 @@ pub struct RollingChecker {
     pending_stats: Option<(u64, Option<Arc<TetMesh>>)>,
     /// The resolver's pool (made when the first resolution is handed over).
     resolver: Option<rayon::ThreadPool>,
-    /// Resolutions running there, oldest first: where each one's result will come.
-    in_flight: VecDeque<crossbeam_channel::Receiver<ResolveOutcome>>,
+    /// Resolutions running there, oldest first: which episode, and where its result will
+    /// come.
+    in_flight: VecDeque<(String, crossbeam_channel::Receiver<ResolveOutcome>)>,
 }
 
 /// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
