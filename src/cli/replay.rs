@@ -151,7 +151,7 @@ pub(crate) fn build_nodes(
     }
     // Each checker's markers (if asked for) are sliced by a part of its own, after it.
     let marker_parts: Vec<_> = checkers
-        .iter_mut()
+        .iter()
         .filter_map(CheckerNode::markers_part)
         .collect();
     if !checkers.is_empty() {

@@ -242,13 +242,6 @@ pub fn make_realtime(priority: i32) -> Result<String, String> {
     }
 }
 
-fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "a panic without a message".into())
-}
-
 impl Routes {
     /// Delivers `out` (published by node `from`) to the nodes reading each topic, then to
     /// the wire.
@@ -409,7 +402,7 @@ impl Unit {
         let before = out.len();
         let r = catch_unwind(AssertUnwindSafe(|| f(node.as_mut(), out)));
         if let Err(p) = r {
-            let text = panic_text(p.as_ref());
+            let text = crate::panic_text(p.as_ref());
             tracing::error!(
                 node = self.name,
                 "the node panicked and is stopped (the other nodes go on): {text}"

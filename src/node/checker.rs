@@ -72,8 +72,8 @@ pub struct CheckerNode {
     /// Episodes resolved so far, and when the suggestions were last published (the report
     /// keeps a bounded number of resolutions, so their count stops telling).
     resolved: (u64, u64),
-    /// The markers part's queue, once [`CheckerNode::markers_part`] made it: slabs go
-    /// there instead of being sliced here.
+    /// With `markers`: the slabs every pair has labelled, waiting for the markers part
+    /// ([`CheckerNode::markers_part`]) to slice them.
     markers_queue: Option<Arc<Mutex<MarkerQueue>>>,
     /// Hidden topic (`~/_slabs_done`, Clock) telling the markers part slabs are queued.
     slabs_done_topic: String,
@@ -205,7 +205,7 @@ impl CheckerNode {
             latest_ns: 0,
             dirty: false,
             resolved: (0, 0),
-            markers_queue: None,
+            markers_queue: markers.then(|| Arc::new(Mutex::new(MarkerQueue::default()))),
             slabs_done_topic,
             live: false,
             status: NodeStatus::default(),
@@ -310,30 +310,9 @@ impl CheckerNode {
         let before = out.len();
         // The answer after this step, built once for its contact events and its report.
         let mut report: Option<Report> = None;
-        // The periods' markers (a slice of each body's slab) are independent: built on
-        // rayon's pool first, published in their place below.
+        // The newest stamp of the slabs queued for the markers part in this step.
         let mut queued: Option<i64> = None;
-        let mut markers: Vec<Option<Message>> = match self.markers_topic.as_deref() {
-            Some(_) if self.markers_queue.is_some() => Vec::new(),
-            Some(topic)
-                if rolled
-                    .iter()
-                    .filter(|r| matches!(r, RollOut::SlabDone(_)))
-                    .count()
-                    > 1 =>
-            {
-                let this = &*self;
-                rolled
-                    .par_iter()
-                    .map(|r| match r {
-                        RollOut::SlabDone(d) => Some(this.marker(topic, d)),
-                        _ => None,
-                    })
-                    .collect()
-            }
-            _ => Vec::new(),
-        };
-        for (n, r) in rolled.into_iter().enumerate() {
+        for r in rolled {
             match r {
                 RollOut::Labels(l) => {
                     let Some(topic) = &self.labels_topic else {
@@ -373,10 +352,6 @@ impl CheckerNode {
                                     )
                                 });
                         }
-                    } else if let Some(m) = markers.get_mut(n).and_then(Option::take) {
-                        out.push(m);
-                    } else if let Some(topic) = self.markers_topic.clone() {
-                        out.push(self.marker(&topic, &d));
                     }
                 }
                 RollOut::Contact(c) => {
@@ -473,18 +448,12 @@ impl CheckerNode {
         }
     }
 
-    /// A MarkerArray with one body's slice (see [`slab_marker`]).
-    fn marker(&self, topic: &str, d: &SlabDone) -> Message {
-        slab_marker(&self.frame_id, topic, d)
-    }
-
     /// The markers part: a node of its own (`<name>/markers`, its own thread in a live
     /// launch) that slices the slabs every pair has labelled and publishes `~/markers`, so
     /// that the checker's thread goes on with the next windows. `None` without `markers`.
-    pub fn markers_part(&mut self) -> Option<CheckerMarkers> {
+    pub fn markers_part(&self) -> Option<CheckerMarkers> {
         let topic = self.markers_topic.clone()?;
-        let queue = Arc::new(Mutex::new(MarkerQueue::default()));
-        self.markers_queue = Some(queue.clone());
+        let queue = self.markers_queue.clone()?;
         Some(CheckerMarkers {
             fqn: format!("{}/markers", self.fqn),
             slabs_done_topic: self.slabs_done_topic.clone(),
@@ -766,18 +735,15 @@ impl Node for CheckerNode {
                 type_name: ContactEvent::TYPE_NAME,
             },
         ];
-        // With a markers part, the part publishes the markers and this node tells it when.
-        let (markers_topic, markers_type) = match &self.markers_queue {
-            Some(_) => (
-                Some(self.slabs_done_topic.clone()),
-                crate::msg::Clock::TYPE_NAME,
-            ),
-            None => (self.markers_topic.clone(), MarkerArray::TYPE_NAME),
-        };
+        // With `markers`, its markers part publishes them; this node tells it when.
+        let slabs_done = self
+            .markers_queue
+            .as_ref()
+            .map(|_| self.slabs_done_topic.clone());
         let optional = [
             (&self.labels_topic, TetLabels::TYPE_NAME),
             (&self.suggestions_topic, ResolveSuggestions::TYPE_NAME),
-            (&markers_topic, markers_type),
+            (&slabs_done, crate::msg::Clock::TYPE_NAME),
         ];
         for (topic, type_name) in optional {
             p.extend(topic.iter().map(|t| TopicRef {

@@ -499,12 +499,7 @@ fn resolver_pool() -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
         // A resolution that panics (a bug) must not abort the process, rayon's default:
         // its result channel closes and the checker says so.
         .panic_handler(|p| {
-            let text = p
-                .downcast_ref::<&str>()
-                .map(|s| (*s).to_owned())
-                .or_else(|| p.downcast_ref::<String>().cloned())
-                .unwrap_or_default();
-            tracing::error!("a resolution panicked: {text}");
+            tracing::error!("a resolution panicked: {}", crate::panic_text(p.as_ref()));
         })
         .build()
 }
