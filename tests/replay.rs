@@ -203,9 +203,10 @@ fn bad_launch_configs_are_refused_with_the_reason() {
 }
 
 /// A checker (re)started while the bodies' streams are under way: it says once per body that
-/// it joined mid-stream, skips that stream, and checks the next one in full.
+/// it joined mid-stream, checks that stream from the first piece it sees (its mesh open
+/// there), and the next one in full.
 #[test]
-fn a_checker_started_mid_stream_says_so_and_checks_the_next_stream() {
+fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in_full() {
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Message, Node, Payload};
@@ -248,13 +249,36 @@ fn a_checker_started_mid_stream_says_so_and_checks_the_next_stream() {
     let slabs_a = |m: &Message| matches!(&m.payload, Payload::MeshSlab(_));
     let first: Vec<Message> = first.into_iter().filter(slabs_a).collect();
     assert!(first.len() > 8, "{}", first.len());
+    // Pieces in order: both first caps and slabs 0, then slabs 1, 2, ... of a and b in turn.
+    // Seen from b's slab 1: b from frame 1, a from frame 2.
     for m in &first[5..] {
         checker.on_message(m, &mut results);
     }
     let st = checker.status();
     assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
     assert_eq!(st.problems.get("piece_out_of_order"), None, "{st:?}");
-    assert!(results.is_empty(), "nothing checked from half a stream");
+    let half = results
+        .iter()
+        .filter_map(|m| match &m.payload {
+            Payload::Report(r) => Some(r.clone()),
+            _ => None,
+        })
+        .next_back()
+        .expect("the half stream is checked");
+    let frames: Vec<(String, u64, bool)> = half
+        .bodies
+        .iter()
+        .map(|b| (b.body_id.clone(), b.frames, b.closed))
+        .collect();
+    assert_eq!(
+        frames,
+        [
+            ("/a/occupancy".to_owned(), 4, false),
+            ("/b/occupancy".to_owned(), 5, false)
+        ],
+        "open where the pieces were missed"
+    );
+    results.clear();
     // The next stream is checked in full.
     let second = stream(&mut mesher, 10_000_000_000);
     for m in second.iter().filter(|m| slabs_a(m)) {
@@ -268,16 +292,203 @@ fn a_checker_started_mid_stream_says_so_and_checks_the_next_stream() {
         })
         .collect();
     // The report is republished as the contact is found and when the streams end; the
-    // last one is the second stream's whole answer.
+    // last one is the answer of both streams: the contact of each (the same frames of each
+    // stream meet), the frames of both runs, and open because the first run is.
     let last = reports.last().expect("a report for the second stream");
-    assert!(last.pairs[0].interfering);
-    assert!(
-        last.bodies.iter().all(|b| b.closed && b.frames == 6),
-        "{last:?}"
-    );
+    let pair = &last.pairs[0];
+    assert!(pair.interfering);
+    let intervals: Vec<(f64, f64)> = pair
+        .interval_start_s
+        .iter()
+        .zip(&pair.interval_end_s)
+        .map(|(a, b)| ((a * 1e3).round() / 1e3, (b * 1e3).round() / 1e3))
+        .collect();
+    assert_eq!(intervals, [(0.2, 0.4), (9.2, 9.4)], "{last:?}");
+    let frames: Vec<(u64, bool)> = last.bodies.iter().map(|b| (b.frames, b.closed)).collect();
+    assert_eq!(frames, [(4 + 6, false), (5 + 6, false)], "{last:?}");
     let st = checker.status();
     assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
     assert_eq!(st.problems.get("check_failed"), None, "{st:?}");
+}
+
+/// Pieces lost between the mesher and the checker (a node that was behind): the checker says
+/// which, checks the stream again from the next piece (the mesh open at the gap), and finds
+/// the contact after it as with every piece.
+#[test]
+fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_them() {
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use chronotope::msg::MeshSlab;
+    use std::sync::Arc;
+
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+        "test",
+    )
+    .unwrap();
+    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+    let run = |lose: Option<u32>| {
+        let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+        let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+        let mut pieces = Vec::new();
+        for k in 0..6u32 {
+            let t = 1_000_000_000 + i64::from(k) * 100_000_000;
+            let mut a = frame(0, k);
+            a.header.stamp = Time::from_nanos(t);
+            let mut b = frame(6, 0);
+            b.header.stamp = Time::from_nanos(t);
+            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
+                mesher.on_message(
+                    &Message::new(topic, t, Payload::VoxelGrid(Arc::new(g))),
+                    &mut pieces,
+                );
+            }
+        }
+        mesher.finish(&mut pieces);
+        let mut results = Vec::new();
+        for m in &pieces {
+            let lost = matches!(&m.payload, Payload::MeshSlab(p)
+                if p.body_id == "/a/occupancy"
+                    && p.kind == MeshSlab::KIND_LATERAL
+                    && Some(p.index) == lose);
+            if !lost {
+                checker.on_message(m, &mut results);
+            }
+        }
+        checker.finish(&mut results);
+        let report = results
+            .iter()
+            .filter_map(|m| match &m.payload {
+                Payload::Report(r) => Some(r.clone()),
+                _ => None,
+            })
+            .next_back()
+            .expect("a report");
+        (report, checker.status().clone())
+    };
+    let (all, st) = run(None);
+    assert_eq!(st.problems.get("pieces_missing"), None, "{st:?}");
+    let (lost, st) = run(Some(1));
+    assert_eq!(st.problems.get("pieces_missing"), Some(&1), "{st:?}");
+    assert!(
+        st.messages.iter().any(|m| m.contains("pieces 1 to 1 missing")),
+        "{st:?}"
+    );
+    // The same contact, a mesh open at the gap, every frame counted (slab 1 is lost, not its
+    // frames: frames 0-1 in the first run, 2-5 in the second).
+    assert!(all.pairs[0].interfering);
+    assert_eq!(lost.pairs[0].interval_start_s, all.pairs[0].interval_start_s);
+    assert_eq!(lost.pairs[0].interval_end_s, all.pairs[0].interval_end_s);
+    assert!(all.bodies[0].closed && !lost.bodies[0].closed, "{lost:?}");
+    assert_eq!(lost.bodies[0].frames, 2 + 4);
+    assert_eq!(lost.bodies[1], all.bodies[1]);
+}
+
+/// A body whose caps are over `max_slab_tets` but whose slabs are not (a solid block: its
+/// caps fill its volume, its slabs only its surface): the caps go out without tets, the
+/// mesher says so, and the checker checks the body from its first slab, reported open.
+#[test]
+fn caps_over_the_slab_budget_leave_the_mesh_open_and_the_body_checked() {
+    use chronotope::msg::{Header, MeshSlab, Point};
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use std::sync::Arc;
+
+    let size = 12u32;
+    let block = |k: i64| VoxelGrid {
+        header: Header {
+            stamp: Time::from_nanos(1_000_000_000 + k * 100_000_000),
+            frame_id: "world".into(),
+        },
+        origin: Point::default(),
+        resolution: 0.01,
+        size_x: size,
+        size_y: size,
+        size_z: size,
+        encoding: VoxelGrid::ENCODING_BITS,
+        data: common::bits_data([size; 3], |x, y, z| {
+            (1..11).contains(&x) && (1..11).contains(&y) && (1..11).contains(&z)
+        }),
+    };
+    let run = |max_slab_tets: Option<usize>| {
+        let limit = max_slab_tets.map_or(String::new(), |n| {
+            format!(", {{name: max_slab_tets, value: {n}}}")
+        });
+        let cfg = LaunchConfig::parse(
+            &format!(
+                "launch:\n\
+                 - node: {{pkg: chronotope, exec: mesher, param: [{{name: bodies, value: [/a/occupancy]}}{limit}]}}\n\
+                 - node: {{pkg: chronotope, exec: checker, param: [{{name: labels, value: false}}{limit}]}}\n"
+            ),
+            "test",
+        )
+        .unwrap();
+        let bodies = vec!["/a/occupancy".to_owned()];
+        let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+        let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+        let mut pieces = Vec::new();
+        for k in 0..4 {
+            let m = Message::new("/a/occupancy", 0, Payload::VoxelGrid(Arc::new(block(k))));
+            mesher.on_message(&m, &mut pieces);
+        }
+        mesher.finish(&mut pieces);
+        let mut results = Vec::new();
+        for m in &pieces {
+            checker.on_message(m, &mut results);
+        }
+        checker.finish(&mut results);
+        let tets: Vec<(u8, usize)> = pieces
+            .iter()
+            .filter_map(|m| match &m.payload {
+                Payload::MeshSlab(p) => Some((p.kind, p.mesh.tets.len())),
+                _ => None,
+            })
+            .collect();
+        let report = results
+            .iter()
+            .filter_map(|m| match &m.payload {
+                Payload::Report(r) => Some(r.clone()),
+                _ => None,
+            })
+            .next_back()
+            .expect("a report");
+        (tets, report, mesher.status().clone())
+    };
+    let (tets, all, _) = run(None);
+    let lateral = |t: &[(u8, usize)]| -> Vec<usize> {
+        t.iter()
+            .filter(|p| p.0 == MeshSlab::KIND_LATERAL)
+            .map(|p| p.1)
+            .collect()
+    };
+    let widest = *lateral(&tets).iter().max().unwrap();
+    let cap = tets[0].1;
+    assert!(cap > widest, "cap {cap}, slabs {widest}: no budget between them");
+    assert!(all.bodies[0].closed && all.bodies[0].frames == 4);
+
+    let (tets2, open, st) = run(Some(widest));
+    assert_eq!(st.problems.get("cap_too_complex"), Some(&2), "{st:?}");
+    let caps: Vec<(u8, usize)> = tets2
+        .iter()
+        .copied()
+        .filter(|p| p.0 != MeshSlab::KIND_LATERAL)
+        .collect();
+    assert_eq!(
+        caps,
+        [(MeshSlab::KIND_CAP_START, 0), (MeshSlab::KIND_CAP_END, 0)]
+    );
+    assert_eq!(lateral(&tets2), lateral(&tets));
+    let b = &open.bodies[0];
+    assert_eq!((b.frames, b.closed), (4, false), "{open:?}");
+    assert_eq!(
+        b.tets as usize,
+        lateral(&tets).iter().sum::<usize>(),
+        "the slabs, no cap"
+    );
 }
 
 /// The mesher's idle timeout changed while it runs takes effect at the next tick; other

@@ -277,9 +277,10 @@ fn a_stream_that_stalls_is_taken_as_ended_and_its_partner_goes_on() {
             );
         }
         for m in &out {
-            // /b's lateral piece 2 is lost on the way.
+            // /b's lateral pieces from 2 on are lost on the way: nothing follows its slab 1.
+            // (A piece that does come after lost ones resumes the stream: `tests/replay.rs`.)
             if let Payload::MeshSlab(p) = &m.payload {
-                if p.body_id == "/b/occupancy" && p.kind == MeshSlab::KIND_LATERAL && p.index == 2 {
+                if p.body_id == "/b/occupancy" && p.kind == MeshSlab::KIND_LATERAL && p.index >= 2 {
                     continue;
                 }
             }

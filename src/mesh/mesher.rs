@@ -19,6 +19,9 @@ pub struct MesherOptions {
     /// Most tets one slab (or one cap) may have; a frame whose slab would exceed it is
     /// refused ([`MeshError::SlabTooComplex`]) so that memory stays bounded.
     pub max_slab_tets: usize,
+    /// Most tets all the filled frames of one gap may hold together (see
+    /// [`super::stream`]); a gap that would need more is spanned by one slab.
+    pub max_fill_tets: usize,
 }
 
 impl Default for MesherOptions {
@@ -27,6 +30,7 @@ impl Default for MesherOptions {
             decode: DecodeOptions::default(),
             percent_scale: 64,
             max_slab_tets: 1 << 24,
+            max_fill_tets: 1 << 25,
         }
     }
 }
@@ -300,6 +304,54 @@ impl Mesher {
         r
     }
 
+    /// Feeds `grid` again at `stamp_ns` when it equals the last accepted frame (a gap's
+    /// filled frames repeat one grid), with `like` — the slab between two copies of that grid
+    /// at an earlier index — moved in time instead of marched: marching is the same at every
+    /// index but for the lattice time. Marches as [`Self::push_decoded`] when the
+    /// preconditions do not hold, so the result is the same either way, only slower.
+    ///
+    /// # Errors
+    /// As [`Self::push_decoded`].
+    pub fn push_repeat(
+        &mut self,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: OccupancyGrid,
+        like: &Slab,
+    ) -> Result<Option<Slab>, MeshError> {
+        let shift = self.prev.as_ref().and_then(|prev| {
+            let same = like.geometry == geometry
+                && like.index < prev.index
+                && prev.grid.padded == grid.padded
+                && prev.grid.bits == grid.bits
+                && prev.grid.values == grid.values;
+            let steps = i64::from(geometry.scale) * (prev.index - like.index) as i64;
+            same.then(|| i32::try_from(steps).ok()).flatten()
+        });
+        let Some(shift) = shift else {
+            return self.push_decoded(stamp_ns, geometry, grid);
+        };
+        if let Err(e) = self.check_stream(stamp_ns, &geometry) {
+            self.skipped += 1;
+            return Err(e);
+        }
+        let Some(prev) = self.prev.as_ref() else {
+            return self.push_decoded(stamp_ns, geometry, grid);
+        };
+        let mut mesh = like.mesh.clone();
+        mesh.translate([0, 0, 0, shift]);
+        let slab = Slab {
+            index: prev.index,
+            stamp_lo_ns: prev.stamp_ns,
+            stamp_hi_ns: stamp_ns,
+            geometry,
+            mesh,
+            vanishes: like.vanishes,
+        };
+        self.keep(stamp_ns, geometry, grid);
+        Ok(Some(slab))
+    }
+
     fn accept(
         &mut self,
         stamp_ns: i64,
@@ -349,6 +401,12 @@ impl Mesher {
                 })
             }
         };
+        self.keep(stamp_ns, geometry, grid);
+        Ok(slab)
+    }
+
+    /// Keeps an accepted frame as the last one (and the first, if it is).
+    fn keep(&mut self, stamp_ns: i64, geometry: GridGeometry, grid: OccupancyGrid) {
         self.geometry = Some(geometry);
         let kept = KeptFrame {
             index: self.accepted,
@@ -360,7 +418,6 @@ impl Mesher {
             self.first = Some(kept.clone());
         }
         self.prev = Some(kept);
-        Ok(slab)
     }
 
     /// The options.

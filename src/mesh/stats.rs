@@ -26,7 +26,7 @@
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pack_face, packed_groups, pair_faces, pair_packed,
+    canonical_triangle, det4_small_tet, id_bits, pack_face, packed_groups, pair_by_first_vertex, pair_packed,
     pair_plane_faces, radix_sort_u64, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
 };
 
@@ -197,7 +197,7 @@ impl StatsAccumulator {
         let report = if packed {
             pair_packed(&mut self.keys, &mut self.scratch, bits)
         } else {
-            pair_faces(wide)
+            pair_by_first_vertex(&wide, m.vertices.len())
         };
         self.merge(report);
 

@@ -10,6 +10,10 @@
 //!   a whole number (2..=1024) of periods after the last one, the frames in between are the
 //!   union of those two (where the body may have been: the safe side for collision), and the
 //!   span is reported as filled. Nothing is ever extended past the last accepted frame.
+//!   The filled frames' slabs after the first repeat one slab moved in time, so a long fill
+//!   costs a copy per frame, not a march; all of them together may hold at most
+//!   `max_fill_tets` tets (known from the second slab on, before the rest exist): a longer
+//!   fill is undone and one slab spans the gap, and the reason says so.
 //! - The fill and the frame after it are one step: if the frame is then refused (its slab
 //!   over `max_slab_tets`), the fill is undone.
 //! - What was lost is kept as spans (the latest [`MAX_LOSS_SPANS`], with totals for all).
@@ -270,13 +274,37 @@ impl BodyStream {
                 .last_frame()
                 .and_then(|k| k.grid.union(&prepared.grid));
             let mut filled = 0;
+            // Tets of the whole fill, once known to be over `max_fill_tets`.
+            let mut over = None;
             if let (true, Some(both)) = (whole, union) {
                 out.fill = Some(both.clone());
+                let max = self.mesher.options().max_fill_tets as u64;
+                let mut tets = 0u64;
                 for j in 1..periods {
                     // In i128: dt · j can exceed i64 for stamps years apart.
                     let t = prev + (i128::from(dt) * i128::from(j) / i128::from(periods)) as i64;
-                    match self.mesher.push_decoded(t, prepared.geometry, both.clone()) {
+                    // The slab of the second filled frame is between two copies of the
+                    // fill: every later one is the same slab moved in time.
+                    let pushed = match out.frames.get(1).and_then(|f| f.1.as_ref()) {
+                        Some(like) => {
+                            self.mesher
+                                .push_repeat(t, prepared.geometry, both.clone(), like)
+                        }
+                        None => self.mesher.push_decoded(t, prepared.geometry, both.clone()),
+                    };
+                    match pushed {
                         Ok(slab) => {
+                            let n = slab.as_ref().map_or(0, |s| s.mesh.tets.len() as u64);
+                            // Known from the second slab on: the rest repeat it.
+                            let whole_fill = match j {
+                                2 => tets + n * (periods - 2) as u64,
+                                _ => tets + n,
+                            };
+                            if whole_fill > max {
+                                over = Some(whole_fill);
+                                break;
+                            }
+                            tets += n;
                             out.frames.push((t, slab));
                             filled += 1;
                         }
@@ -296,13 +324,17 @@ impl BodyStream {
                 frames: (periods - 1).max(1) as u64,
                 code: "frames_missing",
                 reason: format!(
-                    "{:.3} s between accepted frames, about {} frame period(s) of {:.3} s",
+                    "{:.3} s between accepted frames, about {} frame period(s) of {:.3} s{}",
                     dt as f64 * 1e-9,
                     periods,
-                    period as f64 * 1e-9
+                    period as f64 * 1e-9,
+                    over.map_or(String::new(), |n| format!(
+                        "; filling it would take {n} tets, over max_fill_tets ({})",
+                        self.mesher.options().max_fill_tets
+                    ))
                 ),
             });
-            if !complete && filled > 0 {
+            if !complete && (filled > 0 || over.is_some()) {
                 // A partial fill would leave uneven frame times: span the gap instead.
                 if let Some(s) = snapshot.clone() {
                     self.mesher.restore(s);
@@ -408,5 +440,102 @@ mod tests {
         assert_eq!(stamps, [20, 30]);
         let kinds: Vec<LossKind> = s.losses().spans.iter().map(|s| s.kind).collect();
         assert_eq!(kinds, [LossKind::Refused, LossKind::Filled]);
+    }
+}
+
+#[cfg(test)]
+mod fill_tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    /// A 6x5x4 bits frame at `stamp_ns` (120 bits in 15 bytes).
+    fn frame(stamp_ns: i64, data: &[u8]) -> FrameRef<'_> {
+        FrameRef {
+            stamp_ns,
+            origin: [0.0; 3],
+            resolution: 0.01,
+            size: [6, 5, 4],
+            encoding: 0,
+            data,
+        }
+    }
+
+    /// The slabs of frames `a` at 0 and 10, then `b` after `periods` periods, with the
+    /// given fill budget.
+    fn fill(a: &[u8], b: &[u8], periods: i64, max_fill_tets: usize) -> (Accepted, BodyStream) {
+        let opts = MesherOptions {
+            max_fill_tets,
+            ..MesherOptions::default()
+        };
+        let mut s = BodyStream::new(opts).unwrap();
+        s.push(&frame(0, a)).unwrap();
+        s.push(&frame(10, a)).unwrap();
+        let got = s.push(&frame(10 + 10 * periods, b)).unwrap();
+        (got, s)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
+
+        /// A filled frame's slab moved in time is the slab marching would give, exactly.
+        #[test]
+        fn filled_slabs_equal_marched_ones(
+            a in prop::collection::vec(any::<u8>(), 15),
+            b in prop::collection::vec(any::<u8>(), 15),
+            periods in 2i64..7,
+        ) {
+            let (got, s) = fill(&a, &b, periods, usize::MAX);
+            prop_assert_eq!(got.frames.len() as i64, periods);
+            prop_assert_eq!(s.losses().filled_frames as i64, periods - 1);
+            // The same frames, each pushed by hand (marched).
+            let both = got.fill.clone().unwrap();
+            let mut m = Mesher::new(MesherOptions::default()).unwrap();
+            let g = *s.mesher().geometry().unwrap();
+            let first = m.push(&frame(0, &a)).unwrap();
+            prop_assert!(first.is_none());
+            m.push(&frame(10, &a)).unwrap();
+            for (j, (t, slab)) in got.frames.iter().enumerate().take(periods as usize - 1) {
+                prop_assert_eq!(*t, 10 + 10 * (j as i64 + 1));
+                let marched = m.push_decoded(*t, g, both.clone()).unwrap();
+                prop_assert_eq!(slab, &marched);
+            }
+        }
+    }
+
+    #[test]
+    fn a_fill_over_its_budget_is_refused_before_the_repeats_exist_and_spans_the_gap() {
+        // Two occupied voxels apart, so every slab has tets.
+        let mut a = [0u8; 15];
+        a[0] = 1;
+        let mut b = [0u8; 15];
+        b[14] = 0b1000_0000;
+        let (all, _) = fill(&a, &b, 40, usize::MAX);
+        let per_repeat = all.frames[1].1.as_ref().unwrap().mesh.tets.len();
+        let whole: usize = all.frames[..39]
+            .iter()
+            .map(|f| f.1.as_ref().unwrap().mesh.tets.len())
+            .sum();
+        assert!(per_repeat > 0);
+        // Exactly the whole fill: filled.
+        let (got, s) = fill(&a, &b, 40, whole);
+        assert_eq!(got.frames.len(), 40);
+        assert_eq!(s.losses().filled_frames, 39);
+        // One tet less: refused as a whole, the gap spanned by one slab, and said.
+        let (got, s) = fill(&a, &b, 40, whole - 1);
+        assert_eq!(got.frames.len(), 1);
+        assert!(got.fill.is_none());
+        assert_eq!(s.losses().filled_frames, 0);
+        assert_eq!(s.losses().spanned_gaps, 1);
+        let span = s.losses().spans.back().unwrap();
+        assert_eq!(span.kind, LossKind::Spanned);
+        assert!(
+            span.reason.contains(&format!("filling it would take {whole} tets, over max_fill_tets")),
+            "{}",
+            span.reason
+        );
+        // The stream goes on from the frame after the gap.
+        assert_eq!(s.mesher().last_frame().unwrap().stamp_ns, 410);
+        assert_eq!(s.mesher().frames(), 3);
     }
 }

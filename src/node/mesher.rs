@@ -4,8 +4,8 @@
 //!
 //! Parameters: `bodies` (string array, the VoxelGrid topics to mesh; required unless the
 //! transport supplies the default), `iso_percent` (int, 1..=100), `unknown_occupied` (bool),
-//! `percent_scale` (int, power of two 2..=256), `max_slab_tets` (int), `slice_markers` (bool,
-//! default false).
+//! `percent_scale` (int, power of two 2..=256), `max_slab_tets` (int), `max_fill_tets` (int,
+//! the tets of one gap's filled frames together), `slice_markers` (bool, default false).
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -209,12 +209,32 @@ impl Ctx<'_> {
         Message::new(self.slab_topic, stamps.1, Payload::MeshSlab(Arc::new(m)))
     }
 
-    fn cap(&self, body: &str, b: &Body, k: &KeptFrame, side: CapSide) -> Option<Message> {
+    /// The cap of `b` at frame `k`. A cap over `max_slab_tets` is sent without tets, so the
+    /// checker still knows where the body's mesh starts or ends (it reports the body as not
+    /// closed), and the problem says so.
+    fn cap(
+        &self,
+        body: &str,
+        b: &Body,
+        k: &KeptFrame,
+        side: CapSide,
+        problems: &mut Vec<Problem>,
+    ) -> Option<Message> {
         let g = *b.stream.mesher().geometry()?;
-        let Some(cap) = b.stream.mesher().cap(k, side) else {
-            // Over the tet budget: the body's mesh stays open there and says so.
-            return None;
-        };
+        let cap = b.stream.mesher().cap(k, side).unwrap_or_else(|| {
+            problems.push((
+                "cap_too_complex",
+                format!(
+                    "{body}: the cap closing the mesh at frame {} ({} occupied voxels) exceeds \
+                     max_slab_tets ({}): it is sent without tets, so the body's mesh is open \
+                     there (its slabs are checked as usual; raise max_slab_tets to close it)",
+                    k.index,
+                    k.grid.occupied,
+                    b.stream.mesher().options().max_slab_tets
+                ),
+            ));
+            TetMesh::default()
+        });
         let kind = match side {
             CapSide::Low => MeshSlab::KIND_CAP_START,
             CapSide::High => MeshSlab::KIND_CAP_END,
@@ -356,20 +376,34 @@ impl Ctx<'_> {
                 ),
             ));
         }
-        for (_, slab) in a.frames {
+        // The filled frames come first; each slab's later frame is a fill but the last's.
+        let last = a.frames.len().saturating_sub(1);
+        let fill_occupied = a.fill.as_ref().map(|g| g.occupied);
+        for (i, (_, slab)) in a.frames.into_iter().enumerate() {
             if let Some(slab) = slab {
-                self.accepted(topic, b, slab, out);
+                let occupied = fill_occupied.filter(|_| i < last);
+                self.accepted(topic, b, slab, occupied, out, problems);
             }
         }
     }
 
-    fn accepted(&self, topic: &str, b: &mut Body, slab: Slab, out: &mut Vec<Message>) {
+    /// Publishes `slab` (and the first cap before slab 0). `occupied`: voxels of the slab's
+    /// later frame when it is not the last accepted one (a filled frame).
+    fn accepted(
+        &self,
+        topic: &str,
+        b: &mut Body,
+        slab: Slab,
+        occupied: Option<u64>,
+        out: &mut Vec<Message>,
+        problems: &mut Vec<Problem>,
+    ) {
         if slab.index == 0 {
             if let Some(m) = b
                 .stream
                 .mesher()
                 .first_frame()
-                .and_then(|k| self.cap(topic, b, k, CapSide::Low))
+                .and_then(|k| self.cap(topic, b, k, CapSide::Low, problems))
             {
                 out.push(m);
             }
@@ -377,11 +411,12 @@ impl Ctx<'_> {
         if let Some(m) = self.slice_marker(topic, b, &slab) {
             out.push(m);
         }
-        let occupied = b
-            .stream
-            .mesher()
-            .last_frame()
-            .map_or(0, |k| k.grid.occupied);
+        let occupied = occupied.unwrap_or_else(|| {
+            b.stream
+                .mesher()
+                .last_frame()
+                .map_or(0, |k| k.grid.occupied)
+        });
         out.push(self.piece(
             topic,
             b,
@@ -401,13 +436,17 @@ impl MesherNode {
     fn close(&mut self, topic: &str, b: &mut Body, out: &mut Vec<Message>) {
         b.closed = true;
         if b.stream.mesher().frames() >= 2 {
+            let mut problems = Vec::new();
             if let Some(m) = b
                 .stream
                 .mesher()
                 .last_frame()
-                .and_then(|k| self.ctx().cap(topic, b, k, CapSide::High))
+                .and_then(|k| self.ctx().cap(topic, b, k, CapSide::High, &mut problems))
             {
                 out.push(m);
+            }
+            for (kind, text) in problems {
+                self.status.problem(&self.fqn, kind, text);
             }
         } else {
             let why = format!(
@@ -452,6 +491,11 @@ pub fn mesher_options(p: &mut Params<'_>) -> Result<MesherOptions, LaunchError> 
         "max_slab_tets",
         opts.max_slab_tets as i64,
         1..=i64::from(u32::MAX),
+    )? as usize;
+    opts.max_fill_tets = p.int(
+        "max_fill_tets",
+        opts.max_fill_tets as i64,
+        0..=i64::from(u32::MAX),
     )? as usize;
     Ok(opts)
 }

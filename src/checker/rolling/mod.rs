@@ -258,6 +258,9 @@ struct Run {
     first_occupied: u64,
     /// Stamp of the latest frame (the last slab's upper one).
     frontier: i64,
+    /// Index of the run's first frame: 0, or the first piece after lost ones (the run then
+    /// has no opening cap).
+    first_index: u32,
     next_index: u32,
     /// The closing cap came (stamp, cap), or the run was closed without one.
     end: Option<RunEnd>,
@@ -277,6 +280,7 @@ impl Run {
             first_cap: self.first_cap.clone(),
             first_occupied: self.first_occupied,
             frontier: self.frontier,
+            first_index: self.first_index,
             next_index: self.next_index,
             end: self.end.clone(),
             tets: self.tets,
@@ -292,7 +296,7 @@ impl Run {
         }
         let acc = std::mem::take(&mut self.acc);
         let last = cap.as_ref().map(|(c, o)| (c.as_ref(), *o));
-        let frames = u64::from(self.next_index) + 1;
+        let frames = self.frames();
         self.stats = Some(acc.finish(
             frames,
             Some((self.first_cap.as_ref(), self.first_occupied)),
@@ -303,6 +307,10 @@ impl Run {
 
     fn ended(&self) -> bool {
         self.end.is_some()
+    }
+    /// Frames of the run so far.
+    fn frames(&self) -> u64 {
+        u64::from(self.next_index - self.first_index) + 1
     }
     fn last_cap_at(&self, stamp: i64) -> Option<&Arc<TetMesh>> {
         match &self.end {
@@ -767,6 +775,7 @@ impl RollingChecker {
                     first_cap: p.mesh.clone(),
                     first_occupied: p.occupied,
                     frontier: p.stamps_ns.0,
+                    first_index: 0,
                     next_index: 0,
                     end: None,
                     tets: p.mesh.tets.len() as u64,
@@ -785,21 +794,86 @@ impl RollingChecker {
                 Ok(())
             }
             PieceKind::Lateral | PieceKind::CapEnd => {
-                let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
-                    if b.joined_late {
-                        return Ok(());
+                // A slab with no open run before it, or after a run whose last pieces are
+                // gone: checked from here, in a run without an opening cap.
+                let open = b.runs.last().filter(|r| !r.ended());
+                let jumped = open.is_some_and(|r| {
+                    p.index > r.next_index && p.stamps_ns.0 > r.frontier && p.geometry == r.geometry
+                });
+                let mut note = None;
+                if p.kind == PieceKind::Lateral && (open.is_none() || jumped) {
+                    let after = b.runs.last().map(|r| r.frontier);
+                    if after.is_some_and(|f| p.stamps_ns.0 < f) || p.stamps_ns.1 <= p.stamps_ns.0
+                    {
+                        return Err((
+                            "piece_out_of_order",
+                            format!(
+                                "{id}: piece index {} ({} ns) before the body's last frame; \
+                                 ignored",
+                                p.index, p.stamps_ns.0
+                            ),
+                        ));
                     }
-                    b.joined_late = true;
-                    return Err((
-                        "joined_mid_stream",
-                        format!(
-                            "{id}: the first piece seen is index {} (this node started after the \
-                             body's stream did, or missed its start): the pieces before are gone, \
-                             so this stream of the body is skipped; it is checked from its next \
-                             stream",
-                            p.index
-                        ),
-                    ));
+                    let resumed = "checked again from this piece; the mesh is open where the \
+                                   pieces are missing";
+                    if let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) {
+                        r.close(None);
+                        note = Some((
+                            "pieces_missing",
+                            format!(
+                                "{id}: pieces {} to {} missing ({} ns to {} ns, lost on the way \
+                                 or dropped by a node that was behind): {resumed}",
+                                r.next_index,
+                                p.index - 1,
+                                r.frontier,
+                                p.stamps_ns.0
+                            ),
+                        ));
+                    } else if let Some(f) = after {
+                        note = Some((
+                            "pieces_missing",
+                            format!(
+                                "{id}: piece index {} at {} ns with no stream open (its first cap \
+                                 is missing, or the stream was taken as ended at {f} ns): \
+                                 {resumed}",
+                                p.index, p.stamps_ns.0
+                            ),
+                        ));
+                    } else if !b.joined_late {
+                        b.joined_late = true;
+                        note = Some((
+                            "joined_mid_stream",
+                            format!(
+                                "{id}: the first piece seen is index {} (this node started after \
+                                 the body's stream did, or missed its start): the pieces before \
+                                 are gone; the stream is checked from this piece, its mesh open \
+                                 there",
+                                p.index
+                            ),
+                        ));
+                    }
+                    b.runs.push(Run {
+                        id: b.next_run,
+                        geometry: p.geometry,
+                        first_stamp: p.stamps_ns.0,
+                        first_cap: Arc::new(TetMesh::default()),
+                        first_occupied: 0,
+                        frontier: p.stamps_ns.0,
+                        first_index: p.index,
+                        next_index: p.index,
+                        end: None,
+                        tets: 0,
+                        acc: StatsAccumulator::new(),
+                        stats: None,
+                    });
+                    b.next_run += 1;
+                    b.geometry = Some(p.geometry);
+                    *origin = Some(origin.map_or(p.stamps_ns.0, |o: i64| o.min(p.stamps_ns.0)));
+                    union.add(p.stamps_ns.0);
+                }
+                let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
+                    // A closing cap with no stream open: nothing to close.
+                    return Ok(());
                 };
                 if p.geometry != r.geometry {
                     return Err((
@@ -808,7 +882,7 @@ impl RollingChecker {
                     ));
                 }
                 if p.kind == PieceKind::CapEnd {
-                    if r.next_index == 0 || p.index != r.next_index {
+                    if r.next_index == r.first_index || p.index != r.next_index {
                         return Err((
                             "piece_out_of_order",
                             format!(
@@ -835,7 +909,9 @@ impl RollingChecker {
                     ));
                 }
                 // Added to the run's statistics by `on_piece`, while windows are checked.
-                self.pending_stats = Some((r.id, (r.next_index == 0).then(|| r.first_cap.clone())));
+                // A run that starts after lost pieces has no opening cap to pair with.
+                let first_cap = (r.next_index == 0).then(|| r.first_cap.clone());
+                self.pending_stats = Some((r.id, first_cap));
                 let first_tet = r.tets;
                 r.tets += p.mesh.tets.len() as u64;
                 r.next_index += 1;
@@ -857,7 +933,7 @@ impl RollingChecker {
                         worst,
                     },
                 );
-                Ok(())
+                note.map_or(Ok(()), Err)
             }
         }
     }

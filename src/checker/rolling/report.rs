@@ -94,7 +94,7 @@ pub(super) fn body_report(id: &str, b: &BodyStream) -> BodyReport {
             None => {
                 let so_far = r.acc.so_far();
                 tets += r.tets;
-                t.frames += u64::from(r.next_index) + 1;
+                t.frames += r.frames();
                 t.hypervolume_m3s += so_far.hypervolume_m3s;
                 t.vanishing += so_far.vanishing_slabs;
                 t.closed = false;
