@@ -316,10 +316,10 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
 /// the contact after it as with every piece.
 #[test]
 fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_them() {
+    use chronotope::msg::MeshSlab;
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Message, Node, Payload};
-    use chronotope::msg::MeshSlab;
     use std::sync::Arc;
 
     let cfg = LaunchConfig::parse(
@@ -374,13 +374,18 @@ fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_th
     let (lost, st) = run(Some(1));
     assert_eq!(st.problems.get("pieces_missing"), Some(&1), "{st:?}");
     assert!(
-        st.messages.iter().any(|m| m.contains("pieces 1 to 1 missing")),
+        st.messages
+            .iter()
+            .any(|m| m.contains("pieces 1 to 1 missing")),
         "{st:?}"
     );
     // The same contact, a mesh open at the gap, every frame counted (slab 1 is lost, not its
     // frames: frames 0-1 in the first run, 2-5 in the second).
     assert!(all.pairs[0].interfering);
-    assert_eq!(lost.pairs[0].interval_start_s, all.pairs[0].interval_start_s);
+    assert_eq!(
+        lost.pairs[0].interval_start_s,
+        all.pairs[0].interval_start_s
+    );
     assert_eq!(lost.pairs[0].interval_end_s, all.pairs[0].interval_end_s);
     assert!(all.bodies[0].closed && !lost.bodies[0].closed, "{lost:?}");
     assert_eq!(lost.bodies[0].frames, 2 + 4);
@@ -467,7 +472,10 @@ fn caps_over_the_slab_budget_leave_the_mesh_open_and_the_body_checked() {
     };
     let widest = *lateral(&tets).iter().max().unwrap();
     let cap = tets[0].1;
-    assert!(cap > widest, "cap {cap}, slabs {widest}: no budget between them");
+    assert!(
+        cap > widest,
+        "cap {cap}, slabs {widest}: no budget between them"
+    );
     assert!(all.bodies[0].closed && all.bodies[0].frames == 4);
 
     let (tets2, open, st) = run(Some(widest));

@@ -419,10 +419,70 @@ pub fn march_cap(
     out: &mut TetMesh,
 ) -> bool {
     out.clear();
-    let [px, py, pz] = f.padded;
     let s = at.scale;
     let t = s * at.frame as i32;
+    // Counted first, without building anything: a cap over the budget (a solid body of
+    // millions of voxels) is refused before its vertices and tets are allocated.
+    let mut count = 0usize;
+    let within = for_each_cap_cube(f, |_, _, _, case| {
+        count += table.cap(case).len();
+        count <= max_tets
+    });
+    if !within {
+        return false;
+    }
+    out.tets.reserve(count);
     let mut index: FastMap<LatticePoint, u32> = fast_map();
+    for_each_cap_cube(f, |x, y, z, case| {
+        for tet in table.cap(case) {
+            let mut ids = [0u32; 4];
+            for (k, &pid) in tet.iter().enumerate() {
+                let pid = usize::from(pid);
+                let (c0, c1, d, is_edge) = if pid < 8 {
+                    (pid, pid, 0, false)
+                } else {
+                    let (a, b, d) = edge3(pid - 8);
+                    (a, b, d, true)
+                };
+                let (gx, gy, gz) = (x + (c0 & 1), y + ((c0 >> 1) & 1), z + (c0 >> 2));
+                let mut p: LatticePoint = [
+                    s * (gx as i32 - 1),
+                    s * (gy as i32 - 1),
+                    s * (gz as i32 - 1),
+                    t,
+                ];
+                if is_edge {
+                    p[d] += if s == 2 {
+                        1
+                    } else {
+                        let va = f.value(gx, gy, gz);
+                        let vb = f.value(x + (c1 & 1), y + ((c1 >> 1) & 1), z + (c1 >> 2));
+                        crossing(va, vb, at.iso, s)
+                    };
+                }
+                ids[k] = *index.entry(p).or_insert_with(|| {
+                    out.vertices.push(p);
+                    (out.vertices.len() - 1) as u32
+                });
+            }
+            out.tets.push(match side {
+                CapSide::Low => [ids[0], ids[1], ids[3], ids[2]],
+                CapSide::High => ids,
+            });
+        }
+        true
+    });
+    true
+}
+
+/// Calls `visit(x, y, z, case)` for every cube of `f`'s padded grid with an occupied corner
+/// (`case`: its corners' bits), in order, until `visit` returns false. Whether it went
+/// through.
+fn for_each_cap_cube(
+    f: &OccupancyGrid,
+    mut visit: impl FnMut(usize, usize, usize, u8) -> bool,
+) -> bool {
+    let [px, py, pz] = f.padded;
     for z in 0..pz - 1 {
         for y in 0..py - 1 {
             let rows: [&[u64]; 4] = std::array::from_fn(|r| f.row(y + (r & 1), z + (r >> 1)));
@@ -450,49 +510,9 @@ pub fn march_cap(
                     case |= (((row[x / 64] >> (x % 64)) & 1) as u8) << (2 * r);
                     case |= (((row[(x + 1) / 64] >> ((x + 1) % 64)) & 1) as u8) << (2 * r + 1);
                 }
-                if case == 0 {
-                    continue;
+                if case != 0 && !visit(x, y, z, case) {
+                    return false;
                 }
-                for tet in table.cap(case) {
-                    let mut ids = [0u32; 4];
-                    for (k, &pid) in tet.iter().enumerate() {
-                        let pid = usize::from(pid);
-                        let (c0, c1, d, is_edge) = if pid < 8 {
-                            (pid, pid, 0, false)
-                        } else {
-                            let (a, b, d) = edge3(pid - 8);
-                            (a, b, d, true)
-                        };
-                        let (gx, gy, gz) = (x + (c0 & 1), y + ((c0 >> 1) & 1), z + (c0 >> 2));
-                        let mut p: LatticePoint = [
-                            s * (gx as i32 - 1),
-                            s * (gy as i32 - 1),
-                            s * (gz as i32 - 1),
-                            t,
-                        ];
-                        if is_edge {
-                            p[d] += if s == 2 {
-                                1
-                            } else {
-                                let va = f.value(gx, gy, gz);
-                                let vb = f.value(x + (c1 & 1), y + ((c1 >> 1) & 1), z + (c1 >> 2));
-                                crossing(va, vb, at.iso, s)
-                            };
-                        }
-                        ids[k] = *index.entry(p).or_insert_with(|| {
-                            out.vertices.push(p);
-                            (out.vertices.len() - 1) as u32
-                        });
-                    }
-                    out.tets.push(match side {
-                        CapSide::Low => [ids[0], ids[1], ids[3], ids[2]],
-                        CapSide::High => ids,
-                    });
-                }
-            }
-            if out.tets.len() > max_tets {
-                out.clear();
-                return false;
             }
         }
     }

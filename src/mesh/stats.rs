@@ -23,11 +23,13 @@
 //! divergence sum follows from its boundary alone (a 3-chain in a hyperplane contributes
 //! Σ det[o, ∂]), so caps between slabs are never built.
 
+use rayon::prelude::*;
+
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pack_face, packed_groups, pair_by_first_vertex, pair_packed,
-    pair_plane_faces, radix_sort_u64, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
+    canonical_triangle, det4_small_tet, id_bits, pack_face, packed_groups, pair_by_first_vertex,
+    pair_packed, pair_plane_faces, radix_sort_u64, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
 };
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
@@ -144,6 +146,17 @@ impl StatsAccumulator {
 
     /// [`Self::add_slab`] for a slab given by its parts (e.g. received as a message).
     pub fn add_lateral(&mut self, slab: LateralRef<'_>, first_cap: Option<&TetMesh>) {
+        self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS);
+    }
+
+    /// [`Self::add_lateral`], scanning the tets in chunks of `chunk_tets` on rayon's pool.
+    fn add_lateral_in_chunks(
+        &mut self,
+        slab: LateralRef<'_>,
+        first_cap: Option<&TetMesh>,
+        chunk_tets: usize,
+    ) {
+        let chunk_tets = chunk_tets.max(1);
         let t_lo = slab.geometry.scale * slab.index as i32;
         let t_hi = t_lo + slab.geometry.scale;
         let m = slab.mesh;
@@ -155,40 +168,67 @@ impl StatsAccumulator {
             .collect();
         let packed = m.vertices.len() <= PACKED_VERTEX_LIMIT;
         let bits = id_bits(m.vertices.len());
-        let mut lo: Vec<(PlaneTri, i8)> = Vec::new();
-        let mut hi: Vec<(PlaneTri, i8)> = Vec::new();
-        let (mut lo_hash, mut hi_hash) = (PlaneHash::default(), PlaneHash::default());
-        let mut wide: Vec<([u32; 3], i8)> = Vec::new();
-        self.keys.clear();
-        let mut vol24: i128 = 0;
-        let mut hi_cone: i128 = 0;
-        for t in &m.tets {
-            let p = t.map(|v| m.vertices[v as usize]);
-            let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
-            vol24 -= det4_small_tet(&local[0], &local[1], &local[2], &local[3]);
-            let flags = t.map(|v| plane[v as usize]);
-            for (f, s) in tet_faces([0usize, 1, 2, 3]) {
-                let on = flags[f[0]] & flags[f[1]] & flags[f[2]];
-                if on != 0 {
-                    let (key, parity) = canonical_triangle(f.map(|i| [p[i][0], p[i][1], p[i][2]]));
-                    let s = s * parity;
-                    if on & 1 != 0 {
-                        lo_hash.add(&key, s);
-                        lo.push((key, s));
+        // The tets in chunks on rayon's pool: every figure below is an exact sum or an
+        // order-independent set, so the result does not depend on the chunking.
+        let chunk = |tets: &[[u32; 4]]| {
+            let mut c = Scan::default();
+            for t in tets {
+                let p = t.map(|v| m.vertices[v as usize]);
+                let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
+                c.vol24 -= det4_small_tet(&local[0], &local[1], &local[2], &local[3]);
+                let flags = t.map(|v| plane[v as usize]);
+                for (f, s) in tet_faces([0usize, 1, 2, 3]) {
+                    let on = flags[f[0]] & flags[f[1]] & flags[f[2]];
+                    if on != 0 {
+                        let (key, parity) =
+                            canonical_triangle(f.map(|i| [p[i][0], p[i][1], p[i][2]]));
+                        let s = s * parity;
+                        if on & 1 != 0 {
+                            c.lo_hash.add(&key, s);
+                            c.lo.push((key, s));
+                        } else {
+                            c.hi_cone += i128::from(s) * det3_i128(&key);
+                            c.hi_hash.add(&key, s);
+                            c.hi.push((key, s));
+                        }
                     } else {
-                        hi_cone += i128::from(s) * det3_i128(&key);
-                        hi_hash.add(&key, s);
-                        hi.push((key, s));
-                    }
-                } else {
-                    let (key, parity) = canonical_triangle(f.map(|i| t[i]));
-                    if packed {
-                        self.keys.push(pack_face(key, s * parity > 0, bits));
-                    } else {
-                        wide.push((key, s * parity));
+                        let (key, parity) = canonical_triangle(f.map(|i| t[i]));
+                        if packed {
+                            c.keys.push(pack_face(key, s * parity > 0, bits));
+                        } else {
+                            c.wide.push((key, s * parity));
+                        }
                     }
                 }
             }
+            c
+        };
+        let parts: Vec<Scan> = if m.tets.len() <= chunk_tets {
+            vec![chunk(&m.tets)]
+        } else {
+            m.tets.par_chunks(chunk_tets).map(chunk).collect()
+        };
+        let mut parts = parts.into_iter();
+        let Scan {
+            mut vol24,
+            mut hi_cone,
+            mut lo,
+            mut hi,
+            mut lo_hash,
+            mut hi_hash,
+            keys,
+            mut wide,
+        } = parts.next().unwrap_or_default();
+        self.keys = keys;
+        for c in parts {
+            vol24 += c.vol24;
+            hi_cone += c.hi_cone;
+            lo_hash.merge(&c.lo_hash);
+            hi_hash.merge(&c.hi_hash);
+            lo.extend(c.lo);
+            hi.extend(c.hi);
+            wide.extend(c.wide);
+            self.keys.extend(c.keys);
         }
         // Upper cap: Σ det over its tets = Σ over its boundary (the upper faces, reversed)
         // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
@@ -377,6 +417,22 @@ fn cap_boundary(
     (report, boundary, hash)
 }
 
+/// Tets per chunk of a slab's scan on rayon's pool (smaller slabs are scanned in one piece).
+const SCAN_CHUNK_TETS: usize = 1 << 17;
+
+/// What one chunk of a slab's tets contributes to [`StatsAccumulator::add_lateral`].
+#[derive(Default)]
+struct Scan {
+    vol24: i128,
+    hi_cone: i128,
+    lo: Vec<(PlaneTri, i8)>,
+    hi: Vec<(PlaneTri, i8)>,
+    lo_hash: PlaneHash,
+    hi_hash: PlaneHash,
+    keys: Vec<u64>,
+    wide: Vec<([u32; 3], i8)>,
+}
+
 /// Order-independent hashes of a set of oriented plane triangles.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 struct PlaneHash {
@@ -396,6 +452,12 @@ impl PlaneHash {
             self.signed.wrapping_sub(h)
         };
         self.unsigned = self.unsigned.wrapping_add(g);
+    }
+
+    /// Adds the triangles `other` hashed (the union of the two multisets).
+    fn merge(&mut self, other: &PlaneHash) {
+        self.signed = self.signed.wrapping_add(other.signed);
+        self.unsigned = self.unsigned.wrapping_add(other.unsigned);
     }
 
     /// Both sides of one plane: same triangles, opposite orientations.
@@ -433,4 +495,76 @@ fn tri_hash(t: &PlaneTri) -> (u128, u128) {
         (u128::from(h[0]) << 64) | u128::from(h[1]),
         (u128::from(h[2]) << 64) | u128::from(h[3]),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::grid::FrameRef;
+    use crate::mesh::mesher::{Mesher, MesherOptions};
+
+    /// Scanning a slab in chunks gives the figures of one scan, exactly: on a closed body, and
+    /// on one with an open first plane (no opening cap).
+    #[test]
+    fn chunked_scans_equal_one_scan() {
+        let size = [10u32, 9, 8];
+        // A ball moving along x, with scattered voxels (so slabs have many tets).
+        let bits = |k: u32| {
+            let n = (size[0] * size[1] * size[2]) as usize;
+            let mut v = vec![0u8; n.div_ceil(8)];
+            for i in 0..n {
+                let (x, y, z) = (i % 10, (i / 10) % 9, i / 90);
+                let r2 = (x as i32 - 3 - k as i32).pow(2)
+                    + (y as i32 - 4).pow(2)
+                    + (z as i32 - 4).pow(2);
+                if r2 <= 9 || (x + 2 * y + 3 * z + k as usize) % 11 == 0 {
+                    v[i / 8] |= 1 << (i % 8);
+                }
+            }
+            v
+        };
+        let mut m = Mesher::new(MesherOptions::default()).unwrap();
+        let mut slabs = Vec::new();
+        for k in 0..4u32 {
+            let data = bits(k);
+            let f = FrameRef {
+                stamp_ns: i64::from(k) * 100_000_000,
+                origin: [0.0; 3],
+                resolution: 0.01,
+                size,
+                encoding: 0,
+                data: &data,
+            };
+            if let Some(s) = m.push(&f).unwrap() {
+                slabs.push(s);
+            }
+        }
+        let first = m.first_frame().unwrap().clone();
+        let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
+        assert!(
+            slabs[0].mesh.tets.len() > 100,
+            "{}",
+            slabs[0].mesh.tets.len()
+        );
+        for opening in [Some(&cap), None] {
+            let figures = |chunk: usize| {
+                let mut acc = StatsAccumulator::new();
+                for s in &slabs {
+                    acc.add_lateral_in_chunks(s.lateral_ref(), opening, chunk);
+                }
+                let st = acc.finish(4, opening.map(|c| (c, 0)), None);
+                (
+                    st.closed,
+                    st.tets,
+                    st.hypervolume_lattice.to_bits(),
+                    st.vanishing_slabs,
+                )
+            };
+            let one = figures(usize::MAX);
+            for chunk in [1, 7, 64] {
+                assert_eq!(figures(chunk), one, "chunks of {chunk}");
+            }
+            assert!(one.0.unpaired > 0, "the last plane is open: {:?}", one.0);
+        }
+    }
 }

@@ -530,7 +530,9 @@ mod fill_tests {
         let span = s.losses().spans.back().unwrap();
         assert_eq!(span.kind, LossKind::Spanned);
         assert!(
-            span.reason.contains(&format!("filling it would take {whole} tets, over max_fill_tets")),
+            span.reason.contains(&format!(
+                "filling it would take {whole} tets, over max_fill_tets"
+            )),
             "{}",
             span.reason
         );

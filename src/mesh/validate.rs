@@ -226,7 +226,9 @@ pub fn pair_by_first_vertex(faces: &[([u32; 3], i8)], n: usize) -> ClosedReport 
     let bits = id_bits(n);
     let fits = 2 * bits < 64
         && u32::try_from(faces.len()).is_ok()
-        && faces.iter().all(|(k, _)| k.iter().all(|&v| (v as usize) < n));
+        && faces
+            .iter()
+            .all(|(k, _)| k.iter().all(|&v| (v as usize) < n));
     if !fits {
         return pair_faces(faces.to_vec());
     }

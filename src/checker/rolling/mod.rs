@@ -803,8 +803,7 @@ impl RollingChecker {
                 let mut note = None;
                 if p.kind == PieceKind::Lateral && (open.is_none() || jumped) {
                     let after = b.runs.last().map(|r| r.frontier);
-                    if after.is_some_and(|f| p.stamps_ns.0 < f) || p.stamps_ns.1 <= p.stamps_ns.0
-                    {
+                    if after.is_some_and(|f| p.stamps_ns.0 < f) || p.stamps_ns.1 <= p.stamps_ns.0 {
                         return Err((
                             "piece_out_of_order",
                             format!(
