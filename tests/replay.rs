@@ -10,6 +10,14 @@ use chronotope::cli::replay::replay;
 use chronotope::msg::{PoseStamped, Time, VoxelGrid};
 use chronotope::node::launch::LaunchConfig;
 
+/// The last report among a node's messages.
+fn last_report(msgs: &[chronotope::node::Message]) -> Option<chronotope::msg::InterferenceReport> {
+    msgs.iter().rev().find_map(|m| match &m.payload {
+        chronotope::node::Payload::Report(r) => Some(r.as_ref().clone()),
+        _ => None,
+    })
+}
+
 /// A box moving +x one voxel per frame, frames at 0.1 s from 1 s.
 fn frame(topic_x0: u32, k: u32) -> VoxelGrid {
     common::moving_box(topic_x0, k, 1_000_000_000)
@@ -257,14 +265,7 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
     let st = checker.status();
     assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
     assert_eq!(st.problems.get("piece_out_of_order"), None, "{st:?}");
-    let half = results
-        .iter()
-        .filter_map(|m| match &m.payload {
-            Payload::Report(r) => Some(r.clone()),
-            _ => None,
-        })
-        .next_back()
-        .expect("the half stream is checked");
+    let half = last_report(&results).expect("the half stream is checked");
     let frames: Vec<(String, u64, bool)> = half
         .bodies
         .iter()
@@ -284,17 +285,10 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
     for m in second.iter().filter(|m| slabs_a(m)) {
         checker.on_message(m, &mut results);
     }
-    let reports: Vec<_> = results
-        .iter()
-        .filter_map(|m| match &m.payload {
-            Payload::Report(r) => Some(r.clone()),
-            _ => None,
-        })
-        .collect();
     // The report is republished as the contact is found and when the streams end; the
     // last one is the answer of both streams: the contact of each (the same frames of each
     // stream meet), the frames of both runs, and open because the first run is.
-    let last = reports.last().expect("a report for the second stream");
+    let last = &last_report(&results).expect("a report for the second stream");
     let pair = &last.pairs[0];
     assert!(pair.interfering);
     let intervals: Vec<(f64, f64)> = pair
@@ -359,14 +353,7 @@ fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_th
             }
         }
         checker.finish(&mut results);
-        let report = results
-            .iter()
-            .filter_map(|m| match &m.payload {
-                Payload::Report(r) => Some(r.clone()),
-                _ => None,
-            })
-            .next_back()
-            .expect("a report");
+        let report = last_report(&results).expect("a report");
         (report, checker.status().clone())
     };
     let (all, st) = run(None);
@@ -397,27 +384,17 @@ fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_th
 /// mesher says so, and the checker checks the body from its first slab, reported open.
 #[test]
 fn caps_over_the_slab_budget_leave_the_mesh_open_and_the_body_checked() {
-    use chronotope::msg::{Header, MeshSlab, Point};
+    use chronotope::msg::MeshSlab;
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Message, Node, Payload};
     use std::sync::Arc;
 
-    let size = 12u32;
-    let block = |k: i64| VoxelGrid {
-        header: Header {
-            stamp: Time::from_nanos(1_000_000_000 + k * 100_000_000),
-            frame_id: "world".into(),
-        },
-        origin: Point::default(),
-        resolution: 0.01,
-        size_x: size,
-        size_y: size,
-        size_z: size,
-        encoding: VoxelGrid::ENCODING_BITS,
-        data: common::bits_data([size; 3], |x, y, z| {
+    let block = |k: i64| {
+        let data = common::bits_data([12; 3], |x, y, z| {
             (1..11).contains(&x) && (1..11).contains(&y) && (1..11).contains(&z)
-        }),
+        });
+        common::cube_grid(12, 1_000_000_000 + k * 100_000_000, data)
     };
     let run = |max_slab_tets: Option<usize>| {
         let limit = max_slab_tets.map_or(String::new(), |n| {
@@ -453,14 +430,7 @@ fn caps_over_the_slab_budget_leave_the_mesh_open_and_the_body_checked() {
                 _ => None,
             })
             .collect();
-        let report = results
-            .iter()
-            .filter_map(|m| match &m.payload {
-                Payload::Report(r) => Some(r.clone()),
-                _ => None,
-            })
-            .next_back()
-            .expect("a report");
+        let report = last_report(&results).expect("a report");
         (tets, report, mesher.status().clone())
     };
     let (tets, all, _) = run(None);

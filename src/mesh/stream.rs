@@ -398,12 +398,18 @@ impl BodyStream {
 mod tests {
     use super::*;
 
+    /// A 2x2x2 bits frame at `stamp_ns`.
     fn frame(stamp_ns: i64, data: &[u8]) -> FrameRef<'_> {
+        sized(stamp_ns, [2, 2, 2], data)
+    }
+
+    /// A bits frame of `size` voxels at `stamp_ns`.
+    pub(super) fn sized(stamp_ns: i64, size: [u32; 3], data: &[u8]) -> FrameRef<'_> {
         FrameRef {
             stamp_ns,
             origin: [0.0; 3],
             resolution: 0.01,
-            size: [2, 2, 2],
+            size,
             encoding: 0,
             data,
         }
@@ -451,14 +457,7 @@ mod fill_tests {
 
     /// A 6x5x4 bits frame at `stamp_ns` (120 bits in 15 bytes).
     fn frame(stamp_ns: i64, data: &[u8]) -> FrameRef<'_> {
-        FrameRef {
-            stamp_ns,
-            origin: [0.0; 3],
-            resolution: 0.01,
-            size: [6, 5, 4],
-            encoding: 0,
-            data,
-        }
+        super::tests::sized(stamp_ns, [6, 5, 4], data)
     }
 
     /// The slabs of frames `a` at 0 and 10, then `b` after `periods` periods, with the

@@ -163,16 +163,20 @@ pub fn moving_box(x0: u32, k: u32, t0_ns: i64) -> chronotope::msg::VoxelGrid {
 /// Frame `k` of a 3×4×4-voxel box in a 12³ BITS frame at 1 cm voxels (frame "world"): x from
 /// `x0 + k·vx`, y from `y0`, z 4..8, stamped `t0_ns + k · 0.1 s`.
 pub fn box_frame(x0: u32, vx: u32, y0: u32, k: u32, t0_ns: i64) -> chronotope::msg::VoxelGrid {
-    use chronotope::msg::{Header, Point, Time, VoxelGrid};
-    let size = 12u32;
-    let data = bits_data([size; 3], |x, y, z| {
+    let data = bits_data([12; 3], |x, y, z| {
         (4..8).contains(&z)
             && (y0..y0 + 4).contains(&(y as u32))
             && (x0 + k * vx..x0 + k * vx + 3).contains(&(x as u32))
     });
+    cube_grid(12, t0_ns + i64::from(k) * 100_000_000, data)
+}
+
+/// A `size`³ BITS frame at 1 cm voxels from the origin (frame "world"), stamped `stamp_ns`.
+pub fn cube_grid(size: u32, stamp_ns: i64, data: Vec<u8>) -> chronotope::msg::VoxelGrid {
+    use chronotope::msg::{Header, Point, Time, VoxelGrid};
     VoxelGrid {
         header: Header {
-            stamp: Time::from_nanos(t0_ns + i64::from(k) * 100_000_000),
+            stamp: Time::from_nanos(stamp_ns),
             frame_id: "world".into(),
         },
         origin: Point::default(),
