@@ -18,6 +18,21 @@ fn last_report(msgs: &[chronotope::node::Message]) -> Option<chronotope::msg::In
     })
 }
 
+/// Feeds `mesher` frame `k` of /a (moving into /b's place) and of /b (still), stamped `t_ns`.
+fn feed_pair(
+    mesher: &mut chronotope::node::mesher::MesherNode,
+    t_ns: i64,
+    k: u32,
+    out: &mut Vec<chronotope::node::Message>,
+) {
+    use chronotope::node::{Message, Node, Payload};
+    for (topic, mut g) in [("/a/occupancy", frame(0, k)), ("/b/occupancy", frame(6, 0))] {
+        g.header.stamp = Time::from_nanos(t_ns);
+        let m = Message::new(topic, t_ns, Payload::VoxelGrid(std::sync::Arc::new(g)));
+        mesher.on_message(&m, out);
+    }
+}
+
 /// A box moving +x one voxel per frame, frames at 0.1 s from 1 s.
 fn frame(topic_x0: u32, k: u32) -> VoxelGrid {
     common::moving_box(topic_x0, k, 1_000_000_000)
@@ -218,7 +233,6 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Message, Node, Payload};
-    use std::sync::Arc;
 
     let cfg = LaunchConfig::parse(
         "launch:\n\
@@ -234,17 +248,7 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
     let stream = |mesher: &mut MesherNode, t0_ns: i64| {
         let mut out = Vec::new();
         for k in 0..6u32 {
-            let t = t0_ns + i64::from(k) * 100_000_000;
-            let mut a = frame(0, k);
-            a.header.stamp = Time::from_nanos(t);
-            let mut b = frame(6, 0);
-            b.header.stamp = Time::from_nanos(t);
-            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
-                mesher.on_message(
-                    &Message::new(topic, t, Payload::VoxelGrid(Arc::new(g))),
-                    &mut out,
-                );
-            }
+            feed_pair(mesher, t0_ns + i64::from(k) * 100_000_000, k, &mut out);
             mesher.on_tick(i64::from(k) * 100_000_000, &mut out);
         }
         // Quiet for longer than the idle timeout: both streams close.
@@ -313,8 +317,7 @@ fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_th
     use chronotope::msg::MeshSlab;
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
-    use chronotope::node::{Message, Node, Payload};
-    use std::sync::Arc;
+    use chronotope::node::{Node, Payload};
 
     let cfg = LaunchConfig::parse(
         "launch:\n\
@@ -329,17 +332,12 @@ fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_th
         let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
         let mut pieces = Vec::new();
         for k in 0..6u32 {
-            let t = 1_000_000_000 + i64::from(k) * 100_000_000;
-            let mut a = frame(0, k);
-            a.header.stamp = Time::from_nanos(t);
-            let mut b = frame(6, 0);
-            b.header.stamp = Time::from_nanos(t);
-            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
-                mesher.on_message(
-                    &Message::new(topic, t, Payload::VoxelGrid(Arc::new(g))),
-                    &mut pieces,
-                );
-            }
+            feed_pair(
+                &mut mesher,
+                1_000_000_000 + i64::from(k) * 100_000_000,
+                k,
+                &mut pieces,
+            );
         }
         mesher.finish(&mut pieces);
         let mut results = Vec::new();
