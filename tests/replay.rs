@@ -18,6 +18,11 @@ fn last_report(msgs: &[chronotope::node::Message]) -> Option<chronotope::msg::In
     })
 }
 
+/// A mesher of /a and /b and a checker of the pair.
+const PAIR_CONFIG: &str = "launch:\n\
+    - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+    - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n";
+
 /// Feeds `mesher` frame `k` of /a (moving into /b's place) and of /b (still), stamped `t_ns`.
 fn feed_pair(
     mesher: &mut chronotope::node::mesher::MesherNode,
@@ -128,13 +133,7 @@ fn a_frame_older_than_the_last_one_is_refused_counted_and_the_stream_goes_on() {
         }
     }
     w.finish().unwrap();
-    let cfg = LaunchConfig::parse(
-        "launch:\n\
-         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
-         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
-        "test",
-    )
-    .unwrap();
+    let cfg = LaunchConfig::parse(PAIR_CONFIG, "test").unwrap();
     let r = replay(&path, Some(&cfg), None, false).unwrap();
     let mesher = &r.nodes["/mesher"];
     assert_eq!(mesher.problems.get("frame_refused"), Some(&1), "{mesher:?}");
@@ -319,13 +318,7 @@ fn pieces_lost_inside_a_stream_are_said_and_the_stream_is_checked_again_after_th
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Node, Payload};
 
-    let cfg = LaunchConfig::parse(
-        "launch:\n\
-         - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
-         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
-        "test",
-    )
-    .unwrap();
+    let cfg = LaunchConfig::parse(PAIR_CONFIG, "test").unwrap();
     let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
     let run = |lose: Option<u32>| {
         let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
