@@ -7,9 +7,13 @@
 //! - **Queues.** Each node has a bounded queue (`queue_depth`, all its topics together). A
 //!   sample from the wire that finds it full is dropped and counted for that node and topic.
 //!   A message from another node in the process waits for room (back-pressure: mesh pieces
-//!   are never dropped between a mesher and a checker), at most [`LOCAL_SEND_WAIT`], then it
-//!   is dropped and counted; a real-time node's messages never wait (dropped and counted
-//!   when the queue is full).
+//!   are not dropped between a mesher and a checker that is busy with earlier ones) for as
+//!   long as the reading node is at work: in a handler, or itself waiting for a node that
+//!   is. Once it has made no such progress for [`LOCAL_SEND_WAIT`] in all (it is stuck, or
+//!   waits on the sender in a cycle), the message is dropped and counted. The publisher's own queue meanwhile fills, so a
+//!   pipeline that cannot keep up loses samples at its entry, where they are counted and the
+//!   mesher sees a gap, not pieces in the middle. A real-time node's messages never wait
+//!   (dropped and counted when the queue is full).
 //! - **Batches.** When a node takes a message, it takes everything else waiting in its queue
 //!   too (at most [`MAX_BATCH`]) and handles them as one batch ([`Node::on_messages`]), so a
 //!   node that can (the mesher's bodies) works on them in parallel.
@@ -30,19 +34,31 @@
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crossbeam_channel::{bounded, Receiver, RecvTimeoutError, SendTimeoutError, Sender, TrySendError};
+use crossbeam_channel::{
+    bounded, Receiver, RecvTimeoutError, SendTimeoutError, Sender, TrySendError,
+};
 use serde::Serialize;
 
 use super::{LagStats, ParamRequest};
 use crate::node::{Message, Node, NodeStatus, Payload};
 
-/// Longest a message from one node waits for room in another node's queue before it is
-/// dropped and counted (a non-real-time publisher only).
+/// Longest a message from one node waits for room in another node's queue, counting only
+/// the time that node does no work, before it is dropped and counted (a non-real-time
+/// publisher only).
 pub const LOCAL_SEND_WAIT: Duration = Duration::from_secs(2);
+
+/// How often a waiting publisher looks whether the reading node is still at work.
+const LOCAL_SEND_POLL: Duration = Duration::from_millis(50);
+
+/// A node's state while it runs one of its handlers.
+const WORKING: usize = usize::MAX - 1;
+/// A node's state otherwise (unless it waits for room in another node's queue).
+const IDLE: usize = usize::MAX;
 
 /// Most messages a node takes from its queue in one batch.
 pub const MAX_BATCH: usize = 64;
@@ -193,6 +209,8 @@ struct UnitHandle {
 struct Routes {
     by_topic: BTreeMap<String, Vec<(usize, &'static str)>>,
     queues: Vec<(Sender<Input>, Arc<Mutex<Shared>>)>,
+    /// Per node: [`WORKING`], [`IDLE`], or the index of the node it waits for room at.
+    state: Vec<AtomicUsize>,
     names: Vec<String>,
 }
 
@@ -243,6 +261,51 @@ pub fn make_realtime(priority: i32) -> Result<String, String> {
 }
 
 impl Routes {
+    /// Whether node `n` is at work: in a handler, or waiting for room at a node that is
+    /// (followed along the chain; a cycle of waits is no work).
+    fn at_work(&self, mut n: usize) -> bool {
+        for _ in 0..self.state.len() {
+            match self.state[n].load(Ordering::Relaxed) {
+                WORKING => return true,
+                IDLE => return false,
+                next => n = next,
+            }
+        }
+        false
+    }
+
+    /// Sends `input` from node `from` to node `to`, waiting for room while `to` is at work
+    /// (see the module doc); gives up once it has not been for [`LOCAL_SEND_WAIT`] in all.
+    fn send_waiting(
+        &self,
+        from: usize,
+        to: usize,
+        tx: &Sender<Input>,
+        mut input: Input,
+    ) -> Result<(), &'static str> {
+        let mut idle = Duration::ZERO;
+        let r = loop {
+            match tx.send_timeout(input, LOCAL_SEND_POLL) {
+                Ok(()) => break Ok(()),
+                Err(SendTimeoutError::Disconnected(_)) => break Err("it has ended"),
+                Err(SendTimeoutError::Timeout(back)) => {
+                    input = back;
+                    self.state[from].store(to, Ordering::Relaxed);
+                    if !self.at_work(to) {
+                        idle += LOCAL_SEND_POLL;
+                        if idle >= LOCAL_SEND_WAIT {
+                            break Err(
+                                "its queue stayed full while it did no work for LOCAL_SEND_WAIT",
+                            );
+                        }
+                    }
+                }
+            }
+        };
+        self.state[from].store(IDLE, Ordering::Relaxed);
+        r
+    }
+
     /// Delivers `out` (published by node `from`) to the nodes reading each topic, then to
     /// the wire.
     fn route(&self, from: usize, realtime: bool, out: &mut Vec<Message>, wire: &dyn WireOut) {
@@ -274,13 +337,7 @@ impl Routes {
                             Err(TrySendError::Disconnected(_)) => Err("it has ended"),
                         }
                     } else {
-                        match tx.send_timeout(input, LOCAL_SEND_WAIT) {
-                            Ok(()) => Ok(()),
-                            Err(SendTimeoutError::Timeout(_)) => {
-                                Err("its queue stayed full for LOCAL_SEND_WAIT")
-                            }
-                            Err(SendTimeoutError::Disconnected(_)) => Err("it has ended"),
-                        }
+                        self.send_waiting(from, to, tx, input)
                     };
                     if let Err(why) = sent {
                         let mut s = lock(shared);
@@ -395,12 +452,19 @@ impl Unit {
     }
 
     /// Runs `f` on the node, catching a panic: the node is then stopped and reported.
-    fn guarded(&mut self, out: &mut Vec<Message>, f: impl FnOnce(&mut dyn Node, &mut Vec<Message>)) {
+    fn guarded(
+        &mut self,
+        out: &mut Vec<Message>,
+        f: impl FnOnce(&mut dyn Node, &mut Vec<Message>),
+    ) {
         let Some(node) = self.node.as_mut() else {
             return;
         };
         let before = out.len();
+        let state = &self.routes.state[self.index];
+        state.store(WORKING, Ordering::Relaxed);
         let r = catch_unwind(AssertUnwindSafe(|| f(node.as_mut(), out)));
+        state.store(IDLE, Ordering::Relaxed);
         if let Err(p) = r {
             let text = crate::panic_text(p.as_ref());
             tracing::error!(
@@ -463,7 +527,10 @@ impl Unit {
         tracing::debug!(
             node = self.name,
             batch = msgs.len(),
-            oldest_ms = arrivals.iter().map(|a| a.elapsed().as_secs_f64() * 1e3).fold(0.0, f64::max),
+            oldest_ms = arrivals
+                .iter()
+                .map(|a| a.elapsed().as_secs_f64() * 1e3)
+                .fold(0.0, f64::max),
             busy_ms = busy_s * 1e3 * msgs.len() as f64,
             "batch handled"
         );
@@ -575,12 +642,12 @@ impl Executor {
                 .zip(&shared)
                 .map(|((tx, _), sh)| (tx.clone(), sh.clone()))
                 .collect(),
+            state: nodes.iter().map(|_| AtomicUsize::new(IDLE)).collect(),
             names: nodes.iter().map(|n| n.name().to_owned()).collect(),
         });
         let mut units = Vec::new();
         let mut wires = wires.into_iter();
-        for (i, ((node, (tx, rx)), sh)) in nodes.into_iter().zip(channels).zip(shared).enumerate()
-        {
+        for (i, ((node, (tx, rx)), sh)) in nodes.into_iter().zip(channels).zip(shared).enumerate() {
             let realtime = options.get(i).is_some_and(|o| o.realtime);
             let name = node.name().to_owned();
             let rank = node.rank();
@@ -764,6 +831,8 @@ mod tests {
         rank: u8,
         panic_at: Option<f64>,
         sleep: Duration,
+        /// Sleeps this long on the pose at x instead.
+        sleep_at: Option<(f64, Duration)>,
         seen: Arc<Mutex<Vec<f64>>>,
         status: NodeStatus,
     }
@@ -777,6 +846,7 @@ mod tests {
             rank,
             panic_at: None,
             sleep: Duration::ZERO,
+            sleep_at: None,
             seen: seen.clone(),
             status: NodeStatus::default(),
         };
@@ -821,9 +891,16 @@ mod tests {
             };
             let x = p.pose.position.x;
             assert!(self.panic_at != Some(x), "unlucky pose {x}");
-            std::thread::sleep(self.sleep);
+            match self.sleep_at {
+                Some((at, long)) if at == x => std::thread::sleep(long),
+                _ => std::thread::sleep(self.sleep),
+            }
             lock(&self.seen).push(x);
-            out.push(Message::new(&self.output, msg.stamp_ns, msg.payload.clone()));
+            out.push(Message::new(
+                &self.output,
+                msg.stamp_ns,
+                msg.payload.clone(),
+            ));
         }
         fn finish(&mut self, out: &mut Vec<Message>) {
             out.push(Message::new(&self.output, 0, pose(-1.0)));
@@ -870,7 +947,10 @@ mod tests {
         let runs = exec.finish(Duration::from_secs(5));
         // /a panicked at 13: stopped, what came after is dropped and counted.
         let a = &runs["/a"];
-        assert!(a.stopped.as_deref().unwrap().contains("unlucky pose 13"), "{a:?}");
+        assert!(
+            a.stopped.as_deref().unwrap().contains("unlucky pose 13"),
+            "{a:?}"
+        );
         assert_eq!(*lock(&seen_a), vec![1.0, 2.0]);
         assert_eq!(a.dropped.get("/in"), Some(&2), "{a:?}");
         // /b got what /a relayed before it stopped (and nothing from a finish /a never had).
@@ -914,6 +994,30 @@ mod tests {
         // Back-pressure between nodes: nothing dropped on /mid although /b's queue holds one.
         assert!(runs["/b"].dropped.is_empty(), "{:?}", runs["/b"]);
         assert_eq!(*lock(&seen_b), vec![0.0, 1.0, 2.0, 3.0, 4.0, -1.0]);
+    }
+
+    #[test]
+    fn a_publisher_waits_as_long_as_the_nodes_after_it_work() {
+        // /a -> /b -> /c, one message per queue; /c works 2.5 s on the first pose, longer
+        // than LOCAL_SEND_WAIT. /b waits for /c meanwhile, and /a for /b: both wait for a
+        // node at work, so nothing is dropped in the middle of the chain.
+        let (a, _) = relay("/a", "/in", "/mid", 0);
+        let (b, _) = relay("/b", "/mid", "/out", 1);
+        let (mut c, seen_c) = relay("/c", "/out", "/end", 2);
+        c.sleep_at = Some((0.0, LOCAL_SEND_WAIT + Duration::from_millis(500)));
+        let exec = start(
+            vec![Box::new(a), Box::new(b), Box::new(c)],
+            &[opts(64), opts(1), opts(1)],
+        );
+        for x in 0..6 {
+            exec.inject(&sample("/in", f64::from(x)));
+        }
+        let runs = exec.finish(Duration::from_secs(10));
+        for n in ["/b", "/c"] {
+            assert!(runs[n].dropped.is_empty(), "{n}: {:?}", runs[n]);
+        }
+        // And the two finishing poses, of /a (relayed by /b) and of /b.
+        assert_eq!(*lock(&seen_c), vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, -1.0, -1.0]);
     }
 
     #[test]
