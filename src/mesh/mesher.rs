@@ -319,30 +319,28 @@ impl Mesher {
         grid: OccupancyGrid,
         like: &Slab,
     ) -> Result<Option<Slab>, MeshError> {
-        let shift = self.prev.as_ref().and_then(|prev| {
+        let moved = self.prev.as_ref().and_then(|prev| {
             let same = like.geometry == geometry
                 && like.index < prev.index
                 && prev.grid.padded == grid.padded
                 && prev.grid.bits == grid.bits
                 && prev.grid.values == grid.values;
             let steps = i64::from(geometry.scale) * (prev.index - like.index) as i64;
-            same.then(|| i32::try_from(steps).ok()).flatten()
+            let shift = same.then(|| i32::try_from(steps).ok()).flatten()?;
+            Some((shift, prev.index, prev.stamp_ns))
         });
-        let Some(shift) = shift else {
+        let Some((shift, index, stamp_lo_ns)) = moved else {
             return self.push_decoded(stamp_ns, geometry, grid);
         };
         if let Err(e) = self.check_stream(stamp_ns, &geometry) {
             self.skipped += 1;
             return Err(e);
         }
-        let Some(prev) = self.prev.as_ref() else {
-            return self.push_decoded(stamp_ns, geometry, grid);
-        };
         let mut mesh = like.mesh.clone();
         mesh.translate([0, 0, 0, shift]);
         let slab = Slab {
-            index: prev.index,
-            stamp_lo_ns: prev.stamp_ns,
+            index,
+            stamp_lo_ns,
             stamp_hi_ns: stamp_ns,
             geometry,
             mesh,

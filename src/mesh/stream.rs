@@ -396,6 +396,8 @@ impl BodyStream {
 
 #[cfg(test)]
 mod tests {
+    use proptest::prelude::*;
+
     use super::*;
 
     /// A 2x2x2 bits frame at `stamp_ns`.
@@ -404,7 +406,7 @@ mod tests {
     }
 
     /// A bits frame of `size` voxels at `stamp_ns`.
-    pub(super) fn sized(stamp_ns: i64, size: [u32; 3], data: &[u8]) -> FrameRef<'_> {
+    fn sized(stamp_ns: i64, size: [u32; 3], data: &[u8]) -> FrameRef<'_> {
         FrameRef {
             stamp_ns,
             origin: [0.0; 3],
@@ -447,30 +449,23 @@ mod tests {
         let kinds: Vec<LossKind> = s.losses().spans.iter().map(|s| s.kind).collect();
         assert_eq!(kinds, [LossKind::Refused, LossKind::Filled]);
     }
-}
-
-#[cfg(test)]
-mod fill_tests {
-    use proptest::prelude::*;
-
-    use super::*;
 
     /// A 6x5x4 bits frame at `stamp_ns` (120 bits in 15 bytes).
-    fn frame(stamp_ns: i64, data: &[u8]) -> FrameRef<'_> {
-        super::tests::sized(stamp_ns, [6, 5, 4], data)
+    fn frame654(stamp_ns: i64, data: &[u8]) -> FrameRef<'_> {
+        sized(stamp_ns, [6, 5, 4], data)
     }
 
-    /// The slabs of frames `a` at 0 and 10, then `b` after `periods` periods, with the
-    /// given fill budget.
+    /// The slabs of 6x5x4 frames `a` at 0 and 10, then `b` after `periods` periods, with
+    /// the given fill budget.
     fn fill(a: &[u8], b: &[u8], periods: i64, max_fill_tets: usize) -> (Accepted, BodyStream) {
         let opts = MesherOptions {
             max_fill_tets,
             ..MesherOptions::default()
         };
         let mut s = BodyStream::new(opts).unwrap();
-        s.push(&frame(0, a)).unwrap();
-        s.push(&frame(10, a)).unwrap();
-        let got = s.push(&frame(10 + 10 * periods, b)).unwrap();
+        s.push(&frame654(0, a)).unwrap();
+        s.push(&frame654(10, a)).unwrap();
+        let got = s.push(&frame654(10 + 10 * periods, b)).unwrap();
         (got, s)
     }
 
@@ -491,9 +486,9 @@ mod fill_tests {
             let both = got.fill.clone().unwrap();
             let mut m = Mesher::new(MesherOptions::default()).unwrap();
             let g = *s.mesher().geometry().unwrap();
-            let first = m.push(&frame(0, &a)).unwrap();
+            let first = m.push(&frame654(0, &a)).unwrap();
             prop_assert!(first.is_none());
-            m.push(&frame(10, &a)).unwrap();
+            m.push(&frame654(10, &a)).unwrap();
             for (j, (t, slab)) in got.frames.iter().enumerate().take(periods as usize - 1) {
                 prop_assert_eq!(*t, 10 + 10 * (j as i64 + 1));
                 let marched = m.push_decoded(*t, g, both.clone()).unwrap();
