@@ -41,6 +41,10 @@ pub struct RunArgs {
     /// counted.
     #[arg(long, default_value_t = 256)]
     pub queue: usize,
+    /// Bytes (MiB) the messages waiting for one node may hold, all its topics together (a
+    /// node's `queue_mb` parameter overrides it); beyond it samples are dropped and counted.
+    #[arg(long, default_value_t = 512, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub queue_mb: u32,
     /// At exit, write what the nodes and the transport counted (JSON).
     #[arg(long)]
     pub summary: Option<PathBuf>,
@@ -192,6 +196,7 @@ fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<
     let opts = LiveOptions {
         domain_id: domain_id_from_env()?,
         queue_capacity: a.queue,
+        queue_mb: a.queue_mb as usize,
         run_for: seconds("duration", a.duration)?,
         remote_subscribed,
         ..LiveOptions::default()

@@ -4,8 +4,11 @@
 //! per node: a node's handlers never run concurrently with each other (the node is a plain
 //! state machine), while different nodes run at once on different cores.
 //!
-//! - **Queues.** Each node has a bounded queue (`queue_depth`, all its topics together). A
-//!   sample from the wire that finds it full is dropped and counted for that node and topic.
+//! - **Queues.** Each node has a bounded queue: at most `queue_depth` messages and
+//!   `queue_bytes` bytes ([`Payload::queue_bytes`]), all its topics together, counted from
+//!   when a message is queued until the node has handled it. A message larger than the whole
+//!   budget is taken only into an empty queue. A sample from the wire that finds the queue
+//!   full (either bound) is dropped and counted for that node and topic.
 //!   A message from another node in the process waits for room (back-pressure: mesh pieces
 //!   are not dropped between a mesher and a checker that is busy with earlier ones) for as
 //!   long as the reading node is at work: in a handler, or itself waiting for a node that
@@ -14,9 +17,12 @@
 //!   pipeline that cannot keep up loses samples at its entry, where they are counted and the
 //!   mesher sees a gap, not pieces in the middle. A real-time node's messages never wait
 //!   (dropped and counted when the queue is full).
-//! - **Batches.** When a node takes a message, it takes everything else waiting in its queue
-//!   too (at most [`MAX_BATCH`]) and handles them as one batch ([`Node::on_messages`]), so a
-//!   node that can (the mesher's bodies) works on them in parallel.
+//! - **Batches.** When a node takes a message, it takes what else is waiting in its queue
+//!   too, one message per topic (at most [`MAX_BATCH`]), and handles them as one batch
+//!   ([`Node::on_messages`]), so a node that can (the mesher's bodies) works on them in
+//!   parallel. One per topic keeps what a batch publishes before it is routed to one
+//!   message's worth per topic (a mesher behind by 30 frames of a big body would otherwise
+//!   hold 30 mesh pieces at once).
 //! - **Real-time nodes** (`realtime: true`) run at SCHED_FIFO priority where the system
 //!   allows it (the result is reported in `/diagnostics` and the summary), on a thread
 //!   nothing else uses, and their wire traffic goes through a DDS participant of their own,
@@ -54,6 +60,9 @@ pub const LOCAL_SEND_WAIT: Duration = Duration::from_secs(2);
 
 /// How often a waiting publisher looks whether the reading node is still at work.
 const LOCAL_SEND_POLL: Duration = Duration::from_millis(50);
+
+/// How often a publisher waiting for room in a queue's byte budget looks again.
+const BYTES_POLL: Duration = Duration::from_millis(2);
 
 /// A node's state while it runs one of its handlers.
 const WORKING: usize = usize::MAX - 1;
@@ -111,9 +120,15 @@ pub enum Input {
 pub struct UnitOptions {
     /// See [`crate::node::launch::ExecutorSpec::realtime`].
     pub realtime: bool,
-    /// Its queue's capacity.
+    /// Its queue's capacity in messages.
     pub queue_depth: usize,
+    /// Its queue's capacity in bytes ([`Payload::queue_bytes`]), from when a message is
+    /// queued until it has been handled.
+    pub queue_bytes: usize,
 }
+
+/// Default of [`UnitOptions::queue_bytes`]: 512 MiB.
+pub const DEFAULT_QUEUE_BYTES: usize = 512 << 20;
 
 /// What the executor reports of one node.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
@@ -138,6 +153,8 @@ pub struct NodeRun {
     pub lag: BTreeMap<String, LagStats>,
     /// Largest batch it took at once.
     pub max_batch: usize,
+    /// Most bytes its queue held at once (queued or being handled, [`Payload::queue_bytes`]).
+    pub queue_peak_bytes: usize,
     /// Why it was stopped (a panic's message), if it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stopped: Option<String>,
@@ -211,6 +228,9 @@ struct Routes {
     queues: Vec<(Sender<Input>, Arc<Mutex<Shared>>)>,
     /// Per node: [`WORKING`], [`IDLE`], or the index of the node it waits for room at.
     state: Vec<AtomicUsize>,
+    /// Per node: bytes of the messages queued for it or in its handler now, its budget, and
+    /// the most it held.
+    bytes: Vec<QueueBytes>,
     names: Vec<String>,
 }
 
@@ -260,6 +280,69 @@ pub fn make_realtime(priority: i32) -> Result<String, String> {
     }
 }
 
+/// One node's queue in bytes (see [`UnitOptions::queue_bytes`]).
+struct QueueBytes {
+    held: AtomicUsize,
+    budget: usize,
+    peak: AtomicUsize,
+}
+
+impl QueueBytes {
+    fn new(budget: usize) -> Self {
+        Self {
+            held: AtomicUsize::new(0),
+            budget,
+            peak: AtomicUsize::new(0),
+        }
+    }
+
+    /// Counts `n` more bytes if they fit the budget (or the queue holds nothing).
+    fn reserve(&self, n: usize) -> bool {
+        let r = self
+            .held
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |held| {
+                (held == 0 || held.saturating_add(n) <= self.budget).then(|| held.saturating_add(n))
+            });
+        match r {
+            Ok(before) => {
+                self.peak
+                    .fetch_max(before.saturating_add(n), Ordering::Relaxed);
+                true
+            }
+            Err(_) => false,
+        }
+    }
+
+    fn release(&self, n: usize) {
+        // Saturating: a release never takes more than was reserved for the same inputs.
+        let _ = self
+            .held
+            .fetch_update(Ordering::AcqRel, Ordering::Acquire, |held| {
+                Some(held.saturating_sub(n))
+            });
+    }
+}
+
+impl Input {
+    /// The topic of a message (none for a control input).
+    fn topic(&self) -> Option<&str> {
+        match self {
+            Input::Wire(s) => Some(&s.topic),
+            Input::Local(m, _) => Some(&m.topic),
+            Input::Param(_) | Input::Finish(_) | Input::Stop => None,
+        }
+    }
+
+    /// What the input counts against its node's byte budget.
+    fn queue_bytes(&self) -> usize {
+        match self {
+            Input::Wire(s) => s.bytes.len() + crate::node::MESSAGE_OVERHEAD_BYTES,
+            Input::Local(m, _) => m.payload.queue_bytes(),
+            Input::Param(_) | Input::Finish(_) | Input::Stop => 0,
+        }
+    }
+}
+
 impl Routes {
     /// Whether node `n` is at work: in a handler, or waiting for room at a node that is
     /// (followed along the chain; a cycle of waits is no work).
@@ -283,22 +366,33 @@ impl Routes {
         tx: &Sender<Input>,
         mut input: Input,
     ) -> Result<(), &'static str> {
+        let bytes = input.queue_bytes();
+        let budget = &self.bytes[to];
         let mut idle = Duration::ZERO;
         let r = loop {
-            match tx.send_timeout(input, LOCAL_SEND_POLL) {
-                Ok(()) => break Ok(()),
-                Err(SendTimeoutError::Disconnected(_)) => break Err("it has ended"),
-                Err(SendTimeoutError::Timeout(back)) => {
-                    input = back;
-                    self.state[from].store(to, Ordering::Relaxed);
-                    if !self.at_work(to) {
-                        idle += LOCAL_SEND_POLL;
-                        if idle >= LOCAL_SEND_WAIT {
-                            break Err(
-                                "its queue stayed full while it did no work for LOCAL_SEND_WAIT",
-                            );
-                        }
+            let waited = if budget.reserve(bytes) {
+                match tx.send_timeout(input, LOCAL_SEND_POLL) {
+                    Ok(()) => break Ok(()),
+                    Err(SendTimeoutError::Disconnected(_)) => {
+                        budget.release(bytes);
+                        break Err("it has ended");
                     }
+                    Err(SendTimeoutError::Timeout(back)) => {
+                        budget.release(bytes);
+                        input = back;
+                        LOCAL_SEND_POLL
+                    }
+                }
+            } else {
+                // Over the byte budget: wait for the node to finish what it holds.
+                std::thread::sleep(BYTES_POLL);
+                BYTES_POLL
+            };
+            self.state[from].store(to, Ordering::Relaxed);
+            if !self.at_work(to) {
+                idle += waited;
+                if idle >= LOCAL_SEND_WAIT {
+                    break Err("its queue stayed full while it did no work for LOCAL_SEND_WAIT");
                 }
             }
         };
@@ -331,10 +425,19 @@ impl Routes {
                     }
                     let input = Input::Local(m.clone(), Instant::now());
                     let sent = if realtime {
-                        match tx.try_send(input) {
-                            Ok(()) => Ok(()),
-                            Err(TrySendError::Full(_)) => Err("its queue is full"),
-                            Err(TrySendError::Disconnected(_)) => Err("it has ended"),
+                        let bytes = input.queue_bytes();
+                        if self.bytes[to].reserve(bytes) {
+                            let r = match tx.try_send(input) {
+                                Ok(()) => Ok(()),
+                                Err(TrySendError::Full(_)) => Err("its queue is full"),
+                                Err(TrySendError::Disconnected(_)) => Err("it has ended"),
+                            };
+                            if r.is_err() {
+                                self.bytes[to].release(bytes);
+                            }
+                            r
+                        } else {
+                            Err("its queue holds its queue_bytes")
                         }
                     } else {
                         self.send_waiting(from, to, tx, input)
@@ -424,11 +527,21 @@ impl Unit {
                     let _ = ack.send(());
                 }
                 first => {
-                    // Everything waiting, up to a control input (handled in order next).
+                    // What is waiting, one message per topic, up to a control input or a
+                    // second message on a topic (handled in order next): the messages of
+                    // different topics (a mesher's bodies) are handled at once, while what a
+                    // batch publishes stays one message's worth per topic.
                     let mut batch = vec![first];
                     while batch.len() < MAX_BATCH {
                         match self.rx.try_recv() {
-                            Ok(i @ (Input::Wire(_) | Input::Local(..))) => batch.push(i),
+                            Ok(i @ (Input::Wire(_) | Input::Local(..))) => {
+                                let topic = i.topic();
+                                if batch.iter().any(|b| b.topic() == topic) {
+                                    pending = Some(i);
+                                    break;
+                                }
+                                batch.push(i);
+                            }
                             Ok(other) => {
                                 pending = Some(other);
                                 break;
@@ -480,6 +593,13 @@ impl Unit {
     }
 
     fn handle(&mut self, batch: Vec<Input>, out: &mut Vec<Message>) {
+        let bytes: usize = batch.iter().map(Input::queue_bytes).sum();
+        self.handle_batch(batch, out);
+        // What the batch held counts against the queue's budget until it has been handled.
+        self.routes.bytes[self.index].release(bytes);
+    }
+
+    fn handle_batch(&mut self, batch: Vec<Input>, out: &mut Vec<Message>) {
         let mut msgs = Vec::with_capacity(batch.len());
         let mut arrivals = Vec::with_capacity(batch.len());
         for input in batch {
@@ -622,6 +742,7 @@ impl Executor {
             let o = options.get(i).copied().unwrap_or(UnitOptions {
                 realtime: false,
                 queue_depth: 256,
+                queue_bytes: DEFAULT_QUEUE_BYTES,
             });
             channels.push(bounded::<Input>(o.queue_depth.max(1)));
             let sh = Shared {
@@ -643,6 +764,15 @@ impl Executor {
                 .map(|((tx, _), sh)| (tx.clone(), sh.clone()))
                 .collect(),
             state: nodes.iter().map(|_| AtomicUsize::new(IDLE)).collect(),
+            bytes: (0..nodes.len())
+                .map(|i| {
+                    QueueBytes::new(
+                        options
+                            .get(i)
+                            .map_or(DEFAULT_QUEUE_BYTES, |o| o.queue_bytes),
+                    )
+                })
+                .collect(),
             names: nodes.iter().map(|n| n.name().to_owned()).collect(),
         });
         let mut units = Vec::new();
@@ -737,9 +867,11 @@ impl Executor {
     pub fn runs(&self) -> BTreeMap<String, NodeRun> {
         self.units
             .iter()
-            .map(|u| {
+            .enumerate()
+            .map(|(i, u)| {
                 let sh = lock(&u.shared);
                 let mut run = sh.run.clone();
+                run.queue_peak_bytes = self.routes.bytes[i].peak.load(Ordering::Relaxed);
                 run.lag = sh
                     .lag
                     .iter()
@@ -798,22 +930,31 @@ impl Injector {
             return false;
         };
         let topic = sample.topic.clone();
-        match tx.try_send(Input::Wire(sample)) {
-            Ok(()) => true,
-            Err(_) => {
-                let mut sh = lock(shared);
-                let first = sh.run.dropped.is_empty();
-                *sh.run.dropped.entry(topic.to_string()).or_default() += 1;
-                if first {
-                    tracing::warn!(
-                        node = self.0.names[index],
-                        topic = %topic,
-                        "the node is behind (queue full): a sample was dropped (counted)"
-                    );
+        let input = Input::Wire(sample);
+        let bytes = input.queue_bytes();
+        let budget = &self.0.bytes[index];
+        let why = if budget.reserve(bytes) {
+            match tx.try_send(input) {
+                Ok(()) => return true,
+                Err(_) => {
+                    budget.release(bytes);
+                    "queue_depth"
                 }
-                false
             }
+        } else {
+            "queue_bytes"
+        };
+        let mut sh = lock(shared);
+        let first = sh.run.dropped.is_empty();
+        *sh.run.dropped.entry(topic.to_string()).or_default() += 1;
+        if first {
+            tracing::warn!(
+                node = self.0.names[index],
+                topic = %topic,
+                "the node is behind (its queue holds its {why}): a sample was dropped (counted)"
+            );
         }
+        false
     }
 }
 
@@ -827,6 +968,8 @@ mod tests {
     struct Relay {
         name: String,
         input: String,
+        /// A second topic it reads, if any.
+        input2: Option<String>,
         output: String,
         rank: u8,
         panic_at: Option<f64>,
@@ -842,6 +985,7 @@ mod tests {
         let r = Relay {
             name: name.into(),
             input: input.into(),
+            input2: None,
             output: output.into(),
             rank,
             panic_at: None,
@@ -873,10 +1017,13 @@ mod tests {
             &self.name
         }
         fn subscriptions(&self) -> Vec<TopicRef> {
-            vec![TopicRef {
-                topic: self.input.clone(),
-                type_name: PoseStamped::TYPE_NAME,
-            }]
+            std::iter::once(&self.input)
+                .chain(&self.input2)
+                .map(|t| TopicRef {
+                    topic: t.clone(),
+                    type_name: PoseStamped::TYPE_NAME,
+                })
+                .collect()
         }
         fn publications(&self) -> Vec<TopicRef> {
             vec![TopicRef {
@@ -926,6 +1073,14 @@ mod tests {
         UnitOptions {
             realtime: false,
             queue_depth: depth,
+            queue_bytes: DEFAULT_QUEUE_BYTES,
+        }
+    }
+
+    fn opts_bytes(depth: usize, bytes: usize) -> UnitOptions {
+        UnitOptions {
+            queue_bytes: bytes,
+            ..opts(depth)
         }
     }
 
@@ -1017,20 +1172,89 @@ mod tests {
             assert!(runs[n].dropped.is_empty(), "{n}: {:?}", runs[n]);
         }
         // And the two finishing poses, of /a (relayed by /b) and of /b.
-        assert_eq!(*lock(&seen_c), vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, -1.0, -1.0]);
+        assert_eq!(
+            *lock(&seen_c),
+            vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0, -1.0, -1.0]
+        );
     }
 
     #[test]
-    fn a_batch_is_what_was_waiting() {
-        let (mut a, seen) = relay("/a", "/in", "/mid", 0);
-        a.sleep = Duration::from_millis(50);
-        let exec = start(vec![Box::new(a)], &[opts(64)]);
+    fn wire_samples_over_the_byte_budget_are_dropped_until_the_node_has_handled_what_it_holds() {
+        let each = sample("/in", 0.0).bytes.len() + crate::node::MESSAGE_OVERHEAD_BYTES;
+        // Room for three samples, counted until handled: the first is in the handler for
+        // 300 ms, two more wait, the rest find the budget full.
+        let (mut slow, seen) = relay("/slow", "/in", "/s", 0);
+        slow.sleep_at = Some((0.0, Duration::from_millis(300)));
+        // A budget smaller than one sample: taken into an empty queue only.
+        let (mut tiny, seen_tiny) = relay("/tiny", "/in2", "/t", 0);
+        tiny.sleep_at = Some((0.0, Duration::from_millis(300)));
+        let exec = start(
+            vec![Box::new(slow), Box::new(tiny)],
+            &[opts_bytes(64, 3 * each), opts_bytes(64, 1)],
+        );
+        let taken: Vec<usize> = (0..10)
+            .map(|x| exec.inject(&sample("/in", f64::from(x))))
+            .collect();
+        assert_eq!(taken, [1, 1, 1, 0, 0, 0, 0, 0, 0, 0]);
+        let taken: Vec<usize> = (0..2)
+            .map(|x| exec.inject(&sample("/in2", f64::from(x))))
+            .collect();
+        assert_eq!(taken, [1, 0]);
+        // Once handled, the bytes are given back.
+        std::thread::sleep(Duration::from_millis(700));
+        for x in 10..13 {
+            assert_eq!(exec.inject(&sample("/in", f64::from(x))), 1);
+        }
+        assert_eq!(exec.inject(&sample("/in2", 2.0)), 1);
+        let runs = exec.finish(Duration::from_secs(10));
+        assert_eq!(*lock(&seen), vec![0.0, 1.0, 2.0, 10.0, 11.0, 12.0]);
+        assert_eq!(*lock(&seen_tiny), vec![0.0, 2.0]);
+        assert_eq!(runs["/slow"].dropped["/in"], 7);
+        assert_eq!(runs["/slow"].queue_peak_bytes, 3 * each);
+        assert_eq!(runs["/tiny"].dropped["/in2"], 1);
+    }
+
+    #[test]
+    fn a_publisher_waits_for_room_in_the_byte_budget_of_a_node_at_work() {
+        // /b has room for two messages in bytes (and 64 by count) and works 30 ms on each;
+        // /a publishes faster, so it waits, and nothing is dropped.
+        let (a, _) = relay("/a", "/in", "/mid", 0);
+        let (mut b, seen_b) = relay("/b", "/mid", "/out", 1);
+        b.sleep = Duration::from_millis(30);
+        let budget = 2 * pose(0.0).queue_bytes();
+        let exec = start(
+            vec![Box::new(a), Box::new(b)],
+            &[opts(64), opts_bytes(64, budget)],
+        );
         for x in 0..10 {
             exec.inject(&sample("/in", f64::from(x)));
         }
         let runs = exec.finish(Duration::from_secs(10));
-        assert_eq!(lock(&seen).len(), 10);
-        assert!(runs["/a"].max_batch > 1, "{:?}", runs["/a"]);
+        assert!(runs["/b"].dropped.is_empty(), "{:?}", runs["/b"]);
+        let want: Vec<f64> = (0..10).map(f64::from).chain([-1.0]).collect();
+        assert_eq!(*lock(&seen_b), want);
+        assert_eq!(runs["/b"].queue_peak_bytes, budget);
+    }
+
+    #[test]
+    fn a_batch_is_what_was_waiting_one_message_per_topic() {
+        let (mut a, seen) = relay("/a", "/in", "/mid", 0);
+        a.input2 = Some("/in2".into());
+        a.sleep = Duration::from_millis(50);
+        let (mut b, seen_b) = relay("/b", "/in", "/mid2", 0);
+        b.sleep = Duration::from_millis(50);
+        let exec = start(vec![Box::new(a), Box::new(b)], &[opts(64), opts(64)]);
+        for x in 0..10 {
+            exec.inject(&sample("/in", f64::from(x)));
+            exec.inject(&sample("/in2", f64::from(x)));
+        }
+        let runs = exec.finish(Duration::from_secs(10));
+        assert_eq!(lock(&seen).len(), 20);
+        // Both topics at once, never two of one: each topic's messages in order.
+        assert_eq!(runs["/a"].max_batch, 2, "{:?}", runs["/a"]);
+        assert_eq!(runs["/b"].max_batch, 1, "{:?}", runs["/b"]);
+        let want: Vec<f64> = (0..10).map(f64::from).collect();
+        assert_eq!(*lock(&seen_b), want);
         assert!(runs["/a"].cpu_s >= 0.0);
     }
 }

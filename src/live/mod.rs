@@ -27,9 +27,9 @@ use rustdds::{DomainParticipant, DomainParticipantBuilder, TopicKind};
 use serde::Serialize;
 
 use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time};
-use crate::node::launch::{NodeSpec, ParamValue};
+use crate::node::launch::{NodeSpec, ParamValue, MAX_QUEUE_MB};
 use crate::node::{is_hidden_topic, Message, Node, NodeStatus, TopicRef};
-use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut};
+use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut, DEFAULT_QUEUE_BYTES};
 use graph::GraphAnnouncer;
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
 
@@ -339,6 +339,9 @@ pub struct LiveOptions {
     /// Messages waiting for one node, all its topics together (unless its `queue_depth`
     /// says otherwise); beyond it new samples are dropped and counted.
     pub queue_capacity: usize,
+    /// Bytes (MiB) the messages waiting for one node may hold (unless its `queue_mb` says
+    /// otherwise); beyond it new samples are dropped and counted.
+    pub queue_mb: usize,
     /// How often the nodes see the clock (idle streams are closed on a tick).
     pub tick: Duration,
     /// How often `/diagnostics` is published.
@@ -354,6 +357,7 @@ impl Default for LiveOptions {
         Self {
             domain_id: 0,
             queue_capacity: 256,
+            queue_mb: DEFAULT_QUEUE_BYTES >> 20,
             tick: Duration::from_millis(100),
             diagnostics_period: Duration::from_secs(1),
             run_for: None,
@@ -754,6 +758,11 @@ pub fn run_nodes(
                     .and_then(|e| e.queue_depth)
                     .unwrap_or(opts.queue_capacity)
                     .max(1),
+                queue_bytes: e
+                    .and_then(|e| e.queue_mb)
+                    .unwrap_or(opts.queue_mb)
+                    .clamp(1, MAX_QUEUE_MB as usize)
+                    << 20,
             }
         })
         .collect();
@@ -1188,6 +1197,10 @@ pub fn node_diagnostic(name: &str, r: &NodeRun) -> DiagnosticStatus {
         kv("cpu_s", format!("{:.3}", r.cpu_s)),
         kv("cpu_percent", format!("{:.1}", r.cpu_percent)),
         kv("max_batch", r.max_batch),
+        kv(
+            "queue_peak_mb",
+            format!("{:.1}", r.queue_peak_bytes as f64 / f64::from(1 << 20)),
+        ),
     ];
     values.extend(r.scheduling.as_ref().map(|s| kv("scheduling", s)));
     values.extend(r.dropped.iter().map(|(t, n)| kv(format!("dropped.{t}"), n)));

@@ -160,9 +160,13 @@ pub struct NodeSpec {
 }
 
 /// Parameters every node takes, read by the live executor, not by the node itself.
-pub const EXECUTOR_PARAMS: [&str; 2] = ["realtime", "queue_depth"];
+pub const EXECUTOR_PARAMS: [&str; 3] = ["realtime", "queue_depth", "queue_mb"];
 
-/// How the live executor runs one node (its `realtime` and `queue_depth` parameters).
+/// Largest `queue_mb` (MiB) a node's queue may be given.
+pub const MAX_QUEUE_MB: i64 = 1 << 16;
+
+/// How the live executor runs one node (its `realtime`, `queue_depth` and `queue_mb`
+/// parameters).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ExecutorSpec {
     /// The node's handler runs on a thread nothing else uses, at real-time priority
@@ -172,13 +176,17 @@ pub struct ExecutorSpec {
     /// Messages waiting for the node, all its topics together; beyond it a new message is
     /// dropped and counted (`None`: the launch's `--queue`).
     pub queue_depth: Option<usize>,
+    /// Bytes the messages waiting for the node (and the batch it handles) may hold, in MiB
+    /// (`None`: the launch's `--queue-mb`).
+    pub queue_mb: Option<usize>,
 }
 
 impl NodeSpec {
     /// The node's executor parameters.
     ///
     /// # Errors
-    /// `realtime` is not a bool, or `queue_depth` not an integer in 1..=65536.
+    /// `realtime` is not a bool, `queue_depth` not an integer in 1..=65536, or `queue_mb`
+    /// not one in 1..=[`MAX_QUEUE_MB`].
     pub fn executor(&self) -> Result<ExecutorSpec, LaunchError> {
         let mut p = Params {
             spec: self,
@@ -189,9 +197,14 @@ impl NodeSpec {
             None => None,
             Some(_) => Some(p.int("queue_depth", 256, 1..=65536)? as usize),
         };
+        let queue_mb = match self.params.get("queue_mb") {
+            None => None,
+            Some(_) => Some(p.int("queue_mb", 512, 1..=MAX_QUEUE_MB)? as usize),
+        };
         Ok(ExecutorSpec {
             realtime,
             queue_depth,
+            queue_mb,
         })
     }
 }
@@ -873,17 +886,21 @@ launch:
 
     #[test]
     fn every_node_takes_the_executor_parameters_checked_at_load() {
-        let cfg = "launch:\n- node: {pkg: chronotope, exec: mesher, param: [{name: realtime, value: true}, {name: queue_depth, value: 8}]}\n";
+        let cfg = "launch:\n- node: {pkg: chronotope, exec: mesher, param: [{name: realtime, value: true}, {name: queue_depth, value: 8}, {name: queue_mb, value: 64}]}\n";
         let c = LaunchConfig::parse(cfg, "t").unwrap();
         let e = c.nodes[0].executor().unwrap();
         assert!(e.realtime);
         assert_eq!(e.queue_depth, Some(8));
+        assert_eq!(e.queue_mb, Some(64));
         for (bad, what) in [
             ("{name: realtime, value: 'yes'}", "realtime"),
             ("{name: queue_depth, value: 0}", "queue_depth"),
             ("{name: queue_depth, value: 1.5}", "queue_depth"),
+            ("{name: queue_mb, value: 0}", "queue_mb"),
+            ("{name: queue_mb, value: 65537}", "queue_mb"),
         ] {
-            let cfg = format!("launch:\n- node: {{pkg: chronotope, exec: checker, param: [{bad}]}}\n");
+            let cfg =
+                format!("launch:\n- node: {{pkg: chronotope, exec: checker, param: [{bad}]}}\n");
             let e = LaunchConfig::parse(&cfg, "t").unwrap_err().to_string();
             assert!(e.contains(what), "{bad}: {e}");
         }

@@ -19,9 +19,9 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::msg::{
-    decode_cdr, encode_cdr, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker,
-    MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels,
-    VoxelGrid, WrenchStamped,
+    decode_cdr, encode_cdr, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport,
+    Marker, MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
+    TetLabels, VoxelGrid, WrenchStamped,
 };
 
 macro_rules! payloads {
@@ -110,6 +110,53 @@ payloads! {
     PointCloud2(PointCloud2),
     Diagnostics(DiagnosticArray),
     Clock(Clock),
+}
+
+/// What a message counts against a queue's byte budget besides its arrays (its header,
+/// names and small fields).
+pub const MESSAGE_OVERHEAD_BYTES: usize = 256;
+
+impl Payload {
+    /// About how many bytes the message holds: its arrays, plus
+    /// [`MESSAGE_OVERHEAD_BYTES`] for the rest. What a node's queue budget counts.
+    pub fn queue_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        let marker = |m: &Marker| {
+            size_of_val(m.points.as_slice())
+                + size_of_val(m.colors.as_slice())
+                + size_of_val(m.uv_coordinates.as_slice())
+                + m.texture.data.len()
+                + m.mesh_file.data.len()
+                + m.text.len()
+        };
+        let arrays = match self {
+            Self::VoxelGrid(m) => m.data.len(),
+            Self::MeshSlab(m) => {
+                size_of_val(m.mesh.vertices.as_slice()) + size_of_val(m.mesh.tets.as_slice())
+            }
+            Self::TetLabels(m) => m.labels.len(),
+            Self::MarkerArray(m) => m
+                .markers
+                .iter()
+                .map(|m| marker(m) + MESSAGE_OVERHEAD_BYTES)
+                .sum(),
+            Self::Marker(m) => marker(m),
+            Self::PointCloud2(m) => m.data.len(),
+            Self::Report(m) => {
+                let intervals: usize = m
+                    .pairs
+                    .iter()
+                    .map(|p| p.interval_start_s.len() + p.interval_end_s.len())
+                    .sum();
+                (m.pairs.len() + m.bodies.len()) * MESSAGE_OVERHEAD_BYTES
+                    + intervals * std::mem::size_of::<f64>()
+            }
+            Self::Suggestions(m) => m.suggestions.len() * MESSAGE_OVERHEAD_BYTES,
+            Self::Diagnostics(m) => m.status.len() * MESSAGE_OVERHEAD_BYTES,
+            Self::Contact(_) | Self::PoseStamped(_) | Self::WrenchStamped(_) | Self::Clock(_) => 0,
+        };
+        arrays + MESSAGE_OVERHEAD_BYTES
+    }
 }
 
 /// Why a serialised message could not be turned into a [`Payload`].

@@ -1037,15 +1037,45 @@ impl RollingChecker {
         if ready.len() < least.max(1) {
             return Vec::new();
         }
+        // Each distinct body window once: a body in several pairs often has the same
+        // window in each (the same pieces and placement).
+        let mut distinct: Vec<(&str, &WindowSpec)> = Vec::new();
+        for (i, _, wa, wb) in &ready {
+            let p = &self.pairs[*i];
+            for (id, w) in [(p.a.as_str(), wa), (p.b.as_str(), wb)] {
+                let known = cached(&self.prepared, id, w).is_some()
+                    || distinct.iter().any(|(d, x)| *d == id && x.same_as(w));
+                if !known {
+                    distinct.push((id, w));
+                }
+            }
+        }
+        let shared: Vec<Option<Arc<PreparedWindow>>> = if distinct.len() < 2 * ready.len() {
+            distinct
+                .par_iter()
+                .map(|(id, w)| prepare_spec(id, w).ok())
+                .collect()
+        } else {
+            // Nothing shared: each pair prepares its own two, beside its check.
+            Vec::new()
+        };
+        let ready_for = |id: &str, w: &WindowSpec| {
+            cached(&self.prepared, id, w).or_else(|| {
+                let n = distinct
+                    .iter()
+                    .position(|(d, x)| *d == id && x.same_as(w))?;
+                shared.get(n)?.clone()
+            })
+        };
         ready
-            .into_par_iter()
+            .par_iter()
             .map(|(i, s, wa, wb)| {
-                let p = &self.pairs[i];
-                let result = check_specs((&p.a, &wa), (&p.b, &wb), &self.prepared);
+                let p = &self.pairs[*i];
+                let result = check_specs((&p.a, wa), (&p.b, wb), &ready_for);
                 Prefetched {
-                    pair: i,
-                    s,
-                    specs: (wa, wb),
+                    pair: *i,
+                    s: *s,
+                    specs: (wa.clone(), wb.clone()),
                     result,
                 }
             })

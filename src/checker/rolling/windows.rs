@@ -278,7 +278,7 @@ impl RollingChecker {
             });
             let result = match ahead {
                 Some(n) => self.prefetched.swap_remove(n).result,
-                None => check_specs((&a, &wa), (&b, &wb), &self.prepared),
+                None => check_specs((&a, &wa), (&b, &wb), |id, w| cached(&self.prepared, id, w)),
             };
             match result {
                 Ok((r, [pa, pb])) => {
@@ -663,21 +663,41 @@ pub(super) fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
 
 /// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
 ///
-/// A body's window prepared for another pair's period is taken from `cache` when it is the
-/// same window (a body in several pairs is then prepared once per period); the two prepared
-/// windows are returned with the result, for the cache.
+/// A body's window already prepared (for another pair's period: `ready` gives it, when it
+/// is the same window) is not prepared again; the two prepared windows are returned with
+/// the result, for the cache.
 pub(super) fn check_specs(
     (a, wa): (&str, &WindowSpec),
     (b, wb): (&str, &WindowSpec),
-    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+    ready: impl Fn(&str, &WindowSpec) -> Option<Arc<PreparedWindow>> + Sync,
 ) -> WindowChecked {
-    let prepared = |id: &str, w: &WindowSpec| match cache.get(id).filter(|c| c.0.same_as(w)) {
-        Some((_, p)) => Ok(p.clone()),
-        None => prepare_window(&w.body(id)).map(Arc::new),
+    let prepared = |id: &str, w: &WindowSpec| match ready(id, w) {
+        Some(p) => Ok(p),
+        None => prepare_spec(id, w),
     };
     let (ra, rb) = rayon::join(|| prepared(a, wa), || prepared(b, wb));
     let (pa, pb) = (ra?, rb?);
     Ok((check_window(&pa, &pb), [pa, pb]))
+}
+
+/// Prepares body `id`'s window.
+pub(super) fn prepare_spec(
+    id: &str,
+    w: &WindowSpec,
+) -> Result<Arc<PreparedWindow>, crate::checker::window::WindowError> {
+    prepare_window(&w.body(id)).map(Arc::new)
+}
+
+/// The window prepared for body `id` in `cache`, if it is the same window as `w`.
+pub(super) fn cached(
+    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+    id: &str,
+    w: &WindowSpec,
+) -> Option<Arc<PreparedWindow>> {
+    cache
+        .get(id)
+        .filter(|c| c.0.same_as(w))
+        .map(|c| c.1.clone())
 }
 
 /// A window's result, with the two bodies' prepared windows.
@@ -686,7 +706,7 @@ pub(super) type WindowChecked =
 
 impl WindowSpec {
     /// The same window: the same pieces (by identity), placement and numbering.
-    fn same_as(&self, o: &WindowSpec) -> bool {
+    pub(super) fn same_as(&self, o: &WindowSpec) -> bool {
         let same = |x: &Arc<TetMesh>, y: &Arc<TetMesh>| Arc::ptr_eq(x, y);
         let same_opt = |x: &Option<Arc<TetMesh>>, y: &Option<Arc<TetMesh>>| match (x, y) {
             (Some(x), Some(y)) => same(x, y),
