@@ -437,7 +437,7 @@ impl Routes {
                             }
                             r
                         } else {
-                            Err("its queue holds its queue_bytes")
+                            Err("its queue holds its queue_mb")
                         }
                     } else {
                         self.send_waiting(from, to, tx, input)
@@ -942,7 +942,7 @@ impl Injector {
                 }
             }
         } else {
-            "queue_bytes"
+            "queue_mb"
         };
         let mut sh = lock(shared);
         let first = sh.run.dropped.is_empty();
