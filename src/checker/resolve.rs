@@ -34,6 +34,7 @@ use super::{
 use crate::kernel::bvh::TraverseWorkspace;
 use crate::kernel::LatticePoint;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 /// How many times a suggestion that does not clear is lengthened by 10 %.
 pub const GROWTH_STEPS: usize = 8;
@@ -177,7 +178,7 @@ fn inside_tet(t: &[LatticePoint; 4], n: &V4, x: &V4) -> bool {
 
 /// A sample point of `a` (the centroid of one of its tets) that lies inside another body
 /// (odd crossing count along a ray), and how far along the ray it first leaves that body.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 struct Exit {
     /// The tet of `a`.
     tet: u32,
@@ -187,33 +188,55 @@ struct Exit {
     distance: f64,
 }
 
-/// The sample points of `a` inside `b` (up to [`MAX_SAMPLES`] of its INSIDE and
-/// INTERFERENCE tets) with their exits along `dir`, in sample order.
-fn exits(a: &Prepared, r: &PairResult, b: &Prepared, dir: &V4) -> Vec<Exit> {
-    let cand: Vec<usize> = r
+/// The sample tets of `a` for ray distances: up to [`MAX_SAMPLES`] of its INSIDE and
+/// INTERFERENCE tets against one other body (every k-th, in order).
+fn samples(r: &PairResult) -> Vec<u32> {
+    let cand: Vec<u32> = r
         .labels_a
         .labels
         .iter()
         .enumerate()
         .filter(|(_, l)| **l != Label::Outside)
-        .map(|(i, _)| i)
+        .map(|(i, _)| i as u32)
         .collect();
     let step = (cand.len() / MAX_SAMPLES).max(1);
+    cand.into_iter().step_by(step).collect()
+}
+
+/// The sample points of `a` inside `b` (see [`samples`]) with their exits along `dir`, in
+/// sample order; `None` as soon as one exit lies farther than `bound` (`f64` bits of a
+/// positive distance): then `dir` is not the shortest way out.
+fn exits_within(
+    a: &Prepared,
+    samples: &[u32],
+    b: &Prepared,
+    dir: &V4,
+    bound: &AtomicU64,
+) -> Option<Vec<Exit>> {
     let mut ws = TraverseWorkspace::new();
     let mut hits = Vec::new();
     let mut out = Vec::new();
-    for &i in cand.iter().step_by(step) {
-        let point = centroid(&tet_of(&a.mesh, i as u32));
+    for &t in samples {
+        let point = centroid(&tet_of(&a.mesh, t));
         let xs = ray_crossings(&point, dir, b, &mut ws, &mut hits);
         if xs.len() % 2 == 1 {
+            if xs[0] > f64::from_bits(bound.load(Ordering::Relaxed)) {
+                return None;
+            }
             out.push(Exit {
-                tet: i as u32,
+                tet: t,
                 point,
                 distance: xs[0],
             });
         }
     }
-    out
+    Some(out)
+}
+
+/// The sample points of `a` inside `b` with their exits along `dir`, in sample order.
+fn exits(a: &Prepared, r: &PairResult, b: &Prepared, dir: &V4) -> Vec<Exit> {
+    let unbounded = AtomicU64::new(f64::INFINITY.to_bits());
+    exits_within(a, &samples(r), b, dir, &unbounded).unwrap_or_default()
 }
 
 /// The farthest exit (the first one among equals).
@@ -292,6 +315,67 @@ pub fn clears(a: &Prepared, others: &[&Prepared]) -> bool {
     others.iter().all(|b| !interferes(a, b))
 }
 
+/// Per direction (unit vectors in the metric space), the exits of `a`'s samples from each
+/// body of `hits` along it, on all cores (independent ray casts).
+///
+/// With `prune`, a direction is dropped (`None`) as soon as one of its exits lies farther
+/// than the farthest exit of a direction already done: it cannot be the shortest. The
+/// shortest is never dropped (its exits are all within every done direction's farthest),
+/// so [`shortest`] picks what it picks from all exits in full, whatever the order the
+/// directions finish in.
+fn direction_exits(
+    a: &Prepared,
+    others: &[&Prepared],
+    results: &[&PairResult],
+    hits: &[usize],
+    directions: &[(V4, &'static str)],
+    m: &Metric,
+    prune: bool,
+) -> Vec<Option<Vec<(usize, Vec<Exit>)>>> {
+    let sampled: Vec<(usize, Vec<u32>)> = hits.iter().map(|&i| (i, samples(results[i]))).collect();
+    let bound = AtomicU64::new(f64::INFINITY.to_bits());
+    directions
+        .par_iter()
+        .map(|(u, _)| {
+            // Move λ along dir_lattice = u/σ: the metric displacement is λ·u, |u| = 1.
+            let dir: V4 = [0, 1, 2, 3].map(|k| u[k] / m.sigma[k]);
+            let per_pair: Option<Vec<(usize, Vec<Exit>)>> = sampled
+                .iter()
+                .map(|(i, s)| Some((*i, exits_within(a, s, others[*i], &dir, &bound)?)))
+                .collect();
+            let d = farthest_of(per_pair.iter().flatten());
+            if prune && d > 0.0 {
+                // Positive floats order as their bits.
+                bound.fetch_min(d.to_bits(), Ordering::Relaxed);
+            }
+            per_pair
+        })
+        .collect()
+}
+
+/// The farthest exit distance over the pairs' exits (0 if none).
+fn farthest_of<'a>(per_pair: impl Iterator<Item = &'a (usize, Vec<Exit>)>) -> f64 {
+    per_pair
+        .filter_map(|(_, e)| farthest(e))
+        .fold(0.0f64, |d, e| d.max(e.distance))
+}
+
+/// The direction whose farthest exit is the shortest (the first among equals), with that
+/// distance; directions without exits or dropped are skipped.
+fn shortest(per_direction: &[Option<Vec<(usize, Vec<Exit>)>>]) -> Option<(f64, usize)> {
+    let mut best: Option<(f64, usize)> = None;
+    for (n, per_pair) in per_direction.iter().enumerate() {
+        let Some(per_pair) = per_pair else {
+            continue;
+        };
+        let d = farthest_of(per_pair.iter());
+        if d > 0.0 && best.is_none_or(|(bd, _)| d < bd) {
+            best = Some((d, n));
+        }
+    }
+    best
+}
+
 /// Suggests a translation of `a` that clears every body of `others` (`results[i]` is the
 /// check of `a` against `others[i]`).
 pub fn suggest_translation(
@@ -333,33 +417,15 @@ pub fn suggest_translation(
     } else {
         axes("axis fallback", &mut directions);
     }
-    // Exits along each direction, on all cores (independent ray casts).
-    let per_direction: Vec<Vec<_>> = directions
-        .par_iter()
-        .map(|(u, _)| {
-            // Move λ along dir_lattice = u/σ: the metric displacement is λ·u, |u| = 1.
-            let dir: V4 = [0, 1, 2, 3].map(|k| u[k] / m.sigma[k]);
-            hits.iter()
-                .map(|&i| (i, exits(a, results[i], others[i], &dir)))
-                .collect()
-        })
-        .collect();
-    let mut best: Option<(f64, usize)> = None;
-    for (n, per_pair) in per_direction.iter().enumerate() {
-        let d = per_pair
-            .iter()
-            .filter_map(|(_, e)| farthest(e))
-            .fold(0.0f64, |d, e| d.max(e.distance));
-        if d > 0.0 && best.is_none_or(|(bd, _)| d < bd) {
-            best = Some((d, n));
-        }
-    }
+    let per_direction = direction_exits(a, others, results, &hits, &directions, m, true);
+    let best = shortest(&per_direction);
     let (d, n) = best?;
     let (u, how) = directions[n];
     // Witnesses for a move of length `len`: the samples whose exit lies beyond `len`,
     // farthest first (they stay inside longest).
     let mut likely: Vec<(f64, u32, usize)> = per_direction[n]
         .iter()
+        .flatten()
         .flat_map(|(i, e)| e.iter().map(move |e| (e.distance, e.tet, *i)))
         .collect();
     likely.sort_by(|x, y| y.0.total_cmp(&x.0));
@@ -553,4 +619,86 @@ pub fn suggest_time_scaling(
         scale: clear as f64 / Q as f64,
         verified_clear: true,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::checker::{check_pair, CommonLattice};
+    use crate::mesh::glue::{BodyAssembler, BodyMesh};
+    use crate::mesh::grid::FrameRef;
+    use crate::mesh::MesherOptions;
+
+    const SIZE: [u32; 3] = [14, 11, 10];
+
+    /// A box of voxels `lo..=hi` moved by `dx` voxels along x per frame, over `frames`.
+    fn moving_box(lo: [usize; 3], hi: [usize; 3], dx: usize, frames: usize) -> BodyMesh {
+        let mut a = BodyAssembler::new(MesherOptions::default()).expect("options");
+        let n = SIZE.iter().map(|&s| s as usize).product::<usize>();
+        for k in 0..frames {
+            let mut data = vec![0u8; n.div_ceil(8)];
+            for i in 0..n {
+                let s = SIZE.map(|s| s as usize);
+                let p = [i % s[0], (i / s[0]) % s[1], i / (s[0] * s[1])];
+                let q = [p[0].wrapping_sub(dx * k), p[1], p[2]];
+                if (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c])) {
+                    data[i / 8] |= 1 << (i % 8);
+                }
+            }
+            let f = FrameRef {
+                stamp_ns: k as i64 * 100_000_000,
+                origin: [0.0; 3],
+                resolution: 0.01,
+                size: SIZE,
+                encoding: 0,
+                data: &data,
+            };
+            a.push(&f).expect("a valid frame");
+        }
+        a.finish()
+    }
+
+    /// The direction search with its pruning picks the direction, distance and exits that
+    /// it picks from every direction's exits in full, and the pruning drops directions.
+    #[test]
+    fn pruned_direction_search_picks_what_the_full_one_picks() {
+        let mut dropped = 0;
+        let scenes = [
+            (([1, 2, 2], [4, 7, 6], 1), ([4, 1, 1], [8, 8, 8], 0)),
+            (([2, 3, 1], [5, 6, 4], 2), ([6, 2, 2], [9, 9, 7], 0)),
+            (([1, 1, 3], [3, 9, 8], 1), ([3, 4, 1], [10, 6, 5], 1)),
+        ];
+        for ((alo, ahi, adx), (blo, bhi, bdx)) in scenes {
+            let a = moving_box(alo, ahi, adx, 4);
+            let b = moving_box(blo, bhi, bdx, 4);
+            let lat = CommonLattice::of(&[("a", &a), ("b", &b)]).expect("one lattice");
+            let (pa, pb) = (
+                lat.prepare("a", &a).expect("a"),
+                lat.prepare("b", &b).expect("b"),
+            );
+            let r = check_pair(&pa, &pb);
+            assert!(r.interfering());
+            let m = Metric::new(&lat, 0.1);
+            let mut directions: Vec<(V4, &'static str)> = Vec::new();
+            for k in 0..4 {
+                for s in [1.0, -1.0] {
+                    let mut u = [0.0; 4];
+                    u[k] = s;
+                    directions.push((u, "axis"));
+                    let mut w = [0.3, -0.2, 0.1, 0.25];
+                    w[k] += s;
+                    let n = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    directions.push((w.map(|x| x / n), "search"));
+                }
+            }
+            let full = direction_exits(&pa, &[&pb], &[&r], &[0], &directions, &m, false);
+            let pruned = direction_exits(&pa, &[&pb], &[&r], &[0], &directions, &m, true);
+            assert!(full.iter().all(Option::is_some));
+            let best = shortest(&full).expect("a way out");
+            assert_eq!(shortest(&pruned), Some(best));
+            assert_eq!(pruned[best.1], full[best.1]);
+            dropped += pruned.iter().filter(|p| p.is_none()).count();
+        }
+        assert!(dropped > 0, "the pruning dropped no direction");
+    }
 }
