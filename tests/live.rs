@@ -96,7 +96,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
             "launch",
             cfg,
             "--duration",
-            "14",
+            "16",
             "--summary",
             summary.to_str().unwrap(),
         ],
@@ -112,7 +112,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
             "--out",
             rec.to_str().unwrap(),
             "--duration",
-            "15",
+            "17",
         ],
         &r_log,
     );
@@ -131,7 +131,7 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
             "--out",
             rec_in.to_str().unwrap(),
             "--duration",
-            "15",
+            "17",
         ],
         &ri_log,
     );
@@ -141,8 +141,8 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
         &dom,
         // Readers of a volatile topic get only what is written after they match: give both
         // recorders and the launch time to discover the player's writers (a loaded CI
-        // machine needs more than 2 s).
-        &["play", bag.to_str().unwrap(), "--wait", "4"],
+        // machine needs more than 2 s, and once more than 4 s).
+        &["play", bag.to_str().unwrap(), "--wait", "6"],
         &p_log,
     );
     play.wait(&p_log);
@@ -285,7 +285,7 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
             "launch",
             cfg.to_str().unwrap(),
             "--duration",
-            "14",
+            "16",
             "--summary",
             summary.to_str().unwrap(),
         ],
@@ -319,8 +319,9 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
         &[
             "play",
             bag.to_str().unwrap(),
+            // Time for the launch's readers to match, as above.
             "--wait",
-            "2",
+            "4",
             "--rate",
             "0.2",
         ],
