@@ -318,7 +318,7 @@ pub fn clears(a: &Prepared, others: &[&Prepared]) -> bool {
 /// Per direction (unit vectors in the metric space), the exits of `a`'s samples from each
 /// body of `hits` along it, on all cores (independent ray casts).
 ///
-/// With `prune`, a direction is dropped (`None`) as soon as one of its exits lies farther
+/// A direction is dropped (`None`) as soon as one of its exits lies farther
 /// than the farthest exit of a direction already done: it cannot be the shortest. The
 /// shortest is never dropped (its exits are all within every done direction's farthest),
 /// so [`shortest`] picks what it picks from all exits in full, whatever the order the
@@ -330,7 +330,6 @@ fn direction_exits(
     hits: &[usize],
     directions: &[(V4, &'static str)],
     m: &Metric,
-    prune: bool,
 ) -> Vec<Option<Vec<(usize, Vec<Exit>)>>> {
     let sampled: Vec<(usize, Vec<u32>)> = hits.iter().map(|&i| (i, samples(results[i]))).collect();
     let bound = AtomicU64::new(f64::INFINITY.to_bits());
@@ -344,7 +343,7 @@ fn direction_exits(
                 .map(|(i, s)| Some((*i, exits_within(a, s, others[*i], &dir, &bound)?)))
                 .collect();
             let d = farthest_of(per_pair.iter().flatten());
-            if prune && d > 0.0 {
+            if d > 0.0 {
                 // Positive floats order as their bits.
                 bound.fetch_min(d.to_bits(), Ordering::Relaxed);
             }
@@ -417,7 +416,7 @@ pub fn suggest_translation(
     } else {
         axes("axis fallback", &mut directions);
     }
-    let per_direction = direction_exits(a, others, results, &hits, &directions, m, true);
+    let per_direction = direction_exits(a, others, results, &hits, &directions, m);
     let best = shortest(&per_direction);
     let (d, n) = best?;
     let (u, how) = directions[n];
@@ -659,7 +658,7 @@ mod tests {
     }
 
     /// The direction search with its pruning picks the direction, distance and exits that
-    /// it picks from every direction's exits in full, and the pruning drops directions.
+    /// every direction's exits in full give, and the pruning drops directions.
     #[test]
     fn pruned_direction_search_picks_what_the_full_one_picks() {
         let mut dropped = 0;
@@ -691,9 +690,15 @@ mod tests {
                     directions.push((w.map(|x| x / n), "search"));
                 }
             }
-            let full = direction_exits(&pa, &[&pb], &[&r], &[0], &directions, &m, false);
-            let pruned = direction_exits(&pa, &[&pb], &[&r], &[0], &directions, &m, true);
-            assert!(full.iter().all(Option::is_some));
+            // Every direction's exits in full, as the search ran before its pruning.
+            let full: Vec<Option<Vec<(usize, Vec<Exit>)>>> = directions
+                .iter()
+                .map(|(u, _)| {
+                    let dir: V4 = [0, 1, 2, 3].map(|k| u[k] / m.sigma[k]);
+                    Some(vec![(0, exits(&pa, &r, &pb, &dir))])
+                })
+                .collect();
+            let pruned = direction_exits(&pa, &[&pb], &[&r], &[0], &directions, &m);
             let best = shortest(&full).expect("a way out");
             assert_eq!(shortest(&pruned), Some(best));
             assert_eq!(pruned[best.1], full[best.1]);

@@ -1050,15 +1050,11 @@ impl RollingChecker {
                 }
             }
         }
-        let shared: Vec<Option<Arc<PreparedWindow>>> = if distinct.len() < 2 * ready.len() {
-            distinct
-                .par_iter()
-                .map(|(id, w)| prepare_spec(id, w).ok())
-                .collect()
-        } else {
-            // Nothing shared: each pair prepares its own two, beside its check.
-            Vec::new()
-        };
+        // A window that fails to prepare is prepared again by its pair, for the error.
+        let shared: Vec<Option<Arc<PreparedWindow>>> = distinct
+            .par_iter()
+            .map(|(id, w)| prepare_spec(id, w).ok())
+            .collect();
         let ready_for = |id: &str, w: &WindowSpec| {
             cached(&self.prepared, id, w).or_else(|| {
                 let n = distinct
