@@ -34,6 +34,13 @@
       (reliable, keep last 1; it never decodes them). Without a subscriber
       the node's writers keep every frame until RustDDS's 8192-sample limit (no reader ever
       acknowledges them): the launch's RSS grows by each frame's bytes.
+  python3 bench/live_bench.py stop      [--signals 1|2] [--hz 30] [--frames 400] [--seconds 12]
+      How long a launch behind its input takes to stop. `chronotope play` plays a machine-tool
+      scene of --frames frames per body at --hz frames per second into `launch machine_tool.yaml`
+      (faster than the checker keeps up, so its queue fills), is stopped after --seconds, then
+      the launch gets --signals SIGINTs one second apart (1: stop, it finishes what is queued;
+      2: abort, what is queued is discarded). Prints the time from the first signal to the
+      launch's exit, and per node the messages received, dropped and discarded (--summary).
 
 Build first: cargo build --release.  --exe selects another binary.  --json FILE writes the
 figures as JSON too (with the load average: other builds share the cores).
@@ -879,6 +886,51 @@ def bench_carving(a, exe, domain, tmp):
 
 # ---- idle -------------------------------------------------------------------------------
 
+def bench_stop(a, exe, domain, tmp):
+    bag = Path(a.bag) if a.bag else tmp / f"machine-tool-{a.grid}.mcap"
+    frames = a.frames or 400
+    if not a.bag:
+        log(f"generating the machine-tool scene at {a.grid}^3, {frames} frames -> {bag}")
+        subprocess.run([str(exe), "scene", "machine-tool", "--grid", str(a.grid), "--frames",
+                        str(frames), "--out", str(bag)], check=True, stdout=subprocess.DEVNULL)
+    period, _ = bag_frames(bag)
+    rate = a.hz * period
+    summary = tmp / "summary.json"
+    launch = start_launch(exe, ROOT / "launch_configs/machine_tool.yaml", domain, a.seconds_max,
+                          summary, tmp / "launch.log")
+    time.sleep(1.0)
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), RUST_LOG="warn")
+    play = subprocess.Popen([str(exe), "play", str(bag), "--wait", "2", "--rate", f"{rate:.6g}"],
+                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(2 + a.seconds)
+    play.send_signal(2)
+    wait(play, "chronotope play", 30)
+    t0 = time.monotonic()
+    for k in range(a.signals):
+        if k:
+            time.sleep(1.0)
+        if launch.poll() is None:
+            launch.send_signal(2)
+    wait(launch, "chronotope launch", a.seconds_max)
+    took = time.monotonic() - t0
+    full = json.loads(summary.read_text())
+    print(f"\nstop: machine-tool {a.grid}^3 played at {a.hz:g} Hz for {a.seconds:g} s into "
+          f"`launch machine_tool.yaml`; {a.signals} SIGINT(s) 1 s apart: the launch exited "
+          f"{took:.1f} s after the first")
+    print("| node | received | dropped | discarded | unfinished |")
+    print("|---|---|---|---|---|")
+    nodes = {}
+    for name, r in sorted(full["nodes"].items()):
+        row = {"received": r["received"], "dropped": sum(r["dropped"].values()),
+               "discarded": sum(r.get("discarded", {}).values()),
+               "unfinished": r.get("unfinished")}
+        nodes[name] = row
+        print(f"| `{name}` | {row['received']} | {row['dropped']} | {row['discarded']} | "
+              f"{row['unfinished'] or ''} |")
+    return {"signals": a.signals, "hz": a.hz, "play_s": a.seconds, "frames": frames,
+            "grid": a.grid, "stop_s": took, "nodes": nodes}
+
+
 def bench_idle(a, exe, domain, tmp):
     cfg = ROOT / "launch_configs/machine_tool.yaml"
     launch = start_launch(exe, cfg, domain, a.seconds + 30, tmp / "summary.json", tmp / "launch.log")
@@ -898,7 +950,7 @@ def bench_idle(a, exe, domain, tmp):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=["cyclone", "mesher", "carving", "idle", "all"])
+    ap.add_argument("case", choices=["cyclone", "mesher", "carving", "idle", "stop", "all"])
     ap.add_argument("--exe", default=str(DEFAULT_EXE))
     ap.add_argument("--loops", type=int, default=3)
     ap.add_argument("--hz", type=float, default=10.0,
@@ -931,6 +983,8 @@ def main() -> int:
                     help="cyclone: stop taking results after this many seconds without any")
     ap.add_argument("--domain", type=int, default=None,
                     help="DDS domain (default 120 + pid %% 50), e.g. to add a peer of your own")
+    ap.add_argument("--signals", type=int, choices=[1, 2], default=1,
+                    help="stop: SIGINTs sent to the launch, 1 s apart (2 aborts)")
     ap.add_argument("--json", default=None)
     a = ap.parse_args()
     exe = Path(a.exe)
@@ -955,9 +1009,10 @@ def main() -> int:
             sub = tmp / c
             sub.mkdir()
             # Each case's own default (`all` runs idle, then the mesher with its 64 frames).
-            a.seconds = given if given is not None else {"idle": 30.0, "carving": 60.0}.get(c)
+            a.seconds = given if given is not None else {"idle": 30.0, "carving": 60.0,
+                                                         "stop": 12.0}.get(c)
             out[c] = {"idle": bench_idle, "cyclone": bench_cyclone, "mesher": bench_mesher,
-                      "carving": bench_carving}[c](a, exe, domain, sub)
+                      "carving": bench_carving, "stop": bench_stop}[c](a, exe, domain, sub)
     out["loadavg_end"] = loadavg()
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)

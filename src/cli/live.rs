@@ -3,11 +3,12 @@
 //!
 //! All four stop cleanly on Ctrl-C (SIGINT) or SIGTERM: the nodes finish what they have (a
 //! stream cut short is closed and checked), the last messages are sent, and the DDS
-//! participant says goodbye to its peers.
+//! participant says goodbye to its peers. A second signal aborts: what is still queued is
+//! discarded (counted), each node finishes the handler it is in, and the writers are flushed.
+//! A third exits at once (status 130).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -20,6 +21,7 @@ use crate::bag::{BagReader, BagWriter};
 use crate::live::wire::{ros_topic_name, ros_type_name, RawCdr, TopicQos};
 use crate::live::{
     domain_id_from_env, run_nodes, write_stamped, LiveError, LiveOptions, Participant, RawWriter,
+    Shutdown,
 };
 use crate::msg::{Clock, RosMessage, Time};
 use crate::node::launch::{LaunchConfig, NodeKind};
@@ -112,10 +114,11 @@ pub struct RecordArgs {
     pub discovery: f64,
 }
 
-/// A flag set by Ctrl-C (SIGINT) or SIGTERM.
-fn stop_on_signal() -> Arc<AtomicBool> {
-    let stop = Arc::new(AtomicBool::new(false));
-    let flag = stop.clone();
+/// What Ctrl-C (SIGINT) or SIGTERM asks for: the first a stop, the second an abort, the
+/// third an exit at once (status 130, as a shell reports an interrupted command).
+fn stop_on_signal() -> Arc<Shutdown> {
+    let shutdown = Arc::new(Shutdown::default());
+    let flags = shutdown.clone();
     std::thread::spawn(move || {
         let Ok(rt) = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -126,23 +129,40 @@ fn stop_on_signal() -> Arc<AtomicBool> {
         rt.block_on(async {
             let mut term =
                 tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
-            let term = async {
-                match term.as_mut() {
-                    Some(t) => {
-                        t.recv().await;
+            for n in 1.. {
+                let term = async {
+                    match term.as_mut() {
+                        Some(t) => {
+                            t.recv().await;
+                        }
+                        None => std::future::pending::<()>().await,
                     }
-                    None => std::future::pending::<()>().await,
+                };
+                tokio::select! {
+                    _ = tokio::signal::ctrl_c() => {}
+                    () = term => {}
                 }
-            };
-            tokio::select! {
-                _ = tokio::signal::ctrl_c() => {}
-                () = term => {}
+                match n {
+                    1 => {
+                        tracing::info!("signal: stopping (again to abort)");
+                        flags.stop();
+                    }
+                    2 => {
+                        tracing::warn!(
+                            "second signal: aborting; what is queued is discarded (again to \
+                             exit at once)"
+                        );
+                        flags.abort();
+                    }
+                    _ => {
+                        tracing::error!("third signal: exiting at once");
+                        std::process::exit(130);
+                    }
+                }
             }
         });
-        tracing::info!("signal: stopping");
-        flag.store(true, Ordering::Relaxed);
     });
-    stop
+    shutdown
 }
 
 fn seconds(what: &str, s: Option<f64>) -> Result<Option<Duration>, CliError> {
@@ -204,7 +224,7 @@ fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<
     let summary = run_nodes(local, &specs, &opts, stop_on_signal())?;
     for (name, s) in &summary.nodes {
         eprintln!(
-            "{name}: received {}, published {}, problems {}, dropped {}, CPU {:.2} s{}",
+            "{name}: received {}, published {}, problems {}, dropped {}, CPU {:.2} s{}{}{}",
             s.status.received,
             s.status.published,
             s.status.problem_count(),
@@ -213,6 +233,14 @@ fn run_config(config: &LaunchConfig, only: Option<&str>, a: &RunArgs) -> Result<
             s.stopped
                 .as_ref()
                 .map(|w| format!(", STOPPED: {w}"))
+                .unwrap_or_default(),
+            match s.discarded.values().sum::<u64>() {
+                0 => String::new(),
+                n => format!(", discarded by the abort {n}"),
+            },
+            s.unfinished
+                .as_ref()
+                .map(|w| format!(", UNFINISHED: {w}"))
                 .unwrap_or_default()
         );
     }
@@ -290,7 +318,7 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
         let mut t0 = None;
         let mut last_clock = None;
         for item in BagReader::open(&a.bag)? {
-            if stop.load(Ordering::Relaxed) {
+            if stop.stopping() {
                 break 'plays;
             }
             let m = match item {
@@ -465,7 +493,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
     let start = Instant::now();
     let limit = seconds("duration", a.duration)?;
     let mut counts: BTreeMap<&str, u64> = BTreeMap::new();
-    while !stop.load(Ordering::Relaxed) && limit.is_none_or(|l| start.elapsed() < l) {
+    while !stop.stopping() && limit.is_none_or(|l| start.elapsed() < l) {
         match rx.recv_timeout(Duration::from_millis(100)) {
             Ok((i, t, published, bytes)) => {
                 let topic = &names[i].0;

@@ -38,7 +38,8 @@ pub enum Command {
     Check(check::CheckArgs),
     /// Run the suite's nodes over a bag in one process; write the report and the output bag.
     Replay(replay::ReplayArgs),
-    /// Run the nodes of a launch config on DDS, in this process (until Ctrl-C).
+    /// Run the nodes of a launch config on DDS, in this process (until Ctrl-C; a second
+    /// Ctrl-C drops what is still queued).
     Launch(live::LaunchArgs),
     /// Run one node of a launch config on DDS (the others may run elsewhere).
     Node(live::NodeArgs),

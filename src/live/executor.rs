@@ -33,6 +33,10 @@
 //! - **Finishing.** On stop, nodes finish in increasing [`Node::rank`]: a rank's nodes
 //!   finish (each after the messages already in its queue) and what they publish reaches the
 //!   next rank's queues before that rank is told to finish, as on the in-process bus.
+//! - **Aborting** ([`Executor::aborter`], a second Ctrl-C): what waits in the queues, and
+//!   whatever is sent or comes from the wire after, is discarded and counted per node and
+//!   topic; each node finishes the handler it is in, then finishes (its last answers on what
+//!   it handled). A node still busy [`ABORT_WAIT`] after the abort is not waited for.
 //!
 //! The executor knows nothing of DDS: the wire is behind [`WireOut`] (what a node publishes
 //! that leaves the process) and [`Executor::inject`] (what comes in), so the tests run it
@@ -40,7 +44,7 @@
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -68,6 +72,12 @@ const BYTES_POLL: Duration = Duration::from_millis(2);
 const WORKING: usize = usize::MAX - 1;
 /// A node's state otherwise (unless it waits for room in another node's queue).
 const IDLE: usize = usize::MAX;
+
+/// How long [`Executor::finish`] still waits for a node once the run is aborted.
+pub const ABORT_WAIT: Duration = Duration::from_secs(2);
+
+/// Why a message was not delivered: the run is aborted.
+const ABORTED: &str = "the run is aborted";
 
 /// Most messages a node takes from its queue in one batch.
 pub const MAX_BATCH: usize = 64;
@@ -158,6 +168,13 @@ pub struct NodeRun {
     /// Why it was stopped (a panic's message), if it was.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stopped: Option<String>,
+    /// Messages for it discarded unhandled because the run was aborted, per topic.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub discarded: BTreeMap<String, u64>,
+    /// Set when the run was aborted before the node finished (it was still in a handler
+    /// [`ABORT_WAIT`] after the abort): its last answers were not published.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unfinished: Option<String>,
 }
 
 /// The recent lags of one topic (a bounded ring), from which [`LagStats`] are computed.
@@ -232,6 +249,22 @@ struct Routes {
     /// the most it held.
     bytes: Vec<QueueBytes>,
     names: Vec<String>,
+    /// Set once the run is aborted: queued and new messages are discarded.
+    abort: AtomicBool,
+}
+
+/// Aborts a run ([`Executor::aborter`]).
+#[derive(Clone)]
+pub struct Aborter(Arc<Routes>);
+
+impl Aborter {
+    /// From now on, what waits in the nodes' queues and whatever comes is discarded
+    /// (counted); [`Executor::finish`] waits at most [`ABORT_WAIT`] more for a node.
+    pub fn abort(&self) {
+        if !self.0.abort.swap(true, Ordering::AcqRel) {
+            tracing::warn!("aborting: queued messages are discarded (counted)");
+        }
+    }
 }
 
 /// Nodes running on their threads.
@@ -344,6 +377,16 @@ impl Input {
 }
 
 impl Routes {
+    fn aborted(&self) -> bool {
+        self.abort.load(Ordering::Acquire)
+    }
+
+    /// Counts a message for node `to` on `topic` discarded by the abort.
+    fn discard(&self, to: usize, topic: &str) {
+        let mut s = lock(&self.queues[to].1);
+        *s.run.discarded.entry(topic.to_owned()).or_default() += 1;
+    }
+
     /// Whether node `n` is at work: in a handler, or waiting for room at a node that is
     /// (followed along the chain; a cycle of waits is no work).
     fn at_work(&self, mut n: usize) -> bool {
@@ -370,6 +413,9 @@ impl Routes {
         let budget = &self.bytes[to];
         let mut idle = Duration::ZERO;
         let r = loop {
+            if self.aborted() {
+                break Err(ABORTED);
+            }
             let waited = if budget.reserve(bytes) {
                 match tx.send_timeout(input, LOCAL_SEND_POLL) {
                     Ok(()) => break Ok(()),
@@ -423,6 +469,10 @@ impl Routes {
                         s.run.status.problem(&name, "misrouted", text);
                         continue;
                     }
+                    if self.aborted() {
+                        self.discard(to, &m.topic);
+                        continue;
+                    }
                     let input = Input::Local(m.clone(), Instant::now());
                     let sent = if realtime {
                         let bytes = input.queue_bytes();
@@ -442,7 +492,9 @@ impl Routes {
                     } else {
                         self.send_waiting(from, to, tx, input)
                     };
-                    if let Err(why) = sent {
+                    if sent == Err(ABORTED) {
+                        self.discard(to, &m.topic);
+                    } else if let Err(why) = sent {
                         let mut s = lock(shared);
                         *s.run.dropped.entry(m.topic.to_string()).or_default() += 1;
                         if s.run.dropped.values().sum::<u64>() == 1 {
@@ -519,6 +571,13 @@ impl Unit {
                     let _ = req.reply.send(r);
                 }
                 Input::Stop => break,
+                Input::Wire(_) | Input::Local(..) if self.routes.aborted() => {
+                    let bytes = first.queue_bytes();
+                    if let Some(topic) = first.topic() {
+                        self.routes.discard(self.index, topic);
+                    }
+                    self.routes.bytes[self.index].release(bytes);
+                }
                 Input::Finish(ack) => {
                     self.guarded(&mut out, |n, out| n.finish(out));
                     self.routes
@@ -774,6 +833,7 @@ impl Executor {
                 })
                 .collect(),
             names: nodes.iter().map(|n| n.name().to_owned()).collect(),
+            abort: AtomicBool::new(false),
         });
         let mut units = Vec::new();
         let mut wires = wires.into_iter();
@@ -883,38 +943,120 @@ impl Executor {
             .collect()
     }
 
+    /// What aborts the run (while it runs or while it finishes).
+    pub fn aborter(&self) -> Aborter {
+        Aborter(self.routes.clone())
+    }
+
     /// Finishes the nodes in increasing rank (each after what is in its queue), waiting at
     /// most `wait` per rank, then ends their threads.
+    ///
+    /// Once the run is aborted ([`Aborter`]) the queues are discarded, and a node that has
+    /// not finished [`ABORT_WAIT`] later (it is still in a handler) is left: its thread is
+    /// not joined and its run says `unfinished`.
     pub fn finish(mut self, wait: Duration) -> BTreeMap<String, NodeRun> {
         let mut ranks: Vec<u8> = self.units.iter().map(|u| u.rank).collect();
         ranks.sort_unstable();
         ranks.dedup();
+        let mut aborted_at: Option<Instant> = None;
+        let mut finished = vec![false; self.units.len()];
         for r in ranks {
+            let rank_start = Instant::now();
             let acks: Vec<_> = self
                 .units
                 .iter()
-                .filter(|u| u.rank == r)
-                .map(|u| {
+                .enumerate()
+                .filter(|(_, u)| u.rank == r)
+                .map(|(i, u)| {
                     let (tx, rx) = bounded(1);
-                    let _ = u.tx.send_timeout(Input::Finish(tx), wait);
-                    (u.name.clone(), rx)
+                    self.send_control(&u.tx, Input::Finish(tx), rank_start, wait, &mut aborted_at);
+                    (i, rx)
                 })
                 .collect();
-            for (name, rx) in acks {
-                if rx.recv_timeout(wait).is_err() {
-                    tracing::warn!(node = name, "did not finish within {wait:?}");
+            for (i, rx) in acks {
+                loop {
+                    let until = self.until(rank_start, wait, &mut aborted_at);
+                    let slice = until
+                        .saturating_duration_since(Instant::now())
+                        .min(LOCAL_SEND_POLL);
+                    match rx.recv_timeout(slice) {
+                        Ok(()) => {
+                            finished[i] = true;
+                            break;
+                        }
+                        Err(RecvTimeoutError::Disconnected) => break,
+                        Err(RecvTimeoutError::Timeout) if Instant::now() < until => {}
+                        Err(RecvTimeoutError::Timeout) => {
+                            let name = &self.units[i].name;
+                            if aborted_at.is_some() {
+                                tracing::warn!(
+                                    node = name,
+                                    "aborted: still in a handler; not waited for"
+                                );
+                                lock(&self.units[i].shared).run.unfinished = Some(format!(
+                                    "the run was aborted while it was still in a handler \
+                                     ({ABORT_WAIT:?} later): its last answers were not published"
+                                ));
+                            } else {
+                                tracing::warn!(node = name, "did not finish within {wait:?}");
+                            }
+                            break;
+                        }
+                    }
                 }
             }
         }
-        for u in &self.units {
-            let _ = u.tx.send_timeout(Input::Stop, wait);
-        }
-        for u in &mut self.units {
-            if let Some(t) = u.thread.take() {
-                let _ = t.join();
+        let units = std::mem::take(&mut self.units);
+        for (u, &done) in units.iter().zip(&finished) {
+            if done || aborted_at.is_none() {
+                self.send_control(&u.tx, Input::Stop, Instant::now(), wait, &mut aborted_at);
+            } else {
+                let _ = u.tx.try_send(Input::Stop);
             }
         }
+        for (mut u, done) in units.into_iter().zip(finished) {
+            // A node left in a handler after an abort is not joined: its thread ends with
+            // the process.
+            if done || aborted_at.is_none() {
+                if let Some(t) = u.thread.take() {
+                    let _ = t.join();
+                }
+            }
+            self.units.push(u);
+        }
         self.runs()
+    }
+
+    /// Until when [`Executor::finish`] waits for what it began at `from`: `wait` later, or
+    /// [`ABORT_WAIT`] after the abort (or after `from`, if the abort came first).
+    fn until(&self, from: Instant, wait: Duration, aborted_at: &mut Option<Instant>) -> Instant {
+        if self.routes.aborted() {
+            aborted_at.get_or_insert_with(Instant::now);
+        }
+        let deadline = from + wait;
+        aborted_at.map_or(deadline, |a| deadline.min(a.max(from) + ABORT_WAIT))
+    }
+
+    /// Sends a control input to a node, waiting for room until [`Executor::until`].
+    fn send_control(
+        &self,
+        tx: &Sender<Input>,
+        mut input: Input,
+        from: Instant,
+        wait: Duration,
+        aborted_at: &mut Option<Instant>,
+    ) {
+        loop {
+            let until = self.until(from, wait, aborted_at);
+            let slice = until
+                .saturating_duration_since(Instant::now())
+                .min(LOCAL_SEND_POLL);
+            match tx.send_timeout(input, slice) {
+                Ok(()) | Err(SendTimeoutError::Disconnected(_)) => return,
+                Err(SendTimeoutError::Timeout(back)) if Instant::now() < until => input = back,
+                Err(SendTimeoutError::Timeout(_)) => return,
+            }
+        }
     }
 }
 
@@ -929,6 +1071,10 @@ impl Injector {
         let Some((tx, shared)) = self.0.queues.get(index) else {
             return false;
         };
+        if self.0.aborted() {
+            self.0.discard(index, &sample.topic);
+            return false;
+        }
         let topic = sample.topic.clone();
         let input = Input::Wire(sample);
         let bytes = input.queue_bytes();
@@ -977,6 +1123,8 @@ mod tests {
         /// Sleeps this long on the pose at x instead.
         sleep_at: Option<(f64, Duration)>,
         seen: Arc<Mutex<Vec<f64>>>,
+        /// How many times its `finish` ran.
+        finishes: Arc<AtomicUsize>,
         status: NodeStatus,
     }
 
@@ -992,6 +1140,7 @@ mod tests {
             sleep: Duration::ZERO,
             sleep_at: None,
             seen: seen.clone(),
+            finishes: Arc::new(AtomicUsize::new(0)),
             status: NodeStatus::default(),
         };
         (r, seen)
@@ -1050,6 +1199,7 @@ mod tests {
             ));
         }
         fn finish(&mut self, out: &mut Vec<Message>) {
+            self.finishes.fetch_add(1, Ordering::Relaxed);
             out.push(Message::new(&self.output, 0, pose(-1.0)));
         }
         fn status(&self) -> &NodeStatus {
@@ -1256,5 +1406,78 @@ mod tests {
         let want: Vec<f64> = (0..10).map(f64::from).collect();
         assert_eq!(*lock(&seen_b), want);
         assert!(runs["/a"].cpu_s >= 0.0);
+    }
+
+    #[test]
+    fn an_abort_discards_what_is_queued_counts_it_and_still_finishes_the_nodes() {
+        // /a works 100 ms per pose and has 20 waiting; /b reads what /a publishes.
+        let (mut a, seen_a) = relay("/a", "/in", "/mid", 0);
+        a.sleep = Duration::from_millis(100);
+        let (b, seen_b) = relay("/b", "/mid", "/out", 1);
+        let (fa, fb) = (a.finishes.clone(), b.finishes.clone());
+        let exec = start(vec![Box::new(a), Box::new(b)], &[opts(64), opts(64)]);
+        for x in 0..20 {
+            assert_eq!(exec.inject(&sample("/in", f64::from(x))), 1);
+        }
+        std::thread::sleep(Duration::from_millis(150));
+        let routes = exec.routes.clone();
+        exec.aborter().abort();
+        // Wire samples after the abort are discarded at once.
+        assert_eq!(exec.inject(&sample("/in", 99.0)), 0);
+        let t = Instant::now();
+        let runs = exec.finish(Duration::from_secs(30));
+        assert!(t.elapsed() < Duration::from_secs(1), "{:?}", t.elapsed());
+        let handled = lock(&seen_a).len() as u64;
+        assert!((1..=4).contains(&handled), "{handled}");
+        // Every pose is either handled or discarded and counted, none dropped.
+        assert_eq!(runs["/a"].discarded["/in"], 21 - handled);
+        assert!(runs["/a"].dropped.is_empty(), "{:?}", runs["/a"]);
+        // What /a published after the abort (its finish's pose included) is discarded at /b.
+        let at_b = lock(&seen_b).len() as u64;
+        assert_eq!(at_b + runs["/b"].discarded["/mid"], handled + 1);
+        // Both still finished, and neither is unfinished.
+        assert_eq!(
+            (fa.load(Ordering::Relaxed), fb.load(Ordering::Relaxed)),
+            (1, 1)
+        );
+        assert!(runs["/a"].unfinished.is_none() && runs["/b"].unfinished.is_none());
+        // What was discarded gave its bytes back.
+        assert!(routes
+            .bytes
+            .iter()
+            .all(|b| b.held.load(Ordering::Relaxed) == 0));
+    }
+
+    #[test]
+    fn an_abort_while_finishing_leaves_a_node_stuck_in_its_handler_after_abort_wait() {
+        // /a is in a 20 s handler; a stop would wait for it (up to its 30 s per rank). An
+        // abort 300 ms into the finish ends the wait ABORT_WAIT later.
+        let (mut a, _) = relay("/a", "/in", "/mid", 0);
+        a.sleep_at = Some((1.0, Duration::from_secs(20)));
+        let (b, _) = relay("/b", "/mid", "/out", 1);
+        let (fa, fb) = (a.finishes.clone(), b.finishes.clone());
+        let exec = start(vec![Box::new(a), Box::new(b)], &[opts(64), opts(64)]);
+        for x in [1.0, 2.0, 3.0] {
+            exec.inject(&sample("/in", x));
+        }
+        std::thread::sleep(Duration::from_millis(100));
+        let aborter = exec.aborter();
+        let t = Instant::now();
+        let later = std::thread::spawn(move || {
+            std::thread::sleep(Duration::from_millis(300));
+            aborter.abort();
+        });
+        let runs = exec.finish(Duration::from_secs(30));
+        later.join().unwrap();
+        let took = t.elapsed();
+        assert!(
+            took >= ABORT_WAIT && took < ABORT_WAIT + Duration::from_millis(1500),
+            "{took:?}"
+        );
+        assert!(runs["/a"].unfinished.is_some(), "{:?}", runs["/a"]);
+        assert_eq!(fa.load(Ordering::Relaxed), 0);
+        // /b was idle: it finished.
+        assert!(runs["/b"].unfinished.is_none());
+        assert_eq!(fb.load(Ordering::Relaxed), 1);
     }
 }

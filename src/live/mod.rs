@@ -717,9 +717,44 @@ fn wire_topics(
     (inputs.into_iter().collect(), outputs)
 }
 
-/// Runs `nodes` on the wire, each on its own thread ([`executor`]), until `stop` is set
-/// (Ctrl-C) or `opts.run_for` has passed, then finishes them in rank order (closing meshes,
-/// a last check), publishes what that gives and waits for reliable readers to acknowledge.
+/// How a live run is asked to end (set from signals by the commands: a first Ctrl-C stops,
+/// a second aborts).
+#[derive(Debug, Default)]
+pub struct Shutdown {
+    stop: AtomicBool,
+    abort: AtomicBool,
+}
+
+impl Shutdown {
+    /// Stop: every node handles what is queued for it, then finishes.
+    pub fn stop(&self) {
+        self.stop.store(true, Ordering::Release);
+    }
+
+    /// Abort (implies stop): what is queued is discarded and counted, each node finishes
+    /// the handler it is in and then finishes; a node still busy
+    /// [`executor::ABORT_WAIT`] later is not waited for.
+    pub fn abort(&self) {
+        self.abort.store(true, Ordering::Release);
+        self.stop();
+    }
+
+    /// Whether a stop (or an abort) was asked for.
+    pub fn stopping(&self) -> bool {
+        self.stop.load(Ordering::Acquire)
+    }
+
+    /// Whether an abort was asked for.
+    pub fn aborting(&self) -> bool {
+        self.abort.load(Ordering::Acquire)
+    }
+}
+
+/// Runs `nodes` on the wire, each on its own thread ([`executor`]), until `shutdown` says
+/// stop (Ctrl-C) or `opts.run_for` has passed, then finishes them in rank order (closing
+/// meshes, a last check), publishes what that gives and waits for reliable readers to
+/// acknowledge. An abort (a second Ctrl-C), before or while they finish, discards what is
+/// still queued ([`Shutdown::abort`]).
 ///
 /// `specs` are the nodes' launch specs (their ROS names, parameters and executor options).
 ///
@@ -729,7 +764,7 @@ pub fn run_nodes(
     nodes: Vec<Box<dyn Node>>,
     specs: &[NodeSpec],
     opts: &LiveOptions,
-    stop: Arc<AtomicBool>,
+    shutdown: Arc<Shutdown>,
 ) -> Result<LiveSummary, LiveError> {
     if nodes.is_empty() {
         return Err(LiveError::Nothing("no node to run".into()));
@@ -994,7 +1029,7 @@ pub fn run_nodes(
     };
     let start = Instant::now();
     let mut last_diag = start;
-    while !(stop.load(Ordering::Relaxed) || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
+    while !(shutdown.stopping() || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
         std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
         coordinator.graph.poll(Instant::now());
         if last_diag.elapsed() >= opts.diagnostics_period {
@@ -1004,8 +1039,29 @@ pub fn run_nodes(
         }
     }
     coordinator.check_foreign_types();
-    tracing::info!("stopping: the nodes finish what they have");
+    tracing::info!("stopping: the nodes finish what they have (a second Ctrl-C aborts)");
+    // An abort asked for while the nodes finish reaches the executor through this watcher.
+    let finished = Arc::new(AtomicBool::new(false));
+    let watcher = {
+        let (aborter, shutdown, finished) = (exec.aborter(), shutdown.clone(), finished.clone());
+        std::thread::Builder::new()
+            .name("abort watcher".into())
+            .spawn(move || {
+                while !finished.load(Ordering::Acquire) {
+                    if shutdown.aborting() {
+                        aborter.abort();
+                        return;
+                    }
+                    std::thread::sleep(Duration::from_millis(20));
+                }
+            })
+            .ok()
+    };
     let runs = exec.finish(Duration::from_secs(30));
+    finished.store(true, Ordering::Release);
+    if let Some(w) = watcher {
+        let _ = w.join();
+    }
     coordinator.publish_diagnostics(&runs);
     io_stop.store(true, Ordering::Relaxed);
     for t in bulk_threads {
@@ -1209,6 +1265,12 @@ pub fn node_diagnostic(name: &str, r: &NodeRun) -> DiagnosticStatus {
             .iter()
             .map(|(t, n)| kv(format!("undecodable.{t}"), n)),
     );
+    values.extend(
+        r.discarded
+            .iter()
+            .map(|(t, n)| kv(format!("discarded.{t}"), n)),
+    );
+    values.extend(r.unfinished.as_ref().map(|w| kv("unfinished", w)));
     for (topic, l) in &r.lag {
         values.push(kv(format!("lag_p99_ms.{topic}"), format!("{:.3}", l.p99_ms)));
     }
