@@ -539,3 +539,66 @@ fn a_pose_topic_routed_onto_a_body_topic_is_refused_with_the_reason() {
         "{e}"
     );
 }
+
+/// The report is republished when a body's stream ends, not only when a contact changes:
+/// a live reader of `~/report` sees each body closed with all its frames while the launch
+/// goes on (here nothing ever touches, so no contact would republish it).
+#[test]
+fn the_report_is_republished_when_the_streams_end_without_any_contact() {
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+
+    let cfg = LaunchConfig::parse(
+        "launch:\n\
+         - node: {pkg: chronotope, exec: mesher, param: [{name: idle_timeout_s, value: 1.0}, {name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
+        "test",
+    )
+    .unwrap();
+    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+    let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+    let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    let t0 = 1_000_000_000;
+    let mut pieces = Vec::new();
+    for k in 0..6u32 {
+        // /a moves along x at y 0..4; /b stays at y 8..12: never within a voxel of /a.
+        for (topic, g) in [
+            ("/a/occupancy", common::box_frame(0, 1, 0, k, t0)),
+            ("/b/occupancy", common::box_frame(0, 0, 8, k, t0)),
+        ] {
+            let m = Message::new(
+                topic,
+                g.header.stamp.as_nanos(),
+                Payload::VoxelGrid(std::sync::Arc::new(g)),
+            );
+            mesher.on_message(&m, &mut pieces);
+        }
+        mesher.on_tick(i64::from(k) * 100_000_000, &mut pieces);
+    }
+    // Quiet for longer than the idle timeout: the mesher closes both streams (their last
+    // caps); the checker is never told to finish.
+    mesher.on_tick(5 * 100_000_000 + 1_500_000_000, &mut pieces);
+    let mut results = Vec::new();
+    for m in pieces
+        .iter()
+        .filter(|m| matches!(m.payload, Payload::MeshSlab(_)))
+    {
+        checker.on_message(m, &mut results);
+    }
+    let last = last_report(&results).expect("a report once the streams have ended");
+    let bodies: Vec<(String, u64, bool)> = last
+        .bodies
+        .iter()
+        .map(|b| (b.body_id.clone(), b.frames, b.closed))
+        .collect();
+    assert_eq!(
+        bodies,
+        [
+            ("/a/occupancy".to_owned(), 6, true),
+            ("/b/occupancy".to_owned(), 6, true)
+        ],
+        "{last:?}"
+    );
+    assert!(!last.pairs[0].interfering, "{last:?}");
+}

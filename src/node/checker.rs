@@ -261,6 +261,11 @@ impl CheckerNode {
         };
         let mut rolled = Vec::new();
         self.engine.on_piece(piece, &mut rolled);
+        // A stream's end changes the report (the body closed, its frames) even when no
+        // contact does: republished, so that a live reader sees it before the node finishes.
+        if kind == PieceKind::CapEnd {
+            self.dirty = true;
+        }
         self.emit(rolled, out);
     }
 
