@@ -41,6 +41,13 @@
       the launch gets --signals SIGINTs one second apart (1: stop, it finishes what is queued;
       2: abort, what is queued is discarded). Prints the time from the first signal to the
       launch's exit, and per node the messages received, dropped and discarded (--summary).
+  python3 bench/live_bench.py periodic  [--seconds 600]
+      A Cyclone DDS peer (tests/py/cyclone_peer.py) plays the periodic scene (48^3, 20 Hz,
+      `chronotope scene periodic --duration S`) with its recorded timing into
+      `chronotope launch launch_configs/periodic.yaml` and takes the contact events and reports.
+      Prints contacts begun while streaming and in the last report, the latency from writing
+      the frame that completes a contact's slab to taking its event (p50/p99/max, all events and
+      BEGIN), and the launch's resident memory every 10 s (a line per minute: min and max).
 
 Build first: cargo build --release.  --exe selects another binary.  --json FILE writes the
 figures as JSON too (with the load average: other builds share the cores).
@@ -931,6 +938,56 @@ def bench_stop(a, exe, domain, tmp):
             "grid": a.grid, "stop_s": took, "nodes": nodes}
 
 
+def bench_periodic(a, exe, domain, tmp):
+    seconds = int(a.seconds)
+    bag = tmp / f"periodic-{seconds}.mcap"
+    log(f"generating the periodic scene, {seconds} s -> {bag}")
+    subprocess.run([str(exe), "scene", "periodic", "--duration", str(seconds), "--out", str(bag)],
+                   check=True, stdout=subprocess.DEVNULL)
+    summary = tmp / "summary.json"
+    launch = start_launch(exe, ROOT / "launch_configs/periodic.yaml", domain, a.seconds_max + seconds,
+                          summary, tmp / "launch.log")
+    peer_out = tmp / "peer.json"
+    peer = subprocess.Popen([sys.executable, str(ROOT / "tests/py/cyclone_peer.py"), "--bag", str(bag),
+                             "--out", str(peer_out), "--domain", str(domain), "--timeout", "120"],
+                            stdout=subprocess.DEVNULL, stderr=open(tmp / "peer.log", "w"))
+    t0 = time.monotonic()
+    rss = []
+    while peer.poll() is None:
+        rss.append((round(time.monotonic() - t0, 1), round(proc_rss_mb(launch.pid), 1)))
+        time.sleep(10.0)
+    peak = proc_peak_rss_mb(launch.pid)
+    launch.send_signal(2)
+    wait(launch, "chronotope launch", 300)
+    if peer.returncode != 0:
+        raise SystemExit(f"the Cyclone peer exited with {peer.returncode}: see {tmp / 'peer.log'}")
+    got = json.loads(peer_out.read_text())
+    events = got["contacts"]
+    begun = [e for e in events if e["event"] == 0]
+    lat = [e["latency_s"] * 1e3 for e in events if e["latency_s"] is not None]
+    lat_b = [e["latency_s"] * 1e3 for e in begun if e["latency_s"] is not None]
+    report = got["report"] or {"pairs": []}
+    in_report = sum(len(p["interval_start_s"]) for p in report["pairs"])
+    streaming = sum(1 for e in begun if e["while_streaming"])
+    print(f"\nperiodic: {seconds} s of the periodic scene (48^3, 20 Hz) from a Cyclone peer into "
+          f"`launch periodic.yaml`")
+    print(f"contacts: {len(begun)} begun ({streaming} while streaming), {in_report} in the last report; "
+          f"{len(events)} events")
+    print(f"latency [ms], all events: p50 {pct(lat, 0.5):.0f}, p99 {pct(lat, 0.99):.0f}, max {max(lat, default=math.nan):.0f}; "
+          f"BEGIN: p50 {pct(lat_b, 0.5):.0f}, p99 {pct(lat_b, 0.99):.0f}, max {max(lat_b, default=math.nan):.0f}")
+    minutes = {}
+    for t, r in rss:
+        minutes.setdefault(int(t // 60), []).append(r)
+    print("RSS [MB] per minute (min-max of the 10 s samples): " + ", ".join(
+        f"{m}-{m + 1} min {min(v):.0f}-{max(v):.0f}" for m, v in sorted(minutes.items())))
+    print(f"peak RSS {peak:.0f} MB")
+    return {"seconds": seconds, "contacts_begun": len(begun), "begun_while_streaming": streaming,
+            "intervals_in_report": in_report, "events": len(events),
+            "latency_ms": {"p50": pct(lat, 0.5), "p99": pct(lat, 0.99), "max": max(lat, default=math.nan)},
+            "latency_begin_ms": {"p50": pct(lat_b, 0.5), "p99": pct(lat_b, 0.99), "max": max(lat_b, default=math.nan)},
+            "rss_mb": rss, "peak_rss_mb": peak}
+
+
 def bench_idle(a, exe, domain, tmp):
     cfg = ROOT / "launch_configs/machine_tool.yaml"
     launch = start_launch(exe, cfg, domain, a.seconds + 30, tmp / "summary.json", tmp / "launch.log")
@@ -950,7 +1007,8 @@ def bench_idle(a, exe, domain, tmp):
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=["cyclone", "mesher", "carving", "idle", "stop", "all"])
+    ap.add_argument("case", choices=["cyclone", "mesher", "carving", "idle", "stop", "periodic",
+                                     "all"])
     ap.add_argument("--exe", default=str(DEFAULT_EXE))
     ap.add_argument("--loops", type=int, default=3)
     ap.add_argument("--hz", type=float, default=10.0,
@@ -1010,9 +1068,10 @@ def main() -> int:
             sub.mkdir()
             # Each case's own default (`all` runs idle, then the mesher with its 64 frames).
             a.seconds = given if given is not None else {"idle": 30.0, "carving": 60.0,
-                                                         "stop": 12.0}.get(c)
+                                                         "stop": 12.0, "periodic": 600.0}.get(c)
             out[c] = {"idle": bench_idle, "cyclone": bench_cyclone, "mesher": bench_mesher,
-                      "carving": bench_carving, "stop": bench_stop}[c](a, exe, domain, sub)
+                      "carving": bench_carving, "stop": bench_stop,
+                      "periodic": bench_periodic}[c](a, exe, domain, sub)
     out["loadavg_end"] = loadavg()
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
