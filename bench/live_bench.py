@@ -977,9 +977,12 @@ def bench_periodic(a, exe, domain, tmp):
           f"BEGIN: p50 {pct(lat_b, 0.5):.0f}, p99 {pct(lat_b, 0.99):.0f}, max {max(lat_b, default=math.nan):.0f}")
     minutes = {}
     for t, r in rss:
-        minutes.setdefault(int(t // 60), []).append(r)
-    print("RSS [MB] per minute (min-max of the 10 s samples): " + ", ".join(
-        f"{m}-{m + 1} min {min(v):.0f}-{max(v):.0f}" for m, v in sorted(minutes.items())))
+        if t <= seconds:
+            minutes.setdefault(int(t // 60), []).append(r)
+    after = [r for t, r in rss if t > seconds]
+    print("RSS [MB] per minute of the stream (min-max of the 10 s samples): " + ", ".join(
+        f"{m}-{m + 1} min {min(v):.0f}-{max(v):.0f}" for m, v in sorted(minutes.items()))
+          + (f"; after it {min(after):.0f}-{max(after):.0f}" if after else ""))
     print(f"peak RSS {peak:.0f} MB")
     return {"seconds": seconds, "contacts_begun": len(begun), "begun_while_streaming": streaming,
             "intervals_in_report": in_report, "events": len(events),
