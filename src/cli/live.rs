@@ -127,20 +127,23 @@ fn stop_on_signal() -> Arc<Shutdown> {
             return;
         };
         rt.block_on(async {
-            let mut term =
-                tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()).ok();
-            for n in 1.. {
-                let term = async {
-                    match term.as_mut() {
-                        Some(t) => {
-                            t.recv().await;
-                        }
-                        None => std::future::pending::<()>().await,
+            use tokio::signal::unix::{signal, Signal, SignalKind};
+            // Both streams live for the whole run, so a signal that comes while the one
+            // before is being handled is not missed (two at once count as one).
+            let mut int = signal(SignalKind::interrupt()).ok();
+            let mut term = signal(SignalKind::terminate()).ok();
+            async fn next(s: &mut Option<Signal>) {
+                match s.as_mut() {
+                    Some(s) => {
+                        s.recv().await;
                     }
-                };
+                    None => std::future::pending::<()>().await,
+                }
+            }
+            for n in 1.. {
                 tokio::select! {
-                    _ = tokio::signal::ctrl_c() => {}
-                    () = term => {}
+                    () = next(&mut int) => {}
+                    () = next(&mut term) => {}
                 }
                 match n {
                     1 => {
