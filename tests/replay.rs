@@ -224,15 +224,20 @@ fn bad_launch_configs_are_refused_with_the_reason() {
     }
 }
 
-/// A checker (re)started while the bodies' streams are under way: it says once per body that
-/// it joined mid-stream, checks that stream from the first piece it sees (its mesh open
-/// there), and the next one in full.
-#[test]
-fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in_full() {
-    use chronotope::node::checker::CheckerNode;
-    use chronotope::node::mesher::MesherNode;
-    use chronotope::node::{Message, Node, Payload};
+/// Each body of a report: its id, frames, and whether its mesh is closed.
+fn body_states(r: &chronotope::msg::InterferenceReport) -> Vec<(String, u64, bool)> {
+    r.bodies
+        .iter()
+        .map(|b| (b.body_id.clone(), b.frames, b.closed))
+        .collect()
+}
 
+/// A mesher of /a and /b (idle timeout 1 s) and a checker of the pair, as node state
+/// machines driven by the test.
+fn pair_nodes() -> (
+    chronotope::node::mesher::MesherNode,
+    chronotope::node::checker::CheckerNode,
+) {
     let cfg = LaunchConfig::parse(
         "launch:\n\
          - node: {pkg: chronotope, exec: mesher, param: [{name: idle_timeout_s, value: 1.0}, {name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
@@ -241,8 +246,21 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
     )
     .unwrap();
     let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
-    let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
-    let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    (
+        chronotope::node::mesher::MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap(),
+        chronotope::node::checker::CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap(),
+    )
+}
+
+/// A checker (re)started while the bodies' streams are under way: it says once per body that
+/// it joined mid-stream, checks that stream from the first piece it sees (its mesh open
+/// there), and the next one in full.
+#[test]
+fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in_full() {
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+
+    let (mut mesher, mut checker) = pair_nodes();
     // One stream of six frames per body, starting at `t0_ns`; returns what the mesher says.
     let stream = |mesher: &mut MesherNode, t0_ns: i64| {
         let mut out = Vec::new();
@@ -269,13 +287,8 @@ fn a_checker_started_mid_stream_says_so_checks_from_there_and_the_next_stream_in
     assert_eq!(st.problems.get("joined_mid_stream"), Some(&2), "{st:?}");
     assert_eq!(st.problems.get("piece_out_of_order"), None, "{st:?}");
     let half = last_report(&results).expect("the half stream is checked");
-    let frames: Vec<(String, u64, bool)> = half
-        .bodies
-        .iter()
-        .map(|b| (b.body_id.clone(), b.frames, b.closed))
-        .collect();
     assert_eq!(
-        frames,
+        body_states(&half),
         [
             ("/a/occupancy".to_owned(), 4, false),
             ("/b/occupancy".to_owned(), 5, false)
@@ -545,20 +558,9 @@ fn a_pose_topic_routed_onto_a_body_topic_is_refused_with_the_reason() {
 /// goes on (here nothing ever touches, so no contact would republish it).
 #[test]
 fn the_report_is_republished_when_the_streams_end_without_any_contact() {
-    use chronotope::node::checker::CheckerNode;
-    use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Message, Node, Payload};
 
-    let cfg = LaunchConfig::parse(
-        "launch:\n\
-         - node: {pkg: chronotope, exec: mesher, param: [{name: idle_timeout_s, value: 1.0}, {name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
-         - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}]}\n",
-        "test",
-    )
-    .unwrap();
-    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
-    let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
-    let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    let (mut mesher, mut checker) = pair_nodes();
     let t0 = 1_000_000_000;
     let mut pieces = Vec::new();
     for k in 0..6u32 {
@@ -587,13 +589,8 @@ fn the_report_is_republished_when_the_streams_end_without_any_contact() {
         checker.on_message(m, &mut results);
     }
     let last = last_report(&results).expect("a report once the streams have ended");
-    let bodies: Vec<(String, u64, bool)> = last
-        .bodies
-        .iter()
-        .map(|b| (b.body_id.clone(), b.frames, b.closed))
-        .collect();
     assert_eq!(
-        bodies,
+        body_states(&last),
         [
             ("/a/occupancy".to_owned(), 6, true),
             ("/b/occupancy".to_owned(), 6, true)
