@@ -1074,16 +1074,17 @@ pub fn run_nodes(
     let start = Instant::now();
     let mut last_diag = start;
     let mut last_trim = start;
-    // Not beside a real-time node: a trim holds each arena's lock for up to tens of ms, and
-    // the real-time thread may share one.
-    let trims = !unit_options.iter().any(|o| o.realtime);
-    if trims {
+    // The allocator's settings for a long run (a fixed mmap threshold, trims), not beside a
+    // real-time node: a trim holds each arena's lock for up to tens of ms, and the
+    // real-time thread may share one.
+    let tune_allocator = !unit_options.iter().any(|o| o.realtime);
+    if tune_allocator {
         keep_resident_memory_flat();
     }
     while !(shutdown.stopping() || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
         std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
         coordinator.graph.poll(Instant::now());
-        if trims && last_trim.elapsed() >= TRIM_PERIOD {
+        if tune_allocator && last_trim.elapsed() >= TRIM_PERIOD {
             last_trim = Instant::now();
             trim_heap();
         }
