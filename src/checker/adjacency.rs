@@ -28,8 +28,6 @@ pub struct AdjacencyBuilder {
     adj: Vec<[u32; 4]>,
     /// Faces not paired yet: sorted vertex triple and `tet << 2 | face`.
     pending: Vec<([u32; 3], u64)>,
-    /// This round's faces (pending ones first).
-    faces: Vec<([u32; 3], u64)>,
     start: Vec<u32>,
     keys: Vec<u64>,
     ids: Vec<u64>,
@@ -40,6 +38,11 @@ impl AdjacencyBuilder {
     /// No tets yet.
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Makes room for `tets` more tets' neighbours (exactly, where growing would double).
+    pub fn reserve_tets(&mut self, tets: usize) {
+        self.adj.reserve_exact(tets);
     }
 
     /// Tets added so far.
@@ -59,57 +62,59 @@ impl AdjacencyBuilder {
         let first = self.adj.len() as u64;
         self.adj
             .resize(self.adj.len() + tets.len(), [NO_NEIGHBOUR; 4]);
-        self.faces.clear();
-        self.faces.append(&mut self.pending);
-        for (t, tet) in tets.iter().enumerate() {
-            for (f, i) in sorted_faces(*tet) {
-                if (f[2] as usize) < vertices {
-                    self.faces.push((f, (first + t as u64) << 2 | u64::from(i)));
-                }
-            }
-        }
-        let Some(lo) = self.faces.iter().map(|f| f.0[0]).min() else {
+        // This round's faces are the pending ones and the new tets' faces over existing
+        // vertices. They are walked (not stored: they would be the largest buffer here)
+        // once for their range, once to count and once to place them in the buckets.
+        let pending = std::mem::take(&mut self.pending);
+        let (mut lo, mut hi, mut n) = (u32::MAX, 0u32, 0usize);
+        round_faces(&pending, tets, first, vertices, &mut |f, _| {
+            lo = lo.min(f[0]);
+            hi = hi.max(f[0]);
+            n += 1;
+        });
+        if n == 0 {
+            self.pending = pending;
             return;
-        };
-        let hi = self.faces.iter().map(|f| f.0[0]).max().unwrap_or(lo);
+        }
         let span = (hi - lo) as usize + 1;
-        if span > 4 * self.faces.len() + 64 {
+        if span > 4 * n + 64 {
             // Faces spread over far more vertices than there are faces (a piece far from
             // the unpaired faces of an open mesh): sort rather than bucket.
-            self.faces.sort_unstable();
-            let mut i = 0;
-            while i < self.faces.len() {
-                let j = i + self.faces[i..]
-                    .iter()
-                    .take_while(|f| f.0 == self.faces[i].0)
-                    .count();
-                match j - i {
-                    1 => self.pending.push(self.faces[i]),
-                    2 => link(&mut self.adj, self.faces[i].1, self.faces[i + 1].1),
+            let mut faces = Vec::with_capacity(n);
+            round_faces(&pending, tets, first, vertices, &mut |f, id| {
+                faces.push((f, id))
+            });
+            faces.sort_unstable();
+            self.pending = pending;
+            self.pending.clear();
+            for run in faces.chunk_by(|a, b| a.0 == b.0) {
+                match run {
+                    [one] => self.pending.push(*one),
+                    [(_, x), (_, y)] => link(&mut self.adj, *x, *y),
                     _ => {}
                 }
-                i = j;
             }
             return;
         }
         // Bucket starts by smallest vertex.
         self.start.clear();
         self.start.resize(span + 1, 0);
-        for (f, _) in &self.faces {
-            self.start[(f[0] - lo) as usize + 1] += 1;
-        }
+        round_faces(&pending, tets, first, vertices, &mut |f, _| {
+            self.start[(f[0] - lo) as usize + 1] += 1
+        });
         for v in 0..span {
             self.start[v + 1] += self.start[v];
         }
-        let n = self.faces.len();
         self.keys.resize(n, 0);
         self.ids.resize(n, 0);
-        for (f, id) in &self.faces {
+        round_faces(&pending, tets, first, vertices, &mut |f, id| {
             let slot = &mut self.start[(f[0] - lo) as usize];
             self.keys[*slot as usize] = u64::from(f[1]) << 32 | u64::from(f[2]);
-            self.ids[*slot as usize] = *id;
+            self.ids[*slot as usize] = id;
             *slot += 1;
-        }
+        });
+        self.pending = pending;
+        self.pending.clear();
         // `start[v]` is now the end of bucket v.
         let mut begin = 0;
         for v in 0..span {
@@ -159,6 +164,28 @@ impl AdjacencyBuilder {
     /// The neighbours of every tet added (faces still unpaired have none).
     pub fn finish(self) -> Vec<[u32; 4]> {
         self.adj
+    }
+}
+
+/// Calls `visit` on each face of a round: the `pending` ones, then each face of `tets`
+/// (numbered from `first`) over the `vertices` that exist, with its `tet << 2 | face`.
+#[inline]
+fn round_faces(
+    pending: &[([u32; 3], u64)],
+    tets: &[[u32; 4]],
+    first: u64,
+    vertices: usize,
+    visit: &mut impl FnMut([u32; 3], u64),
+) {
+    for &(f, id) in pending {
+        visit(f, id);
+    }
+    for (t, tet) in tets.iter().enumerate() {
+        for (f, i) in sorted_faces(*tet) {
+            if (f[2] as usize) < vertices {
+                visit(f, (first + t as u64) << 2 | u64::from(i));
+            }
+        }
     }
 }
 
@@ -238,6 +265,92 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    /// The Kuhn triangulation of an `n`³ grid of cubes (six tets a cube: every inner face
+    /// in two tets, every outer one in one), with its vertices numbered at random.
+    fn kuhn_grid(n: u32, next: &mut impl FnMut(u32) -> u32) -> (Vec<[u32; 4]>, usize) {
+        let side = n + 1;
+        let count = (side * side * side) as usize;
+        let mut label: Vec<u32> = (0..count as u32).collect();
+        for i in (1..count).rev() {
+            label.swap(i, next(i as u32 + 1) as usize);
+        }
+        let id = |p: [u32; 3]| label[(p[0] + side * (p[1] + side * p[2])) as usize];
+        let mut tets = Vec::new();
+        for (x, y, z) in
+            (0..n).flat_map(|x| (0..n).flat_map(move |y| (0..n).map(move |z| (x, y, z))))
+        {
+            for axes in [
+                [0, 1, 2],
+                [0, 2, 1],
+                [1, 0, 2],
+                [1, 2, 0],
+                [2, 0, 1],
+                [2, 1, 0],
+            ] {
+                let mut p = [x, y, z];
+                let mut tet = [id(p); 4];
+                for (k, a) in axes.into_iter().enumerate() {
+                    p[a] += 1;
+                    tet[k + 1] = id(p);
+                }
+                tets.push(tet);
+            }
+        }
+        // In grid order (the tets of one cube share faces: small pieces pair among
+        // themselves) or shuffled.
+        if next(2) == 0 {
+            for i in (1..tets.len()).rev() {
+                tets.swap(i, next(i as u32 + 1) as usize);
+            }
+        }
+        (tets, count)
+    }
+
+    /// Fed in random pieces (small ones far apart in vertex numbering take the sorting
+    /// path, large ones the buckets), a mesh whose faces are each in at most two tets gets
+    /// exactly the adjacency of a plain map from faces to tets.
+    #[test]
+    fn random_pieces_link_exactly_the_tets_sharing_a_face() {
+        for seed in 1..25u64 {
+            let mut s = seed;
+            let mut next = move |m: u32| {
+                s = s
+                    .wrapping_mul(6_364_136_223_846_793_005)
+                    .wrapping_add(1_442_695_040_888_963_407);
+                ((s >> 33) % u64::from(m)) as u32
+            };
+            let (tets, vertices) = kuhn_grid(2 + next(7), &mut next);
+            let mut by_face: std::collections::HashMap<[u32; 3], Vec<(usize, usize)>> =
+                Default::default();
+            for (t, tet) in tets.iter().enumerate() {
+                for f in 0..4 {
+                    let mut face: Vec<u32> = (0..4).filter(|&i| i != f).map(|i| tet[i]).collect();
+                    face.sort_unstable();
+                    by_face
+                        .entry([face[0], face[1], face[2]])
+                        .or_default()
+                        .push((t, f));
+                }
+            }
+            let mut expected = vec![[NO_NEIGHBOUR; 4]; tets.len()];
+            for uses in by_face.values() {
+                assert!(uses.len() <= 2);
+                if let [(t, f), (u, g)] = uses[..] {
+                    expected[t][f] = u as u32;
+                    expected[u][g] = t as u32;
+                }
+            }
+            let mut b = AdjacencyBuilder::new();
+            let mut at = 0;
+            while at < tets.len() {
+                let len = [1, 2, 5, 40, 400][next(5) as usize].min(tets.len() - at);
+                b.add(&tets[at..at + len], vertices);
+                at += len;
+            }
+            assert_eq!(b.finish(), expected, "seed {seed}");
         }
     }
 

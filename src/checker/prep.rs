@@ -222,8 +222,17 @@ impl BodyPrep {
     /// # Errors
     /// As [`add`](Self::add).
     pub fn of(mesh: &TetMesh, pieces: &[usize]) -> Result<LocalPrep, PrepError> {
-        let mut p = Self::new();
         let n = mesh.tets.len();
+        // Sized once: grown piece by piece, each buffer would end up to twice its size
+        // (and be copied on the way), in the largest buffers a window check holds.
+        let mut p = Self::new();
+        p.new_of.reserve_exact(mesh.vertices.len());
+        p.mesh.vertices.reserve_exact(mesh.vertices.len());
+        p.mesh.tets.reserve_exact(n);
+        p.normals.reserve_exact(n);
+        p.original.reserve_exact(n);
+        p.forest.reserve_items(n);
+        p.adjacency.reserve_tets(n);
         let mut lo = 0;
         for hi in pieces.iter().copied().chain([n]) {
             let hi = hi.clamp(lo, n);

@@ -400,6 +400,10 @@ impl RollingChecker {
                     }
                 }
             }
+            // Its prepared window: every pair that could take it again has gone past it.
+            if self.prepared.get(id).is_some_and(|c| c.2 < oldest) {
+                self.prepared.remove(id);
+            }
             oldest_of.insert(id.clone(), oldest);
             let decided = b.slabs.range(..oldest).count();
             let horizon = keeps.get(id).copied().unwrap_or(i64::MAX);

@@ -505,9 +505,10 @@ pub struct RollingChecker {
     dropped_resolutions: u64,
     /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
     prefetched: Vec<Prefetched>,
-    /// Per body, its latest prepared window (one per body at most): a body in several pairs
-    /// has the same window in each, prepared once.
-    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+    /// Per body, its latest prepared window (one per body at most) and the stamp of the
+    /// period it was checked for: a body in several pairs has the same window in each,
+    /// prepared once. Dropped once every pair of the body has decided that period.
+    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
     /// The lateral piece just accepted still has to be added to its run's statistics
     /// (run id, and the run's first cap if the piece is its first slab): done while the
     /// windows it makes ready are checked.

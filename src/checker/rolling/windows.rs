@@ -282,8 +282,8 @@ impl RollingChecker {
             };
             match result {
                 Ok((r, [pa, pb])) => {
-                    self.prepared.insert(a.clone(), (wa.clone(), pa));
-                    self.prepared.insert(b.clone(), (wb.clone(), pb));
+                    self.prepared.insert(a.clone(), (wa.clone(), pa, s));
+                    self.prepared.insert(b.clone(), (wb.clone(), pb, s));
                     r
                 }
                 Err(e) => {
@@ -690,7 +690,7 @@ pub(super) fn prepare_spec(
 
 /// The window prepared for body `id` in `cache`, if it is the same window as `w`.
 pub(super) fn cached(
-    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>)>,
+    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
     id: &str,
     w: &WindowSpec,
 ) -> Option<Arc<PreparedWindow>> {

@@ -72,6 +72,12 @@ impl Forest {
         self.roots.get(k).map(|(n, _, at)| (*at, n.aabb))
     }
 
+    /// Makes room for `items` more items (exactly, where growing would double).
+    pub fn reserve_items(&mut self, items: usize) {
+        self.tree.leaf_boxes.reserve_exact(items);
+        self.tree.order.reserve_exact(items);
+    }
+
     /// Adds a piece: its items become items `len()..len() + boxes.len()` in the piece
     /// tree's leaf order; returns, for each of them, its index in `boxes` (for the caller
     /// to order its own items alike). Nothing is added on error.
@@ -137,6 +143,8 @@ impl Forest {
         for (_, n, _) in &roots {
             before.push(before[before.len() - 1] + u64::from(*n));
         }
+        // The top adds two nodes for each piece but one: sized exactly, not doubled.
+        tree.nodes.reserve_exact(2 * (roots.len() - 1));
         let mut pending = vec![(0usize, 0usize, roots.len())];
         while let Some((slot, lo, hi)) = pending.pop() {
             if hi - lo == 1 {
