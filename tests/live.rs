@@ -284,8 +284,9 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
         &[
             "launch",
             cfg.to_str().unwrap(),
+            // Room for a slow start on a busy host (the bag is sent 6 to 12 s in).
             "--duration",
-            "16",
+            "20",
             "--summary",
             summary.to_str().unwrap(),
         ],

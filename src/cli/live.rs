@@ -281,6 +281,9 @@ pub fn node(a: &NodeArgs) -> Result<(), CliError> {
     run_config(&read_config(&a.launch)?, Some(&a.name), &a.run)
 }
 
+/// Longest `play` waits, once the bag is sent, for its reliable readers to acknowledge it.
+const PLAY_ACK_WAIT: Duration = Duration::from_secs(10);
+
 /// `chronotope play`.
 ///
 /// # Errors
@@ -366,8 +369,19 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
             break;
         }
     }
-    for w in writers.values().flatten() {
-        let _ = w.wait_for_acknowledgments(Duration::from_secs(2));
+    // Reliable samples are resent until each matched reader acknowledges them: the player
+    // stays until all are (a lost packet on a busy host takes a few heartbeats), for at
+    // most `PLAY_ACK_WAIT` in all, and names the topics that were not.
+    let deadline = Instant::now() + PLAY_ACK_WAIT;
+    for (topic, w) in writers.iter().filter_map(|(t, w)| Some((t, w.as_ref()?))) {
+        let left = deadline.saturating_duration_since(Instant::now());
+        if !matches!(w.wait_for_acknowledgments(left), Ok(true)) {
+            tracing::warn!(
+                topic,
+                "not acknowledged by every reliable reader within {} s of the end",
+                PLAY_ACK_WAIT.as_secs()
+            );
+        }
     }
     eprintln!("play: {sent} message(s) sent, {failed} not sent");
     Ok(())
