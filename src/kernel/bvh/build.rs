@@ -180,9 +180,11 @@ impl Bvh {
         );
 
         // Top-down: split ranges, creating both children next to each other.
-        // At most 2n - 1 nodes: reserving them all (untouched pages cost no memory) means
-        // the walk below never reallocates, and a rebuild at the same size never allocates.
-        self.nodes.reserve(2 * n - 1);
+        // At most 2n - 1 nodes, but about 2n / 3 in practice (0.67 n over the 128³
+        // machine-tool cell's pieces): room for n is reserved, so the walk below rarely
+        // reallocates and a rebuild at the same size rarely allocates, while reserving the
+        // bound would hold three times what is used (recycled pages are resident).
+        self.nodes.reserve(n);
         self.nodes.push(Node::BLANK);
         s.ranges.clear();
         s.ranges.push((0, 0, n as u32));
