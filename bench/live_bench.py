@@ -380,7 +380,7 @@ def bench_mesher(a, exe, domain, tmp):
     # their recorded spacing; the nodes' lag is measured in wall time).
     period, per_topic = bag_frames(bag)
     rate = a.hz * period
-    cfg = ROOT / "launch_configs/machine_tool.yaml"
+    cfg = Path(a.config) if a.config else ROOT / "launch_configs/machine_tool.yaml"
     summary = tmp / "summary.json"
     load0 = loadavg()
     launch = start_launch(exe, cfg, domain, a.seconds_max, summary, tmp / "launch.log")
@@ -411,7 +411,7 @@ def bench_mesher(a, exe, domain, tmp):
     frame_s = 1.0 / a.hz
     print(f"\nmesher: machine-tool {a.grid}^3 bag ({max(per_topic.values())} frames per body, "
           f"{period * 1e3:.0f} ms apart) played at "
-          f"{a.hz:g} Hz (--rate {rate:.3g}, {t_play:.1f} s) into `launch machine_tool.yaml`")
+          f"{a.hz:g} Hz (--rate {rate:.3g}, {t_play:.1f} s) into `launch {cfg.name}`")
     print("| topic | received | dropped | lag p50 [ms] | p99 [ms] | max [ms] | p99 [frame periods] | "
           "busy p50 [ms] |")
     print("|---|---|---|---|---|---|---|---|")
@@ -436,7 +436,7 @@ def bench_mesher(a, exe, domain, tmp):
         print("CPU in --summary: " + ", ".join(f"{k} {v}" for k, v in extras["cpu"].items()))
     if extras["problems"]:
         print("problems counted: " + "; ".join(f"{n} {p}" for n, p in extras["problems"].items()))
-    return {"topics": rows, "summary_cpu": extras["cpu"], "problems": extras["problems"], "hz": a.hz, "play_rate": rate, "bag_frame_period_s": period,
+    return {"topics": rows, "summary_cpu": extras["cpu"], "problems": extras["problems"], "hz": a.hz, "config": str(cfg), "play_rate": rate, "bag_frame_period_s": period,
             "frames_per_topic": per_topic,
             "grid": a.grid, "play_s": t_play, "cpu_s_while_playing": cpu_play, "cpu_s": cpu,
             "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
@@ -1018,6 +1018,8 @@ def main() -> int:
                     help="cyclone, mesher: frames per second the scene is played at")
     ap.add_argument("--bag", default=None, help="mesher: a machine-tool bag (default: generate)")
     ap.add_argument("--grid", type=int, default=128)
+    ap.add_argument("--config", default=None,
+                    help="mesher: launch config (default launch_configs/machine_tool.yaml)")
     ap.add_argument("--frames", type=int, default=None,
                     help="mesher: frames per body of the generated scene (default: the scene's, 64)")
     ap.add_argument("--settle", type=float, default=20.0,

@@ -282,14 +282,13 @@ mod tests {
         for (x, y, z) in
             (0..n).flat_map(|x| (0..n).flat_map(move |y| (0..n).map(move |z| (x, y, z))))
         {
-            for axes in [
-                [0, 1, 2],
-                [0, 2, 1],
-                [1, 0, 2],
-                [1, 2, 0],
-                [2, 0, 1],
-                [2, 1, 0],
-            ] {
+            // One tet per order of the three axes, from the cube's low corner to its high.
+            let orders = (0..3usize).flat_map(|a| {
+                (0..3)
+                    .filter(move |&b| b != a)
+                    .map(move |b| [a, b, 3 - a - b])
+            });
+            for axes in orders {
                 let mut p = [x, y, z];
                 let mut tet = [id(p); 4];
                 for (k, a) in axes.into_iter().enumerate() {
