@@ -188,7 +188,11 @@ impl TopicQos {
             t if t == TetLabels::TYPE_NAME => Self::latched(64),
             // Every event counts; a late subscriber reads the report for what came before.
             t if t == ContactEvent::TYPE_NAME => Self::reliable(64),
-            t if t == MarkerArray::TYPE_NAME => Self::latched(256),
+            // One per body and frame period: a late subscriber gets the latest 32 (each
+            // body's latest for up to 32 bodies). The writer keeps `depth` samples and what
+            // came since RustDDS last cleaned its cache (every 6 s): a 128³ body's array is
+            // ~7.6 MB, so 256 kept 1.4 GB (all 189 arrays of a 6 s run, still held after).
+            t if t == MarkerArray::TYPE_NAME => Self::latched(32),
             t if t == Marker::TYPE_NAME => Self::best_effort(16),
             t if t == PointCloud2::TYPE_NAME => Self::latched(1),
             // Depth 16: a best-effort writer keeps at most `depth` samples not yet sent, the
