@@ -8,6 +8,8 @@
 //! Hypervolume by the divergence theorem: with tets oriented so that
 //! orient4(a, b, c, d, inside) < 0, V = −(1/24) Σ det[a, b, c, d] (exact in i128).
 
+use rayon::prelude::*;
+
 use super::march::TetMesh;
 use crate::kernel::{det4_i128, LatticePoint};
 
@@ -150,16 +152,88 @@ pub fn pack_face(k: [u32; 3], positive: bool, bits: u32) -> u64 {
         | u64::from(positive)
 }
 
-/// Sorts packed faces (ids of `bits` bits) and counts how they pair up (see
-/// [`check_closed_with`]).
+/// Counts how packed faces (ids of `bits` bits) pair up (see [`check_closed_with`]); `keys`
+/// and `scratch` are left in no particular order.
+///
+/// The faces are bucketed by their smallest id (a counting sort over the ids they span,
+/// one pass to count and one to place), and each bucket, the few dozen faces around one
+/// vertex, is sorted alone, the buckets on rayon's pool. Faces spread over far more ids
+/// than there are faces are radix sorted instead. Both give the report sorting everything
+/// gives: a triangle's faces all share its bucket.
 pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> ClosedReport {
-    radix_sort_u64(keys, scratch, 3 * bits + 1);
-    let mut r = ClosedReport::default();
-    for group in packed_groups(keys) {
-        r.count(group);
+    let shift = 2 * bits + 1;
+    let (lo, hi) = keys.iter().fold((u64::MAX, 0), |(lo, hi), &k| {
+        (lo.min(k >> shift), hi.max(k >> shift))
+    });
+    let n = keys.len();
+    let span = if n == 0 { 0 } else { (hi - lo) as usize + 1 };
+    if n < BUCKET_MIN_FACES || span > 4 * n + 64 || u32::try_from(n).is_err() {
+        radix_sort_u64(keys, scratch, 3 * bits + 1);
+        let mut r = ClosedReport::default();
+        for group in packed_groups(keys) {
+            r.count(group);
+        }
+        return r;
     }
-    r
+    // ends[v + 1] counts bucket v; after the prefix sum ends[v] is its first slot, and
+    // after placing, its end.
+    let mut ends = vec![0u32; span + 1];
+    for &k in keys.iter() {
+        ends[((k >> shift) - lo) as usize + 1] += 1;
+    }
+    for v in 0..span {
+        ends[v + 1] += ends[v];
+    }
+    scratch.clear();
+    scratch.resize(n, 0);
+    for &k in keys.iter() {
+        let slot = &mut ends[((k >> shift) - lo) as usize];
+        scratch[*slot as usize] = k;
+        *slot += 1;
+    }
+    ends.truncate(span);
+    // Runs of whole buckets, about BUCKET_RUN faces each, counted on rayon's pool.
+    let mut runs: Vec<&mut [u64]> = Vec::new();
+    let (mut rest, mut taken) = (scratch.as_mut_slice(), 0usize);
+    let mut cut = 0usize;
+    for &end in &ends {
+        let end = end as usize;
+        if end - cut >= BUCKET_RUN {
+            let (run, tail) = std::mem::take(&mut rest).split_at_mut(end - taken);
+            runs.push(run);
+            rest = tail;
+            taken = end;
+            cut = end;
+        }
+    }
+    runs.push(rest);
+    let count_run = |run: &mut [u64]| {
+        let mut r = ClosedReport::default();
+        for bucket in run.chunk_by_mut(|a, b| a >> shift == b >> shift) {
+            bucket.sort_unstable();
+            for group in packed_groups(bucket) {
+                r.count(group);
+            }
+        }
+        r
+    };
+    runs.into_par_iter()
+        .map(count_run)
+        .reduce(ClosedReport::default, |mut a, b| {
+            a.triangles += b.triangles;
+            a.unpaired += b.unpaired;
+            a.overshared += b.overshared;
+            a.misoriented += b.misoriented;
+            a
+        })
 }
+
+/// Below this many faces, [`pair_packed`] radix sorts (its buckets' table would cost more
+/// than the sort).
+const BUCKET_MIN_FACES: usize = 4096;
+
+/// Faces per run of buckets counted as one task of [`pair_packed`].
+const BUCKET_RUN: usize = 1 << 16;
 
 /// Runs of sorted packed faces that share a triangle (they differ at most in bit 0, the
 /// orientation).
@@ -370,6 +444,63 @@ mod tests {
                 .collect();
             let n = 9 + extra;
             prop_assert_eq!(pair_by_first_vertex(&faces, n), pair_faces(faces.clone()));
+        }
+    }
+
+    /// Packed faces counted by bucket (dense ids) and by radix sort (sparse ids, or few
+    /// faces) report what sorting everything does. The faces repeat often (pairs, single
+    /// ones, three or four of a triangle, both orientations), and there are enough of them
+    /// for several runs of buckets on the pool.
+    #[test]
+    fn packed_pairing_equals_sorting_on_both_paths() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = move |m: u32| {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed % u64::from(m)) as u32
+        };
+        for (ids, faces, stride) in [
+            (3_000u32, 200_000usize, 1u32),
+            (50, 5_000, 1),
+            (40, 3_000, 1_000),
+        ] {
+            let bits = id_bits((ids * stride) as usize);
+            let mut wide = Vec::new();
+            while wide.len() < faces {
+                let [a, b, c] = [next(ids), next(ids), next(ids)].map(|v| v * stride);
+                if a == b || b == c || a == c {
+                    continue;
+                }
+                let (k, p) = canonical_triangle([a, b, c]);
+                // Most triangles twice with opposite orientations; some once, some with
+                // the same orientation twice, some three or four times.
+                let copies = match next(20) {
+                    0 => 1,
+                    1 => 3,
+                    2 => 4,
+                    _ => 2,
+                };
+                for i in 0..copies {
+                    let s = if i % 2 == 0 || next(10) == 0 { p } else { -p };
+                    wide.push((k, s));
+                }
+            }
+            // Shuffled, so a bucket's faces arrive apart.
+            for i in (1..wide.len()).rev() {
+                wide.swap(i, next(i as u32 + 1) as usize);
+            }
+            let mut keys: Vec<u64> = wide
+                .iter()
+                .map(|&(k, s)| pack_face(k, s > 0, bits))
+                .collect();
+            let want = pair_faces(wide.clone());
+            assert!(want.unpaired > 0 && want.misoriented > 0 && want.overshared > 0);
+            assert_eq!(
+                pair_packed(&mut keys, &mut Vec::new(), bits),
+                want,
+                "{ids} ids x {stride}"
+            );
         }
     }
 
