@@ -55,6 +55,7 @@ Domain: --domain, else 120 + pid % 50 (never ROS_DOMAIN_ID's value), loopback di
 """
 
 import argparse
+import gc
 import importlib.util
 import json
 import math
@@ -119,6 +120,22 @@ def wait(p, what, timeout):
         raise SystemExit(f"{what} did not finish within {timeout} s")
     if p.returncode != 0:
         raise SystemExit(f"{what} exited with {p.returncode}")
+
+
+def stop_launch(p, what, finish_s, abort_s=30):
+    """Stops a launch: one SIGTERM (the nodes finish what is queued), and a second one (an
+    abort: what waits in the queues is discarded and counted) if it has not finished within
+    `finish_s`. Returns whether it had to be aborted."""
+    p.terminate()
+    try:
+        p.wait(timeout=finish_s)
+        aborted = False
+    except subprocess.TimeoutExpired:
+        log(f"{what} still finishing after {finish_s} s: aborting (a second SIGTERM)")
+        p.terminate()
+        aborted = True
+    wait(p, what, abort_s if aborted else 1)
+    return aborted
 
 
 # ---- cyclone ----------------------------------------------------------------------------
@@ -303,6 +320,13 @@ def loadavg() -> list:
     return [float(x) for x in Path("/proc/loadavg").read_text().split()[:3]]
 
 
+def steal_s() -> float:
+    """CPU time the hypervisor gave to others while this VM's CPUs wanted it (all CPUs, s):
+    a stall that hits every process at once shows here."""
+    fields = Path("/proc/stat").read_text().split("\n", 1)[0].split()
+    return int(fields[8]) / os.sysconf("SC_CLK_TCK") if len(fields) > 8 else float("nan")
+
+
 def proc_peak_rss_mb(pid: int) -> float:
     """Peak resident memory (VmHWM) of a process."""
     for line in Path(f"/proc/{pid}/status").read_text().splitlines():
@@ -458,6 +482,8 @@ CARVING_SETUPS = {
 # The knife of carving_session.yaml (m).
 KNIFE = {"length": 0.016, "width": 0.010, "thickness": 0.002}
 POSE_TOPIC = "/haptic/pose"
+# The pose sender's SCHED_FIFO priority with --peer-realtime (below the node's 40).
+PEER_RT_PRIORITY = 30
 WRENCH_TOPIC = "/carving/wrench"
 
 
@@ -750,6 +776,17 @@ def bench_carving(a, exe, domain, tmp):
         log_tail = (tmp / "launch.log").read_text()[-2000:]
         raise SystemExit(f"{why}\nlaunch log (end):\n{log_tail}")
 
+    # A haptic device's driver runs at real-time priority; with --peer-realtime the sender
+    # does too (its Cyclone threads, started below, inherit it). The launch, the wrench
+    # receiver and the display peer were started before and keep normal priority.
+    peer_sched = "normal"
+    if a.peer_realtime:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(PEER_RT_PRIORITY))
+            peer_sched = f"SCHED_FIFO {PEER_RT_PRIORITY}"
+        except OSError as e:
+            peer_sched = f"normal (SCHED_FIFO refused: {e})"
+        log(f"pose sender: {peer_sched}")
     dp = DomainParticipant(domain)
     w = DataWriter(dp, Topic(dp, cp.dds_topic(POSE_TOPIC), PoseStamped),
                    qos=Qos(Policy.Reliability.BestEffort, Policy.Durability.Volatile,
@@ -771,6 +808,11 @@ def bench_carving(a, exe, domain, tmp):
     sent, deadlines, sent_at = {}, [], []
     rss_peak_seen, rss_stop, rss_series = 0.0, None, []  # [s after the first pose, MB]
     cpu0, wall0, pcpu0 = proc_cpu_s(launch.pid), time.monotonic(), time.process_time()
+    steal0 = steal_s()
+    # No garbage collection pauses inside the send loop (a device driver has none): a
+    # collection between a pose's stamp and its write counted as the launch's latency.
+    gc.collect()
+    gc.disable()
     t0 = time.perf_counter()
     next_check = t0 + 1.0
     k = skipped = 0
@@ -792,12 +834,15 @@ def bench_carving(a, exe, domain, tmp):
             skipped += int((now - t0) / period) - k
             k = int((now - t0) / period)
             continue
-        stamp = time.time_ns()
         pos, q = path.at(now - t0)
+        pose = cp.Pose(position=cp.Point(x=pos[0], y=pos[1], z=pos[2]),
+                       orientation=cp.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))
+        # The stamp (the latency's start) as late as the message allows: what comes before
+        # it is the peer's own work.
+        stamp = time.time_ns()
         msg = PoseStamped(
             header=cp.Header(stamp=cp.Time(sec=stamp // 10**9, nanosec=stamp % 10**9), frame_id="world"),
-            pose=cp.Pose(position=cp.Point(x=pos[0], y=pos[1], z=pos[2]),
-                         orientation=cp.Quaternion(x=q[0], y=q[1], z=q[2], w=q[3])))
+            pose=pose)
         w.write(msg, timestamp=stamp)
         sent[stamp] = stamp
         deadlines.append(due - t0)
@@ -814,6 +859,8 @@ def bench_carving(a, exe, domain, tmp):
                 rss_stop = rss_peak_seen
                 break
     send_s = time.perf_counter() - t0
+    steal = steal_s() - steal0
+    gc.enable()
     pcpu = time.process_time() - pcpu0
     exited = launch.poll()
     if exited is not None:
@@ -831,8 +878,7 @@ def bench_carving(a, exe, domain, tmp):
     rss = proc_rss_mb(launch.pid)
     peak = proc_peak_rss_mb(launch.pid)
     threads = thread_cpu_s(launch.pid)
-    launch.terminate()
-    wait(launch, "chronotope launch", 120)
+    aborted = stop_launch(launch, "chronotope launch", 120)
     load1 = loadavg()
     full = json.loads(summary.read_text())
     got = json.loads(got_path.read_text())
@@ -860,6 +906,7 @@ def bench_carving(a, exe, domain, tmp):
           f"{res['wrenches_received']} | {res['poses_without_wrench']} | "
           f"{res['latency_ms_p50']:.2f} | {res['latency_ms_p99']:.2f} | {res['latency_ms_max']:.2f} | "
           f"{100 * cpu_run / wall_run:.0f} | {rss:.0f} ({peak:.0f}) |")
+    print(f"the pose sender: {peer_sched}; the hypervisor's steal while sending: {steal:.2f} s of CPU")
     print(f"peer pacing: {pace['achieved_hz']:.1f} Hz achieved, lateness p50/p99/max "
           f"{pace['late_ms_p50']:.3f}/{pace['late_ms_p99']:.3f}/{pace['late_ms_max']:.3f} ms, "
           f"intervals p1/p50/p99/max {pace['interval_ms_p1']:.3f}/{pace['interval_ms_p50']:.3f}/"
@@ -883,7 +930,8 @@ def bench_carving(a, exe, domain, tmp):
     if rss_stop is not None:
         print(f"STOPPED EARLY: the launch's RSS reached {rss_stop:.0f} MB (--max-rss-mb {a.max_rss_mb})")
     return {"setup": a.setup, "description": desc, "config": cfg.read_text(), "seconds": a.seconds,
-            "pose_hz": a.pose_hz, "frame_hz": a.frame_hz, "display_peer": a.display, "knife_speed_m_per_s": a.speed,
+            "pose_hz": a.pose_hz, "frame_hz": a.frame_hz, "display_peer": a.display, "peer_scheduling": peer_sched,
+            "launch_aborted_at_stop": aborted, "steal_s_while_sending": steal, "knife_speed_m_per_s": a.speed,
             "result": res, "pacing": pace, "summary_cpu": extras["cpu"], "problems": extras["problems"], "sender_cpu_fraction": pcpu / send_s,
             "launch_cpu_s_while_sending": cpu_run, "launch_cpu_fraction_of_one_core": cpu_run / wall_run,
             "launch_cpu_s": cpu, "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
@@ -1038,6 +1086,8 @@ def main() -> int:
                     help="carving: queue_depth of the mesher and checker (builds that have the executor)")
     ap.add_argument("--realtime", action="store_true",
                     help="carving: mark the carving node realtime (builds that have the executor)")
+    ap.add_argument("--peer-realtime", action="store_true",
+                    help="carving: the pose sender runs at SCHED_FIFO, as a haptic device's driver would")
     ap.add_argument("--display", action="store_true",
                     help="carving: a display peer subscribes to /carving/surfels and /carving/occupancy")
     ap.add_argument("--max-rss-mb", type=float, default=8000.0,
