@@ -12,6 +12,9 @@ use super::*;
 #[derive(Debug)]
 pub struct Placement<'a> {
     source: &'a Prepared,
+    /// The smallest and largest coordinate of the source's vertices on each axis (`None`
+    /// without vertices): a map that keeps them within ±2^30 keeps every vertex there.
+    bounds: Option<[[i32; 2]; 4]>,
     pub(super) body: Prepared,
 }
 
@@ -19,8 +22,19 @@ impl<'a> Placement<'a> {
     /// A copy of `source` to place: its topology now, its coordinates, boxes and normals
     /// at the first placement.
     pub fn new(source: &'a Prepared) -> Self {
+        let bounds = source.mesh.vertices.split_first().map(|(first, rest)| {
+            let mut b = first.map(|c| [c, c]);
+            for p in rest {
+                for k in 0..4 {
+                    b[k][0] = b[k][0].min(p[k]);
+                    b[k][1] = b[k][1].max(p[k]);
+                }
+            }
+            b
+        });
         Self {
             source,
+            bounds,
             body: Prepared {
                 id: source.id.clone(),
                 mesh: TetMesh {
@@ -54,10 +68,25 @@ impl<'a> Placement<'a> {
             return None;
         }
         let (src, body) = (self.source, &mut self.body);
-        body.mesh.vertices.clear();
-        for p in &src.mesh.vertices {
-            body.mesh.vertices.push(map_point(p, mul, add)?);
+        // The map increases on each axis: if the extreme coordinates stay within ±2^30, so
+        // does every one (and no product or sum below overflows).
+        if let Some(b) = self.bounds {
+            for (k, ends) in b.into_iter().enumerate() {
+                if !ends
+                    .iter()
+                    .all(|&c| map_coordinate(c, mul[k], add[k]).is_some())
+                {
+                    return None;
+                }
+            }
         }
+        body.mesh.vertices.clear();
+        body.mesh.vertices.extend(
+            src.mesh
+                .vertices
+                .iter()
+                .map(|p| [0, 1, 2, 3].map(|k| (i64::from(p[k]) * mul[k] + add[k]) as i32)),
+        );
         if !body.bvh.map_axes_from(&src.bvh, mul, add) {
             return None;
         }
@@ -66,15 +95,17 @@ impl<'a> Placement<'a> {
     }
 }
 
+/// `c` mapped by c → mul·c + add, or `None` if it would leave ±2^30.
+fn map_coordinate(c: i32, mul: i64, add: i64) -> Option<i32> {
+    let c = i64::from(c).checked_mul(mul)?.checked_add(add)?;
+    (c.abs() < 1 << 30).then_some(c as i32)
+}
+
 /// `p` mapped by x_k → mul_k·x_k + add_k, or `None` if a coordinate would leave ±2^30.
 pub(super) fn map_point(p: &LatticePoint, mul: [i64; 4], add: [i64; 4]) -> Option<LatticePoint> {
     let mut out = [0; 4];
     for k in 0..4 {
-        let c = i64::from(p[k]).checked_mul(mul[k])?.checked_add(add[k])?;
-        if c.abs() >= 1 << 30 {
-            return None;
-        }
-        out[k] = c as i32;
+        out[k] = map_coordinate(p[k], mul[k], add[k])?;
     }
     Some(out)
 }

@@ -84,6 +84,11 @@ pub(super) fn map_normals(normals: &[[i32; 4]], mul: [i64; 4], out: &mut Vec<[i3
         .max(1) as i128;
     let weight = weight.map(|w| w / g);
     out.clear();
+    if weight == [1; 4] {
+        // A translation, or the same scale on every axis: the normals are the source's.
+        out.extend_from_slice(normals);
+        return;
+    }
     out.extend(normals.iter().map(|n| {
         if *n == NO_NORMAL {
             NO_NORMAL

@@ -281,14 +281,17 @@ fn axis_map(t: &Bvh, mul: [i64; 4], add: [i64; 4]) -> Option<impl Fn(&Aabb4) -> 
     if !t.nodes.first().is_none_or(|n| fits(&n.aabb)) {
         return None;
     }
+    // Every non-empty box lies within the root's, and the map increases on each axis, so
+    // each of its coordinates maps between the root's mapped ones: no product or sum below
+    // can overflow, and every result fits in i32 (checked once, above).
     Some(move |b: &Aabb4| {
         if b.is_empty() {
             return *b;
         }
         let mut m = *b;
         for k in 0..4 {
-            m.min[k] = map(k, b.min[k]).unwrap_or(b.min[k]);
-            m.max[k] = map(k, b.max[k]).unwrap_or(b.max[k]);
+            m.min[k] = (i64::from(b.min[k]) * mul[k] + add[k]) as i32;
+            m.max[k] = (i64::from(b.max[k]) * mul[k] + add[k]) as i32;
         }
         m
     })
