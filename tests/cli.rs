@@ -404,3 +404,36 @@ fn topics_beyond_the_body_limit_are_refused_and_listed() {
     assert_eq!(errors.len(), 44);
     assert!(errors[0].as_str().unwrap().contains("not read"));
 }
+
+/// The live benchmark's config without markers is `launch_configs/machine_tool.yaml` with
+/// only its markers line changed (a copy kept in step, so both measure the same cell).
+#[test]
+fn bench_config_without_markers_is_machine_tool_yaml_but_markers() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let lines = |rel: &str| -> Vec<String> {
+        std::fs::read_to_string(root.join(rel))
+            .expect(rel)
+            .lines()
+            .filter(|l| !l.trim_start().starts_with('#'))
+            .map(str::to_owned)
+            .collect()
+    };
+    let with = lines("launch_configs/machine_tool.yaml");
+    let without = lines("bench/machine_tool_no_markers.yaml");
+    let markers = |v: &str| format!("    - {{name: markers, value: {v}}}");
+    let swapped: Vec<String> = with
+        .iter()
+        .map(|l| {
+            if *l == markers("true") {
+                markers("false")
+            } else {
+                l.clone()
+            }
+        })
+        .collect();
+    assert_ne!(
+        swapped, with,
+        "machine_tool.yaml has no `markers: true` line"
+    );
+    assert_eq!(swapped, without);
+}

@@ -175,50 +175,71 @@ pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> Cl
         }
         return r;
     }
-    // ends[v + 1] counts bucket v; after the prefix sum ends[v] is its first slot, and
+    pair_in_buckets(
+        span,
+        || keys.iter().map(|&k| (((k >> shift) - lo) as usize, k)),
+        n,
+        scratch,
+    )
+}
+
+/// Counts how `len` faces pair up, each given by `faces()` (called twice, the same faces
+/// each time) as its bucket below `buckets` and a key: a triangle's faces share a bucket,
+/// and two faces of a bucket are of one triangle when their keys agree above bit 0 (the
+/// orientation). The buckets are placed in `scratch` by a counting sort (one pass to count,
+/// one to place), and each, the few dozen faces around one vertex, is sorted alone; runs of
+/// whole buckets, about [`BUCKET_RUN`] faces each, are counted on rayon's pool.
+fn pair_in_buckets<I: Iterator<Item = (usize, u64)>>(
+    buckets: usize,
+    faces: impl Fn() -> I,
+    len: usize,
+    scratch: &mut Vec<u64>,
+) -> ClosedReport {
+    // ends[b + 1] counts bucket b; after the prefix sum ends[b] is its first slot, and
     // after placing, its end.
-    let mut ends = vec![0u32; span + 1];
-    for &k in keys.iter() {
-        ends[((k >> shift) - lo) as usize + 1] += 1;
+    let mut ends = vec![0u32; buckets + 1];
+    for (b, _) in faces() {
+        ends[b + 1] += 1;
     }
-    for v in 0..span {
-        ends[v + 1] += ends[v];
+    for b in 0..buckets {
+        ends[b + 1] += ends[b];
     }
     scratch.clear();
-    scratch.resize(n, 0);
-    for &k in keys.iter() {
-        let slot = &mut ends[((k >> shift) - lo) as usize];
-        scratch[*slot as usize] = k;
+    scratch.resize(len, 0);
+    for (b, key) in faces() {
+        let slot = &mut ends[b];
+        scratch[*slot as usize] = key;
         *slot += 1;
     }
-    ends.truncate(span);
-    // Runs of whole buckets, about BUCKET_RUN faces each, counted on rayon's pool.
-    let mut runs: Vec<&mut [u64]> = Vec::new();
-    let (mut rest, mut taken) = (scratch.as_mut_slice(), 0usize);
-    let mut cut = 0usize;
+    ends.truncate(buckets);
+    // Runs of whole buckets: each its faces and its buckets' ends (from the run's start).
+    let mut runs: Vec<(&mut [u64], Vec<usize>)> = Vec::new();
+    let (mut rest, mut cut, mut run_ends) = (scratch.as_mut_slice(), 0usize, Vec::new());
     for &end in &ends {
         let end = end as usize;
+        run_ends.push(end - cut);
         if end - cut >= BUCKET_RUN {
-            let (run, tail) = std::mem::take(&mut rest).split_at_mut(end - taken);
-            runs.push(run);
+            let (run, tail) = std::mem::take(&mut rest).split_at_mut(end - cut);
+            runs.push((run, std::mem::take(&mut run_ends)));
             rest = tail;
-            taken = end;
             cut = end;
         }
     }
-    runs.push(rest);
-    let count_run = |run: &mut [u64]| {
-        let mut r = ClosedReport::default();
-        for bucket in run.chunk_by_mut(|a, b| a >> shift == b >> shift) {
-            bucket.sort_unstable();
-            for group in packed_groups(bucket) {
-                r.count(group);
-            }
-        }
-        r
-    };
+    runs.push((rest, run_ends));
     runs.into_par_iter()
-        .map(count_run)
+        .map(|(run, ends)| {
+            let mut r = ClosedReport::default();
+            let mut begin = 0;
+            for end in ends {
+                let bucket = &mut run[begin..end];
+                bucket.sort_unstable();
+                for group in packed_groups(bucket) {
+                    r.count(group);
+                }
+                begin = end;
+            }
+            r
+        })
         .reduce(ClosedReport::default, |mut a, b| {
             a.triangles += b.triangles;
             a.unpaired += b.unpaired;
@@ -306,32 +327,16 @@ pub fn pair_by_first_vertex(faces: &[([u32; 3], i8)], n: usize) -> ClosedReport 
     if !fits {
         return pair_faces(faces.to_vec());
     }
-    // start[v]..start[v + 1]: the faces whose smallest id is v.
-    let mut start = vec![0u32; n + 1];
-    for (k, _) in faces {
-        start[k[0] as usize + 1] += 1;
-    }
-    for v in 0..n {
-        start[v + 1] += start[v];
-    }
-    let mut next = start.clone();
-    let mut rest = vec![0u64; faces.len()];
-    for (k, s) in faces {
-        let slot = &mut next[k[0] as usize];
-        rest[*slot as usize] =
-            (u64::from(k[1]) << (bits + 1)) | (u64::from(k[2]) << 1) | u64::from(*s > 0);
-        *slot += 1;
-    }
-    drop(next);
-    let mut r = ClosedReport::default();
-    for v in 0..n {
-        let group = &mut rest[start[v] as usize..start[v + 1] as usize];
-        group.sort_unstable();
-        for g in packed_groups(group) {
-            r.count(g);
-        }
-    }
-    r
+    // Within a bucket (the smallest id) a face is its other two ids and its orientation.
+    let rest = |k: &[u32; 3], s: i8| {
+        (u64::from(k[1]) << (bits + 1)) | (u64::from(k[2]) << 1) | u64::from(s > 0)
+    };
+    pair_in_buckets(
+        n,
+        || faces.iter().map(|(k, s)| (k[0] as usize, rest(k, *s))),
+        faces.len(),
+        &mut Vec::new(),
+    )
 }
 
 /// Like [`pair_faces`] for triangles of points in one t plane: each point is packed into a
