@@ -409,6 +409,20 @@ def bench_mesher(a, exe, domain, tmp):
     load0 = loadavg()
     launch = start_launch(exe, cfg, domain, a.seconds_max, summary, tmp / "launch.log")
     time.sleep(1.0)
+    marker_proc = None
+    if a.markers_reader:
+        # A display's reader of the markers (rviz2, Foxglove): without one the checker
+        # builds none. Started and matched before the frames.
+        ctx = multiprocessing.get_context("spawn")
+        marker_q, marker_ready = ctx.Queue(), ctx.Event()
+        marker_proc = ctx.Process(target=take_markers,
+                                  args=(domain, a.seconds_max, marker_q, marker_ready))
+        marker_proc.start()
+        if not marker_ready.wait(30):
+            launch.kill()
+            marker_proc.kill()
+            raise SystemExit("the markers reader did not match the launch within 30 s")
+        time.sleep(0.5)
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain), RUST_LOG="warn")
     cpu0 = proc_cpu_s(launch.pid)
     t0 = time.monotonic()
@@ -428,6 +442,14 @@ def bench_mesher(a, exe, domain, tmp):
     threads = thread_cpu_s(launch.pid)
     launch.terminate()
     wait(launch, "chronotope launch", 300)
+    markers = None
+    if marker_proc is not None:
+        got, _ = marker_q.get(timeout=120)
+        marker_proc.join(timeout=30)
+        lat = sorted((r - src) / 1e6 for r, src in got)
+        markers = {"received": len(got),
+                   "latency_ms_p50": lat[len(lat) // 2] if lat else None,
+                   "latency_ms_max": lat[-1] if lat else None}
     load1 = loadavg()
     full = json.loads(summary.read_text())
     s = full["transport"]
@@ -460,7 +482,11 @@ def bench_mesher(a, exe, domain, tmp):
         print("CPU in --summary: " + ", ".join(f"{k} {v}" for k, v in extras["cpu"].items()))
     if extras["problems"]:
         print("problems counted: " + "; ".join(f"{n} {p}" for n, p in extras["problems"].items()))
+    if markers is not None:
+        print(f"markers reader: {markers['received']} MarkerArrays, publish-to-take p50 "
+              f"{markers['latency_ms_p50']} ms, max {markers['latency_ms_max']} ms")
     return {"topics": rows, "summary_cpu": extras["cpu"], "problems": extras["problems"], "hz": a.hz, "config": str(cfg), "play_rate": rate, "bag_frame_period_s": period,
+            "markers_reader": markers,
             "frames_per_topic": per_topic,
             "grid": a.grid, "play_s": t_play, "cpu_s_while_playing": cpu_play, "cpu_s": cpu,
             "rss_mb": rss, "peak_rss_mb": peak, "cpu_s_per_thread": threads,
@@ -1070,6 +1096,9 @@ def main() -> int:
                     help="mesher: launch config (default launch_configs/machine_tool.yaml)")
     ap.add_argument("--frames", type=int, default=None,
                     help="mesher: frames per body of the generated scene (default: the scene's, 64)")
+    ap.add_argument("--markers-reader", action="store_true",
+                    help="mesher: a display's reader subscribes to /checker/markers (without one "
+                         "the checker builds no markers)")
     ap.add_argument("--settle", type=float, default=20.0,
                     help="mesher: seconds after the bag before the launch is stopped")
     ap.add_argument("--seconds-max", type=int, default=600)

@@ -273,7 +273,8 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
          - node: {pkg: chronotope, exec: mesher, param: [{name: idle_timeout_s, value: 1.0}, \
            {name: bodies, value: [/sphere_a/occupancy, /sphere_b/occupancy, /sphere_c/occupancy, /sphere_d/occupancy]}]}\n\
          - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: \
-           ['/sphere_a/occupancy /sphere_b/occupancy', '/sphere_a/occupancy /sphere_d/occupancy']}]}\n",
+           ['/sphere_a/occupancy /sphere_b/occupancy', '/sphere_a/occupancy /sphere_d/occupancy']}, \
+           {name: markers, value: true}]}\n",
     )
     .unwrap();
     let summary = d.path().join("summary.json");
@@ -355,6 +356,16 @@ fn a_stream_that_stops_and_undecodable_samples_are_counted_and_the_rest_is_check
     assert!(checker["published"].as_u64().unwrap() >= 1, "{s}");
     let said = checker["messages"].to_string();
     assert!(said.contains("/sphere_d/occupancy: its frames end"), "{s}");
+    // No reader of the markers or the labels on the wire: neither is built.
+    assert_eq!(s["nodes"]["/checker/markers"]["published"], 0, "{s}");
+    assert!(
+        s["transport"]["sent"].get("/checker/labels").is_none(),
+        "{s}"
+    );
+    assert!(
+        s["transport"]["sent"]["/checker/report"].as_u64() >= Some(1),
+        "{s}"
+    );
 }
 
 /// `chronotope param` against a running launch: the ROS parameter services read the launch's

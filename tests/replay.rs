@@ -599,3 +599,66 @@ fn the_report_is_republished_when_the_streams_end_without_any_contact() {
     );
     assert!(!last.pairs[0].interfering, "{last:?}");
 }
+
+/// What nothing reads is not built: without an output bag the checker makes neither its
+/// markers nor its labels, and its answers are those of the replay that records them; an
+/// output bag that leaves the markers out gets the labels and no markers built.
+#[test]
+fn a_replay_builds_no_markers_or_labels_that_nothing_reads() {
+    let d = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bag = root.join("bags/four-spheres-32-bits.mcap");
+    let cfg_text = std::fs::read_to_string(root.join("launch_configs/four_spheres.yaml")).unwrap();
+    let cfg = LaunchConfig::parse(&cfg_text, "four_spheres.yaml").unwrap();
+    let all = d.path().join("all.mcap");
+    let recorded = replay(&bag, Some(&cfg), Some(&all), false).unwrap();
+    let unread = replay(&bag, Some(&cfg), None, false).unwrap();
+    let markers = |r: &chronotope::cli::replay::ReplayReport| r.nodes["/checker/markers"].published;
+    assert!(
+        recorded.output.topics["/checker/markers"] > 0,
+        "{:?}",
+        recorded.output
+    );
+    assert!(
+        recorded.output.topics["/checker/labels"] > 0,
+        "{:?}",
+        recorded.output
+    );
+    assert_eq!(
+        markers(&recorded),
+        recorded.output.topics["/checker/markers"]
+    );
+    assert_eq!(markers(&unread), 0, "markers built for nobody");
+    // The checker published its report and contacts only: no labels.
+    let contacts_and_reports = recorded.output.topics["/checker/report"]
+        + recorded.output.topics["/checker/contacts"]
+        + recorded
+            .output
+            .topics
+            .get("/checker/suggestions")
+            .copied()
+            .unwrap_or(0);
+    assert_eq!(unread.nodes["/checker"].published, contacts_and_reports);
+    let answer = |r: &chronotope::cli::replay::ReplayReport| {
+        serde_json::to_value((&r.report.bodies, &r.report.pairs, &r.report.resolutions)).unwrap()
+    };
+    assert_eq!(answer(&unread), answer(&recorded));
+
+    // A recorder that leaves the markers out.
+    let no_markers = LaunchConfig::parse(
+        &format!(
+            "{cfg_text}\n- node: {{pkg: chronotope, exec: recorder, param: [{{name: exclude, value: [/checker/markers]}}]}}\n"
+        ),
+        "four_spheres.yaml with a recorder",
+    )
+    .unwrap();
+    let some = d.path().join("some.mcap");
+    let partial = replay(&bag, Some(&no_markers), Some(&some), false).unwrap();
+    assert_eq!(markers(&partial), 0, "markers built for nobody");
+    assert!(!partial.output.topics.contains_key("/checker/markers"));
+    assert_eq!(
+        partial.output.topics["/checker/labels"],
+        recorded.output.topics["/checker/labels"]
+    );
+    assert_eq!(answer(&partial), answer(&recorded));
+}

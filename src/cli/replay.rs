@@ -329,6 +329,8 @@ pub fn replay(
         }
         None => None,
     };
+    // What neither a node nor the output bag reads is not built (markers without --out).
+    bus.set_demand(|t| output.as_ref().is_some_and(|o| o.selection.wants(t)));
     let bar = if progress && std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new_spinner();
         b.set_style(
@@ -626,4 +628,71 @@ pub fn write_json(p: &Path, value: &impl Serialize) -> Result<(), CliError> {
         path: p.to_path_buf(),
         source,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The checker's markers of the four-spheres bag through the bus; with `read_from`,
+    /// nothing is read until that input message, then the markers are.
+    fn markers(read_from: Option<usize>) -> Vec<Vec<u8>> {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let bag = root.join("bags/four-spheres-32-bits.mcap");
+        let config = LaunchConfig::read(&root.join("launch_configs/four_spheres.yaml"))
+            .expect("the bundled config");
+        let bodies = crate::bag::voxel_topics(&bag).expect("the bundled bag");
+        let (nodes, _) = build_nodes(&config, &bodies, false).expect("its nodes");
+        let mut bus = Bus::new(nodes);
+        let mut got = Vec::new();
+        let mut sink = |m: &Message| {
+            if &*m.topic == "/checker/markers" {
+                got.push(m.payload.encode().expect("markers encode"));
+            }
+        };
+        if read_from.is_some() {
+            bus.set_demand(|_| false);
+        }
+        for (i, m) in BagReader::open(&bag).expect("the bag").enumerate() {
+            let m = m.expect("a whole bag");
+            if read_from == Some(i) {
+                bus.set_demand(|t| t == "/checker/markers");
+            }
+            let Some(ty) = bus.expected_type(&m.topic) else {
+                continue;
+            };
+            let payload = Payload::decode(ty, &m.data).expect("frames decode");
+            bus.deliver(
+                Message::new(&m.topic, m.log_time_ns as i64, payload),
+                &mut sink,
+            );
+        }
+        bus.finish(&mut sink);
+        got
+    }
+
+    /// Markers asked for while the streams go on come for the slabs from then on, each the
+    /// same message as when they were read from the start: no slab seen by some pairs'
+    /// checks only is sliced.
+    #[test]
+    fn markers_read_from_mid_stream_are_the_full_ones_from_there() {
+        let full = markers(None);
+        let none = markers(Some(usize::MAX));
+        assert!(none.is_empty(), "{} built for nobody", none.len());
+        let from_mid = markers(Some(30));
+        assert!(
+            !from_mid.is_empty() && from_mid.len() < full.len(),
+            "{} of {}",
+            from_mid.len(),
+            full.len()
+        );
+        for (i, m) in from_mid.iter().enumerate() {
+            assert!(
+                full.contains(m),
+                "marker array {i} is not one of the full run's"
+            );
+        }
+        // The last slabs' markers are all there.
+        assert_eq!(full.last(), from_mid.last());
+    }
 }

@@ -119,6 +119,8 @@ pub enum Input {
     Local(Message, Instant),
     /// A parameter change asked for over ROS.
     Param(ParamRequest),
+    /// Whether anything reads one of the node's publications now ([`Node::set_demand`]).
+    Demand(String, bool),
     /// The inputs have ended: finish, then acknowledge.
     Finish(Sender<()>),
     /// End the thread.
@@ -362,7 +364,7 @@ impl Input {
         match self {
             Input::Wire(s) => Some(&s.topic),
             Input::Local(m, _) => Some(&m.topic),
-            Input::Param(_) | Input::Finish(_) | Input::Stop => None,
+            Input::Param(_) | Input::Demand(..) | Input::Finish(_) | Input::Stop => None,
         }
     }
 
@@ -371,7 +373,7 @@ impl Input {
         match self {
             Input::Wire(s) => s.bytes.len() + crate::node::MESSAGE_OVERHEAD_BYTES,
             Input::Local(m, _) => m.payload.queue_bytes(),
-            Input::Param(_) | Input::Finish(_) | Input::Stop => 0,
+            Input::Param(_) | Input::Demand(..) | Input::Finish(_) | Input::Stop => 0,
         }
     }
 }
@@ -570,6 +572,10 @@ impl Unit {
                     }
                     let _ = req.reply.send(r);
                 }
+                Input::Demand(topic, read) => {
+                    tracing::debug!(node = self.name, topic, read, "demand");
+                    self.guarded(&mut out, |n, _| n.set_demand(&topic, read));
+                }
                 Input::Stop => break,
                 Input::Wire(_) | Input::Local(..) if self.routes.aborted() => {
                     let bytes = first.queue_bytes();
@@ -685,7 +691,7 @@ impl Unit {
                     msgs.push(m);
                     arrivals.push(at);
                 }
-                Input::Param(_) | Input::Finish(_) | Input::Stop => {}
+                Input::Param(_) | Input::Demand(..) | Input::Finish(_) | Input::Stop => {}
             }
         }
         if msgs.is_empty() {
@@ -913,6 +919,14 @@ impl Executor {
                     .collect()
             })
             .unwrap_or_default()
+    }
+
+    /// Tells node `index` whether anything reads `topic` now; false if its queue has no
+    /// room for it now (to be said again).
+    pub fn demand(&self, index: usize, topic: &str, read: bool) -> bool {
+        self.units
+            .get(index)
+            .is_some_and(|u| u.tx.try_send(Input::Demand(topic.to_owned(), read)).is_ok())
     }
 
     /// The queue of the node named `node`, for parameter requests.

@@ -23,7 +23,9 @@ use std::time::{Duration, Instant, SystemTime};
 
 use futures::StreamExt;
 use rustdds::no_key::{DataWriter, SimpleDataReader};
-use rustdds::{DomainParticipant, DomainParticipantBuilder, TopicKind};
+use rustdds::{
+    DataWriterStatus, DomainParticipant, DomainParticipantBuilder, StatusEvented, TopicKind,
+};
 use serde::Serialize;
 
 use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time};
@@ -965,7 +967,40 @@ pub fn run_nodes(
         rt_io.push(io);
     }
 
+    // Each node's publications no node of the process reads, with the writer whose readers
+    // on the wire decide whether anything does (none: nothing ever reads it).
+    let local_read: BTreeSet<&str> = graph_plan
+        .iter()
+        .flat_map(|(_, _, subs)| subs.iter().map(|s| s.topic.as_str()))
+        .collect();
+    let mut rt_of = rt_io.iter();
+    let mut watched = Vec::new();
+    for (i, (_, pubs, _)) in graph_plan.iter().enumerate() {
+        let own = if unit_options[i].realtime {
+            rt_of.next().map(|io| &io.own.writers)
+        } else {
+            None
+        };
+        for p in pubs
+            .iter()
+            .filter(|p| !local_read.contains(p.topic.as_str()))
+        {
+            let writer = own
+                .and_then(|w| w.get(&p.topic))
+                .or_else(|| main_writers.get(&p.topic))
+                .cloned();
+            watched.push(Watched {
+                node: i,
+                topic: p.topic.clone(),
+                writer,
+                readers: 0,
+                said: true,
+            });
+        }
+    }
     let exec = Executor::start(nodes, &unit_options, wires, opts.tick)?;
+    let mut demand = Demand { watched };
+    demand.poll(&exec);
     let injector = exec.injector();
 
     let mut ros_nodes = Vec::new();
@@ -1084,6 +1119,7 @@ pub fn run_nodes(
     while !(shutdown.stopping() || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
         std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
         coordinator.graph.poll(Instant::now());
+        demand.poll(&exec);
         if tune_allocator && last_trim.elapsed() >= TRIM_PERIOD {
             last_trim = Instant::now();
             trim_heap();
@@ -1144,6 +1180,48 @@ pub fn run_nodes(
     }
     runtime.shutdown_timeout(Duration::from_millis(500));
     Ok(summary)
+}
+
+/// A publication no node of the process reads: whether a reader on the wire does.
+struct Watched {
+    node: usize,
+    topic: String,
+    writer: Option<Arc<Mutex<RawWriter>>>,
+    /// The readers on the wire its writer has matched (from its status events).
+    readers: i32,
+    /// What the node was last told (every publication is read until it is told otherwise).
+    said: bool,
+}
+
+/// Tells each node which of its publications are read ([`Node::set_demand`]), from the
+/// readers its writers have matched, so that nothing builds markers or labels nobody
+/// reads. A reader that appears is seen at the next poll (every tick, at most 50 ms).
+/// RustDDS has no matched-readers query (`get_matched_subscriptions` is a placeholder that
+/// panics): the count comes from each writer's publication-matched events, drained here.
+struct Demand {
+    watched: Vec<Watched>,
+}
+
+impl Demand {
+    fn poll(&mut self, exec: &Executor) {
+        for w in &mut self.watched {
+            if let Some(wr) = &w.writer {
+                // A writer busy writing: its events wait for the next poll.
+                if let Ok(wr) = wr.try_lock() {
+                    while let Some(st) = wr.try_recv_status() {
+                        if let DataWriterStatus::PublicationMatched { current, .. } = st {
+                            w.readers = current.count();
+                        }
+                    }
+                }
+            }
+            let read = w.readers > 0;
+            if read != w.said && exec.demand(w.node, &w.topic, read) {
+                tracing::info!(topic = w.topic, read, "readers on the wire");
+                w.said = read;
+            }
+        }
+    }
 }
 
 /// The coordinating thread: `/diagnostics`, publishers of wrong types.

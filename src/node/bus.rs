@@ -46,6 +46,18 @@ impl Bus {
         }
     }
 
+    /// Tells each node which of its publications are read: by a node of the bus, or
+    /// `recorded` (the output bag). A replay calls this once, before the first message, so
+    /// that what it records never depends on it.
+    pub fn set_demand(&mut self, recorded: impl Fn(&str) -> bool) {
+        for n in &mut self.nodes {
+            for p in n.publications() {
+                let read = self.routes.contains_key(&p.topic) || recorded(&p.topic);
+                n.set_demand(&p.topic, read);
+            }
+        }
+    }
+
     /// The type subscribers expect on `topic`, if anyone reads it.
     pub fn expected_type(&self, topic: &str) -> Option<&'static str> {
         self.routes.get(topic).and_then(|r| r.first()).map(|r| r.1)

@@ -453,6 +453,15 @@ impl CheckerNode {
         }
     }
 
+    /// Reports slabs for the markers part only while someone reads the markers (the part
+    /// hears it from the transport: [`Node::set_demand`]).
+    fn follow_markers_demand(&mut self) {
+        if let Some(q) = &self.markers_queue {
+            let read = q.lock().map_or(true, |q| !q.unread);
+            self.engine.set_slabs_done(read);
+        }
+    }
+
     /// The markers part: a node of its own (`<name>/markers`, its own thread in a live
     /// launch) that slices the slabs every pair has labelled and publishes `~/markers`, so
     /// that the checker's thread goes on with the next windows. `None` without `markers`.
@@ -478,12 +487,18 @@ pub struct MarkerQueue {
     /// Each slab with the checker's `frame_id`.
     slabs: std::collections::VecDeque<(String, SlabDone)>,
     tets: usize,
+    /// Nobody reads the markers now: nothing is queued, and the checker stops reporting
+    /// slabs until someone does.
+    unread: bool,
 }
 
 impl MarkerQueue {
     /// Queues `d`; returns how many of the oldest were dropped to stay within
     /// [`MARKER_QUEUE_TETS`] (the newest always stays).
     fn push(&mut self, frame_id: &str, d: SlabDone) -> u64 {
+        if self.unread {
+            return 0;
+        }
         self.tets += d.mesh.tets.len();
         self.slabs.push_back((frame_id.to_owned(), d));
         let mut dropped = 0;
@@ -559,6 +574,18 @@ impl Node for CheckerMarkers {
         let _ = msg;
         self.status.received += 1;
         self.publish(out);
+    }
+
+    fn set_demand(&mut self, topic: &str, read: bool) {
+        if topic != self.markers_topic {
+            return;
+        }
+        if let Ok(mut q) = self.queue.lock() {
+            q.unread = !read;
+            if !read {
+                q.take();
+            }
+        }
     }
 
     fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
@@ -761,6 +788,7 @@ impl Node for CheckerNode {
 
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
         self.status.received += 1;
+        self.follow_markers_demand();
         match &msg.payload {
             Payload::MeshSlab(s) if *msg.topic == *self.mesh_topic => self.on_piece(s, out),
             Payload::VoxelGrid(g) if *msg.topic != *self.mesh_topic => {
@@ -783,10 +811,18 @@ impl Node for CheckerNode {
 
     fn on_tick(&mut self, _now_ns: i64, out: &mut Vec<Message>) {
         self.live = true;
+        self.follow_markers_demand();
         self.poll_resolutions(out);
     }
 
+    fn set_demand(&mut self, topic: &str, read: bool) {
+        if self.labels_topic.as_deref() == Some(topic) {
+            self.engine.set_labels(read);
+        }
+    }
+
     fn finish(&mut self, out: &mut Vec<Message>) {
+        self.follow_markers_demand();
         let mut rolled = Vec::new();
         self.engine.finish(&mut rolled);
         self.dirty = true;

@@ -50,6 +50,8 @@ pub struct MesherNode {
     bodies: BTreeMap<String, Body>,
     slab_topic: String,
     slice_topic: Option<String>,
+    /// Something reads the slice markers ([`Node::set_demand`]); none are built otherwise.
+    slice_read: bool,
     /// Live use: a body whose frames stop for this long (transport time) is closed.
     idle_timeout_ns: i64,
     status: NodeStatus,
@@ -97,6 +99,7 @@ impl MesherNode {
             bodies: map,
             slab_topic,
             slice_topic,
+            slice_read: true,
             idle_timeout_ns: (idle_timeout_s * 1e9) as i64,
             status: NodeStatus::default(),
         })
@@ -140,7 +143,7 @@ impl MesherNode {
         Ctx {
             fqn: &self.fqn,
             slab_topic: &self.slab_topic,
-            slice_topic: self.slice_topic.as_deref(),
+            slice_topic: self.slice_topic.as_deref().filter(|_| self.slice_read),
         }
     }
 
@@ -148,7 +151,7 @@ impl MesherNode {
         let ctx = Ctx {
             fqn: &self.fqn,
             slab_topic: &self.slab_topic,
-            slice_topic: self.slice_topic.as_deref(),
+            slice_topic: self.slice_topic.as_deref().filter(|_| self.slice_read),
         };
         let Some(b) = self.bodies.get_mut(topic) else {
             return;
@@ -529,6 +532,12 @@ impl Node for MesherNode {
             type_name: Marker::TYPE_NAME,
         }));
         p
+    }
+
+    fn set_demand(&mut self, topic: &str, read: bool) {
+        if self.slice_topic.as_deref() == Some(topic) {
+            self.slice_read = read;
+        }
     }
 
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {

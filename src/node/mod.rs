@@ -296,6 +296,13 @@ pub trait Node: Send + std::any::Any {
             self.name()
         ))
     }
+    /// Whether anything reads `topic`, one of its publications, now: a node in the
+    /// process, a reader on the wire, or an output bag. A node may then skip building what
+    /// nobody reads (markers, labels) until someone does. Every publication is read until
+    /// the transport says otherwise; the default ignores this.
+    fn set_demand(&mut self, topic: &str, read: bool) {
+        let _ = (topic, read);
+    }
     /// Counters and problems.
     fn status(&self) -> &NodeStatus;
     /// Position in the pipeline: nodes finish in increasing rank, so what one publishes on

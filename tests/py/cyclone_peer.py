@@ -480,6 +480,9 @@ def main() -> int:
         time.sleep(0.05)
     t_matched = time.monotonic()
     log(f"matched after {t_matched - t_start:.2f} s")
+    # The launch builds labels and markers only once it has seen a reader of them (at its
+    # next tick after matching ours, which may come a little after we saw the match).
+    time.sleep(1.0)
 
     got_report: list = []
     got_labels: list = []

@@ -628,6 +628,28 @@ impl RollingChecker {
         }
     }
 
+    /// Turns [`RollOut::Labels`] on or off while the streams go on (nobody reads them).
+    pub fn set_labels(&mut self, on: bool) {
+        self.cfg.labels = on;
+    }
+
+    /// Turns [`RollOut::SlabDone`] on or off while the streams go on. Turned on, it reports
+    /// the slabs that arrive from then on: a slab kept from before has not been seen by
+    /// every pair's check since, so its worst labels would be partial.
+    pub fn set_slabs_done(&mut self, on: bool) {
+        if self.cfg.slabs_done == on {
+            return;
+        }
+        self.cfg.slabs_done = on;
+        if !on {
+            for b in self.bodies.values_mut() {
+                for s in b.slabs.values_mut() {
+                    s.worst = Vec::new();
+                }
+            }
+        }
+    }
+
     /// The bodies of the checked pairs.
     pub fn bodies(&self) -> impl Iterator<Item = &str> {
         self.bodies.keys().map(String::as_str)
