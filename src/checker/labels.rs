@@ -114,64 +114,16 @@ pub fn label_regions(
     let mut labels = vec![Label::Outside; n];
     let mut out = Labeling::default();
     let clear = |t: usize| touch[t] == Touch::Clear;
-    // Regions of clear tets by union-find in one pass over the tets in index order (the
-    // tree's leaf order: a linear read of the adjacency, where a flood fill jumps around
-    // and waits on memory). Each region's root is its smallest tet.
-    let mut parent: Vec<u32> = (0..n as u32).collect();
     let mut contact = Vec::new();
     for t in 0..n {
         match touch[t] {
             Touch::Interference => labels[t] = Label::Interference,
             Touch::Contact | Touch::FaceToFace => contact.push(t as u32),
-            Touch::Clear => {
-                let mut root = find(&mut parent, t as u32);
-                for &nb in &adjacency[t] {
-                    if (nb as usize) < n && clear(nb as usize) {
-                        let other = find(&mut parent, nb);
-                        // The smaller root becomes the root of both.
-                        if other != root {
-                            parent[root.max(other) as usize] = root.min(other);
-                            root = root.min(other);
-                        }
-                    }
-                }
-            }
+            Touch::Clear => {}
         }
     }
-    // Every clear tet points at its root; regions numbered by root, in order.
-    const NO_REGION: u32 = u32::MAX;
-    let mut region_of_root = vec![NO_REGION; n];
-    let mut sizes: Vec<usize> = Vec::new();
-    for t in 0..n {
-        if clear(t) {
-            let r = find(&mut parent, t as u32);
-            parent[t] = r;
-            let k = &mut region_of_root[r as usize];
-            if *k == NO_REGION {
-                *k = sizes.len() as u32;
-                sizes.push(0);
-            }
-            sizes[*k as usize] += 1;
-        }
-    }
-    out.regions = sizes.len() as u32;
-    // Tries spread over each region (every step-th tet, up to TRIES_PER_REGION of them);
-    // one interior point per tet suffices here.
-    let steps: Vec<usize> = sizes
-        .iter()
-        .map(|&s| (s / TRIES_PER_REGION).max(1))
-        .collect();
-    let mut tries: Vec<Vec<u32>> = vec![Vec::new(); sizes.len()];
-    let mut seen = vec![0usize; sizes.len()];
-    for t in 0..n {
-        if clear(t) {
-            let k = region_of_root[parent[t] as usize] as usize;
-            if seen[k] % steps[k] == 0 && tries[k].len() < TRIES_PER_REGION {
-                tries[k].push(t as u32);
-            }
-            seen[k] += 1;
-        }
-    }
+    let Regions { of: region, tries } = Regions::of(&adjacency[..n], clear);
+    out.regions = tries.len() as u32;
     let verdicts: Vec<Option<bool>> = tries
         .iter()
         .map(|ts| {
@@ -186,7 +138,7 @@ pub fn label_regions(
     let mut decided = vec![false; n];
     for t in 0..n {
         if clear(t) {
-            let verdict = verdicts[region_of_root[parent[t] as usize] as usize];
+            let verdict = verdicts[region[t] as usize];
             labels[t] = if verdict == Some(true) {
                 Label::Inside
             } else {
@@ -270,6 +222,179 @@ pub fn label_regions(
     } = st;
     out.labels = labels;
     out
+}
+
+/// Connected sets of tets under face adjacency (those `member` takes), with the tets an
+/// inclusion test tries in each.
+#[derive(Debug)]
+struct Regions {
+    /// Region of each tet ([`NO_REGION`] for a tet not taken).
+    of: Vec<u32>,
+    /// Per region, every step-th of its tets in index order, up to [`TRIES_PER_REGION`].
+    tries: Vec<Vec<u32>>,
+}
+
+const NO_REGION: u32 = u32::MAX;
+
+impl Regions {
+    fn of(adjacency: &[[u32; 4]], member: impl Fn(usize) -> bool) -> Self {
+        let n = adjacency.len();
+        // Union-find in one pass over the tets in index order (the tree's leaf order: a
+        // linear read of the adjacency, where a flood fill jumps around and waits on
+        // memory). Each region's root is its smallest tet.
+        let mut parent: Vec<u32> = (0..n as u32).collect();
+        for t in (0..n).filter(|&t| member(t)) {
+            let mut root = find(&mut parent, t as u32);
+            for &nb in &adjacency[t] {
+                if (nb as usize) < n && member(nb as usize) {
+                    let other = find(&mut parent, nb);
+                    // The smaller root becomes the root of both.
+                    if other != root {
+                        parent[root.max(other) as usize] = root.min(other);
+                        root = root.min(other);
+                    }
+                }
+            }
+        }
+        // Regions numbered by root, in order.
+        let mut of = vec![NO_REGION; n];
+        let mut sizes: Vec<usize> = Vec::new();
+        for t in (0..n).filter(|&t| member(t)) {
+            let r = find(&mut parent, t as u32) as usize;
+            if of[r] == NO_REGION {
+                of[r] = sizes.len() as u32;
+                sizes.push(0);
+            }
+            of[t] = of[r];
+            sizes[of[t] as usize] += 1;
+        }
+        // Tries spread over each region; one interior point per tet suffices.
+        let steps: Vec<usize> = sizes
+            .iter()
+            .map(|&s| (s / TRIES_PER_REGION).max(1))
+            .collect();
+        let mut tries: Vec<Vec<u32>> = vec![Vec::new(); sizes.len()];
+        let mut seen = vec![0usize; sizes.len()];
+        for t in (0..n).filter(|&t| member(t)) {
+            let k = of[t] as usize;
+            if seen[k] % steps[k] == 0 && tries[k].len() < TRIES_PER_REGION {
+                tries[k].push(t as u32);
+            }
+            seen[k] += 1;
+        }
+        Self { of, tries }
+    }
+}
+
+/// A body's connected components under face adjacency: they do not change when the body
+/// moves, so a search that checks one placement after another computes them once
+/// ([`any_inside`]).
+#[derive(Debug)]
+pub struct Components(Regions);
+
+impl Components {
+    /// The components of a mesh with this face adjacency.
+    pub fn of(adjacency: &[[u32; 4]]) -> Self {
+        Self(Regions::of(adjacency, |_| true))
+    }
+}
+
+/// Whether [`label_regions`] labels some tet INSIDE, for `touch` without an INTERFERENCE
+/// tet (the check of a candidate move, once no tet pair crosses), in time linear in the
+/// contact tets rather than in the body:
+///
+/// - a component no tet of which touches the other boundary is one region: its tries are
+///   tested as labelling tests them;
+/// - in a component with contact tets, every region of clear tets borders a contact tet
+///   (a path to it leaves the region through one), and lies on that tet's side of the other
+///   boundary if the tet is decided. So each contact tet is decided, from a decided
+///   neighbour along the short segment between their interior points (far rays where there
+///   is none, or the segment is degenerate), and the clear neighbours of the undecided
+///   ones (lying in the other boundary) are decided too.
+///
+/// Wherever labelling decides, this gives its answer: every point of a region, or of a
+/// contact tet, is on the same side. A region whose every try is undecided (it lies in the
+/// other boundary) is OUTSIDE for labelling; here another of its tets may decide it.
+/// `touch` with an INTERFERENCE tet, or components of another mesh, are labelled in full.
+pub fn any_inside(
+    adjacency: &[[u32; 4]],
+    touch: &[Touch],
+    components: &Components,
+    test: &mut impl InsideTest,
+) -> bool {
+    let Components(comps) = components;
+    let n = adjacency.len();
+    if touch.len() != n || comps.of.len() != n || touch.contains(&Touch::Interference) {
+        return label_regions(adjacency, touch, test)
+            .labels
+            .contains(&Label::Inside);
+    }
+    let mut touched = vec![false; comps.tries.len()];
+    let mut contact = Vec::new();
+    for t in 0..n {
+        if touch[t] != Touch::Clear {
+            touched[comps.of[t] as usize] = true;
+            contact.push(t as u32);
+        }
+    }
+    let untouched_inside = comps.tries.iter().zip(&touched).any(|(tries, &touched)| {
+        !touched
+            && tries
+                .iter()
+                .find_map(|&t| test.far(t, 1))
+                .is_some_and(|(inside, _)| inside)
+    });
+    if untouched_inside {
+        return true;
+    }
+    // Decided tets, with the point that decided and the answer.
+    let mut known: HashMap<u32, Option<(LatticePoint, bool)>> = HashMap::new();
+    let mut decide = |t: u32, from: Option<(LatticePoint, bool)>| {
+        from.and_then(|(q, q_inside)| test.from_known(t, &q, q_inside))
+            .or_else(|| test.far(t, usize::MAX))
+            .map(|(inside, p)| (p, inside))
+    };
+    for &c in &contact {
+        let nbs = adjacency[c as usize]
+            .iter()
+            .copied()
+            .filter(|&u| (u as usize) < n);
+        if !known.contains_key(&c) {
+            // A reference: a decided neighbour, else a clear one decided now.
+            let mut from = nbs.clone().find_map(|u| known.get(&u).copied().flatten());
+            if from.is_none() {
+                if let Some(u) = nbs.clone().find(|&u| touch[u as usize] == Touch::Clear) {
+                    let v = decide(u, None);
+                    if v.is_some_and(|(_, inside)| inside) {
+                        return true;
+                    }
+                    known.insert(u, v);
+                    from = v;
+                }
+            }
+            let v = decide(c, from);
+            if v.is_some_and(|(_, inside)| inside) {
+                return true;
+            }
+            known.insert(c, v);
+        }
+        // A decided contact tet is on the side of its clear neighbours (the face they share
+        // is off the other boundary, and so is the contact tet's interior); an undecided one
+        // (lying in the other boundary) says nothing of them.
+        if known.get(&c).copied().flatten().is_some() {
+            continue;
+        }
+        for u in nbs {
+            if touch[u as usize] == Touch::Clear && !known.contains_key(&u) {
+                let v = decide(u, None);
+                if v.is_some_and(|(_, inside)| inside) {
+                    return true;
+                }
+                known.insert(u, v);
+            }
+        }
+    }
+    false
 }
 
 /// The root of `x`'s set, halving the path on the way.

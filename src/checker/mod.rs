@@ -125,6 +125,8 @@ pub struct Prepared {
     pub bvh: Bvh,
     /// Face adjacency (shared by the body's placed copies, see [`Placement`]).
     pub adjacency: std::sync::Arc<[[u32; 4]]>,
+    /// Its connected components, computed when first needed (shared like the adjacency).
+    pub components: std::sync::Arc<std::sync::OnceLock<labels::Components>>,
     /// A normal of each tet's hyperplane ([`NO_NORMAL`] if it does not fit `i32`): a cheap
     /// exact first test of candidate pairs.
     pub normals: Vec<[i32; 4]>,
@@ -174,6 +176,13 @@ impl Prepared {
             self.normals = normals;
         }
         true
+    }
+
+    /// Its connected components under face adjacency (computed at the first call, and
+    /// shared with its placed copies).
+    pub fn components(&self) -> &labels::Components {
+        self.components
+            .get_or_init(|| labels::Components::of(&self.adjacency))
     }
 
     /// The same body mapped by x_k → mul_k·x_k + add_k on each axis (`mul_k > 0`: a

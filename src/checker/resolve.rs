@@ -706,4 +706,78 @@ mod tests {
         }
         assert!(dropped > 0, "the pruning dropped no direction");
     }
+
+    /// A move's containment, decided from the contact tets and each component's tries
+    /// ([`interferes`]), is what labelling every tet of both bodies says, on moves that
+    /// nest, touch from inside and outside, cross and miss.
+    #[test]
+    fn containment_from_contact_tets_answers_as_labelling_does() {
+        use crate::checker::labels::{Label, Touch};
+        use crate::checker::walk::{label_against, walk};
+        let by_labels = |a: &Prepared, b: &Prepared| {
+            let all = walk(a, b, true);
+            if all.interfering_pairs > 0 {
+                return (true, true, false);
+            }
+            let touched = all
+                .hit_a
+                .iter()
+                .chain(&all.hit_b)
+                .any(|t| *t != Touch::Clear);
+            let inside = label_against(a, b, &all.hit_a)
+                .labels
+                .contains(&Label::Inside)
+                || label_against(b, a, &all.hit_b)
+                    .labels
+                    .contains(&Label::Inside);
+            (inside, false, touched)
+        };
+        // (moving body, static body, frames of each): nested (the moved body's frames
+        // within the other's), side by side, crossing.
+        let scenes = [
+            (
+                ([4, 4, 3], [6, 6, 5], 0),
+                ([1, 1, 1], [12, 9, 8], 0),
+                (2, 4),
+            ),
+            (([1, 2, 2], [4, 7, 6], 0), ([6, 1, 1], [9, 8, 8], 0), (3, 3)),
+            (([1, 2, 2], [4, 7, 6], 1), ([6, 3, 1], [9, 6, 8], 0), (3, 3)),
+            // Moving inside the other until, at its last frame, its face reaches the
+            // other's wall: they touch along a ridge, from inside.
+            (
+                ([6, 4, 3], [8, 6, 5], 1),
+                ([1, 1, 1], [12, 9, 8], 0),
+                (3, 5),
+            ),
+        ];
+        let (mut nested, mut touching, mut inside_touching) = (0, 0, 0);
+        for ((alo, ahi, adx), (blo, bhi, bdx), (fa, fb)) in scenes {
+            let a = moving_box(alo, ahi, adx, fa);
+            let b = moving_box(blo, bhi, bdx, fb);
+            let lat = CommonLattice::of(&[("a", &a), ("b", &b)]).expect("one lattice");
+            let (pa, pb) = (
+                lat.prepare("a", &a).expect("a"),
+                lat.prepare("b", &b).expect("b"),
+            );
+            let mut placement = Placement::new(&pa);
+            for dx in (-40..=40).step_by(4) {
+                for dy in (-24..=24).step_by(8) {
+                    for dt in [-8, 0, 8] {
+                        let moved = placement.place([1; 4], [dx, dy, 0, dt]).expect("fits");
+                        let (inside, crossing, touched) = by_labels(moved, &pb);
+                        assert_eq!(interferes(moved, &pb), inside, "move {:?}", [dx, dy, 0, dt]);
+                        if !crossing {
+                            nested += usize::from(inside && !touched);
+                            touching += usize::from(touched);
+                            inside_touching += usize::from(inside && touched);
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            nested > 0 && touching > 0 && inside_touching > 0,
+            "nested {nested}, touching {touching}, inside and touching {inside_touching}"
+        );
+    }
 }

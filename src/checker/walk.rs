@@ -186,9 +186,11 @@ pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
         return true;
     }
     let inside = |p: &Prepared, other: &Prepared, hit: &[Touch]| {
-        label_against(p, other, hit)
-            .labels
-            .contains(&labels::Label::Inside)
+        let mut test = TetInside {
+            mesh: &p.mesh,
+            inc: Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals),
+        };
+        labels::any_inside(&p.adjacency, hit, p.components(), &mut test)
     };
     let (a_inside, b_inside) =
         rayon::join(|| inside(a, b, &all.hit_a), || inside(b, a, &all.hit_b));

@@ -173,6 +173,7 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
         mesh: local.mesh,
         bvh: local.bvh,
         adjacency: local.adjacency.into(),
+        components: Default::default(),
         normals: local.normals,
         factor: CHECKER_FACTOR * w.mul as i32,
         geometry: w.geometry,
