@@ -988,18 +988,24 @@ pub fn run_nodes(
             let writer = own
                 .and_then(|w| w.get(&p.topic))
                 .or_else(|| main_writers.get(&p.topic))
-                .cloned();
+                .map(|w| {
+                    let id =
+                        rustdds::RTPSEntity::guid(&*w.lock().unwrap_or_else(|e| e.into_inner()));
+                    (id, w.clone())
+                });
             watched.push(Watched {
                 node: i,
                 topic: p.topic.clone(),
                 writer,
-                readers: 0,
                 said: true,
             });
         }
     }
     let exec = Executor::start(nodes, &unit_options, wires, opts.tick)?;
-    let mut demand = Demand { watched };
+    let mut demand = Demand {
+        watched,
+        readers: HashMap::new(),
+    };
     demand.poll(&exec);
     let injector = exec.injector();
 
@@ -1186,9 +1192,7 @@ pub fn run_nodes(
 struct Watched {
     node: usize,
     topic: String,
-    writer: Option<Arc<Mutex<RawWriter>>>,
-    /// The readers on the wire its writer has matched (from its status events).
-    readers: i32,
+    writer: Option<(rustdds::GUID, Arc<Mutex<RawWriter>>)>,
     /// What the node was last told (every publication is read until it is told otherwise).
     said: bool,
 }
@@ -1200,22 +1204,31 @@ struct Watched {
 /// panics): the count comes from each writer's publication-matched events, drained here.
 struct Demand {
     watched: Vec<Watched>,
+    /// Readers on the wire each writer has matched (nodes publishing one topic share it).
+    readers: HashMap<rustdds::GUID, i32>,
 }
 
 impl Demand {
     fn poll(&mut self, exec: &Executor) {
-        for w in &mut self.watched {
-            if let Some(wr) = &w.writer {
-                // A writer busy writing: its events wait for the next poll.
-                if let Ok(wr) = wr.try_lock() {
-                    while let Some(st) = wr.try_recv_status() {
-                        if let DataWriterStatus::PublicationMatched { current, .. } = st {
-                            w.readers = current.count();
-                        }
+        let mut drained = BTreeSet::new();
+        for (id, wr) in self.watched.iter().filter_map(|w| w.writer.as_ref()) {
+            if !drained.insert(*id) {
+                continue;
+            }
+            // A writer busy writing: its events wait for the next poll.
+            if let Ok(wr) = wr.try_lock() {
+                while let Some(st) = wr.try_recv_status() {
+                    if let DataWriterStatus::PublicationMatched { current, .. } = st {
+                        self.readers.insert(*id, current.count());
                     }
                 }
             }
-            let read = w.readers > 0;
+        }
+        for w in &mut self.watched {
+            let read = w
+                .writer
+                .as_ref()
+                .is_some_and(|(id, _)| self.readers.get(id).is_some_and(|&n| n > 0));
             if read != w.said && exec.demand(w.node, &w.topic, read) {
                 tracing::info!(topic = w.topic, read, "readers on the wire");
                 w.said = read;
