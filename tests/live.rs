@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use chronotope::bag::{BagReader, BagWriter};
 use chronotope::cli::replay::replay;
@@ -377,12 +377,27 @@ fn parameters_are_read_and_set_over_the_ros_parameter_services() {
     let dom = domain(2);
     let cfg = root().join("launch_configs/four_spheres.yaml");
     let l_log = d.path().join("launch.log");
+    // Stopped below once the answers are in (a loaded machine may take a while to start
+    // the launch and each client).
     let launch = Proc::start(
         "launch",
         &dom,
-        &["launch", cfg.to_str().unwrap(), "--duration", "10"],
+        &["launch", cfg.to_str().unwrap(), "--duration", "120"],
         &l_log,
     );
+    // Its parameter services are up once it is in the ROS graph.
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while !std::fs::read_to_string(&l_log)
+        .unwrap_or_default()
+        .contains("announced in the ROS graph")
+    {
+        assert!(
+            Instant::now() < deadline,
+            "the launch did not start within 60 s:\n{}",
+            std::fs::read_to_string(&l_log).unwrap_or_default()
+        );
+        std::thread::sleep(Duration::from_millis(100));
+    }
     let param = |args: &[&str]| {
         let out = Command::new(env!("CARGO_BIN_EXE_chronotope"))
             .arg("param")
@@ -414,5 +429,9 @@ fn parameters_are_read_and_set_over_the_ros_parameter_services() {
     );
     let (ok, text) = param(&["set", "/checker", "pairs", "[a b]"]);
     assert!(!ok && text.contains("takes it at start only"), "{text}");
+    // Stopped as Ctrl-C would: it finishes and exits cleanly.
+    let pid = launch.0.as_ref().map(|c| c.id()).unwrap();
+    // SAFETY: a signal to our own child process.
+    assert_eq!(unsafe { libc::kill(pid as i32, libc::SIGTERM) }, 0);
     launch.wait(&l_log);
 }
