@@ -186,11 +186,12 @@ pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
         return true;
     }
     let inside = |p: &Prepared, other: &Prepared, hit: &[Touch]| {
-        let mut test = TetInside {
-            mesh: &p.mesh,
-            inc: Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals),
-        };
-        labels::any_inside(&p.adjacency, hit, p.components(), &mut test)
+        labels::any_inside(
+            &p.adjacency,
+            hit,
+            p.components(),
+            &mut TetInside::of(p, other),
+        )
     };
     let (a_inside, b_inside) =
         rayon::join(|| inside(a, b, &all.hit_a), || inside(b, a, &all.hit_b));
@@ -458,11 +459,7 @@ pub(super) fn overlap_t(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4]) -> (f64,
 }
 
 pub(super) fn label_against(p: &Prepared, other: &Prepared, hit: &[Touch]) -> Labeling {
-    let mut test = TetInside {
-        mesh: &p.mesh,
-        inc: Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals),
-    };
-    label_regions(&p.adjacency, hit, &mut test)
+    label_regions(&p.adjacency, hit, &mut TetInside::of(p, other))
 }
 
 /// Interior point (w·tet)/8 of a tet for weights `w` of [`INTERIOR_WEIGHTS`]: checker
@@ -477,7 +474,15 @@ pub(super) struct TetInside<'a> {
     pub(super) inc: Inclusion<'a>,
 }
 
-impl TetInside<'_> {
+impl<'a> TetInside<'a> {
+    /// Tests of `p`'s tets against the whole of `other`.
+    fn of(p: &'a Prepared, other: &'a Prepared) -> Self {
+        Self {
+            mesh: &p.mesh,
+            inc: Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals),
+        }
+    }
+
     fn interior(&self, t: u32, w: &[i64; 4]) -> LatticePoint {
         interior_point(&tet_of(self.mesh, t), w)
     }
