@@ -126,6 +126,37 @@ fn every_periodic_contact_is_found_within_its_bound() {
     assert!(r.problems.is_empty(), "{:?}", r.problems);
 }
 
+/// Bodies at rest, and one that steps by whole voxels between rests (the checker takes
+/// such windows as earlier ones moved, not prepared again): the rolling replay answers as
+/// the full check, through contact, rest in contact and separation.
+#[test]
+fn bodies_at_rest_and_stepping_are_checked_as_the_full_check_does() {
+    let d = tempfile::tempdir().unwrap();
+    let t0 = 1_000_000_000i64;
+    // /a rests three frames at each voxel step along +x (into /b and through its near
+    // face, resting there in contact), then back out; /b never moves.
+    let xs = [0u32, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3, 4, 4, 2, 2, 2];
+    let mut frames = Vec::new();
+    for (k, &x) in xs.iter().enumerate() {
+        let k = k as u32;
+        let a = common::box_frame(x, 0, 4, k, t0);
+        let b = common::box_frame(6, 0, 4, k, t0);
+        let log = (t0 + i64::from(k) * 100_000_000) as u64;
+        frames.push(("/a/occupancy", log, a));
+        frames.push(("/b/occupancy", log, b));
+    }
+    let bag = bag_of(d.path(), "rest.mcap", &frames);
+    let full = check_bag(&bag, MesherOptions::default(), None).unwrap();
+    let rolled = replay(&bag, Some(&two_cubes()), None, false).unwrap();
+    assert_eq!(answers(&rolled.report), answers(&full));
+    assert!(full.pairs[0].interfering);
+    assert!(
+        rolled.report.problems.is_empty(),
+        "{:?}",
+        rolled.report.problems
+    );
+}
+
 /// A box moving +x one voxel per frame (body /a) into a still box (/b), frames at 0.1 s
 /// from `t0_ns`.
 fn cube(x0: u32, k: u32, t0_ns: i64) -> VoxelGrid {

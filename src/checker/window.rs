@@ -192,6 +192,22 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     Ok(PreparedWindow { body, taken, band })
 }
 
+impl PreparedWindow {
+    /// This window moved by `d` in checker coordinates (the tree's boxes and the vertices
+    /// are moved; the normals, adjacency and leaf order are kept): a window of the same
+    /// tets moved by `d`, as exact as [`prepare_window`]'s of them. `None` if a coordinate
+    /// would leave the checker's range.
+    pub fn moved_by(&self, d: [i64; 4]) -> Option<PreparedWindow> {
+        let body = self.body.mapped([1; 4], d)?;
+        let moved = |t: i32| i32::try_from(i64::from(t) + d[3]).ok();
+        Some(PreparedWindow {
+            body,
+            taken: self.taken.clone(),
+            band: (moved(self.band.0)?, moved(self.band.1)?),
+        })
+    }
+}
+
 /// One crossing tet pair of two taken tets.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Crossing {

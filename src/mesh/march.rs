@@ -44,6 +44,35 @@ impl TetMesh {
             }
         }
     }
+
+    /// Whether this mesh is `earlier` moved by `d`, exactly: the same tets on the same
+    /// vertex numbers, every vertex at its place in `earlier` plus `d`. A body at rest
+    /// meshes to such a copy each frame period (the slab of two equal frames is the one
+    /// before it, one period later), and a body that steps by whole voxels often to one
+    /// moved in space too; whatever follows from the coordinates by a translation (tree,
+    /// adjacency, normals, closedness) need not be derived again. Compares every tet and
+    /// vertex: O(n), no hashing.
+    pub fn is_moved_copy_of(&self, earlier: &TetMesh, d: LatticePoint) -> bool {
+        self.tets.len() == earlier.tets.len()
+            && self.vertices.len() == earlier.vertices.len()
+            && self.tets == earlier.tets
+            && self
+                .vertices
+                .iter()
+                .zip(&earlier.vertices)
+                .all(|(p, q)| (0..4).all(|k| q[k].checked_add(d[k]) == Some(p[k])))
+    }
+
+    /// The translation that makes this mesh of `earlier`, if it is a moved copy of it
+    /// ([`Self::is_moved_copy_of`]); `None` without vertices.
+    pub fn moved_from(&self, earlier: &TetMesh) -> Option<LatticePoint> {
+        let (p, q) = (self.vertices.first()?, earlier.vertices.first()?);
+        let mut d = [0; 4];
+        for k in 0..4 {
+            d[k] = p[k].checked_sub(q[k])?;
+        }
+        self.is_moved_copy_of(earlier, d).then_some(d)
+    }
 }
 
 /// Appends meshes to one mesh, merging vertices with equal lattice coordinates; keeps its

@@ -23,6 +23,8 @@
 //! divergence sum follows from its boundary alone (a 3-chain in a hyperplane contributes
 //! Σ det[o, ∂]), so caps between slabs are never built.
 
+use std::sync::Arc;
+
 use rayon::prelude::*;
 
 use super::march::TetMesh;
@@ -119,6 +121,25 @@ pub struct StatsAccumulator {
     scratch: Vec<u64>,
     lateral_vertices: u64,
     shared_vertices: u64,
+    /// The last slab added through [`StatsAccumulator::add_lateral_shared`], with what a
+    /// copy of it one period later adds again.
+    last: Option<LastSlab>,
+}
+
+/// What a slab added to the figures, kept to add again for its copy one period later (see
+/// [`TetMesh::is_moved_copy_of`]): its interior faces' report, its hypervolume, its
+/// lower plane's triangles (the upper plane's are [`StatsAccumulator::prev_hi`] while it is
+/// the last slab) and the number of vertices in that plane.
+#[derive(Debug)]
+struct LastSlab {
+    mesh: Arc<TetMesh>,
+    index: u64,
+    scale: i32,
+    interior: ClosedReport,
+    vol24: i128,
+    lo: Vec<(PlaneTri, i8)>,
+    lo_hash: PlaneHash,
+    lo_vertices: u64,
 }
 
 impl StatsAccumulator {
@@ -146,7 +167,61 @@ impl StatsAccumulator {
 
     /// [`Self::add_slab`] for a slab given by its parts (e.g. received as a message).
     pub fn add_lateral(&mut self, slab: LateralRef<'_>, first_cap: Option<&TetMesh>) {
-        self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS);
+        self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS, None);
+    }
+
+    /// [`Self::add_lateral`] for a slab whose tets are `shared` (`slab.mesh` must be
+    /// them), kept until the next slab: a next slab that is this one moved one frame
+    /// period later (a body at rest: [`TetMesh::is_moved_copy_of`], compared exactly)
+    /// adds this one's figures again without scanning its tets. Returns whether `slab`
+    /// was such a copy.
+    pub fn add_lateral_shared(
+        &mut self,
+        slab: LateralRef<'_>,
+        first_cap: Option<&TetMesh>,
+        shared: &Arc<TetMesh>,
+    ) -> bool {
+        debug_assert!(std::ptr::eq(slab.mesh, &**shared));
+        if self.add_repeat(slab, shared) {
+            return true;
+        }
+        self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS, Some(shared));
+        false
+    }
+
+    /// Adds `slab` as a copy of the last slab one period later, if it is one.
+    fn add_repeat(&mut self, slab: LateralRef<'_>, shared: &Arc<TetMesh>) -> bool {
+        let Some(mut last) = self.last.take() else {
+            return false;
+        };
+        let scale = slab.geometry.scale;
+        if last.index + 1 != slab.index
+            || last.scale != scale
+            || !slab.mesh.is_moved_copy_of(&last.mesh, [0, 0, 0, scale])
+        {
+            return false;
+        }
+        // Its interior faces pair as the last slab's did; its lower plane is the last
+        // slab's lower plane, to pair with the last slab's upper one (which is also its
+        // own upper plane, the next slab's partner).
+        self.merge(last.interior);
+        let prev_hi = std::mem::take(&mut self.prev_hi);
+        self.match_planes(&prev_hi, self.prev_hi_hash, &last.lo, last.lo_hash);
+        self.prev_hi = prev_hi;
+        self.shared_vertices += last.lo_vertices;
+        self.lateral_vertices += slab.mesh.vertices.len() as u64;
+        self.stats.vanishing_slabs += u64::from(slab.vanishes);
+        self.stats.tets += slab.mesh.tets.len() as u64;
+        self.stats.slabs += 1;
+        self.add_volume(
+            last.vol24,
+            slab.geometry,
+            slab.stamps_ns.1 - slab.stamps_ns.0,
+        );
+        last.index = slab.index;
+        last.mesh = shared.clone();
+        self.last = Some(last);
+        true
     }
 
     /// [`Self::add_lateral`], scanning the tets in chunks of `chunk_tets` on rayon's pool.
@@ -155,6 +230,7 @@ impl StatsAccumulator {
         slab: LateralRef<'_>,
         first_cap: Option<&TetMesh>,
         chunk_tets: usize,
+        shared: Option<&Arc<TetMesh>>,
     ) {
         let chunk_tets = chunk_tets.max(1);
         let t_lo = slab.geometry.scale * slab.index as i32;
@@ -234,12 +310,13 @@ impl StatsAccumulator {
         // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
         vol24 -= i128::from(t_hi - t_lo) * hi_cone;
         // Faces off the two time planes pair up inside the slab.
-        let report = if packed {
+        let interior = if packed {
             pair_packed(&mut self.keys, &mut self.scratch, bits)
         } else {
             pair_by_first_vertex(&wide, m.vertices.len())
         };
-        self.merge(report);
+        self.merge(interior);
+        let lo_vertices = plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
 
         // Lower plane: pairs with the previous slab's upper plane, or the first cap.
         if self.stats.slabs == 0 {
@@ -248,18 +325,28 @@ impl StatsAccumulator {
                     let (report, boundary, hash) =
                         cap_boundary(cap, &mut self.keys, &mut self.scratch);
                     self.merge(report);
-                    self.match_planes(boundary, hash, lo, lo_hash);
+                    self.match_planes(&boundary, hash, &lo, lo_hash);
                 }
                 // No opening cap (not built): the first lower plane stays open.
-                None => self.merge(pair_plane_faces(lo)),
+                None => self.merge(pair_plane_faces(lo.clone())),
             }
         } else {
-            self.shared_vertices += plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
+            self.shared_vertices += lo_vertices;
             let prev = std::mem::take(&mut self.prev_hi);
-            self.match_planes(prev, self.prev_hi_hash, lo, lo_hash);
+            self.match_planes(&prev, self.prev_hi_hash, &lo, lo_hash);
         }
         self.prev_hi = hi;
         self.prev_hi_hash = hi_hash;
+        self.last = shared.map(|mesh| LastSlab {
+            mesh: mesh.clone(),
+            index: slab.index,
+            scale: slab.geometry.scale,
+            interior,
+            vol24,
+            lo,
+            lo_hash,
+            lo_vertices,
+        });
 
         self.lateral_vertices += m.vertices.len() as u64;
         self.stats.vanishing_slabs += u64::from(slab.vanishes);
@@ -280,16 +367,15 @@ impl StatsAccumulator {
     /// orientations: by multiset hash, exactly (sorting) only if the hashes disagree.
     fn match_planes(
         &mut self,
-        mut a: Vec<(PlaneTri, i8)>,
+        a: &[(PlaneTri, i8)],
         a_hash: PlaneHash,
-        b: Vec<(PlaneTri, i8)>,
+        b: &[(PlaneTri, i8)],
         b_hash: PlaneHash,
     ) {
         if a_hash.matches(&b_hash) && a.len() == b.len() {
             self.stats.closed.triangles += a.len() as u64;
         } else {
-            a.extend(b);
-            self.merge(pair_plane_faces(a));
+            self.merge(pair_plane_faces([a, b].concat()));
         }
     }
 
@@ -318,7 +404,7 @@ impl StatsAccumulator {
                     let (report, boundary, hash) =
                         cap_boundary(cap, &mut self.keys, &mut self.scratch);
                     self.merge(report);
-                    self.match_planes(prev, self.prev_hi_hash, boundary, hash);
+                    self.match_planes(&prev, self.prev_hi_hash, &boundary, hash);
                 }
                 // No closing cap (not built): the last upper plane stays open.
                 None => self.merge(pair_plane_faces(prev)),
@@ -550,7 +636,7 @@ mod tests {
             let figures = |chunk: usize| {
                 let mut acc = StatsAccumulator::new();
                 for s in &slabs {
-                    acc.add_lateral_in_chunks(s.lateral_ref(), opening, chunk);
+                    acc.add_lateral_in_chunks(s.lateral_ref(), opening, chunk, None);
                 }
                 let st = acc.finish(4, opening.map(|c| (c, 0)), None);
                 (
@@ -565,6 +651,94 @@ mod tests {
                 assert_eq!(figures(chunk), one, "chunks of {chunk}");
             }
             assert!(one.0.unpaired > 0, "the last plane is open: {:?}", one.0);
+        }
+    }
+
+    /// A body at rest for some periods, then moving, then at rest again: the periods that
+    /// copy the one before are recognised (and only they), and the figures equal a full scan
+    /// of every slab, on a closed stream and on one whose copied slabs carry a defect.
+    #[test]
+    fn copies_of_the_last_slab_add_the_same_figures_as_scanning_them() {
+        let size = [9u32, 8, 7];
+        // Rest for frames 0-3, a step at 4, rest for 5-7, a step at 8.
+        let place = |k: u32| match k {
+            0..=3 => 0,
+            4..=7 => 2,
+            _ => 3,
+        };
+        let bits = |k: u32| {
+            let n = (size[0] * size[1] * size[2]) as usize;
+            let mut v = vec![0u8; n.div_ceil(8)];
+            for i in 0..n {
+                let (x, y, z) = (i % 9, (i / 9) % 8, i / 72);
+                let r2 = (x as i32 - 3 - place(k)).pow(2) + (y as i32 - 4).pow(2);
+                if r2 + (z as i32 - 3).pow(2) <= 6 || (x + 2 * y + 3 * z) % 13 == 0 {
+                    v[i / 8] |= 1 << (i % 8);
+                }
+            }
+            v
+        };
+        let mut m = Mesher::new(MesherOptions::default()).unwrap();
+        let mut slabs = Vec::new();
+        for k in 0..9u32 {
+            let data = bits(k);
+            let f = FrameRef {
+                stamp_ns: i64::from(k) * 100_000_000,
+                origin: [0.0; 3],
+                resolution: 0.01,
+                size,
+                encoding: 0,
+                data: &data,
+            };
+            if let Some(s) = m.push(&f).unwrap() {
+                slabs.push(s);
+            }
+        }
+        let first = m.first_frame().unwrap().clone();
+        let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
+        let last = m.last_frame().unwrap().clone();
+        let end = m.cap(&last, crate::mesh::CapSide::High).unwrap();
+        let figures = |st: BodyStats| {
+            (
+                st.closed,
+                st.tets,
+                st.vertices,
+                st.hypervolume_lattice.to_bits(),
+                st.hypervolume_m3s.to_bits(),
+            )
+        };
+        // Slabs 1, 2 and 5, 6 copy the slab before them; a defect in slabs 5 and 6 (one
+        // tet gone from each, the same one) keeps 6 a copy of 5, but 5 no copy of 4.
+        for defect in [false, true] {
+            let mut meshes: Vec<Arc<TetMesh>> = Vec::new();
+            for (j, s) in slabs.iter().enumerate() {
+                let mut mesh = s.mesh.clone();
+                if defect && (5..=6).contains(&j) {
+                    mesh.tets.remove(7);
+                }
+                meshes.push(Arc::new(mesh));
+            }
+            let lateral = |j: usize| LateralRef {
+                mesh: &meshes[j],
+                ..slabs[j].lateral_ref()
+            };
+            let mut scan = StatsAccumulator::new();
+            let mut shared = StatsAccumulator::new();
+            let mut copies = Vec::new();
+            for j in 0..slabs.len() {
+                scan.add_lateral(lateral(j), Some(&cap));
+                if shared.add_lateral_shared(lateral(j), Some(&cap), &meshes[j]) {
+                    copies.push(j);
+                }
+            }
+            let expected: &[usize] = if defect { &[1, 2, 6] } else { &[1, 2, 5, 6] };
+            assert_eq!(copies, expected, "defect {defect}");
+            let (a, b) = (
+                figures(scan.finish(9, Some((&cap, 0)), Some((&end, 0)))),
+                figures(shared.finish(9, Some((&cap, 0)), Some((&end, 0)))),
+            );
+            assert_eq!(a, b, "defect {defect}");
+            assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
         }
     }
 }

@@ -401,8 +401,11 @@ impl RollingChecker {
                 }
             }
             // Its prepared window: every pair that could take it again has gone past it.
+            // A body at rest keeps it, to move it in time for its next window.
             if self.prepared.get(id).is_some_and(|c| c.2 < oldest) {
-                self.prepared.remove(id);
+                if let Some(w) = self.prepared.remove(id).filter(|_| b.at_rest) {
+                    self.rest.insert(id.clone(), w);
+                }
             }
             oldest_of.insert(id.clone(), oldest);
             let decided = b.slabs.range(..oldest).count();

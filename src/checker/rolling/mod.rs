@@ -352,7 +352,15 @@ struct BodyStream {
     horizon_cut_until: i64,
     /// `header.frame_id` of its latest piece.
     frame_id: String,
+    /// Its latest slab is the one before it moved one period later (the body is at rest).
+    at_rest: bool,
+    /// Slabs since it was last at rest.
+    moving_for: u32,
 }
+
+/// A body's window kept from its last rest ([`RollingChecker::moved`]) is dropped once it
+/// has moved for more slabs than this.
+const REST_KEPT_SLABS: u32 = 32;
 
 /// Default of [`RollingConfig::max_frame_bytes`]: 1 GiB of decoded frames per body.
 pub const DEFAULT_MAX_FRAME_BYTES: u64 = 1 << 30;
@@ -509,6 +517,12 @@ pub struct RollingChecker {
     /// period it was checked for: a body in several pairs has the same window in each,
     /// prepared once. Dropped once every pair of the body has decided that period.
     prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
+    /// The last prepared window of each body at rest, kept after its pairs have gone past
+    /// it: a later window of the body that is a moved copy of it (at rest, or at rest again
+    /// after a step by whole voxels: [`WindowSpec::moved_copy_of`]) is this one moved, not
+    /// prepared again. One window per body; dropped once the body has moved for
+    /// [`REST_KEPT_SLABS`] slabs.
+    rest: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
     /// The lateral piece just accepted still has to be added to its run's statistics
     /// (run id, and the run's first cap if the piece is its first slab): done while the
     /// windows it makes ready are checked.
@@ -622,6 +636,7 @@ impl RollingChecker {
             dropped_resolutions: 0,
             prefetched: Vec::new(),
             prepared: BTreeMap::new(),
+            rest: BTreeMap::new(),
             pending_stats: None,
             resolver: None,
             in_flight: VecDeque::new(),
@@ -721,16 +736,22 @@ impl RollingChecker {
             mesh: &p.mesh,
             vanishes: p.vanishes,
         };
-        let (_, ahead) = rayon::join(
-            || acc.add_lateral(lateral, first_cap.as_deref()),
+        let (at_rest, ahead) = rayon::join(
+            || acc.add_lateral_shared(lateral, first_cap.as_deref(), &p.mesh),
             || self.prefetch(1),
         );
-        if let Some(r) = self
-            .bodies
-            .get_mut(&p.body)
-            .and_then(|b| b.runs.iter_mut().find(|r| r.id == run))
-        {
-            r.acc = acc;
+        if let Some(b) = self.bodies.get_mut(&p.body) {
+            b.at_rest = at_rest;
+            b.moving_for = if at_rest { 0 } else { b.moving_for.saturating_add(1) };
+            if let Some(r) = b.runs.iter_mut().find(|r| r.id == run) {
+                r.acc = acc;
+            }
+            // A window kept from its last rest serves it once it rests again, moved or not
+            // (a table that steps by whole voxels now and then); not once it has moved for
+            // long.
+            if b.moving_for > REST_KEPT_SLABS {
+                self.rest.remove(&p.body);
+            }
         }
         self.prefetched = ahead;
         self.pump_prefetched(out);
@@ -1076,7 +1097,7 @@ impl RollingChecker {
         // A window that fails to prepare is prepared again by its pair, for the error.
         let shared: Vec<Option<Arc<PreparedWindow>>> = distinct
             .par_iter()
-            .map(|(id, w)| prepare_spec(id, w).ok())
+            .map(|(id, w)| self.moved(id, w).or_else(|| prepare_spec(id, w).ok()))
             .collect();
         let ready_for = |id: &str, w: &WindowSpec| {
             cached(&self.prepared, id, w).or_else(|| {

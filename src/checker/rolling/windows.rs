@@ -278,7 +278,9 @@ impl RollingChecker {
             });
             let result = match ahead {
                 Some(n) => self.prefetched.swap_remove(n).result,
-                None => check_specs((&a, &wa), (&b, &wb), |id, w| cached(&self.prepared, id, w)),
+                None => check_specs((&a, &wa), (&b, &wb), |id, w| {
+                    cached(&self.prepared, id, w).or_else(|| self.moved(id, w))
+                }),
             };
             match result {
                 Ok((r, [pa, pb])) => {
@@ -680,6 +682,20 @@ pub(super) fn check_specs(
     Ok((check_window(&pa, &pb), [pa, pb]))
 }
 
+impl RollingChecker {
+    /// Body `id`'s window `w` as a window prepared before (for an earlier period, kept in
+    /// the cache or for a body at rest) moved in time, if `w` is that window's copy.
+    pub(super) fn moved(&self, id: &str, w: &WindowSpec) -> Option<Arc<PreparedWindow>> {
+        [self.prepared.get(id), self.rest.get(id)]
+            .into_iter()
+            .flatten()
+            .find_map(|(spec, p, _)| {
+                let d = w.moved_copy_of(spec)?;
+                p.moved_by(d).map(Arc::new)
+            })
+    }
+}
+
 /// Prepares body `id`'s window.
 pub(super) fn prepare_spec(
     id: &str,
@@ -723,6 +739,55 @@ impl WindowSpec {
             && self.mul == o.mul
             && self.add == o.add
             && self.first_tet == o.first_tet
+    }
+
+    /// If this window is `earlier` one or more frame periods on, moved (the same lattice
+    /// and placement, no cap, each slab an exact copy of `earlier`'s moved by one lattice
+    /// vector: a body at rest, or one that stepped by whole voxels), that move in checker
+    /// coordinates: its prepared window is then `earlier`'s moved by it. Compares the
+    /// slabs exactly ([`TetMesh::is_moved_copy_of`]).
+    pub(super) fn moved_copy_of(&self, earlier: &WindowSpec) -> Option<[i64; 4]> {
+        let plain = |w: &WindowSpec| w.low.is_none() && w.high.is_none();
+        if self.geometry != earlier.geometry
+            || self.mul != earlier.mul
+            || self.add[..3] != earlier.add[..3]
+            || self.centre != earlier.centre
+            || self.slabs.len() != earlier.slabs.len()
+            || self.lo <= earlier.lo
+            || !plain(self)
+            || !plain(earlier)
+        {
+            return None;
+        }
+        let frames = i64::from(self.lo - earlier.lo);
+        let dt = i32::try_from(i64::from(self.geometry.scale) * frames).ok()?;
+        // The move of the first slab with vertices (each slab spans one period, so its
+        // move in time is `dt`); every slab must make the same.
+        let d = self
+            .slabs
+            .iter()
+            .zip(&earlier.slabs)
+            .find_map(|(x, y)| x.moved_from(y))
+            .unwrap_or([0, 0, 0, dt]);
+        if d[3] != dt
+            || !self
+                .slabs
+                .iter()
+                .zip(&earlier.slabs)
+                .all(|(x, y)| x.is_moved_copy_of(y, d))
+        {
+            return None;
+        }
+        // A lattice vector d moves the window's checker coordinates (c·factor·mul + add,
+        // time counted from the window's first frame) by d·factor·mul in space, and by the
+        // change of `add` in time.
+        let f = i64::from(CHECKER_FACTOR) * self.mul;
+        Some([
+            i64::from(d[0]) * f,
+            i64::from(d[1]) * f,
+            i64::from(d[2]) * f,
+            self.add[3] - earlier.add[3],
+        ])
     }
 
     /// The box of every vertex of the window on the pair's lattice, spatial axes only
@@ -818,4 +883,142 @@ pub(super) fn pair_lattice(ga: &GridGeometry, gb: &GridGeometry) -> Result<PairL
         shift_a: [0; 3],
         shift_b: off,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::kernel::LatticePoint;
+    use crate::mesh::grid::FrameRef;
+
+    /// A body's slabs, frame by frame: a box and a ball at rest (frames 0-2), stepped one
+    /// voxel along +x (frame 3) and at rest there (3-5), on a 10³ lattice.
+    fn slabs() -> (Vec<Arc<TetMesh>>, GridGeometry) {
+        let size = [10u32, 10, 10];
+        let at = |k: u32| u32::from(k >= 3);
+        let mut m = Mesher::new(MesherOptions::default()).unwrap();
+        let mut out = Vec::new();
+        let mut geometry = None;
+        for k in 0..6u32 {
+            let n = 1000usize;
+            let mut data = vec![0u8; n / 8];
+            for i in 0..n {
+                let (x, y, z) = ((i % 10) as i32, ((i / 10) % 10) as i32, (i / 100) as i32);
+                let x = x - at(k) as i32;
+                let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 5).pow(2) <= 5;
+                let block = (1..3).contains(&x) && (6..9).contains(&y) && (2..4).contains(&z);
+                if ball || block {
+                    data[i / 8] |= 1 << (i % 8);
+                }
+            }
+            let f = FrameRef {
+                stamp_ns: i64::from(k) * 100_000_000,
+                origin: [0.0; 3],
+                resolution: 0.01,
+                size,
+                encoding: 0,
+                data: &data,
+            };
+            if let Some(s) = m.push(&f).unwrap() {
+                geometry = Some(s.geometry);
+                out.push(Arc::new(s.mesh));
+            }
+        }
+        (out, geometry.unwrap())
+    }
+
+    fn spec(
+        (slabs, geometry): &(Vec<Arc<TetMesh>>, GridGeometry),
+        lo: u32,
+        mul: i64,
+        add: [i64; 4],
+    ) -> WindowSpec {
+        let geometry = *geometry;
+        WindowSpec {
+            geometry,
+            lo,
+            slabs: vec![slabs[lo as usize].clone()],
+            centre: 0,
+            low: None,
+            high: None,
+            mul,
+            add,
+            first_tet: 0,
+        }
+    }
+
+    /// Each tet of a prepared window by its four corners (sorted): the window as a set,
+    /// whatever its leaf order.
+    fn corners(p: &PreparedWindow) -> Vec<[LatticePoint; 4]> {
+        let m = &p.body.mesh;
+        let mut all: Vec<[LatticePoint; 4]> = m
+            .tets
+            .iter()
+            .map(|t| {
+                let mut c = t.map(|v| m.vertices[v as usize]);
+                c.sort_unstable();
+                c
+            })
+            .collect();
+        all.sort_unstable();
+        all
+    }
+
+    /// A window whose slab is an earlier one moved (in time only, or one voxel in space
+    /// too) is found to be that window moved, and the moved prepared window has exactly the
+    /// tets, normals' hyperplanes and band a fresh preparation gives; any other is not.
+    #[test]
+    fn a_window_of_a_moved_copy_is_the_earlier_one_moved() {
+        let slabs = slabs();
+        assert_eq!(slabs.0.len(), 5);
+        let scale = i64::from(slabs.1.scale);
+        let f = i64::from(CHECKER_FACTOR);
+        for mul in [1i64, 2] {
+            let per = scale * f * mul;
+            let at = |lo: u32| spec(&slabs, lo, mul, [3 * f, 0, 0, i64::from(lo) * per + 5]);
+            // Rest (0 -> 1), a step (2 is the moving slab; 3 is 1 moved one voxel), rest
+            // again (3 -> 4), and two windows apart (0 -> 4).
+            let cases = [
+                (0, 1, Some([0, 0, 0, per])),
+                (1, 2, None),
+                (2, 3, None),
+                (1, 3, Some([scale * f * mul, 0, 0, 2 * per])),
+                (3, 4, Some([0, 0, 0, per])),
+                (0, 4, Some([scale * f * mul, 0, 0, 4 * per])),
+                (1, 0, None),
+            ];
+            for (a, b, want) in cases {
+                let (wa, wb) = (at(a), at(b));
+                assert_eq!(wb.moved_copy_of(&wa), want, "mul {mul}: {a} -> {b}");
+                let Some(d) = want else { continue };
+                let moved = prepare_spec("/x", &wa).unwrap().moved_by(d).unwrap();
+                let fresh = prepare_spec("/x", &wb).unwrap();
+                assert_eq!(corners(&moved), corners(&fresh), "mul {mul}: {a} -> {b}");
+                assert_eq!(moved.band, fresh.band);
+                assert_eq!(moved.taken, fresh.taken);
+                // The normals are those of the same hyperplanes, tet by tet.
+                let normal_of = |p: &PreparedWindow| {
+                    let mut n: Vec<([LatticePoint; 4], [i32; 4])> = p
+                        .body
+                        .mesh
+                        .tets
+                        .iter()
+                        .zip(&p.body.normals)
+                        .map(|(t, n)| {
+                            let mut c = t.map(|v| p.body.mesh.vertices[v as usize]);
+                            c.sort_unstable();
+                            (c, *n)
+                        })
+                        .collect();
+                    n.sort_unstable();
+                    n.into_iter().map(|x| x.1).collect::<Vec<_>>()
+                };
+                assert_eq!(normal_of(&moved), normal_of(&fresh));
+            }
+            // A placement that differs in space is no copy.
+            let mut other = at(1);
+            other.add[1] += 1;
+            assert_eq!(other.moved_copy_of(&at(0)), None);
+        }
+    }
 }
