@@ -123,6 +123,49 @@ pub struct MesherSnapshot {
     skipped: u64,
 }
 
+/// The slab from `prev` to `grid` (at `stamp_ns`), marched.
+fn march(
+    marcher: &mut SlabMarcher,
+    table: &'static Table,
+    opts: &MesherOptions,
+    prev: &KeptFrame,
+    grid: &OccupancyGrid,
+    geometry: GridGeometry,
+    stamp_ns: i64,
+) -> Result<Slab, MeshError> {
+    let mut mesh = TetMesh::default();
+    let at = SlabPlacement {
+        scale: geometry.scale,
+        frame: prev.index as i64,
+        iso: opts.decode.iso_percent,
+    };
+    let limit = opts.max_slab_tets;
+    if !marcher.march(table, &prev.grid, grid, at, limit, &mut mesh) {
+        return Err(MeshError::SlabTooComplex { limit });
+    }
+    let vanishes = prev.grid.occupied > 0
+        && grid.occupied > 0
+        && prev
+            .grid
+            .bits
+            .iter()
+            .zip(&grid.bits)
+            .all(|(a, b)| a & b == 0);
+    Ok(Slab {
+        index: prev.index,
+        stamp_lo_ns: prev.stamp_ns,
+        stamp_hi_ns: stamp_ns,
+        geometry,
+        mesh,
+        vanishes,
+    })
+}
+
+/// Whether two decoded frames hold the same occupancy.
+fn same_grid(a: &OccupancyGrid, b: &OccupancyGrid) -> bool {
+    a.padded == b.padded && a.bits == b.bits && a.values == b.values
+}
+
 /// Rolling 4D mesher of one body.
 #[derive(Debug)]
 pub struct Mesher {
@@ -134,6 +177,10 @@ pub struct Mesher {
     prev: Option<KeptFrame>,
     accepted: u64,
     skipped: u64,
+    /// The slab between the last two accepted frames while they are equal (the body at
+    /// rest): the next slab between two copies of that frame is this one moved in time,
+    /// not marched again (marching is the same at every index but for the lattice time).
+    rest: Option<Slab>,
 }
 
 impl Mesher {
@@ -164,6 +211,7 @@ impl Mesher {
             prev: None,
             accepted: 0,
             skipped: 0,
+            rest: None,
         })
     }
 
@@ -284,6 +332,7 @@ impl Mesher {
         self.prev = s.prev;
         self.accepted = s.accepted;
         self.skipped = s.skipped;
+        self.rest = None;
     }
 
     /// Feeds an already decoded frame (e.g. the intersection of two bodies' frames).
@@ -322,9 +371,7 @@ impl Mesher {
         let moved = self.prev.as_ref().and_then(|prev| {
             let same = like.geometry == geometry
                 && like.index < prev.index
-                && prev.grid.padded == grid.padded
-                && prev.grid.bits == grid.bits
-                && prev.grid.values == grid.values;
+                && same_grid(&prev.grid, &grid);
             let steps = i64::from(geometry.scale) * (prev.index - like.index) as i64;
             let shift = same.then(|| i32::try_from(steps).ok()).flatten()?;
             Some((shift, prev.index, prev.stamp_ns))
@@ -365,40 +412,55 @@ impl Mesher {
             });
         }
         // March before touching any state, so a refused frame changes nothing.
+        let at_rest = self
+            .prev
+            .as_ref()
+            .is_some_and(|prev| same_grid(&prev.grid, &grid));
         let slab = match &self.prev {
             None => None,
-            Some(prev) => {
-                let mut mesh = TetMesh::default();
-                let at = SlabPlacement {
-                    scale,
-                    frame: prev.index as i64,
-                    iso: self.opts.decode.iso_percent,
-                };
-                let limit = self.opts.max_slab_tets;
-                if !self
-                    .marcher
-                    .march(self.table, &prev.grid, &grid, at, limit, &mut mesh)
-                {
-                    return Err(MeshError::SlabTooComplex { limit });
+            Some(prev) if at_rest && self.rest.is_some() => {
+                let rest = self.rest.as_ref().expect("checked");
+                let steps = i64::from(scale) * (prev.index as i64 - rest.index as i64);
+                match i32::try_from(steps) {
+                    Ok(shift) if rest.geometry == geometry && steps > 0 => {
+                        let mut mesh = rest.mesh.clone();
+                        mesh.translate([0, 0, 0, shift]);
+                        Some(Slab {
+                            index: prev.index,
+                            stamp_lo_ns: prev.stamp_ns,
+                            stamp_hi_ns: stamp_ns,
+                            geometry,
+                            mesh,
+                            vanishes: rest.vanishes,
+                        })
+                    }
+                    _ => Some(march(
+                        &mut self.marcher,
+                        self.table,
+                        &self.opts,
+                        prev,
+                        &grid,
+                        geometry,
+                        stamp_ns,
+                    )?),
                 }
-                let vanishes = prev.grid.occupied > 0
-                    && grid.occupied > 0
-                    && prev
-                        .grid
-                        .bits
-                        .iter()
-                        .zip(&grid.bits)
-                        .all(|(a, b)| a & b == 0);
-                Some(Slab {
-                    index: prev.index,
-                    stamp_lo_ns: prev.stamp_ns,
-                    stamp_hi_ns: stamp_ns,
-                    geometry,
-                    mesh,
-                    vanishes,
-                })
             }
+            Some(prev) => Some(march(
+                &mut self.marcher,
+                self.table,
+                &self.opts,
+                prev,
+                &grid,
+                geometry,
+                stamp_ns,
+            )?),
         };
+        // The first slab of a rest is kept, to be moved for the next ones.
+        if !at_rest {
+            self.rest = None;
+        } else if self.rest.is_none() {
+            self.rest = slab.clone();
+        }
         self.keep(stamp_ns, geometry, grid);
         Ok(slab)
     }
@@ -474,5 +536,81 @@ impl Mesher {
             return None;
         }
         Some(out)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A body at rest, moving, at rest again (bit and percent frames, and an empty rest):
+    /// every slab equals the one marched from its two frames, whether or not the mesher
+    /// moved its rest slab instead; and it did move it where the body rested.
+    #[test]
+    fn slabs_of_a_body_at_rest_are_the_marched_ones() {
+        let size = [9u32, 8, 7];
+        // Frame k's ball centre along x; `None`: nothing occupied.
+        let place = |k: u32| match k {
+            0..=3 => Some(2),
+            4 => Some(3),
+            5..=7 => Some(4),
+            8..=10 => None,
+            _ => Some(4),
+        };
+        for encoding in [0u8, 1] {
+            let frame = |k: u32| -> Vec<u8> {
+                let n = (size[0] * size[1] * size[2]) as usize;
+                let mut bits = vec![0u8; n.div_ceil(8)];
+                let mut percent = vec![0u8; n];
+                for i in 0..n {
+                    let (x, y, z) = ((i % 9) as i32, ((i / 9) % 8) as i32, (i / 72) as i32);
+                    let Some(c) = place(k) else { continue };
+                    let r2 = (x - c).pow(2) + (y - 4).pow(2) + (z - 3).pow(2);
+                    if r2 <= 5 {
+                        bits[i / 8] |= 1 << (i % 8);
+                    }
+                    percent[i] = (100 - 12 * r2).clamp(0, 100) as u8;
+                }
+                if encoding == 0 {
+                    bits
+                } else {
+                    percent
+                }
+            };
+            let mut moved = Mesher::new(MesherOptions::default()).unwrap();
+            let mut marched = Mesher::new(MesherOptions::default()).unwrap();
+            let mut rests = 0;
+            for k in 0..14u32 {
+                let data = frame(k);
+                let f = FrameRef {
+                    stamp_ns: i64::from(k) * 100_000_000,
+                    origin: [0.0; 3],
+                    resolution: 0.01,
+                    size,
+                    encoding,
+                    data: &data,
+                };
+                let had = moved.rest.is_some();
+                marched.rest = None;
+                let (a, b) = (moved.push(&f).unwrap(), marched.push(&f).unwrap());
+                // A rest slab kept before and after: this one was moved from it.
+                rests += usize::from(had && moved.rest.is_some());
+                let key = |s: &Option<Slab>| {
+                    s.as_ref().map(|s| {
+                        (
+                            s.index,
+                            s.stamp_lo_ns,
+                            s.stamp_hi_ns,
+                            s.vanishes,
+                            s.mesh.clone(),
+                        )
+                    })
+                };
+                assert_eq!(key(&a), key(&b), "encoding {encoding}, frame {k}");
+            }
+            // Rest slabs moved: frames 2, 3 (rest from 0), 7 (from 5), 10 (empty, from 8),
+            // 13 (from 11).
+            assert_eq!(rests, 5, "encoding {encoding}");
+        }
     }
 }

@@ -30,8 +30,8 @@ use rayon::prelude::*;
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pack_face, packed_groups, pair_by_first_vertex,
-    pair_packed, pair_plane_faces, radix_sort_u64, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
+    canonical_triangle, det4_small_tet, id_bits, pack_face, pair_by_first_vertex, pair_packed,
+    pair_packed_boundary, pair_plane_faces, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
 };
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
@@ -478,27 +478,22 @@ fn cap_boundary(
             keys.push(pack_face(k, s * parity > 0, bits));
         }
     }
-    radix_sort_u64(keys, scratch, 3 * bits + 1);
-    let mut report = ClosedReport::default();
-    let mut boundary = Vec::new();
+    let (report, single) = pair_packed_boundary(keys, scratch, bits);
+    let mut boundary = Vec::with_capacity(single.len());
     let mut hash = PlaneHash::default();
     let mask = (1u64 << bits) - 1;
-    for group in packed_groups(keys) {
-        if let [key] = group {
-            // A boundary face of the cap: decode its vertex ids.
-            let face = key >> 1;
-            let ids = [
-                (face >> (2 * bits)) as u32,
-                ((face >> bits) & mask) as u32,
-                (face & mask) as u32,
-            ];
-            let s = if key & 1 == 1 { 1 } else { -1 };
-            let (tri, parity) = canonical_triangle(ids.map(point));
-            hash.add(&tri, s * parity);
-            boundary.push((tri, s * parity));
-        } else {
-            report.count(group);
-        }
+    for key in single {
+        // A boundary face of the cap: decode its vertex ids.
+        let face = key >> 1;
+        let ids = [
+            (face >> (2 * bits)) as u32,
+            ((face >> bits) & mask) as u32,
+            (face & mask) as u32,
+        ];
+        let s = if key & 1 == 1 { 1 } else { -1 };
+        let (tri, parity) = canonical_triangle(ids.map(point));
+        hash.add(&tri, s * parity);
+        boundary.push((tri, s * parity));
     }
     (report, boundary, hash)
 }

@@ -161,6 +161,25 @@ pub fn pack_face(k: [u32; 3], positive: bool, bits: u32) -> u64 {
 /// than there are faces are radix sorted instead. Both give the report sorting everything
 /// gives: a triangle's faces all share its bucket.
 pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> ClosedReport {
+    pair_packed_or_single(keys, scratch, bits, false).0
+}
+
+/// [`pair_packed`] for a mesh with a boundary: the faces of triangles used once are returned
+/// (packed, in no particular order) instead of counted as unpaired.
+pub fn pair_packed_boundary(
+    keys: &mut Vec<u64>,
+    scratch: &mut Vec<u64>,
+    bits: u32,
+) -> (ClosedReport, Vec<u64>) {
+    pair_packed_or_single(keys, scratch, bits, true)
+}
+
+fn pair_packed_or_single(
+    keys: &mut Vec<u64>,
+    scratch: &mut Vec<u64>,
+    bits: u32,
+    keep_single: bool,
+) -> (ClosedReport, Vec<u64>) {
     let shift = 2 * bits + 1;
     let (lo, hi) = keys.iter().fold((u64::MAX, 0), |(lo, hi), &k| {
         (lo.min(k >> shift), hi.max(k >> shift))
@@ -170,16 +189,21 @@ pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> Cl
     if n < BUCKET_MIN_FACES || span > 4 * n + 64 || u32::try_from(n).is_err() {
         radix_sort_u64(keys, scratch, 3 * bits + 1);
         let mut r = ClosedReport::default();
+        let mut single = Vec::new();
         for group in packed_groups(keys) {
-            r.count(group);
+            match group {
+                [one] if keep_single => single.push(*one),
+                _ => r.count(group),
+            }
         }
-        return r;
+        return (r, single);
     }
     pair_in_buckets(
         span,
         || keys.iter().map(|&k| (((k >> shift) - lo) as usize, k)),
         n,
         scratch,
+        keep_single,
     )
 }
 
@@ -188,13 +212,15 @@ pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> Cl
 /// and two faces of a bucket are of one triangle when their keys agree above bit 0 (the
 /// orientation). The buckets are placed in `scratch` by a counting sort (one pass to count,
 /// one to place), and each, the few dozen faces around one vertex, is sorted alone; runs of
-/// whole buckets, about [`BUCKET_RUN`] faces each, are counted on rayon's pool.
+/// whole buckets, about [`BUCKET_RUN`] faces each, are counted on rayon's pool. With
+/// `keep_single`, the keys of triangles used once are returned rather than counted.
 fn pair_in_buckets<I: Iterator<Item = (usize, u64)>>(
     buckets: usize,
     faces: impl Fn() -> I,
     len: usize,
     scratch: &mut Vec<u64>,
-) -> ClosedReport {
+    keep_single: bool,
+) -> (ClosedReport, Vec<u64>) {
     // ends[b + 1] counts bucket b; after the prefix sum ends[b] is its first slot, and
     // after placing, its end.
     let mut ends = vec![0u32; buckets + 1];
@@ -229,24 +255,32 @@ fn pair_in_buckets<I: Iterator<Item = (usize, u64)>>(
     runs.into_par_iter()
         .map(|(run, ends)| {
             let mut r = ClosedReport::default();
+            let mut single = Vec::new();
             let mut begin = 0;
             for end in ends {
                 let bucket = &mut run[begin..end];
                 bucket.sort_unstable();
                 for group in packed_groups(bucket) {
-                    r.count(group);
+                    match group {
+                        [one] if keep_single => single.push(*one),
+                        _ => r.count(group),
+                    }
                 }
                 begin = end;
             }
-            r
+            (r, single)
         })
-        .reduce(ClosedReport::default, |mut a, b| {
-            a.triangles += b.triangles;
-            a.unpaired += b.unpaired;
-            a.overshared += b.overshared;
-            a.misoriented += b.misoriented;
-            a
-        })
+        .reduce(
+            || (ClosedReport::default(), Vec::new()),
+            |(mut a, mut sa), (b, sb)| {
+                a.triangles += b.triangles;
+                a.unpaired += b.unpaired;
+                a.overshared += b.overshared;
+                a.misoriented += b.misoriented;
+                sa.extend(sb);
+                (a, sa)
+            },
+        )
 }
 
 /// Below this many faces, [`pair_packed`] radix sorts (its buckets' table would cost more
@@ -336,7 +370,9 @@ pub fn pair_by_first_vertex(faces: &[([u32; 3], i8)], n: usize) -> ClosedReport 
         || faces.iter().map(|(k, s)| (k[0] as usize, rest(k, *s))),
         faces.len(),
         &mut Vec::new(),
+        false,
     )
+    .0
 }
 
 /// Like [`pair_faces`] for triangles of points in one t plane: each point is packed into a
@@ -501,9 +537,34 @@ mod tests {
                 .collect();
             let want = pair_faces(wide.clone());
             assert!(want.unpaired > 0 && want.misoriented > 0 && want.overshared > 0);
+            let mut again = keys.clone();
             assert_eq!(
                 pair_packed(&mut keys, &mut Vec::new(), bits),
                 want,
+                "{ids} ids x {stride}"
+            );
+            // With a boundary: the triangles used once are given back, not counted.
+            let (report, mut single) = pair_packed_boundary(&mut again, &mut Vec::new(), bits);
+            let mut once: Vec<u64> = Vec::new();
+            let mut sorted: Vec<u64> = wide
+                .iter()
+                .map(|&(k, s)| pack_face(k, s > 0, bits))
+                .collect();
+            sorted.sort_unstable();
+            for group in packed_groups(&sorted) {
+                if let [one] = group {
+                    once.push(*one);
+                }
+            }
+            single.sort_unstable();
+            assert_eq!(single, once, "{ids} ids x {stride}");
+            assert_eq!(
+                report,
+                ClosedReport {
+                    unpaired: 0,
+                    triangles: want.triangles - want.unpaired,
+                    ..want
+                },
                 "{ids} ids x {stride}"
             );
         }
