@@ -416,36 +416,33 @@ impl Mesher {
             .prev
             .as_ref()
             .is_some_and(|prev| same_grid(&prev.grid, &grid));
-        let slab = match &self.prev {
-            None => None,
-            Some(prev) if at_rest && self.rest.is_some() => {
-                let rest = self.rest.as_ref().expect("checked");
+        // At rest with a rest slab kept: that slab moved in time.
+        let moved = self
+            .prev
+            .as_ref()
+            .filter(|_| at_rest)
+            .zip(self.rest.as_ref())
+            .and_then(|(prev, rest)| {
                 let steps = i64::from(scale) * (prev.index as i64 - rest.index as i64);
-                match i32::try_from(steps) {
-                    Ok(shift) if rest.geometry == geometry && steps > 0 => {
-                        let mut mesh = rest.mesh.clone();
-                        mesh.translate([0, 0, 0, shift]);
-                        Some(Slab {
-                            index: prev.index,
-                            stamp_lo_ns: prev.stamp_ns,
-                            stamp_hi_ns: stamp_ns,
-                            geometry,
-                            mesh,
-                            vanishes: rest.vanishes,
-                        })
-                    }
-                    _ => Some(march(
-                        &mut self.marcher,
-                        self.table,
-                        &self.opts,
-                        prev,
-                        &grid,
-                        geometry,
-                        stamp_ns,
-                    )?),
+                let shift = i32::try_from(steps).ok()?;
+                if rest.geometry != geometry || steps <= 0 {
+                    return None;
                 }
-            }
-            Some(prev) => Some(march(
+                let mut mesh = rest.mesh.clone();
+                mesh.translate([0, 0, 0, shift]);
+                Some(Slab {
+                    index: prev.index,
+                    stamp_lo_ns: prev.stamp_ns,
+                    stamp_hi_ns: stamp_ns,
+                    geometry,
+                    mesh,
+                    vanishes: rest.vanishes,
+                })
+            });
+        let slab = match (&self.prev, moved) {
+            (None, _) => None,
+            (Some(_), Some(slab)) => Some(slab),
+            (Some(prev), None) => Some(march(
                 &mut self.marcher,
                 self.table,
                 &self.opts,

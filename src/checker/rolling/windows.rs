@@ -684,7 +684,8 @@ pub(super) fn check_specs(
 
 impl RollingChecker {
     /// Body `id`'s window `w` as a window prepared before (for an earlier period, kept in
-    /// the cache or for a body at rest) moved in time, if `w` is that window's copy.
+    /// the cache or for a body at rest) moved, if `w` is that window's moved copy
+    /// ([`WindowSpec::moved_copy_of`]).
     pub(super) fn moved(&self, id: &str, w: &WindowSpec) -> Option<Arc<PreparedWindow>> {
         [self.prepared.get(id), self.rest.get(id)]
             .into_iter()
