@@ -536,6 +536,55 @@ impl Mesher {
     }
 }
 
+/// Test streams: frame `k` of a `size` grid at 1 cm voxels from the origin, stamped k·0.1 s.
+#[cfg(test)]
+pub(crate) fn test_frame(k: u32, size: [u32; 3], encoding: u8, data: &[u8]) -> FrameRef<'_> {
+    FrameRef {
+        stamp_ns: i64::from(k) * 100_000_000,
+        origin: [0.0; 3],
+        resolution: 0.01,
+        size,
+        encoding,
+        data,
+    }
+}
+
+/// The BITS data of a `size` grid whose voxel (x, y, z) is occupied where `occ` says.
+#[cfg(test)]
+pub(crate) fn test_bits(size: [u32; 3], occ: impl Fn(i32, i32, i32) -> bool) -> Vec<u8> {
+    let [sx, sy, sz] = size.map(|v| v as usize);
+    let mut v = vec![0u8; (sx * sy * sz).div_ceil(8)];
+    for i in 0..sx * sy * sz {
+        let (x, y, z) = (i % sx, (i / sx) % sy, i / (sx * sy));
+        if occ(x as i32, y as i32, z as i32) {
+            v[i / 8] |= 1 << (i % 8);
+        }
+    }
+    v
+}
+
+/// Frames 0..`n` of a `size` grid (frame k's voxel (x, y, z) occupied where `occ(k, x, y, z)`)
+/// through a default mesher: the mesher and the slabs it gave.
+#[cfg(test)]
+pub(crate) fn test_stream(
+    size: [u32; 3],
+    n: u32,
+    occ: impl Fn(u32, i32, i32, i32) -> bool,
+) -> (Mesher, Vec<Slab>) {
+    let mut m = Mesher::new(MesherOptions::default()).expect("default options");
+    let mut slabs = Vec::new();
+    for k in 0..n {
+        let data = test_bits(size, |x, y, z| occ(k, x, y, z));
+        if let Some(s) = m
+            .push(&test_frame(k, size, 0, &data))
+            .expect("a valid frame")
+        {
+            slabs.push(s);
+        }
+    }
+    (m, slabs)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -556,22 +605,19 @@ mod tests {
         };
         for encoding in [0u8, 1] {
             let frame = |k: u32| -> Vec<u8> {
-                let n = (size[0] * size[1] * size[2]) as usize;
-                let mut bits = vec![0u8; n.div_ceil(8)];
-                let mut percent = vec![0u8; n];
-                for i in 0..n {
-                    let (x, y, z) = ((i % 9) as i32, ((i / 9) % 8) as i32, (i / 72) as i32);
-                    let Some(c) = place(k) else { continue };
-                    let r2 = (x - c).pow(2) + (y - 4).pow(2) + (z - 3).pow(2);
-                    if r2 <= 5 {
-                        bits[i / 8] |= 1 << (i % 8);
-                    }
-                    percent[i] = (100 - 12 * r2).clamp(0, 100) as u8;
-                }
+                let r2 = |x: i32, y: i32, z: i32| {
+                    place(k).map(|c| (x - c).pow(2) + (y - 4).pow(2) + (z - 3).pow(2))
+                };
                 if encoding == 0 {
-                    bits
+                    test_bits(size, |x, y, z| r2(x, y, z).is_some_and(|r| r <= 5))
                 } else {
-                    percent
+                    let [sx, sy, sz] = size.map(|v| v as i32);
+                    (0..sx * sy * sz)
+                        .map(|i| {
+                            let r = r2(i % sx, (i / sx) % sy, i / (sx * sy));
+                            r.map_or(0, |r| (100 - 12 * r).clamp(0, 100) as u8)
+                        })
+                        .collect()
                 }
             };
             let mut moved = Mesher::new(MesherOptions::default()).unwrap();
@@ -579,14 +625,7 @@ mod tests {
             let mut rests = 0;
             for k in 0..14u32 {
                 let data = frame(k);
-                let f = FrameRef {
-                    stamp_ns: i64::from(k) * 100_000_000,
-                    origin: [0.0; 3],
-                    resolution: 0.01,
-                    size,
-                    encoding,
-                    data: &data,
-                };
+                let f = test_frame(k, size, encoding, &data);
                 let had = moved.rest.is_some();
                 marched.rest = None;
                 let (a, b) = (moved.push(&f).unwrap(), marched.push(&f).unwrap());

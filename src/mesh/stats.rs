@@ -581,45 +581,17 @@ fn tri_hash(t: &PlaneTri) -> (u128, u128) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::grid::FrameRef;
-    use crate::mesh::mesher::{Mesher, MesherOptions};
+    use crate::mesh::mesher::test_stream;
 
     /// Scanning a slab in chunks gives the figures of one scan, exactly: on a closed body, and
     /// on one with an open first plane (no opening cap).
     #[test]
     fn chunked_scans_equal_one_scan() {
-        let size = [10u32, 9, 8];
         // A ball moving along x, with scattered voxels (so slabs have many tets).
-        let bits = |k: u32| {
-            let n = (size[0] * size[1] * size[2]) as usize;
-            let mut v = vec![0u8; n.div_ceil(8)];
-            for i in 0..n {
-                let (x, y, z) = (i % 10, (i / 10) % 9, i / 90);
-                let r2 = (x as i32 - 3 - k as i32).pow(2)
-                    + (y as i32 - 4).pow(2)
-                    + (z as i32 - 4).pow(2);
-                if r2 <= 9 || (x + 2 * y + 3 * z + k as usize) % 11 == 0 {
-                    v[i / 8] |= 1 << (i % 8);
-                }
-            }
-            v
-        };
-        let mut m = Mesher::new(MesherOptions::default()).unwrap();
-        let mut slabs = Vec::new();
-        for k in 0..4u32 {
-            let data = bits(k);
-            let f = FrameRef {
-                stamp_ns: i64::from(k) * 100_000_000,
-                origin: [0.0; 3],
-                resolution: 0.01,
-                size,
-                encoding: 0,
-                data: &data,
-            };
-            if let Some(s) = m.push(&f).unwrap() {
-                slabs.push(s);
-            }
-        }
+        let (m, slabs) = test_stream([10, 9, 8], 4, |k, x, y, z| {
+            let r2 = (x - 3 - k as i32).pow(2) + (y - 4).pow(2) + (z - 4).pow(2);
+            r2 <= 9 || (x + 2 * y + 3 * z + k as i32) % 11 == 0
+        });
         let first = m.first_frame().unwrap().clone();
         let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
         assert!(
@@ -654,41 +626,16 @@ mod tests {
     /// of every slab, on a closed stream and on one whose copied slabs carry a defect.
     #[test]
     fn copies_of_the_last_slab_add_the_same_figures_as_scanning_them() {
-        let size = [9u32, 8, 7];
         // Rest for frames 0-3, a step at 4, rest for 5-7, a step at 8.
         let place = |k: u32| match k {
             0..=3 => 0,
             4..=7 => 2,
             _ => 3,
         };
-        let bits = |k: u32| {
-            let n = (size[0] * size[1] * size[2]) as usize;
-            let mut v = vec![0u8; n.div_ceil(8)];
-            for i in 0..n {
-                let (x, y, z) = (i % 9, (i / 9) % 8, i / 72);
-                let r2 = (x as i32 - 3 - place(k)).pow(2) + (y as i32 - 4).pow(2);
-                if r2 + (z as i32 - 3).pow(2) <= 6 || (x + 2 * y + 3 * z) % 13 == 0 {
-                    v[i / 8] |= 1 << (i % 8);
-                }
-            }
-            v
-        };
-        let mut m = Mesher::new(MesherOptions::default()).unwrap();
-        let mut slabs = Vec::new();
-        for k in 0..9u32 {
-            let data = bits(k);
-            let f = FrameRef {
-                stamp_ns: i64::from(k) * 100_000_000,
-                origin: [0.0; 3],
-                resolution: 0.01,
-                size,
-                encoding: 0,
-                data: &data,
-            };
-            if let Some(s) = m.push(&f).unwrap() {
-                slabs.push(s);
-            }
-        }
+        let (m, slabs) = test_stream([9, 8, 7], 9, |k, x, y, z| {
+            let r2 = (x - 3 - place(k)).pow(2) + (y - 4).pow(2);
+            r2 + (z - 3).pow(2) <= 6 || (x + 2 * y + 3 * z) % 13 == 0
+        });
         let first = m.first_frame().unwrap().clone();
         let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
         let last = m.last_frame().unwrap().clone();

@@ -890,42 +890,20 @@ pub(super) fn pair_lattice(ga: &GridGeometry, gb: &GridGeometry) -> Result<PairL
 mod tests {
     use super::*;
     use crate::kernel::LatticePoint;
-    use crate::mesh::grid::FrameRef;
 
     /// A body's slabs, frame by frame: a box and a ball at rest (frames 0-2), stepped one
     /// voxel along +x (frame 3) and at rest there (3-5), on a 10³ lattice.
     fn slabs() -> (Vec<Arc<TetMesh>>, GridGeometry) {
-        let size = [10u32, 10, 10];
-        let at = |k: u32| u32::from(k >= 3);
-        let mut m = Mesher::new(MesherOptions::default()).unwrap();
-        let mut out = Vec::new();
-        let mut geometry = None;
-        for k in 0..6u32 {
-            let n = 1000usize;
-            let mut data = vec![0u8; n / 8];
-            for i in 0..n {
-                let (x, y, z) = ((i % 10) as i32, ((i / 10) % 10) as i32, (i / 100) as i32);
-                let x = x - at(k) as i32;
-                let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 5).pow(2) <= 5;
-                let block = (1..3).contains(&x) && (6..9).contains(&y) && (2..4).contains(&z);
-                if ball || block {
-                    data[i / 8] |= 1 << (i % 8);
-                }
-            }
-            let f = FrameRef {
-                stamp_ns: i64::from(k) * 100_000_000,
-                origin: [0.0; 3],
-                resolution: 0.01,
-                size,
-                encoding: 0,
-                data: &data,
-            };
-            if let Some(s) = m.push(&f).unwrap() {
-                geometry = Some(s.geometry);
-                out.push(Arc::new(s.mesh));
-            }
-        }
-        (out, geometry.unwrap())
+        let (_, slabs) = crate::mesh::mesher::test_stream([10; 3], 6, |k, x, y, z| {
+            let x = x - i32::from(k >= 3);
+            let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 5).pow(2) <= 5;
+            ball || ((1..3).contains(&x) && (6..9).contains(&y) && (2..4).contains(&z))
+        });
+        let geometry = slabs[0].geometry;
+        (
+            slabs.into_iter().map(|s| Arc::new(s.mesh)).collect(),
+            geometry,
+        )
     }
 
     fn spec(
