@@ -62,17 +62,6 @@ impl TetMesh {
                 .zip(&earlier.vertices)
                 .all(|(p, q)| (0..4).all(|k| q[k].checked_add(d[k]) == Some(p[k])))
     }
-
-    /// The translation that makes this mesh of `earlier`, if it is a moved copy of it
-    /// ([`Self::is_moved_copy_of`]); `None` without vertices.
-    pub fn moved_from(&self, earlier: &TetMesh) -> Option<LatticePoint> {
-        let (p, q) = (self.vertices.first()?, earlier.vertices.first()?);
-        let mut d = [0; 4];
-        for k in 0..4 {
-            d[k] = p[k].checked_sub(q[k])?;
-        }
-        self.is_moved_copy_of(earlier, d).then_some(d)
-    }
 }
 
 /// Appends meshes to one mesh, merging vertices with equal lattice coordinates; keeps its

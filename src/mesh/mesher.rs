@@ -353,50 +353,6 @@ impl Mesher {
         r
     }
 
-    /// Feeds `grid` again at `stamp_ns` when it equals the last accepted frame (a gap's
-    /// filled frames repeat one grid), with `like` — the slab between two copies of that grid
-    /// at an earlier index — moved in time instead of marched: marching is the same at every
-    /// index but for the lattice time. Marches as [`Self::push_decoded`] when the
-    /// preconditions do not hold, so the result is the same either way, only slower.
-    ///
-    /// # Errors
-    /// As [`Self::push_decoded`].
-    pub fn push_repeat(
-        &mut self,
-        stamp_ns: i64,
-        geometry: GridGeometry,
-        grid: OccupancyGrid,
-        like: &Slab,
-    ) -> Result<Option<Slab>, MeshError> {
-        let moved = self.prev.as_ref().and_then(|prev| {
-            let same = like.geometry == geometry
-                && like.index < prev.index
-                && same_grid(&prev.grid, &grid);
-            let steps = i64::from(geometry.scale) * (prev.index - like.index) as i64;
-            let shift = same.then(|| i32::try_from(steps).ok()).flatten()?;
-            Some((shift, prev.index, prev.stamp_ns))
-        });
-        let Some((shift, index, stamp_lo_ns)) = moved else {
-            return self.push_decoded(stamp_ns, geometry, grid);
-        };
-        if let Err(e) = self.check_stream(stamp_ns, &geometry) {
-            self.skipped += 1;
-            return Err(e);
-        }
-        let mut mesh = like.mesh.clone();
-        mesh.translate([0, 0, 0, shift]);
-        let slab = Slab {
-            index,
-            stamp_lo_ns,
-            stamp_hi_ns: stamp_ns,
-            geometry,
-            mesh,
-            vanishes: like.vanishes,
-        };
-        self.keep(stamp_ns, geometry, grid);
-        Ok(Some(slab))
-    }
-
     fn accept(
         &mut self,
         stamp_ns: i64,

@@ -283,15 +283,9 @@ impl BodyStream {
                 for j in 1..periods {
                     // In i128: dt · j can exceed i64 for stamps years apart.
                     let t = prev + (i128::from(dt) * i128::from(j) / i128::from(periods)) as i64;
-                    // The slab of the second filled frame is between two copies of the
-                    // fill: every later one is the same slab moved in time.
-                    let pushed = match out.frames.get(1).and_then(|f| f.1.as_ref()) {
-                        Some(like) => {
-                            self.mesher
-                                .push_repeat(t, prepared.geometry, both.clone(), like)
-                        }
-                        None => self.mesher.push_decoded(t, prepared.geometry, both.clone()),
-                    };
+                    // From the second filled frame on, the fill repeats one grid: the
+                    // mesher moves its rest slab in time rather than marching each one.
+                    let pushed = self.mesher.push_decoded(t, prepared.geometry, both.clone());
                     match pushed {
                         Ok(slab) => {
                             let n = slab.as_ref().map_or(0, |s| s.mesh.tets.len() as u64);

@@ -401,9 +401,9 @@ impl RollingChecker {
                 }
             }
             // Its prepared window: every pair that could take it again has gone past it.
-            // A body at rest keeps it, to move it in time for its next window.
+            // A body at rest keeps it, to move it for its next windows.
             if self.prepared.get(id).is_some_and(|c| c.2 < oldest) {
-                if let Some(w) = self.prepared.remove(id).filter(|_| b.at_rest) {
+                if let Some(w) = self.prepared.remove(id).filter(|_| b.moving_for == 0) {
                     self.rest.insert(id.clone(), w);
                 }
             }

@@ -352,9 +352,8 @@ struct BodyStream {
     horizon_cut_until: i64,
     /// `header.frame_id` of its latest piece.
     frame_id: String,
-    /// Its latest slab is the one before it moved one period later (the body is at rest).
-    at_rest: bool,
-    /// Slabs since it was last at rest.
+    /// Slabs since its latest one that was the one before moved one period later (0: the
+    /// body is at rest; counted once its slabs come).
     moving_for: u32,
 }
 
@@ -741,8 +740,11 @@ impl RollingChecker {
             || self.prefetch(1),
         );
         if let Some(b) = self.bodies.get_mut(&p.body) {
-            b.at_rest = at_rest;
-            b.moving_for = if at_rest { 0 } else { b.moving_for.saturating_add(1) };
+            b.moving_for = if at_rest {
+                0
+            } else {
+                b.moving_for.saturating_add(1)
+            };
             if let Some(r) = b.runs.iter_mut().find(|r| r.id == run) {
                 r.acc = acc;
             }

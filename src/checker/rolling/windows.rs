@@ -762,14 +762,23 @@ impl WindowSpec {
         }
         let frames = i64::from(self.lo - earlier.lo);
         let dt = i32::try_from(i64::from(self.geometry.scale) * frames).ok()?;
-        // The move of the first slab with vertices (each slab spans one period, so its
-        // move in time is `dt`); every slab must make the same.
-        let d = self
+        // The move of the first vertex of the first slab with vertices (each slab spans one
+        // period, so its move in time is `dt`); every vertex of every slab must make it.
+        let firsts = self
             .slabs
             .iter()
             .zip(&earlier.slabs)
-            .find_map(|(x, y)| x.moved_from(y))
-            .unwrap_or([0, 0, 0, dt]);
+            .find_map(|(x, y)| Some((x.vertices.first()?, y.vertices.first()?)));
+        let d = match firsts {
+            Some((p, q)) => {
+                let mut d = [0; 4];
+                for k in 0..4 {
+                    d[k] = p[k].checked_sub(q[k])?;
+                }
+                d
+            }
+            None => [0, 0, 0, dt],
+        };
         if d[3] != dt
             || !self
                 .slabs
