@@ -47,7 +47,6 @@ impl<'a> Placement<'a> {
                 normals: Vec::new(),
                 factor: source.factor,
                 geometry: source.geometry,
-                stamps_ns: source.stamps_ns.clone(),
                 original: source.original.clone(),
             },
         }
@@ -252,6 +251,13 @@ impl CommonLattice {
         matches!(self.axis_map(b), Ok((1, [0, 0, 0, 0])))
     }
 
+    /// Where `b` goes on this lattice: the map [`place`](Self::place) applies to it (a
+    /// body's preparation depends only on its mesh, its lattice and this), or `None` if it
+    /// cannot be placed.
+    pub fn placement_of(&self, b: &BodyMesh) -> Option<(i64, [i64; 4])> {
+        self.axis_map(b).ok()
+    }
+
     /// The map (common factor over the body's own × [`CHECKER_FACTOR`], shift) of `b`
     /// onto this lattice.
     fn axis_map(&self, b: &BodyMesh) -> Result<(i64, [i64; 4]), String> {
@@ -298,7 +304,6 @@ impl CommonLattice {
             normals: local.normals,
             factor: CHECKER_FACTOR * ratio as i32,
             geometry: g,
-            stamps_ns: self.stamps_ns.clone(),
             original: local.original.into(),
         };
         let mul = [ratio; 4];

@@ -134,9 +134,6 @@ pub struct Prepared {
     pub factor: i32,
     /// The body's lattice.
     pub geometry: GridGeometry,
-    /// Frame stamps (ns) of the common time lattice: checker time `t` is at
-    /// `stamps[t / (8·scale)]` plus the fraction within that frame period.
-    pub stamps_ns: Vec<i64>,
     /// For each tet (in the order of `mesh.tets`), its index in the body's mesh as given to
     /// [`CommonLattice::prepare`].
     pub original: std::sync::Arc<[u32]>,

@@ -177,7 +177,6 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
         normals: local.normals,
         factor: CHECKER_FACTOR * w.mul as i32,
         geometry: w.geometry,
-        stamps_ns: Vec::new(),
         original: local.original.into(),
     };
     let mul = [w.mul; 4];

@@ -2,6 +2,7 @@
 //! or horizon needs any more.
 
 use super::*;
+use crate::checker::{CheckError, Prepared};
 
 impl RollingChecker {
     /// Resolves the contact episodes of the movable bodies that are complete: no contact of
@@ -142,6 +143,7 @@ impl RollingChecker {
             time_scale: self.plan.time_scale,
             period_s: self.union.period_s(),
             origin_ns: origin,
+            horizons: Arc::clone(&self.horizons),
         };
         self.submit(job, out);
     }
@@ -523,6 +525,73 @@ pub(super) struct ResolveJob {
     time_scale: Option<f64>,
     period_s: Option<f64>,
     origin_ns: i64,
+    /// The bodies' last horizons, prepared: a horizon body that is one of them again is
+    /// not prepared again.
+    horizons: Arc<KeptHorizons>,
+}
+
+/// Each body's last horizon prepared by a resolution.
+///
+/// A horizon body is built in local time (its first frame at time 0), so a body at rest, or
+/// one whose motion repeats with its contacts, gives the same horizon body episode after
+/// episode: the same tets on the same vertices, welded from the same pieces. Its
+/// preparation (tree, adjacency, normals) depends only on that mesh, its lattice and its
+/// placement on the common lattice, so a horizon that equals the kept one, compared exactly
+/// (every vertex, tet and piece), on the same placement, shares the kept preparation. One
+/// horizon per body is kept; a different one replaces it, the old one dropped before the
+/// new one is prepared.
+#[derive(Debug, Default)]
+pub(super) struct KeptHorizons(std::sync::Mutex<BTreeMap<String, Arc<KeptHorizon>>>);
+
+/// A body's horizon and its preparation.
+#[derive(Debug)]
+struct KeptHorizon {
+    body: BodyMesh,
+    placement: (i64, [i64; 4]),
+    prepared: Arc<Prepared>,
+}
+
+impl KeptHorizons {
+    /// Body `id`'s horizon `b` prepared on `lat`: the kept preparation if `b` is the kept
+    /// horizon on the same placement, otherwise prepared (and kept in its place).
+    ///
+    /// # Errors
+    /// As [`CommonLattice::prepare`].
+    fn prepare(
+        &self,
+        lat: &CommonLattice,
+        id: &str,
+        b: BodyMesh,
+    ) -> Result<Arc<Prepared>, CheckError> {
+        let placement = lat.placement_of(&b);
+        // A resolution that panicked while holding the lock left the map whole (it is only
+        // read or written in one step): its poisoning is ignored.
+        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = kept.get(id) {
+            if Some(k.placement) == placement
+                && k.body.geometry == b.geometry
+                && k.body.pieces == b.pieces
+                && k.body.mesh == b.mesh
+            {
+                return Ok(Arc::clone(&k.prepared));
+            }
+        }
+        kept.remove(id);
+        drop(kept);
+        let prepared = Arc::new(lat.prepare(id, &b)?);
+        if let Some(placement) = placement {
+            let k = KeptHorizon {
+                body: b,
+                placement,
+                prepared: Arc::clone(&prepared),
+            };
+            self.0
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .insert(id.to_string(), Arc::new(k));
+        }
+        Ok(prepared)
+    }
 }
 
 /// What a resolution gave.
@@ -541,14 +610,19 @@ impl ResolveJob {
     /// scaling of the movable body.
     fn run(self) -> ResolveOutcome {
         let (m, ep) = (self.movable.as_str(), self.episode);
-        let named: Vec<(&str, &BodyMesh)> =
-            self.meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
-        let result = CommonLattice::of(&named).and_then(|lat| {
+        let lattice = {
+            let named: Vec<(&str, &BodyMesh)> =
+                self.meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
+            CommonLattice::of(&named)
+        };
+        let ids: Vec<String> = self.meshes.keys().cloned().collect();
+        let result = lattice.and_then(|lat| {
             // One body at a time: preparing them side by side saved 7 % of a periodic
             // replay's time for 15 % more peak memory.
-            let prepared = named
-                .iter()
-                .map(|(id, b)| lat.prepare(id, b))
+            let prepared = self
+                .meshes
+                .into_iter()
+                .map(|(id, b)| self.horizons.prepare(&lat, &id, b))
                 .collect::<Result<Vec<_>, _>>()?;
             Ok((lat, prepared))
         });
@@ -561,7 +635,7 @@ impl ResolveJob {
                 ))
             }
         };
-        let index = |id: &str| named.iter().position(|(k, _)| *k == id);
+        let index = |id: &str| ids.iter().position(|k| k == id);
         let Some(im) = index(m) else {
             return ResolveOutcome::Clear;
         };
@@ -573,10 +647,10 @@ impl ResolveJob {
             };
             let r = check_pair(&prepared[ia], &prepared[ib]);
             if ia == im {
-                others.push(&prepared[ib]);
+                others.push(&*prepared[ib]);
                 rs.push(r);
             } else {
-                others.push(&prepared[ia]);
+                others.push(&*prepared[ia]);
                 rs.push(r.swapped());
             }
         }
@@ -604,6 +678,118 @@ impl ResolveJob {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::glue::BodyAssembler;
+    use crate::mesh::grid::FrameRef;
+
+    /// A 6×5×4 box of voxels starting at `x0`, stepping one voxel along x per frame from
+    /// frame `step_from` on, over 4 frames stamped from `t0` (ns) every 0.1 s, on a lattice
+    /// whose origin is `origin_x` (m) along x.
+    fn box_body(x0: usize, step_from: usize, t0: i64, origin_x: f64) -> BodyMesh {
+        const SIZE: [u32; 3] = [16, 9, 8];
+        let mut a = BodyAssembler::new(MesherOptions::default()).expect("options");
+        let n = SIZE.iter().map(|&s| s as usize).product::<usize>();
+        for k in 0..4usize {
+            let x = x0 + k.saturating_sub(step_from);
+            let mut data = vec![0u8; n.div_ceil(8)];
+            for i in 0..n {
+                let p = [i % 16, (i / 16) % 9, i / (16 * 9)];
+                if (x..x + 6).contains(&p[0]) && (2..7).contains(&p[1]) && (2..6).contains(&p[2]) {
+                    data[i / 8] |= 1 << (i % 8);
+                }
+            }
+            let f = FrameRef {
+                stamp_ns: t0 + k as i64 * 100_000_000,
+                origin: [origin_x, 0.0, 0.0],
+                resolution: 0.01,
+                size: SIZE,
+                encoding: 0,
+                data: &data,
+            };
+            a.push(&f).expect("a valid frame");
+        }
+        a.finish()
+    }
+
+    /// What a preparation is made of, to compare a shared one with a fresh one.
+    fn parts(p: &Prepared) -> impl PartialEq + std::fmt::Debug + '_ {
+        (
+            &p.mesh,
+            &*p.adjacency,
+            &p.normals,
+            &*p.original,
+            p.factor,
+            p.geometry,
+            p.bvh.node_count(),
+            p.bvh.aabb(),
+        )
+    }
+
+    /// A horizon that is the kept one again, at other stamps, shares its preparation, and
+    /// that preparation is the one a fresh preparation gives; a different mesh, lattice
+    /// origin or first frame on the common lattice is prepared again.
+    #[test]
+    fn a_horizon_seen_before_shares_its_preparation() {
+        let kept = KeptHorizons::default();
+        let on = |bodies: &[(&str, &BodyMesh)]| CommonLattice::of(bodies).expect("one lattice");
+        let partner = |t0| box_body(5, 9, t0, 0.0);
+        // A body at rest, then the same horizon 2 s later.
+        let (a1, b1) = (box_body(1, 9, 0, 0.0), partner(0));
+        let lat1 = on(&[("a", &a1), ("b", &b1)]);
+        let p1 = kept.prepare(&lat1, "a", a1.clone()).expect("prepared");
+        let (a2, b2) = (box_body(1, 9, 2_000_000_000, 0.0), partner(2_000_000_000));
+        let lat2 = on(&[("a", &a2), ("b", &b2)]);
+        let p2 = kept.prepare(&lat2, "a", a2.clone()).expect("prepared");
+        assert!(Arc::ptr_eq(&p1, &p2), "the same horizon is prepared once");
+        let fresh = lat2.prepare("a", &a2).expect("prepared");
+        assert_eq!(parts(&p2), parts(&fresh));
+        let pb2 = lat2.prepare("b", &b2).expect("b");
+        let (shared, own) = (check_pair(&p2, &pb2), check_pair(&fresh, &pb2));
+        assert!(shared.interfering());
+        let answer = |r: &PairResult| {
+            format!(
+                "{:?} {:?} {:?} {} {}",
+                r.labels_a, r.labels_b, r.intervals, r.candidate_pairs, r.interfering_pairs
+            )
+        };
+        assert_eq!(answer(&shared), answer(&own));
+        // Each of these differs from the kept horizon in one thing, and is prepared again.
+        let aside = box_body(2, 9, 0, 0.0);
+        let elsewhere = box_body(1, 9, 0, 0.01);
+        let later = box_body(1, 9, 100_000_000, 0.0);
+        let cases = [
+            (
+                "the same box one voxel along",
+                on(&[("a", &aside), ("b", &b1)]),
+                aside.clone(),
+            ),
+            (
+                "a lattice one voxel along",
+                on(&[("a", &elsewhere), ("b", &b1)]),
+                elsewhere.clone(),
+            ),
+            (
+                "a later first frame",
+                on(&[("a", &later), ("b", &b1)]),
+                later.clone(),
+            ),
+        ];
+        let mut last = p2;
+        for (what, lat, body) in cases {
+            // The horizon at rest is the kept one when each case comes.
+            let at_rest = kept.prepare(&lat1, "a", a1.clone()).expect("prepared");
+            let p = kept.prepare(&lat, "a", body.clone()).expect("prepared");
+            assert!(!Arc::ptr_eq(&p, &at_rest), "{what}: prepared again");
+            let own = lat.prepare("a", &body).expect("a");
+            assert_eq!(parts(&p), parts(&own), "{what}");
+            last = p;
+        }
+        // Only the last one is kept, and another body's horizon is kept beside it.
+        let pb = kept.prepare(&lat1, "b", b1.clone()).expect("prepared");
+        let map = kept.0.lock().expect("not poisoned");
+        assert_eq!(map.len(), 2);
+        assert!(Arc::ptr_eq(&map["a"].prepared, &last));
+        assert!(Arc::ptr_eq(&map["b"].prepared, &pb));
+    }
 
     #[test]
     fn a_resolution_that_panics_is_said_and_the_checker_goes_on() {

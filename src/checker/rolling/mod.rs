@@ -531,6 +531,8 @@ pub struct RollingChecker {
     /// Resolutions running there, oldest first: which episode, and where its result will
     /// come.
     in_flight: VecDeque<(String, crossbeam_channel::Receiver<ResolveOutcome>)>,
+    /// Each body's last horizon, prepared by a resolution (shared with the resolutions).
+    horizons: Arc<episodes::KeptHorizons>,
 }
 
 /// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
@@ -639,6 +641,7 @@ impl RollingChecker {
             pending_stats: None,
             resolver: None,
             in_flight: VecDeque::new(),
+            horizons: Arc::default(),
         }
     }
 
