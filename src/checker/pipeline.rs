@@ -7,7 +7,7 @@ use super::prep::BodyPrep;
 use super::report::{
     BodyReport, LostSpan, PairLabels, PairReport, Report, Resolution, Timings, UncheckedPair,
 };
-use super::resolve::{suggest_time_scaling, suggest_translation, Metric};
+use super::resolve::{suggest_time_scaling, suggest_translation, Metric, TimeScaling, Translation};
 use super::{
     check_pair, check_pair_walked, CheckError, CommonLattice, PairResult, Prepared, StreamWalk,
 };
@@ -403,12 +403,36 @@ pub fn resolve(
     episode: [f64; 2],
 ) -> Vec<Resolution> {
     let m = Metric::new(lat, c);
-    let mut out = Vec::new();
+    let found = suggest(a, others, rs, &m);
+    resolutions(&a.id, &found, lat, &m, c, origin, episode)
+}
+
+/// What [`suggest`] found, in checker lattice units.
+pub type Suggestions = (Option<Translation>, Option<TimeScaling>);
+
+/// The translation and the time scaling of body `a` against `others`, each verified, in
+/// checker lattice units: they depend only on the prepared bodies and the metric.
+pub fn suggest(a: &Prepared, others: &[&Prepared], rs: &[&PairResult], m: &Metric) -> Suggestions {
     // The two searches are independent: both at once.
-    let (translation, scaling) = rayon::join(
-        || suggest_translation(a, others, rs, &m),
+    rayon::join(
+        || suggest_translation(a, others, rs, m),
         || suggest_time_scaling(a, others, rs),
-    );
+    )
+}
+
+/// The report's resolutions of body `id` from what [`suggest`] found on `lat` with metric
+/// `m` (time scale `c`); `episode` is the contact episode they clear (s since `origin`).
+pub fn resolutions(
+    id: &str,
+    found: &Suggestions,
+    lat: &CommonLattice,
+    m: &Metric,
+    c: f64,
+    origin: i64,
+    episode: [f64; 2],
+) -> Vec<Resolution> {
+    let mut out = Vec::new();
+    let (translation, scaling) = found;
     if let Some(t) = translation {
         let v = [0, 1, 2, 3].map(|k| {
             if k < 3 {
@@ -420,7 +444,7 @@ pub fn resolve(
         let snap = m.sigma.iter().map(|s| s * s).sum::<f64>().sqrt();
         let period = m.sigma[3] * lat.per_step() as f64 / c;
         out.push(Resolution::Translate {
-            body: a.id.clone(),
+            body: id.to_string(),
             vector: v,
             distance: t.distance_m,
             verified_clear: t.verified_clear,
@@ -429,11 +453,11 @@ pub fn resolve(
             episode_s: episode,
         });
     } else {
-        tracing::warn!(body = %a.id, "no translation found (no interior point of the body lies inside another)");
+        tracing::warn!(body = %id, "no translation found (no interior point of the body lies inside another)");
     }
     if let Some(ts) = scaling {
         out.push(Resolution::TimeScale {
-            body: a.id.clone(),
+            body: id.to_string(),
             t0_s: lat.time_s(ts.t0 as f64, origin),
             scale: ts.scale,
             verified_clear: ts.verified_clear,

@@ -731,7 +731,10 @@ impl Unit {
 
     fn tick(&mut self, out: &mut Vec<Message>) {
         let now_ns = self.start.elapsed().as_nanos() as i64;
-        self.guarded(out, |n, out| n.on_tick(now_ns, out));
+        self.guarded(out, |n, out| {
+            n.on_tick(now_ns, out);
+            n.poll(out);
+        });
         self.routes
             .route(self.index, self.realtime, out, self.wire.as_ref());
     }

@@ -77,8 +77,9 @@ pub struct CheckerNode {
     markers_queue: Option<Arc<Mutex<MarkerQueue>>>,
     /// Hidden topic (`~/_slabs_done`, Clock) telling the markers part slabs are queued.
     slabs_done_topic: String,
-    /// A live transport's clock has ticked: resolutions are published as soon as they are
-    /// done (a replay takes them at points that do not depend on their speed).
+    /// A live transport has polled the node ([`Node::poll`]): resolutions are published
+    /// as soon as they are done (a replay takes them at points that do not depend on their
+    /// speed).
     live: bool,
     status: NodeStatus,
 }
@@ -809,9 +810,12 @@ impl Node for CheckerNode {
         }
     }
 
-    fn on_tick(&mut self, _now_ns: i64, out: &mut Vec<Message>) {
-        self.live = true;
+    fn on_tick(&mut self, _now_ns: i64, _out: &mut Vec<Message>) {
         self.follow_markers_demand();
+    }
+
+    fn poll(&mut self, out: &mut Vec<Message>) {
+        self.live = true;
         self.poll_resolutions(out);
     }
 

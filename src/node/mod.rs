@@ -273,10 +273,18 @@ pub trait Node: Send + std::any::Any {
     /// The inputs have ended (a replay's bag is read, or the node shuts down): publishes
     /// what it has left (the closing mesh caps, the final report).
     fn finish(&mut self, out: &mut Vec<Message>);
-    /// Time has passed on the transport's clock: `now_ns` is a monotonic time (ns) that
-    /// only a live transport has; a replay never calls this. The default does nothing.
+    /// Time has passed on the transport's clock: `now_ns` is a monotonic time (ns): the
+    /// wall clock of a live transport, the bag's log time in a replay (ticked as live
+    /// would, so that a stream that stops is closed after its idle timeout there too).
+    /// The default does nothing.
     fn on_tick(&mut self, now_ns: i64, out: &mut Vec<Message>) {
         let _ = (now_ns, out);
+    }
+    /// Publishes work a node finished off its handler's thread (a live transport calls it
+    /// with each tick; a replay never does, so that what it publishes, and when, does not
+    /// depend on how fast that work ran). The default does nothing.
+    fn poll(&mut self, out: &mut Vec<Message>) {
+        let _ = out;
     }
     /// The parameters [`Node::set_parameter`] accepts, with their current values (declared
     /// to ROS even when the launch config does not set them). The default: none.

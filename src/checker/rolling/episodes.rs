@@ -2,6 +2,8 @@
 //! or horizon needs any more.
 
 use super::*;
+use crate::checker::pipeline::{resolutions, suggest, Suggestions};
+use crate::checker::resolve::Metric;
 use crate::checker::{CheckError, Prepared};
 
 impl RollingChecker {
@@ -530,7 +532,7 @@ pub(super) struct ResolveJob {
     horizons: Arc<KeptHorizons>,
 }
 
-/// Each body's last horizon prepared by a resolution.
+/// Each body's last horizon prepared by a resolution, and each movable body's last search.
 ///
 /// A horizon body is built in local time (its first frame at time 0), so a body at rest, or
 /// one whose motion repeats with its contacts, gives the same horizon body episode after
@@ -540,8 +542,49 @@ pub(super) struct ResolveJob {
 /// (every vertex, tet and piece), on the same placement, shares the kept preparation. One
 /// horizon per body is kept; a different one replaces it, the old one dropped before the
 /// new one is prepared.
+///
+/// The check of the horizon and the search for a translation and a time scaling depend
+/// only on the prepared bodies, the pairs and the metric, and give lattice units. When every
+/// horizon body of an episode shares the preparation the movable body's last search was
+/// made on, with the same pairs and metric, that search's answer is the answer: only its
+/// conversion to seconds, on this episode's stamps, is done again.
 #[derive(Debug, Default)]
-pub(super) struct KeptHorizons(std::sync::Mutex<BTreeMap<String, Arc<KeptHorizon>>>);
+pub(super) struct KeptHorizons {
+    bodies: std::sync::Mutex<BTreeMap<String, Arc<KeptHorizon>>>,
+    searches: std::sync::Mutex<BTreeMap<String, KeptSearch>>,
+}
+
+/// A movable body's last search and what it was made on.
+#[derive(Debug)]
+struct KeptSearch {
+    /// The horizon bodies, in the job's order, held weakly: while a weak pointer lives, its
+    /// allocation is not reused, so a preparation at the same address is the same one.
+    bodies: Vec<(String, std::sync::Weak<Prepared>)>,
+    pairs: Vec<(String, String)>,
+    metric: Metric,
+    /// What it found; `None` if nothing interferes over the horizon.
+    found: Option<Suggestions>,
+}
+
+impl KeptSearch {
+    /// Whether it was made on `prepared` (named `ids`), `pairs` and `metric`.
+    fn made_on(
+        &self,
+        ids: &[String],
+        prepared: &[Arc<Prepared>],
+        pairs: &[(String, String)],
+        metric: &Metric,
+    ) -> bool {
+        self.metric == *metric
+            && self.pairs == pairs
+            && self.bodies.len() == prepared.len()
+            && self
+                .bodies
+                .iter()
+                .zip(ids.iter().zip(prepared))
+                .all(|((kid, w), (id, p))| kid == id && std::ptr::eq(w.as_ptr(), Arc::as_ptr(p)))
+    }
+}
 
 /// A body's horizon and its preparation.
 #[derive(Debug)]
@@ -566,7 +609,7 @@ impl KeptHorizons {
         let placement = lat.placement_of(&b);
         // A resolution that panicked while holding the lock left the map whole (it is only
         // read or written in one step): its poisoning is ignored.
-        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        let mut kept = self.bodies.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(k) = kept.get(id) {
             if Some(k.placement) == placement
                 && k.body.geometry == b.geometry
@@ -585,12 +628,54 @@ impl KeptHorizons {
                 placement,
                 prepared: Arc::clone(&prepared),
             };
-            self.0
+            self.bodies
                 .lock()
                 .unwrap_or_else(|e| e.into_inner())
                 .insert(id.to_string(), Arc::new(k));
         }
         Ok(prepared)
+    }
+
+    /// Movable body `m`'s last search, if it was made on these bodies, pairs and metric.
+    fn search(
+        &self,
+        m: &str,
+        ids: &[String],
+        prepared: &[Arc<Prepared>],
+        pairs: &[(String, String)],
+        metric: &Metric,
+    ) -> Option<Option<Suggestions>> {
+        let kept = self.searches.lock().unwrap_or_else(|e| e.into_inner());
+        let k = kept.get(m)?;
+        k.made_on(ids, prepared, pairs, metric)
+            .then(|| k.found.clone())
+    }
+
+    /// Keeps `found` as movable body `m`'s last search, made on these bodies, pairs and
+    /// metric.
+    fn keep_search(
+        &self,
+        m: &str,
+        ids: &[String],
+        prepared: &[Arc<Prepared>],
+        pairs: &[(String, String)],
+        metric: Metric,
+        found: Option<Suggestions>,
+    ) {
+        let k = KeptSearch {
+            bodies: ids
+                .iter()
+                .cloned()
+                .zip(prepared.iter().map(Arc::downgrade))
+                .collect(),
+            pairs: pairs.to_vec(),
+            metric,
+            found,
+        };
+        self.searches
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .insert(m.to_string(), k);
     }
 }
 
@@ -639,40 +724,63 @@ impl ResolveJob {
         let Some(im) = index(m) else {
             return ResolveOutcome::Clear;
         };
-        let mut others = Vec::new();
-        let mut rs: Vec<PairResult> = Vec::new();
-        for (a, b) in &self.pairs {
-            let (Some(ia), Some(ib)) = (index(a), index(b)) else {
-                continue;
-            };
-            let r = check_pair(&prepared[ia], &prepared[ib]);
-            if ia == im {
-                others.push(&*prepared[ib]);
-                rs.push(r);
-            } else {
-                others.push(&*prepared[ia]);
-                rs.push(r.swapped());
-            }
-        }
-        if !rs.iter().any(|r| r.interfering()) {
-            return ResolveOutcome::Clear;
-        }
         let resolution = prepared[im].geometry.resolution;
         let c = self
             .time_scale
             .or_else(|| self.period_s.map(|p| resolution / p))
             .unwrap_or(resolution);
-        let rs: Vec<&PairResult> = rs.iter().collect();
-        ResolveOutcome::Found(resolve(
-            &prepared[im],
-            &others,
-            &rs,
-            &lat,
-            c,
-            self.origin_ns,
-            ep,
-        ))
+        let metric = Metric::new(&lat, c);
+        let found = match self
+            .horizons
+            .search(m, &ids, &prepared, &self.pairs, &metric)
+        {
+            Some(found) => found,
+            None => {
+                let found = search(im, &index, &prepared, &self.pairs, &metric);
+                self.horizons
+                    .keep_search(m, &ids, &prepared, &self.pairs, metric, found.clone());
+                found
+            }
+        };
+        match found {
+            None => ResolveOutcome::Clear,
+            Some(found) => {
+                ResolveOutcome::Found(resolutions(m, &found, &lat, &metric, c, self.origin_ns, ep))
+            }
+        }
     }
+}
+
+/// Checks the movable body (`prepared[im]`) against its partners over the horizon, and
+/// suggests and verifies a translation and a time scaling of it; `None` if nothing
+/// interferes.
+fn search(
+    im: usize,
+    index: &dyn Fn(&str) -> Option<usize>,
+    prepared: &[Arc<Prepared>],
+    pairs: &[(String, String)],
+    metric: &Metric,
+) -> Option<Suggestions> {
+    let mut others = Vec::new();
+    let mut rs: Vec<PairResult> = Vec::new();
+    for (a, b) in pairs {
+        let (Some(ia), Some(ib)) = (index(a), index(b)) else {
+            continue;
+        };
+        let r = check_pair(&prepared[ia], &prepared[ib]);
+        if ia == im {
+            others.push(&*prepared[ib]);
+            rs.push(r);
+        } else {
+            others.push(&*prepared[ia]);
+            rs.push(r.swapped());
+        }
+    }
+    if !rs.iter().any(|r| r.interfering()) {
+        return None;
+    }
+    let rs: Vec<&PairResult> = rs.iter().collect();
+    Some(suggest(&prepared[im], &others, &rs, metric))
 }
 
 #[cfg(test)]
@@ -785,7 +893,7 @@ mod tests {
         }
         // Only the last one is kept, and another body's horizon is kept beside it.
         let pb = kept.prepare(&lat1, "b", b1.clone()).expect("prepared");
-        let map = kept.0.lock().expect("not poisoned");
+        let map = kept.bodies.lock().expect("not poisoned");
         assert_eq!(map.len(), 2);
         assert!(Arc::ptr_eq(&map["a"].prepared, &last));
         assert!(Arc::ptr_eq(&map["b"].prepared, &pb));
@@ -834,5 +942,83 @@ mod tests {
             "{}",
             said[0]
         );
+    }
+
+    /// An episode whose horizon bodies are the last one's, on the same pairs and metric,
+    /// takes that episode's search, converted on its own stamps: the answer a fresh
+    /// resolution gives. Another metric or another partner is searched again.
+    #[test]
+    fn an_episode_like_the_last_takes_its_search() {
+        let horizons = Arc::new(KeptHorizons::default());
+        let job = |t0: i64, partner_x: usize, time_scale: Option<f64>| {
+            let meshes: BTreeMap<String, BodyMesh> = [
+                ("a".to_string(), box_body(0, 1, t0, 0.0)),
+                ("b".to_string(), box_body(partner_x, 9, t0, 0.0)),
+            ]
+            .into();
+            ResolveJob {
+                movable: "a".into(),
+                episode: [t0 as f64 * 1e-9, t0 as f64 * 1e-9 + 0.3],
+                meshes,
+                pairs: vec![("a".into(), "b".into())],
+                time_scale,
+                period_s: Some(0.1),
+                origin_ns: 0,
+                horizons: Arc::clone(&horizons),
+            }
+        };
+        // What a resolution of these horizon bodies gives with nothing kept.
+        let fresh = |j: &ResolveJob| {
+            let named: Vec<(&str, &BodyMesh)> =
+                j.meshes.iter().map(|(k, v)| (k.as_str(), v)).collect();
+            let lat = CommonLattice::of(&named).expect("one lattice");
+            let (a, b) = (
+                lat.prepare("a", &j.meshes["a"]).expect("a"),
+                lat.prepare("b", &j.meshes["b"]).expect("b"),
+            );
+            let r = check_pair(&a, &b);
+            assert!(r.interfering());
+            let c = j.time_scale.unwrap_or(0.01 / 0.1);
+            crate::checker::pipeline::resolve(&a, &[&b], &[&r], &lat, c, j.origin_ns, j.episode)
+        };
+        let found = |o: ResolveOutcome| match o {
+            ResolveOutcome::Found(f) => f,
+            other => panic!("not found: {other:?}"),
+        };
+        let first = job(0, 7, None);
+        let want = fresh(&first);
+        assert_eq!(want.len(), 2, "a translation and a time scaling: {want:?}");
+        assert_eq!(found(first.run()), want);
+        // The same horizon 2 s later: the kept search, on the later stamps.
+        let later = job(2_000_000_000, 7, None);
+        let want = fresh(&later);
+        assert_eq!(found(later.run()), want);
+        // The kept search is what answers: one planted in its place is taken as it is.
+        {
+            let mut kept = horizons.searches.lock().expect("not poisoned");
+            let k = kept.get_mut("a").expect("kept");
+            let Some((Some(t), _)) = &mut k.found else {
+                panic!("a translation was kept");
+            };
+            t.distance_m = 123.0;
+        }
+        let planted = found(job(4_000_000_000, 7, None).run());
+        assert!(
+            matches!(planted[0], Resolution::Translate { distance, .. } if distance == 123.0),
+            "{planted:?}"
+        );
+        // Another metric, or a partner elsewhere, is searched again.
+        for (what, j) in [
+            ("the partner one voxel closer", job(0, 6, None)),
+            ("another time scale", job(0, 7, Some(0.2))),
+        ] {
+            let want = fresh(&j);
+            let got = found(j.run());
+            assert_eq!(got, want, "{what}");
+            assert!(
+                !matches!(got[0], Resolution::Translate { distance, .. } if distance == 123.0),
+                "{what}"
+            );
+        }
     }
 }

@@ -40,7 +40,7 @@ use super::window::{
 };
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
-use crate::checker::pipeline::{resolve, CheckPlan};
+use crate::checker::pipeline::CheckPlan;
 use crate::checker::report::{BodyReport, PairLabels, PairReport, Report, Resolution, Timings};
 use crate::kernel::float::tet_normal as float_normal;
 use crate::mesh::glue::BodyMesh;
