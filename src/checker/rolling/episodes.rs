@@ -550,7 +550,9 @@ pub(super) struct ResolveJob {
 /// conversion to seconds, on this episode's stamps, is done again.
 #[derive(Debug, Default)]
 pub(super) struct KeptHorizons {
-    bodies: std::sync::Mutex<BTreeMap<String, Arc<KeptHorizon>>>,
+    bodies: std::sync::Mutex<BTreeMap<String, KeptHorizon>>,
+    /// Entries made so far (each entry's generation).
+    generations: std::sync::atomic::AtomicU64,
     searches: std::sync::Mutex<BTreeMap<String, KeptSearch>>,
 }
 
@@ -586,17 +588,22 @@ impl KeptSearch {
     }
 }
 
-/// A body's horizon and its preparation.
+/// A body's last horizon, and its preparation once it has repeated.
 #[derive(Debug)]
 struct KeptHorizon {
     body: BodyMesh,
     placement: (i64, [i64; 4]),
-    prepared: Arc<Prepared>,
+    /// Set when the horizon came again: a horizon seen once is not worth its preparation's
+    /// memory (about five times the mesh's) until it repeats.
+    prepared: Option<Arc<Prepared>>,
+    /// Which entry this is (entries are replaced while a preparation runs unlocked).
+    generation: u64,
 }
 
 impl KeptHorizons {
     /// Body `id`'s horizon `b` prepared on `lat`: the kept preparation if `b` is the kept
-    /// horizon on the same placement, otherwise prepared (and kept in its place).
+    /// horizon on the same placement and has been prepared before; otherwise prepared, and
+    /// kept if `b` is the kept horizon (it has repeated), or `b` kept in its place.
     ///
     /// # Errors
     /// As [`CommonLattice::prepare`].
@@ -609,15 +616,26 @@ impl KeptHorizons {
         let placement = lat.placement_of(&b);
         // A resolution that panicked while holding the lock left the map whole (it is only
         // read or written in one step): its poisoning is ignored.
-        let mut kept = self.bodies.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(k) = kept.get(id) {
-            if Some(k.placement) == placement
+        let lock = || self.bodies.lock().unwrap_or_else(|e| e.into_inner());
+        let mut kept = lock();
+        let seen = kept.get(id).filter(|k| {
+            Some(k.placement) == placement
                 && k.body.geometry == b.geometry
                 && k.body.pieces == b.pieces
                 && k.body.mesh == b.mesh
-            {
-                return Ok(Arc::clone(&k.prepared));
+        });
+        if let Some(k) = seen {
+            if let Some(p) = &k.prepared {
+                return Ok(Arc::clone(p));
             }
+            // It has repeated: prepared, and kept from now on.
+            let generation = k.generation;
+            drop(kept);
+            let prepared = Arc::new(lat.prepare(id, &b)?);
+            if let Some(k) = lock().get_mut(id).filter(|k| k.generation == generation) {
+                k.prepared = Some(Arc::clone(&prepared));
+            }
+            return Ok(prepared);
         }
         kept.remove(id);
         drop(kept);
@@ -626,12 +644,12 @@ impl KeptHorizons {
             let k = KeptHorizon {
                 body: b,
                 placement,
-                prepared: Arc::clone(&prepared),
+                prepared: None,
+                generation: self
+                    .generations
+                    .fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             };
-            self.bodies
-                .lock()
-                .unwrap_or_else(|e| e.into_inner())
-                .insert(id.to_string(), Arc::new(k));
+            lock().insert(id.to_string(), k);
         }
         Ok(prepared)
     }
@@ -832,26 +850,40 @@ mod tests {
         )
     }
 
-    /// A horizon that is the kept one again, at other stamps, shares its preparation, and
-    /// that preparation is the one a fresh preparation gives; a different mesh, lattice
-    /// origin or first frame on the common lattice is prepared again.
+    /// A horizon seen once is kept without its preparation; when it comes again, at other
+    /// stamps, it is prepared and that preparation kept, and the next time it is shared.
+    /// The shared preparation is the one a fresh preparation gives; a different mesh,
+    /// lattice origin or first frame on the common lattice is prepared again.
     #[test]
     fn a_horizon_seen_before_shares_its_preparation() {
         let kept = KeptHorizons::default();
         let on = |bodies: &[(&str, &BodyMesh)]| CommonLattice::of(bodies).expect("one lattice");
         let partner = |t0| box_body(5, 9, t0, 0.0);
-        // A body at rest, then the same horizon 2 s later.
+        let prepared_of = |id: &str| {
+            let map = kept.bodies.lock().expect("not poisoned");
+            map.get(id).and_then(|k| k.prepared.clone())
+        };
+        // A body at rest, then the same horizon 2 s and 4 s later.
         let (a1, b1) = (box_body(1, 9, 0, 0.0), partner(0));
         let lat1 = on(&[("a", &a1), ("b", &b1)]);
         let p1 = kept.prepare(&lat1, "a", a1.clone()).expect("prepared");
+        assert!(prepared_of("a").is_none(), "seen once: not kept prepared");
         let (a2, b2) = (box_body(1, 9, 2_000_000_000, 0.0), partner(2_000_000_000));
         let lat2 = on(&[("a", &a2), ("b", &b2)]);
         let p2 = kept.prepare(&lat2, "a", a2.clone()).expect("prepared");
-        assert!(Arc::ptr_eq(&p1, &p2), "the same horizon is prepared once");
-        let fresh = lat2.prepare("a", &a2).expect("prepared");
-        assert_eq!(parts(&p2), parts(&fresh));
-        let pb2 = lat2.prepare("b", &b2).expect("b");
-        let (shared, own) = (check_pair(&p2, &pb2), check_pair(&fresh, &pb2));
+        assert!(!Arc::ptr_eq(&p1, &p2));
+        assert!(
+            prepared_of("a").is_some_and(|k| Arc::ptr_eq(&k, &p2)),
+            "repeated: kept"
+        );
+        let (a3, b3) = (box_body(1, 9, 4_000_000_000, 0.0), partner(4_000_000_000));
+        let lat3 = on(&[("a", &a3), ("b", &b3)]);
+        let p3 = kept.prepare(&lat3, "a", a3.clone()).expect("prepared");
+        assert!(Arc::ptr_eq(&p2, &p3), "the third time, shared");
+        let fresh = lat3.prepare("a", &a3).expect("prepared");
+        assert_eq!(parts(&p3), parts(&fresh));
+        let pb3 = lat3.prepare("b", &b3).expect("b");
+        let (shared, own) = (check_pair(&p3, &pb3), check_pair(&fresh, &pb3));
         assert!(shared.interfering());
         let answer = |r: &PairResult| {
             format!(
@@ -881,22 +913,26 @@ mod tests {
                 later.clone(),
             ),
         ];
-        let mut last = p2;
         for (what, lat, body) in cases {
-            // The horizon at rest is the kept one when each case comes.
+            // The horizon at rest is the kept one, prepared, when each case comes.
+            kept.prepare(&lat1, "a", a1.clone()).expect("prepared");
             let at_rest = kept.prepare(&lat1, "a", a1.clone()).expect("prepared");
+            assert!(prepared_of("a").is_some_and(|k| Arc::ptr_eq(&k, &at_rest)));
             let p = kept.prepare(&lat, "a", body.clone()).expect("prepared");
             assert!(!Arc::ptr_eq(&p, &at_rest), "{what}: prepared again");
+            assert!(
+                prepared_of("a").is_none(),
+                "{what}: kept in its place, unprepared"
+            );
             let own = lat.prepare("a", &body).expect("a");
             assert_eq!(parts(&p), parts(&own), "{what}");
-            last = p;
         }
-        // Only the last one is kept, and another body's horizon is kept beside it.
-        let pb = kept.prepare(&lat1, "b", b1.clone()).expect("prepared");
+        // Another body's horizon is kept beside the last one.
+        kept.prepare(&lat1, "b", b1.clone()).expect("prepared");
         let map = kept.bodies.lock().expect("not poisoned");
         assert_eq!(map.len(), 2);
-        assert!(Arc::ptr_eq(&map["a"].prepared, &last));
-        assert!(Arc::ptr_eq(&map["b"].prepared, &pb));
+        assert_eq!(map["a"].body.mesh, later.mesh);
+        assert_eq!(map["b"].body.mesh, b1.mesh);
     }
 
     #[test]
