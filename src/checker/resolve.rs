@@ -624,37 +624,17 @@ pub fn suggest_time_scaling(
 mod tests {
     use super::*;
     use crate::checker::{check_pair, CommonLattice};
-    use crate::mesh::glue::{BodyAssembler, BodyMesh};
-    use crate::mesh::grid::FrameRef;
-    use crate::mesh::MesherOptions;
+    use crate::mesh::glue::BodyMesh;
 
     const SIZE: [u32; 3] = [14, 11, 10];
 
     /// A box of voxels `lo..=hi` moved by `dx` voxels along x per frame, over `frames`.
     fn moving_box(lo: [usize; 3], hi: [usize; 3], dx: usize, frames: usize) -> BodyMesh {
-        let mut a = BodyAssembler::new(MesherOptions::default()).expect("options");
-        let n = SIZE.iter().map(|&s| s as usize).product::<usize>();
-        for k in 0..frames {
-            let mut data = vec![0u8; n.div_ceil(8)];
-            for i in 0..n {
-                let s = SIZE.map(|s| s as usize);
-                let p = [i % s[0], (i / s[0]) % s[1], i / (s[0] * s[1])];
-                let q = [p[0].wrapping_sub(dx * k), p[1], p[2]];
-                if (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c])) {
-                    data[i / 8] |= 1 << (i % 8);
-                }
-            }
-            let f = FrameRef {
-                stamp_ns: k as i64 * 100_000_000,
-                origin: [0.0; 3],
-                resolution: 0.01,
-                size: SIZE,
-                encoding: 0,
-                data: &data,
-            };
-            a.push(&f).expect("a valid frame");
-        }
-        a.finish()
+        let stamps: Vec<i64> = (0..frames as i64).map(|k| k * 100_000_000).collect();
+        crate::mesh::glue::test_body(SIZE, [0.0; 3], &stamps, |k, p| {
+            let q = [p[0].wrapping_sub(dx * k), p[1], p[2]];
+            (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c]))
+        })
     }
 
     /// The direction search with its pruning picks the direction, distance and exits that

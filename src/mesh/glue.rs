@@ -238,3 +238,35 @@ impl BodyAssembler {
         body
     }
 }
+
+/// A body meshed from bit frames of a `size` grid at `origin` with 1 cm voxels, one frame
+/// per stamp, voxel `p` of frame `k` occupied where `occupied(k, p)` (for tests).
+#[cfg(test)]
+pub(crate) fn test_body(
+    size: [u32; 3],
+    origin: [f64; 3],
+    stamps_ns: &[i64],
+    occupied: impl Fn(usize, [usize; 3]) -> bool,
+) -> BodyMesh {
+    let mut a = BodyAssembler::new(MesherOptions::default()).expect("options");
+    let s = size.map(|s| s as usize);
+    let n = s.iter().product::<usize>();
+    for (k, &stamp_ns) in stamps_ns.iter().enumerate() {
+        let mut data = vec![0u8; n.div_ceil(8)];
+        for i in 0..n {
+            if occupied(k, [i % s[0], (i / s[0]) % s[1], i / (s[0] * s[1])]) {
+                data[i / 8] |= 1 << (i % 8);
+            }
+        }
+        let f = FrameRef {
+            stamp_ns,
+            origin,
+            resolution: 0.01,
+            size,
+            encoding: 0,
+            data: &data,
+        };
+        a.push(&f).expect("a valid frame");
+    }
+    a.finish()
+}

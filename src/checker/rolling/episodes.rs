@@ -804,36 +804,16 @@ fn search(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::glue::BodyAssembler;
-    use crate::mesh::grid::FrameRef;
 
     /// A 6×5×4 box of voxels starting at `x0`, stepping one voxel along x per frame from
     /// frame `step_from` on, over 4 frames stamped from `t0` (ns) every 0.1 s, on a lattice
     /// whose origin is `origin_x` (m) along x.
     fn box_body(x0: usize, step_from: usize, t0: i64, origin_x: f64) -> BodyMesh {
-        const SIZE: [u32; 3] = [16, 9, 8];
-        let mut a = BodyAssembler::new(MesherOptions::default()).expect("options");
-        let n = SIZE.iter().map(|&s| s as usize).product::<usize>();
-        for k in 0..4usize {
+        let stamps: Vec<i64> = (0..4).map(|k| t0 + k * 100_000_000).collect();
+        crate::mesh::glue::test_body([16, 9, 8], [origin_x, 0.0, 0.0], &stamps, |k, p| {
             let x = x0 + k.saturating_sub(step_from);
-            let mut data = vec![0u8; n.div_ceil(8)];
-            for i in 0..n {
-                let p = [i % 16, (i / 16) % 9, i / (16 * 9)];
-                if (x..x + 6).contains(&p[0]) && (2..7).contains(&p[1]) && (2..6).contains(&p[2]) {
-                    data[i / 8] |= 1 << (i % 8);
-                }
-            }
-            let f = FrameRef {
-                stamp_ns: t0 + k as i64 * 100_000_000,
-                origin: [origin_x, 0.0, 0.0],
-                resolution: 0.01,
-                size: SIZE,
-                encoding: 0,
-                data: &data,
-            };
-            a.push(&f).expect("a valid frame");
-        }
-        a.finish()
+            (x..x + 6).contains(&p[0]) && (2..7).contains(&p[1]) && (2..6).contains(&p[2])
+        })
     }
 
     /// What a preparation is made of, to compare a shared one with a fresh one.
