@@ -1142,6 +1142,9 @@ mod tests {
         seen: Arc<Mutex<Vec<f64>>>,
         /// How many times its `finish` ran.
         finishes: Arc<AtomicUsize>,
+        /// How many times it was ticked and polled.
+        ticks: Arc<AtomicUsize>,
+        polls: Arc<AtomicUsize>,
         status: NodeStatus,
     }
 
@@ -1158,6 +1161,8 @@ mod tests {
             sleep_at: None,
             seen: seen.clone(),
             finishes: Arc::new(AtomicUsize::new(0)),
+            ticks: Arc::new(AtomicUsize::new(0)),
+            polls: Arc::new(AtomicUsize::new(0)),
             status: NodeStatus::default(),
         };
         (r, seen)
@@ -1218,6 +1223,12 @@ mod tests {
         fn finish(&mut self, out: &mut Vec<Message>) {
             self.finishes.fetch_add(1, Ordering::Relaxed);
             out.push(Message::new(&self.output, 0, pose(-1.0)));
+        }
+        fn on_tick(&mut self, _now_ns: i64, _out: &mut Vec<Message>) {
+            self.ticks.fetch_add(1, Ordering::Relaxed);
+        }
+        fn poll(&mut self, _out: &mut Vec<Message>) {
+            self.polls.fetch_add(1, Ordering::Relaxed);
         }
         fn status(&self) -> &NodeStatus {
             &self.status
@@ -1281,6 +1292,29 @@ mod tests {
         // /c, reading the same topic, saw everything.
         assert_eq!(*lock(&seen_c), vec![1.0, 2.0, 13.0, 4.0, 5.0]);
         assert!(runs["/c"].stopped.is_none());
+    }
+
+    /// A live node is polled with each tick (for work finished off its thread); a replay's
+    /// bus ticks its nodes with the bag's time but never polls them, so that what they
+    /// publish does not depend on how fast that work ran.
+    #[test]
+    fn live_ticks_poll_the_nodes_and_a_replays_do_not() {
+        let (a, _) = relay("/a", "/in", "/out", 0);
+        let (ticks, polls) = (a.ticks.clone(), a.polls.clone());
+        let exec = start(vec![Box::new(a)], &[opts(64)]);
+        std::thread::sleep(Duration::from_millis(200));
+        exec.finish(Duration::from_secs(5));
+        let (t, p) = (ticks.load(Ordering::Relaxed), polls.load(Ordering::Relaxed));
+        assert!(t >= 2 && p == t, "live: {t} ticks, {p} polls");
+        let (b, _) = relay("/b", "/in", "/out", 0);
+        let (ticks, polls) = (b.ticks.clone(), b.polls.clone());
+        let mut bus = crate::node::bus::Bus::new(vec![Box::new(b)]);
+        for k in 0..5 {
+            bus.tick(k * 100_000_000, &mut |_| {});
+        }
+        bus.finish(&mut |_| {});
+        assert_eq!(ticks.load(Ordering::Relaxed), 5);
+        assert_eq!(polls.load(Ordering::Relaxed), 0, "a replay never polls");
     }
 
     #[test]
