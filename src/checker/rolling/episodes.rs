@@ -538,10 +538,11 @@ pub(super) struct ResolveJob {
 /// one whose motion repeats with its contacts, gives the same horizon body episode after
 /// episode: the same tets on the same vertices, welded from the same pieces. Its
 /// preparation (tree, adjacency, normals) depends only on that mesh, its lattice and its
-/// placement on the common lattice, so a horizon that equals the kept one, compared exactly
-/// (every vertex, tet and piece), on the same placement, shares the kept preparation. One
-/// horizon per body is kept; a different one replaces it, the old one dropped before the
-/// new one is prepared.
+/// placement on the common lattice. A horizon that equals the kept one, compared exactly
+/// (every vertex, tet and piece, the lattice and the placement), has repeated: it is
+/// prepared once more and that preparation is kept, and from then on it is shared. One
+/// horizon per body is kept; a different one replaces it (the old one dropped before the
+/// new one is prepared), and keeps only its mesh until it repeats.
 ///
 /// The check of the horizon and the search for a translation and a time scaling depend
 /// only on the prepared bodies, the pairs and the metric, and give lattice units. When every

@@ -531,7 +531,8 @@ pub struct RollingChecker {
     /// Resolutions running there, oldest first: which episode, and where its result will
     /// come.
     in_flight: VecDeque<(String, crossbeam_channel::Receiver<ResolveOutcome>)>,
-    /// Each body's last horizon, prepared by a resolution (shared with the resolutions).
+    /// Each body's last horizon (with its preparation once it has repeated) and each
+    /// movable body's last search (shared with the resolutions).
     horizons: Arc<episodes::KeptHorizons>,
 }
 
