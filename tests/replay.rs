@@ -662,3 +662,53 @@ fn a_replay_builds_no_markers_or_labels_that_nothing_reads() {
     );
     assert_eq!(answer(&partial), answer(&recorded));
 }
+
+/// `markers_period_s` is a display rate: a body's slab starting less than that after the
+/// last one sliced gets no markers, decided on the stamps; labels, contacts and the report
+/// are those of every slab.
+#[test]
+fn the_markers_period_slices_one_slab_in_so_many_per_body() {
+    let d = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bag = root.join("bags/machine-tool-32-bits.mcap");
+    let cfg_text = std::fs::read_to_string(root.join("launch_configs/machine_tool.yaml")).unwrap();
+    let every = LaunchConfig::parse(&cfg_text, "machine_tool.yaml").unwrap();
+    let line = "    - {name: markers, value: true}\n";
+    assert!(cfg_text.contains(line));
+    // Frames are 0.1 s apart: 0.3 s slices slabs 0, 3, 6, … of each body; 0.25 s the same.
+    let with = |period: &str| {
+        let text = cfg_text.replace(
+            line,
+            &format!("{line}    - {{name: markers_period_s, value: {period}}}\n"),
+        );
+        LaunchConfig::parse(&text, "machine_tool.yaml with a markers period").unwrap()
+    };
+    let run = |cfg: &LaunchConfig, name: &str| {
+        replay(&bag, Some(cfg), Some(&d.path().join(name)), false).unwrap()
+    };
+    let all = run(&every, "all.mcap");
+    let slabs_per_body = all.report.bodies[0].frames - 1;
+    let bodies = all.report.bodies.len() as u64;
+    assert_eq!(
+        all.output.topics["/checker/markers"],
+        bodies * slabs_per_body
+    );
+    for period in ["0.3", "0.25"] {
+        let some = run(&with(period), "some.mcap");
+        assert_eq!(
+            some.output.topics["/checker/markers"],
+            bodies * slabs_per_body.div_ceil(3),
+            "{period} s: {:?}",
+            some.output
+        );
+        assert_eq!(
+            some.output.topics["/checker/labels"],
+            all.output.topics["/checker/labels"]
+        );
+        let answer = |r: &chronotope::cli::replay::ReplayReport| {
+            serde_json::to_value((&r.report.bodies, &r.report.pairs, &r.report.resolutions))
+                .unwrap()
+        };
+        assert_eq!(answer(&some), answer(&all));
+    }
+}

@@ -10,7 +10,9 @@
 //! Parameters: `pairs` (string array, each `"BODY_A BODY_B"`; default: every pair of the
 //! bodies the transport names), `movable` (string array, default none: no resolution),
 //! `time_scale_m_per_s` (double, 0 = one voxel per frame period), `labels` (bool, default
-//! true), `markers` (bool, default false), `mesh_topic` (default `/mesher/mesh_slabs`),
+//! true), `markers` (bool, default false), `markers_period_s` (double, default 0: a body's
+//! slab is sliced for the markers only if it starts this long after the last one sliced;
+//! 0 = every slab), `mesh_topic` (default `/mesher/mesh_slabs`),
 //! `max_lead_frames` (int, default 64: how many slabs one body may run ahead of a silent
 //! partner before they are checked without it), `resolve_horizon_s` (double, default 1: the
 //! time around a contact episode its resolutions are checked over), `max_episode_s` (double,
@@ -77,6 +79,10 @@ pub struct CheckerNode {
     markers_queue: Option<Arc<Mutex<MarkerQueue>>>,
     /// Hidden topic (`~/_slabs_done`, Clock) telling the markers part slabs are queued.
     slabs_done_topic: String,
+    /// Least time (ns) between the starts of two slabs of a body sliced for the markers.
+    markers_period_ns: i64,
+    /// Per body, the start stamp of its last slab queued for the markers.
+    markers_last: std::collections::BTreeMap<String, i64>,
     /// A live transport has polled the node ([`Node::poll`]): resolutions are published
     /// as soon as they are done (a replay takes them at points that do not depend on their
     /// speed).
@@ -125,6 +131,7 @@ impl CheckerNode {
         let c = p.double("time_scale_m_per_s", 0.0, 0.0..=1e12)?;
         let labels = p.bool("labels", true)?;
         let markers = p.bool("markers", false)?;
+        let markers_period_s = p.double("markers_period_s", 0.0, 0.0..=3600.0)?;
         let mesh_topic = p.topic("mesh_topic", "/mesher/mesh_slabs")?;
         let max_lead = p.int("max_lead_frames", 64, 1..=100_000)?;
         let horizon_s = p.double("resolve_horizon_s", 1.0, 0.0..=3600.0)?;
@@ -207,6 +214,8 @@ impl CheckerNode {
             dirty: false,
             resolved: (0, 0),
             markers_queue: markers.then(|| Arc::new(Mutex::new(MarkerQueue::default()))),
+            markers_period_ns: (markers_period_s * 1e9).round() as i64,
+            markers_last: Default::default(),
             slabs_done_topic,
             live: false,
             status: NodeStatus::default(),
@@ -345,7 +354,17 @@ impl CheckerNode {
                     ));
                 }
                 RollOut::SlabDone(d) => {
+                    // A display rate: a body's slab that starts less than `markers_period_s`
+                    // after the last one sliced is not (decided on the stamps, so a replay
+                    // gives the markers live gives; a stream that starts again earlier is
+                    // sliced).
+                    let period = self.markers_period_ns;
+                    let recent = |l: i64| (l..l.saturating_add(period)).contains(&d.stamps_ns.0);
+                    if self.markers_last.get(&d.body).is_some_and(|&l| recent(l)) {
+                        continue;
+                    }
                     if let Some(q) = &self.markers_queue {
+                        self.markers_last.insert(d.body.clone(), d.stamps_ns.0);
                         queued = Some(queued.map_or(d.stamps_ns.1, |s| s.max(d.stamps_ns.1)));
                         let dropped = q.lock().map_or(0, |mut q| q.push(&self.frame_id, d));
                         if dropped > 0 {
