@@ -527,8 +527,8 @@ pub(super) struct ResolveJob {
     time_scale: Option<f64>,
     period_s: Option<f64>,
     origin_ns: i64,
-    /// The bodies' last horizons, prepared: a horizon body that is one of them again is
-    /// not prepared again.
+    /// The bodies' last horizons and the movable bodies' last searches, for horizons and
+    /// episodes that repeat ([`KeptHorizons`]).
     horizons: Arc<KeptHorizons>,
 }
 
