@@ -655,32 +655,26 @@ impl KeptHorizons {
         Ok(prepared)
     }
 
-    /// Movable body `m`'s last search, if it was made on these bodies, pairs and metric.
-    fn search(
+    /// Movable body `m`'s search on the horizon bodies `prepared` (named `ids`), `pairs`
+    /// and `metric`: its last one if that was made on them, otherwise `search()`, kept in
+    /// its place.
+    fn search_or(
         &self,
         m: &str,
         ids: &[String],
         prepared: &[Arc<Prepared>],
         pairs: &[(String, String)],
         metric: &Metric,
-    ) -> Option<Option<Suggestions>> {
-        let kept = self.searches.lock().unwrap_or_else(|e| e.into_inner());
-        let k = kept.get(m)?;
-        k.made_on(ids, prepared, pairs, metric)
-            .then(|| k.found.clone())
-    }
-
-    /// Keeps `found` as movable body `m`'s last search, made on these bodies, pairs and
-    /// metric.
-    fn keep_search(
-        &self,
-        m: &str,
-        ids: &[String],
-        prepared: &[Arc<Prepared>],
-        pairs: &[(String, String)],
-        metric: Metric,
-        found: Option<Suggestions>,
-    ) {
+        search: impl FnOnce() -> Option<Suggestions>,
+    ) -> Option<Suggestions> {
+        let lock = || self.searches.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(k) = lock()
+            .get(m)
+            .filter(|k| k.made_on(ids, prepared, pairs, metric))
+        {
+            return k.found.clone();
+        }
+        let found = search();
         let k = KeptSearch {
             bodies: ids
                 .iter()
@@ -688,13 +682,11 @@ impl KeptHorizons {
                 .zip(prepared.iter().map(Arc::downgrade))
                 .collect(),
             pairs: pairs.to_vec(),
-            metric,
-            found,
+            metric: *metric,
+            found: found.clone(),
         };
-        self.searches
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .insert(m.to_string(), k);
+        lock().insert(m.to_string(), k);
+        found
     }
 }
 
@@ -749,18 +741,11 @@ impl ResolveJob {
             .or_else(|| self.period_s.map(|p| resolution / p))
             .unwrap_or(resolution);
         let metric = Metric::new(&lat, c);
-        let found = match self
+        let found = self
             .horizons
-            .search(m, &ids, &prepared, &self.pairs, &metric)
-        {
-            Some(found) => found,
-            None => {
-                let found = search(im, &index, &prepared, &self.pairs, &metric);
-                self.horizons
-                    .keep_search(m, &ids, &prepared, &self.pairs, metric, found.clone());
-                found
-            }
-        };
+            .search_or(m, &ids, &prepared, &self.pairs, &metric, || {
+                search(im, &index, &prepared, &self.pairs, &metric)
+            });
         match found {
             None => ResolveOutcome::Clear,
             Some(found) => {
