@@ -158,7 +158,12 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
     // The recorded session, replayed offline, gives the same report as the original bag.
     let again = d.path().join("replayed-recording.mcap");
     replay(&rec_in, Some(&config), Some(&again), false).unwrap();
-    for topic in ["/sphere_a/occupancy", "/sphere_d/occupancy"] {
+    for topic in [
+        "/sphere_a/occupancy",
+        "/sphere_b/occupancy",
+        "/sphere_c/occupancy",
+        "/sphere_d/occupancy",
+    ] {
         assert_eq!(
             messages(&rec_in, topic),
             messages(&bag, topic),

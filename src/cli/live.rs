@@ -371,7 +371,8 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
     }
     // Reliable samples are resent until each matched reader acknowledges them: the player
     // stays until all are (a lost packet on a busy host takes a few heartbeats), for at
-    // most `PLAY_ACK_WAIT` in all, and names the topics that were not.
+    // most `PLAY_ACK_WAIT` in all, and names the topics that were not; then it stays
+    // `LEAVE_GRACE` longer, for the readers to take what they acknowledged.
     let deadline = Instant::now() + PLAY_ACK_WAIT;
     for (topic, w) in writers.iter().filter_map(|(t, w)| Some((t, w.as_ref()?))) {
         let left = deadline.saturating_duration_since(Instant::now());
@@ -382,6 +383,9 @@ pub fn play(a: &PlayArgs) -> Result<(), CliError> {
                 PLAY_ACK_WAIT.as_secs()
             );
         }
+    }
+    if sent > 0 {
+        std::thread::sleep(crate::live::LEAVE_GRACE);
     }
     eprintln!("play: {sent} message(s) sent, {failed} not sent");
     Ok(())

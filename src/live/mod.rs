@@ -719,6 +719,15 @@ fn wire_topics(
     (inputs.into_iter().collect(), outputs)
 }
 
+/// How long a participant stays in the domain once its reliable readers have acknowledged
+/// what it wrote, before it leaves. Acknowledged is not yet read: a RustDDS 0.15 reader (the
+/// launch's, `record`'s) forgets a writer's reliable sequence marker when the writer leaves,
+/// and with it every sample of that writer the application has not taken yet. A loaded CI
+/// host lost the last frame of two of four topics that way, acknowledged by the launch and
+/// left by the player a moment later. A reader takes a sample within milliseconds, or
+/// within a few hundred on a host whose cores are all busy.
+pub const LEAVE_GRACE: Duration = Duration::from_secs(1);
+
 /// How often a live run hands the memory its threads have freed back to the system.
 const TRIM_PERIOD: Duration = Duration::from_secs(5);
 
@@ -1179,6 +1188,9 @@ pub fn run_nodes(
         transport: coordinator.transport(&runs),
         nodes: runs,
     };
+    if summary.transport.sent.values().any(|&n| n > 0) {
+        std::thread::sleep(LEAVE_GRACE);
+    }
     drop(coordinator);
     drop(ros_nodes);
     for io in rt_io {
