@@ -205,7 +205,11 @@ impl<'a> Inclusion<'a> {
             .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
         self.hits.iter().any(|&i| {
             let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
-            orient4_i128([&t[0], &t[1], &t[2], &t[3], p]) == 0 && in_tet_on_hyperplane(p, &t)
+            let side = match self.normals.map(|n| n[i as usize]) {
+                Some(n) if n != super::NO_NORMAL => orient_by_normal(&n, &t[0], p),
+                _ => orient4_i128([&t[0], &t[1], &t[2], &t[3], p]),
+            };
+            side == 0 && in_tet_on_hyperplane(p, &t)
         })
     }
 
