@@ -161,6 +161,15 @@ impl AdjacencyBuilder {
         }
     }
 
+    /// Lets go of the buffers a round used to pair its faces (the unpaired faces and the
+    /// neighbours found stay); the next round allocates its own.
+    pub fn shed_scratch(&mut self) {
+        self.start = Vec::new();
+        self.keys = Vec::new();
+        self.ids = Vec::new();
+        self.bucket = Vec::new();
+    }
+
     /// The neighbours of every tet added (faces still unpaired have none).
     pub fn finish(self) -> Vec<[u32; 4]> {
         self.adj

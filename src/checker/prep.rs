@@ -45,7 +45,6 @@ pub struct BodyPrep {
     mesh: TetMesh,
     normals: Vec<[i32; 4]>,
     original: Vec<u32>,
-    boxes: Vec<Aabb4>,
     /// The first error; the body cannot be checked after it.
     error: Option<PrepError>,
 }
@@ -117,23 +116,27 @@ impl BodyPrep {
             .into());
         }
         const LIMIT: i32 = (1 << 30) / CHECKER_FACTOR;
-        self.boxes.clear();
-        for tet in new {
+        if let Some(&c) = new
+            .iter()
+            .flat_map(|tet| tet.iter().flat_map(|&v| &vertices[v as usize]))
+            .find(|c| c.unsigned_abs() >= LIMIT as u32)
+        {
+            return Err(PrepError::Overflow { value: c });
+        }
+        // Each tet's box, on the checker lattice, asked for by the tree's build: four
+        // vertices read again beat 32 bytes a tet held (a cap's piece fills its body).
+        let box_of = |i: usize| {
+            let tet = new[i];
             let mut b = Aabb4::from_point(vertices[tet[0] as usize]);
             for &v in &tet[1..] {
                 b.grow(&vertices[v as usize]);
             }
-            for c in b.min.iter().chain(&b.max) {
-                if c.unsigned_abs() >= LIMIT as u32 {
-                    return Err(PrepError::Overflow { value: *c });
-                }
-            }
-            self.boxes.push(Aabb4::new(
+            Aabb4::new(
                 b.min.map(|c| c * CHECKER_FACTOR),
                 b.max.map(|c| c * CHECKER_FACTOR),
-            ));
-        }
-        let order = self.forest.add(&self.boxes)?;
+            )
+        };
+        let order = self.forest.add_with(new.len(), box_of)?;
         self.new_of.resize(nv, UNSEEN);
         let first = self.mesh.tets.len();
         for &local in order {
@@ -152,8 +155,14 @@ impl BodyPrep {
             self.mesh.tets.push(tet);
             self.original.push((done + local as usize) as u32);
         }
+        // A body is prepared in a few pieces (a window's two or three slabs, a horizon's
+        // dozen), the largest of them a cap that fills the body's volume: the buffers the
+        // piece's tree was built in, and the pairing's buckets, are let go after each piece
+        // rather than kept for the next.
+        self.forest.shed_piece();
         self.adjacency
             .add(&self.mesh.tets[first..], self.mesh.vertices.len());
+        self.adjacency.shed_scratch();
         Ok(())
     }
 

@@ -6,7 +6,7 @@
 //! a radix sort plus one linear pass is several times faster than O(n log n) binning
 //! (1.5 M tets in a few tens of ms).
 
-use super::{Aabb4, Bvh, BvhError, Node};
+use super::{Aabb4, BuildScratch, Bvh, BvhError, Node};
 use crate::kernel::LatticePoint;
 
 /// Bits per axis in a Morton code (4 × 16 = 64).
@@ -62,7 +62,7 @@ impl Quantiser {
 
 /// Bounds of doubled centres (inverted while empty).
 #[derive(Clone, Copy)]
-struct CentreBounds {
+pub(super) struct CentreBounds {
     lo: [i64; 4],
     hi: [i64; 4],
 }
@@ -86,9 +86,9 @@ impl CentreBounds {
         }
     }
 
-    fn of<'a>(boxes: impl Iterator<Item = &'a Aabb4>) -> Self {
+    pub(super) fn of(boxes: impl Iterator<Item = Aabb4>) -> Self {
         let mut cb = Self::EMPTY;
-        boxes.for_each(|b| cb.add(b));
+        boxes.for_each(|b| cb.add(&b));
         cb
     }
 
@@ -152,91 +152,29 @@ impl Bvh {
     /// # Errors
     /// [`BvhError::TooManyItems`] over [`Bvh::MAX_ITEMS`] boxes (the tree is then empty).
     pub fn build(&mut self, boxes: &[Aabb4]) -> Result<(), BvhError> {
-        self.build_with(boxes, CentreBounds::of(boxes.iter()))
+        self.build_with(boxes, CentreBounds::of(boxes.iter().copied()))
     }
 
     /// [`build`](Self::build) with the centre bounds of `boxes` already known.
     fn build_with(&mut self, boxes: &[Aabb4], centres: CentreBounds) -> Result<(), BvhError> {
         self.clear();
         check_count(boxes.len())?;
-        let n = boxes.len();
-        if n == 0 {
-            return Ok(());
-        }
-        let s = &mut self.scratch;
-        s.codes.clear();
-        match centres.quantiser() {
-            Some(qz) => s.codes.extend(boxes.iter().map(|b| qz.code(b))),
-            None => s.codes.resize(n, 0),
-        }
-        self.order.extend(0..n as u32);
-        s.codes_tmp.resize(n, 0);
-        s.order_tmp.resize(n, 0);
-        radix_sort(
-            &mut s.codes,
-            &mut self.order,
-            &mut s.codes_tmp,
-            &mut s.order_tmp,
+        let Self {
+            nodes,
+            leaf_boxes,
+            order,
+            scratch,
+        } = self;
+        build_into(
+            boxes.len(),
+            |i| boxes[i],
+            centres,
+            scratch,
+            order,
+            nodes,
+            leaf_boxes,
+            0,
         );
-
-        // Top-down: split ranges, creating both children next to each other.
-        // At most 2n - 1 nodes, but about 2n / 3 in practice (0.67 n over the 128³
-        // machine-tool cell's pieces): room for n is reserved, so the walk below rarely
-        // reallocates and a rebuild at the same size rarely allocates, while reserving the
-        // bound would hold three times what is used (recycled pages are resident).
-        self.nodes.reserve(n);
-        self.nodes.push(Node::BLANK);
-        s.ranges.clear();
-        s.ranges.push((0, 0, n as u32));
-        while let Some((node, lo, hi)) = s.ranges.pop() {
-            let (lo_u, hi_u) = (lo as usize, hi as usize);
-            if hi_u - lo_u <= Self::LEAF_SIZE {
-                self.nodes[node as usize] = Node {
-                    aabb: Aabb4::EMPTY,
-                    first: lo,
-                    count: hi - lo,
-                };
-                continue;
-            }
-            let mid = lo_u
-                + split_range(
-                    boxes,
-                    &mut s.codes[lo_u..hi_u],
-                    &mut self.order[lo_u..hi_u],
-                    &mut s.codes_tmp[lo_u..hi_u],
-                    &mut s.order_tmp[lo_u..hi_u],
-                );
-            let child = self.nodes.len() as u32;
-            self.nodes[node as usize].first = child;
-            self.nodes.push(Node::BLANK);
-            self.nodes.push(Node::BLANK);
-            s.ranges.push((child, lo, mid as u32));
-            s.ranges.push((child + 1, mid as u32, hi));
-        }
-
-        // Leaf boxes in leaf order; then bounds, children before parents.
-        self.leaf_boxes.extend(self.order.iter().map(|&i| {
-            let b = boxes[i as usize];
-            if b.is_empty() {
-                Aabb4::EMPTY
-            } else {
-                b
-            }
-        }));
-        for n in (0..self.nodes.len()).rev() {
-            let node = self.nodes[n];
-            let (first, count) = (node.first as usize, node.count as usize);
-            let aabb = if node.is_leaf() {
-                self.leaf_boxes[first..first + count]
-                    .iter()
-                    .fold(Aabb4::EMPTY, |a, b| a.union_valid(b))
-            } else {
-                self.nodes[first]
-                    .aabb
-                    .union_valid(&self.nodes[first + 1].aabb)
-            };
-            self.nodes[n].aabb = aabb;
-        }
         Ok(())
     }
 
@@ -275,10 +213,104 @@ impl Bvh {
             }
             b
         }));
-        let centres = CentreBounds::of(boxes.iter());
+        let centres = CentreBounds::of(boxes.iter().copied());
         let result = self.build_with(&boxes, centres);
         self.scratch.tet_boxes = boxes;
         result
+    }
+}
+
+/// Builds a tree over the `n` boxes `box_of(0..n)` at the end of `nodes` and `leaf_boxes`:
+/// its root is the first node pushed, children point to absolute node indices, and leaves
+/// to absolute leaf slots (`item_base` plus the slot among the `n`). `order` becomes, for
+/// each of these slots, the index of the item there. The boxes are asked for, not stored
+/// (a caller with tets computes each from four vertices, several times, rather than hold
+/// 32 bytes an item). A [`Bvh`] is built this way into its own empty buffers; a
+/// [`Forest`](super::Forest) builds each piece into the forest's, so that no piece tree is
+/// ever copied. `n` is at most [`Bvh::MAX_ITEMS`].
+#[allow(clippy::too_many_arguments)]
+pub(super) fn build_into(
+    n: usize,
+    box_of: impl Fn(usize) -> Aabb4,
+    centres: CentreBounds,
+    s: &mut BuildScratch,
+    order: &mut Vec<u32>,
+    nodes: &mut Vec<Node>,
+    leaf_boxes: &mut Vec<Aabb4>,
+    item_base: u32,
+) {
+    order.clear();
+    if n == 0 {
+        return;
+    }
+    s.codes.clear();
+    match centres.quantiser() {
+        Some(qz) => s.codes.extend((0..n).map(|i| qz.code(&box_of(i)))),
+        None => s.codes.resize(n, 0),
+    }
+    order.extend(0..n as u32);
+    s.codes_tmp.resize(n, 0);
+    s.order_tmp.resize(n, 0);
+    radix_sort(&mut s.codes, order, &mut s.codes_tmp, &mut s.order_tmp);
+
+    // Top-down: split ranges, creating both children next to each other.
+    // At most 2n - 1 nodes, but about 2n / 3 in practice (0.67 n over the 128³
+    // machine-tool cell's pieces): room for n is reserved (exactly: a forest's buffers
+    // grow piece by piece), so the walk below rarely reallocates and a rebuild at the same
+    // size rarely allocates, while reserving the bound would hold three times what is
+    // used (recycled pages are resident).
+    let root = nodes.len();
+    nodes.reserve_exact(n);
+    nodes.push(Node::BLANK);
+    s.ranges.clear();
+    s.ranges.push((root as u32, 0, n as u32));
+    while let Some((node, lo, hi)) = s.ranges.pop() {
+        let (lo_u, hi_u) = (lo as usize, hi as usize);
+        if hi_u - lo_u <= Bvh::LEAF_SIZE {
+            nodes[node as usize] = Node {
+                aabb: Aabb4::EMPTY,
+                first: item_base + lo,
+                count: hi - lo,
+            };
+            continue;
+        }
+        let mid = lo_u
+            + split_range(
+                &box_of,
+                &mut s.codes[lo_u..hi_u],
+                &mut order[lo_u..hi_u],
+                &mut s.codes_tmp[lo_u..hi_u],
+                &mut s.order_tmp[lo_u..hi_u],
+            );
+        let child = nodes.len() as u32;
+        nodes[node as usize].first = child;
+        nodes.push(Node::BLANK);
+        nodes.push(Node::BLANK);
+        s.ranges.push((child, lo, mid as u32));
+        s.ranges.push((child + 1, mid as u32, hi));
+    }
+
+    // Leaf boxes in leaf order; then bounds, children before parents.
+    leaf_boxes.reserve_exact(n);
+    leaf_boxes.extend(order.iter().map(|&i| {
+        let b = box_of(i as usize);
+        if b.is_empty() {
+            Aabb4::EMPTY
+        } else {
+            b
+        }
+    }));
+    for k in (root..nodes.len()).rev() {
+        let node = nodes[k];
+        let (first, count) = (node.first as usize, node.count as usize);
+        let aabb = if node.is_leaf() {
+            leaf_boxes[first..first + count]
+                .iter()
+                .fold(Aabb4::EMPTY, |a, b| a.union_valid(b))
+        } else {
+            nodes[first].aabb.union_valid(&nodes[first + 1].aabb)
+        };
+        nodes[k].aabb = aabb;
     }
 }
 
@@ -298,7 +330,7 @@ fn check_count(items: usize) -> Result<(), BvhError> {
 /// is re-quantised on its own centre bounds and re-sorted (this always separates items
 /// whose centres differ); if all centres coincide, it is halved.
 fn split_range(
-    boxes: &[Aabb4],
+    box_of: &impl Fn(usize) -> Aabb4,
     codes: &mut [u64],
     order: &mut [u32],
     codes_tmp: &mut [u64],
@@ -307,12 +339,12 @@ fn split_range(
     let len = codes.len();
     let (first, last) = (codes[0], codes[len - 1]);
     if first == last {
-        let Some(qz) = CentreBounds::of(order.iter().map(|&i| &boxes[i as usize])).quantiser()
+        let Some(qz) = CentreBounds::of(order.iter().map(|&i| box_of(i as usize))).quantiser()
         else {
             return len / 2;
         };
         for (c, &i) in codes.iter_mut().zip(order.iter()) {
-            *c = qz.code(&boxes[i as usize]);
+            *c = qz.code(&box_of(i as usize));
         }
         radix_sort(codes, order, codes_tmp, order_tmp);
         if codes[0] == codes[len - 1] {

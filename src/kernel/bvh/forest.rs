@@ -8,7 +8,8 @@
 //! would make splits space and time alike, this one splits time first. Items are numbered
 //! in leaf order as they arrive (the tree is born [renumbered](Bvh::renumber_in_leaf_order)).
 
-use super::{Aabb4, Bvh, BvhError, Node};
+use super::build::{build_into, CentreBounds};
+use super::{Aabb4, BuildScratch, Bvh, BvhError, Node};
 
 /// A tree being grown piece by piece; see the module documentation.
 ///
@@ -34,8 +35,11 @@ pub struct Forest {
     /// Each non-empty piece's root as it will sit in the top (children and items in the
     /// forest's numbering), with its item count and its index in `tree`.
     roots: Vec<(Node, u32, u32)>,
-    /// Builds one piece at a time; its buffers are reused.
-    piece: Bvh,
+    /// The buffers a piece's build works in (the piece's nodes and leaf boxes go straight
+    /// into `tree`).
+    scratch: BuildScratch,
+    /// The last piece's items in leaf order, as indices into its boxes.
+    piece_order: Vec<u32>,
 }
 
 impl Forest {
@@ -76,6 +80,10 @@ impl Forest {
     pub fn reserve_items(&mut self, items: usize) {
         self.tree.leaf_boxes.reserve_exact(items);
         self.tree.order.reserve_exact(items);
+        // A piece's build reserves room for one node per item, and uses about two thirds:
+        // with room for all the items' nodes (and the root) the pieces never move the
+        // nodes built before them.
+        self.tree.nodes.reserve_exact(items.saturating_add(1));
     }
 
     /// Adds a piece: its items become items `len()..len() + boxes.len()` in the piece
@@ -85,42 +93,64 @@ impl Forest {
     /// # Errors
     /// [`BvhError::TooManyItems`] if the forest would hold more than [`Bvh::MAX_ITEMS`].
     pub fn add(&mut self, boxes: &[Aabb4]) -> Result<&[u32], BvhError> {
-        let total = self.len().saturating_add(boxes.len());
+        self.add_with(boxes.len(), |i| boxes[i])
+    }
+
+    /// [`add`](Self::add) with the piece's `n` boxes asked for by index rather than stored
+    /// (each is asked for a few times).
+    ///
+    /// # Errors
+    /// As [`add`](Self::add).
+    pub fn add_with(
+        &mut self,
+        n: usize,
+        box_of: impl Fn(usize) -> Aabb4,
+    ) -> Result<&[u32], BvhError> {
+        let total = self.len().saturating_add(n);
         if total > Bvh::MAX_ITEMS {
             return Err(BvhError::TooManyItems {
                 items: total,
                 max: Bvh::MAX_ITEMS,
             });
         }
-        self.piece.build(boxes)?;
-        // Node indices must stay `u32` (one more node per piece than a one-off build).
-        if self.tree.nodes.len() + self.piece.nodes.len() + 2 * (self.roots.len() + 1)
-            > u32::MAX as usize
-        {
+        // Node indices must stay `u32`: a piece of n items has at most 2n - 1 nodes, and
+        // the top two for each piece but one.
+        if self.tree.nodes.len() + 2 * n + 2 * (self.roots.len() + 1) > u32::MAX as usize {
             return Err(BvhError::TooManyItems {
                 items: total,
                 max: Bvh::MAX_ITEMS / 2,
             });
         }
-        if boxes.is_empty() {
-            return Ok(&self.piece.order);
+        if n == 0 {
+            self.piece_order.clear();
+            return Ok(&self.piece_order);
         }
         let t = &mut self.tree;
         if t.nodes.is_empty() {
             t.nodes.push(Node::BLANK);
         }
-        let base = t.nodes.len() as u32;
+        let base = t.nodes.len();
         let items = t.order.len() as u32;
-        let shift = |n: &Node| Node {
-            first: n.first + if n.is_leaf() { items } else { base },
-            ..*n
-        };
-        t.nodes.extend(self.piece.nodes.iter().map(shift));
-        t.leaf_boxes.extend_from_slice(&self.piece.leaf_boxes);
-        t.order.extend(items..items + boxes.len() as u32);
-        self.roots
-            .push((shift(&self.piece.nodes[0]), boxes.len() as u32, base));
-        Ok(&self.piece.order)
+        build_into(
+            n,
+            &box_of,
+            CentreBounds::of((0..n).map(&box_of)),
+            &mut self.scratch,
+            &mut self.piece_order,
+            &mut t.nodes,
+            &mut t.leaf_boxes,
+            items,
+        );
+        t.order.extend(items..items + n as u32);
+        self.roots.push((t.nodes[base], n as u32, base as u32));
+        Ok(&self.piece_order)
+    }
+
+    /// Lets go of the buffers the last piece was built in, and of the order
+    /// [`add`](Self::add) returned; the next piece allocates its own.
+    pub fn shed_piece(&mut self) {
+        self.scratch = BuildScratch::default();
+        self.piece_order = Vec::new();
     }
 
     /// The tree over every item added, the pieces joined under a top split at the median

@@ -118,6 +118,14 @@ pub struct Bvh {
     scratch: BuildScratch,
 }
 
+impl std::fmt::Debug for BuildScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("BuildScratch")
+            .field("capacity", &self.codes.capacity())
+            .finish()
+    }
+}
+
 impl std::fmt::Debug for Bvh {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Bvh")
