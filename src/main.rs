@@ -35,18 +35,19 @@ fn main() -> std::process::ExitCode {
 
 /// glibc gives every thread that allocates its own heap ("arena"), up to eight per core, and
 /// keeps what each one freed: a replay's threads (rayon's and the checker's resolutions)
-/// then hold a sixth to a third more memory than they use. Two arenas keep the peak close
-/// to what is in use at no measured cost in speed (docs/performance.md). Not for a live
-/// launch: there a real-time node sharing an arena with the mesher waited on its lock
-/// (carving latency p99 55 ms instead of 2 ms). `MALLOC_ARENA_MAX`, if set, is left to
-/// decide.
+/// then hold a sixth to a third more memory than they use. One arena keeps the peak close
+/// to what is in use at no measured cost in speed (the 128³ machine-tool replay peaked at
+/// 283-289 MB with one, 304-330 MB with two, in the same 4.6 s; docs/performance.md). Not
+/// for a live launch: there a real-time node sharing an arena with the mesher waited on
+/// its lock (carving latency p99 55 ms instead of 2 ms). `MALLOC_ARENA_MAX`, if set, is
+/// left to decide.
 fn limit_malloc_arenas() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     if std::env::var_os("MALLOC_ARENA_MAX").is_none() {
         // SAFETY: mallopt only sets a tunable of the allocator; called before the command
         // starts any thread.
         unsafe {
-            libc::mallopt(libc::M_ARENA_MAX, 2);
+            libc::mallopt(libc::M_ARENA_MAX, 1);
         }
     }
 }

@@ -32,6 +32,8 @@ pub struct AdjacencyBuilder {
     keys: Vec<u64>,
     ids: Vec<u64>,
     bucket: Vec<(u64, u64)>,
+    /// Most faces bucketed at once ([`BATCH_FACES`] unless a test says otherwise).
+    batch_faces: Option<u32>,
 }
 
 impl AdjacencyBuilder {
@@ -105,60 +107,76 @@ impl AdjacencyBuilder {
         for v in 0..span {
             self.start[v + 1] += self.start[v];
         }
-        self.keys.resize(n, 0);
-        self.ids.resize(n, 0);
-        round_faces(&pending, tets, first, vertices, &mut |f, id| {
-            let slot = &mut self.start[(f[0] - lo) as usize];
-            self.keys[*slot as usize] = u64::from(f[1]) << 32 | u64::from(f[2]);
-            self.ids[*slot as usize] = id;
-            *slot += 1;
-        });
-        self.pending = pending;
-        self.pending.clear();
-        // `start[v]` is now the end of bucket v.
-        let mut begin = 0;
-        for v in 0..span {
-            let end = self.start[v] as usize;
-            let (keys, ids) = (&mut self.keys[begin..end], &self.ids[begin..end]);
-            let face = |key: u64| [lo + v as u32, (key >> 32) as u32, key as u32];
-            if keys.len() <= SCAN_BUCKET {
-                // Pair by scanning: each face against the later ones (a few hundred
-                // compares in L1 beat a general sort at this size); a key seen is cleared
-                // to `SEEN`.
-                for i in 0..keys.len() {
-                    let key = keys[i];
-                    if key == SEEN {
-                        continue;
-                    }
-                    let (mut partner, mut count) = (None, 1);
-                    for (j, other) in keys.iter_mut().enumerate().skip(i + 1) {
-                        if *other == key {
-                            partner = Some(j);
-                            count += 1;
-                            *other = SEEN;
+        // The buckets are filled and paired in batches of whole buckets, at most
+        // `BATCH_FACES` faces each (a larger bucket alone), each batch walking the faces
+        // again: a cap that fills a body's volume has millions of faces, 16 bytes each here.
+        // `start[v]` becomes the end of bucket v once its batch is filled.
+        let mut next_pending = Vec::new();
+        let mut v0 = 0;
+        while v0 < span {
+            let base = self.start[v0];
+            let batch = self.batch_faces.unwrap_or(BATCH_FACES);
+            let k = self.start[v0 + 1..=span].partition_point(|&e| e - base <= batch);
+            let v1 = (v0 + k).max(v0 + 1);
+            let m = (self.start[v1] - base) as usize;
+            self.keys.resize(m, 0);
+            self.ids.resize(m, 0);
+            round_faces(&pending, tets, first, vertices, &mut |f, id| {
+                let v = (f[0] - lo) as usize;
+                if (v0..v1).contains(&v) {
+                    let slot = &mut self.start[v];
+                    let at = (*slot - base) as usize;
+                    self.keys[at] = u64::from(f[1]) << 32 | u64::from(f[2]);
+                    self.ids[at] = id;
+                    *slot += 1;
+                }
+            });
+            let mut begin = 0;
+            for v in v0..v1 {
+                let end = (self.start[v] - base) as usize;
+                let (keys, ids) = (&mut self.keys[begin..end], &self.ids[begin..end]);
+                let face = |key: u64| [lo + v as u32, (key >> 32) as u32, key as u32];
+                if keys.len() <= SCAN_BUCKET {
+                    // Pair by scanning: each face against the later ones (a few hundred
+                    // compares in L1 beat a general sort at this size); a key seen is cleared
+                    // to `SEEN`.
+                    for i in 0..keys.len() {
+                        let key = keys[i];
+                        if key == SEEN {
+                            continue;
+                        }
+                        let (mut partner, mut count) = (None, 1);
+                        for (j, other) in keys.iter_mut().enumerate().skip(i + 1) {
+                            if *other == key {
+                                partner = Some(j);
+                                count += 1;
+                                *other = SEEN;
+                            }
+                        }
+                        match (partner, count) {
+                            (Some(j), 2) => link(&mut self.adj, ids[i], ids[j]),
+                            (None, _) => next_pending.push((face(key), ids[i])),
+                            _ => {}
                         }
                     }
-                    match (partner, count) {
-                        (Some(j), 2) => link(&mut self.adj, ids[i], ids[j]),
-                        (None, _) => self.pending.push((face(key), ids[i])),
-                        _ => {}
+                } else {
+                    self.bucket.clear();
+                    self.bucket
+                        .extend(keys.iter().copied().zip(ids.iter().copied()));
+                    self.bucket.sort_unstable();
+                    for run in self.bucket.chunk_by(|a, b| a.0 == b.0) {
+                        match run {
+                            [(key, x)] => next_pending.push((face(*key), *x)),
+                            [(_, x), (_, y)] => link(&mut self.adj, *x, *y),
+                            _ => {}
+                        }
                     }
                 }
-            } else {
-                self.bucket.clear();
-                self.bucket
-                    .extend(keys.iter().copied().zip(ids.iter().copied()));
-                self.bucket.sort_unstable();
-                for run in self.bucket.chunk_by(|a, b| a.0 == b.0) {
-                    match run {
-                        [(key, x)] => self.pending.push((face(*key), *x)),
-                        [(_, x), (_, y)] => link(&mut self.adj, *x, *y),
-                        _ => {}
-                    }
-                }
+                begin = end;
             }
-            begin = end;
+            v0 = v1;
         }
+        self.pending = next_pending;
     }
 
     /// Lets go of the buffers a round used to pair its faces (the unpaired faces and the
@@ -228,6 +246,9 @@ fn sorted_faces(tet: [u32; 4]) -> [([u32; 3], u32); 4] {
 /// Buckets up to this size are paired by scanning, larger ones by sorting.
 const SCAN_BUCKET: usize = 48;
 
+/// Most faces bucketed at once (16 bytes each: 8 MiB).
+const BATCH_FACES: u32 = 1 << 19;
+
 /// A key no face has (other two vertex ids both `u32::MAX`, which is no vertex of a
 /// mesh with fewer than 2^32 vertices): marks a face already paired in the scan.
 const SEEN: u64 = u64::MAX;
@@ -254,8 +275,12 @@ mod tests {
             tets: tets.clone(),
         };
         let whole = face_adjacency(&mesh);
-        for cut in [1, 7, 50, 199] {
+        for (cut, batch) in [1, 7, 50, 199]
+            .into_iter()
+            .zip([None, Some(3), Some(1), Some(40)])
+        {
             let mut b = AdjacencyBuilder::new();
+            b.batch_faces = batch;
             for piece in tets.chunks(cut) {
                 b.add(piece, 302);
             }
@@ -319,7 +344,8 @@ mod tests {
 
     /// Fed in random pieces (small ones far apart in vertex numbering take the sorting
     /// path, large ones the buckets), a mesh whose faces are each in at most two tets gets
-    /// exactly the adjacency of a plain map from faces to tets.
+    /// exactly the adjacency of a plain map from faces to tets, whatever the batches its
+    /// buckets are filled in.
     #[test]
     fn random_pieces_link_exactly_the_tets_sharing_a_face() {
         for seed in 1..25u64 {
@@ -351,14 +377,19 @@ mod tests {
                     expected[u][g] = t as u32;
                 }
             }
-            let mut b = AdjacencyBuilder::new();
-            let mut at = 0;
-            while at < tets.len() {
-                let len = [1, 2, 5, 40, 400][next(5) as usize].min(tets.len() - at);
-                b.add(&tets[at..at + len], vertices);
-                at += len;
+            // Buckets filled in one batch, or in batches of a few faces (a bucket larger
+            // than a batch is one of its own).
+            for batch in [None, Some(1), Some(7), Some(100)] {
+                let mut b = AdjacencyBuilder::new();
+                b.batch_faces = batch;
+                let mut at = 0;
+                while at < tets.len() {
+                    let len = [1, 2, 5, 40, 400][next(5) as usize].min(tets.len() - at);
+                    b.add(&tets[at..at + len], vertices);
+                    at += len;
+                }
+                assert_eq!(b.finish(), expected, "seed {seed}, batch {batch:?}");
             }
-            assert_eq!(b.finish(), expected, "seed {seed}");
         }
     }
 
