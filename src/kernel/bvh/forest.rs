@@ -154,7 +154,8 @@ impl Forest {
     }
 
     /// The tree over every item added, the pieces joined under a top split at the median
-    /// item (one piece: its own tree). Each piece's own root stays as an unused node.
+    /// item (one piece: its own tree), its node buffer no larger than its nodes. Each
+    /// piece's own root stays as an unused node.
     pub fn finish(self) -> Bvh {
         let Self {
             mut tree, roots, ..
@@ -163,6 +164,7 @@ impl Forest {
             0 => return Bvh::new(),
             1 => {
                 tree.nodes[0] = roots[0].0;
+                tree.nodes.shrink_to_fit();
                 return tree;
             }
             _ => {}
@@ -201,6 +203,9 @@ impl Forest {
             pending.push((child, lo, mid));
             pending.push((child + 1, mid, hi));
         }
+        // Room was made for a node per item, about a third more than a tree uses: given
+        // back (glibc shrinks a block in place).
+        tree.nodes.shrink_to_fit();
         tree
     }
 }
