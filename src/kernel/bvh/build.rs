@@ -255,12 +255,13 @@ pub(super) fn build_into(
 
     // Top-down: split ranges, creating both children next to each other.
     // At most 2n - 1 nodes, but about 2n / 3 in practice (0.67 n over the 128³
-    // machine-tool cell's pieces): room for n is reserved (exactly: a forest's buffers
-    // grow piece by piece), so the walk below rarely reallocates and a rebuild at the same
-    // size rarely allocates, while reserving the bound would hold three times what is
-    // used (recycled pages are resident).
+    // machine-tool cell's pieces): room for n is reserved, so the walk below rarely
+    // reallocates and a rebuild at the same size rarely allocates, while reserving the
+    // bound would hold three times what is used (recycled pages are resident). A forest
+    // sized for all its items beforehand (`Forest::reserve_items`) never grows here; one
+    // that was not grows by doubling, not piece by piece.
     let root = nodes.len();
-    nodes.reserve_exact(n);
+    nodes.reserve(n);
     nodes.push(Node::BLANK);
     s.ranges.clear();
     s.ranges.push((root as u32, 0, n as u32));
@@ -291,7 +292,7 @@ pub(super) fn build_into(
     }
 
     // Leaf boxes in leaf order; then bounds, children before parents.
-    leaf_boxes.reserve_exact(n);
+    leaf_boxes.reserve(n);
     leaf_boxes.extend(order.iter().map(|&i| {
         let b = box_of(i as usize);
         if b.is_empty() {
