@@ -2,6 +2,8 @@
 //! interference report and resolve suggestions. Their `.msg` files under `msgs/msg/` are the
 //! source of truth (units and meanings are documented there).
 
+use std::sync::Arc;
+
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::{Header, Point, RosMessage, Time, Vector3};
@@ -50,8 +52,9 @@ pub struct MeshSlab {
     pub occupied_voxels: u64,
     /// The body moves more than its thickness in this frame period.
     pub vanishes: bool,
-    /// The tets (lattice coordinates).
-    pub mesh: TetMesh,
+    /// The tets (lattice coordinates), shared: a node of the process that keeps the piece
+    /// (the checker, for its windows and horizons) takes it without a copy.
+    pub mesh: Arc<TetMesh>,
 }
 
 impl MeshSlab {
@@ -231,10 +234,10 @@ impl<'de> Deserialize<'de> for MeshSlab {
             scale: m.scale,
             occupied_voxels: m.occupied_voxels,
             vanishes: m.vanishes,
-            mesh: TetMesh {
+            mesh: Arc::new(TetMesh {
                 vertices: m.vertices.0,
                 tets: m.tets.0,
-            },
+            }),
         })
     }
 }

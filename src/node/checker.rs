@@ -266,7 +266,7 @@ impl CheckerNode {
             geometry: s.geometry(),
             occupied: s.occupied_voxels,
             vanishes: s.vanishes,
-            mesh: Arc::new(s.mesh.clone()),
+            mesh: Arc::clone(&s.mesh),
             frame_id: s.header.frame_id.clone(),
         };
         let mut rolled = Vec::new();

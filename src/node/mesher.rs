@@ -205,7 +205,7 @@ impl Ctx<'_> {
             stamp_hi: Time::from_nanos(stamps.1),
             occupied_voxels: occupied,
             vanishes,
-            mesh,
+            mesh: Arc::new(mesh),
             ..MeshSlab::default()
         };
         m.set_geometry(g);
