@@ -28,10 +28,6 @@ pub struct AdjacencyBuilder {
     adj: Vec<[u32; 4]>,
     /// Faces not paired yet: sorted vertex triple and `tet << 2 | face`.
     pending: Vec<([u32; 3], u64)>,
-    start: Vec<u32>,
-    keys: Vec<u64>,
-    ids: Vec<u64>,
-    bucket: Vec<(u64, u64)>,
     /// Most faces bucketed at once ([`BATCH_FACES`] unless a test says otherwise).
     batch_faces: Option<u32>,
 }
@@ -98,43 +94,45 @@ impl AdjacencyBuilder {
             }
             return;
         }
-        // Bucket starts by smallest vertex.
-        self.start.clear();
-        self.start.resize(span + 1, 0);
+        // Bucket starts by smallest vertex. A round's buffers are its own: a body is
+        // prepared in a few rounds (a window's two or three pieces), the largest a cap that
+        // fills its volume, and nothing is held for a next round.
+        let mut start = vec![0u32; span + 1];
         round_faces(&pending, tets, first, vertices, &mut |f, _| {
-            self.start[(f[0] - lo) as usize + 1] += 1
+            start[(f[0] - lo) as usize + 1] += 1
         });
         for v in 0..span {
-            self.start[v + 1] += self.start[v];
+            start[v + 1] += start[v];
         }
         // The buckets are filled and paired in batches of whole buckets, at most
         // `BATCH_FACES` faces each (a larger bucket alone), each batch walking the faces
         // again: a cap that fills a body's volume has millions of faces, 16 bytes each here.
         // `start[v]` becomes the end of bucket v once its batch is filled.
+        let (mut keys_all, mut ids_all, mut bucket) = (Vec::new(), Vec::new(), Vec::new());
         let mut next_pending = Vec::new();
         let mut v0 = 0;
         while v0 < span {
-            let base = self.start[v0];
+            let base = start[v0];
             let batch = self.batch_faces.unwrap_or(BATCH_FACES);
-            let k = self.start[v0 + 1..=span].partition_point(|&e| e - base <= batch);
+            let k = start[v0 + 1..=span].partition_point(|&e| e - base <= batch);
             let v1 = (v0 + k).max(v0 + 1);
-            let m = (self.start[v1] - base) as usize;
-            self.keys.resize(m, 0);
-            self.ids.resize(m, 0);
+            let m = (start[v1] - base) as usize;
+            keys_all.resize(m, 0u64);
+            ids_all.resize(m, 0u64);
             round_faces(&pending, tets, first, vertices, &mut |f, id| {
                 let v = (f[0] - lo) as usize;
                 if (v0..v1).contains(&v) {
-                    let slot = &mut self.start[v];
+                    let slot = &mut start[v];
                     let at = (*slot - base) as usize;
-                    self.keys[at] = u64::from(f[1]) << 32 | u64::from(f[2]);
-                    self.ids[at] = id;
+                    keys_all[at] = u64::from(f[1]) << 32 | u64::from(f[2]);
+                    ids_all[at] = id;
                     *slot += 1;
                 }
             });
             let mut begin = 0;
             for v in v0..v1 {
-                let end = (self.start[v] - base) as usize;
-                let (keys, ids) = (&mut self.keys[begin..end], &self.ids[begin..end]);
+                let end = (start[v] - base) as usize;
+                let (keys, ids) = (&mut keys_all[begin..end], &ids_all[begin..end]);
                 let face = |key: u64| [lo + v as u32, (key >> 32) as u32, key as u32];
                 if keys.len() <= SCAN_BUCKET {
                     // Pair by scanning: each face against the later ones (a few hundred
@@ -160,11 +158,10 @@ impl AdjacencyBuilder {
                         }
                     }
                 } else {
-                    self.bucket.clear();
-                    self.bucket
-                        .extend(keys.iter().copied().zip(ids.iter().copied()));
-                    self.bucket.sort_unstable();
-                    for run in self.bucket.chunk_by(|a, b| a.0 == b.0) {
+                    bucket.clear();
+                    bucket.extend(keys.iter().copied().zip(ids.iter().copied()));
+                    bucket.sort_unstable();
+                    for run in bucket.chunk_by(|a, b| a.0 == b.0) {
                         match run {
                             [(key, x)] => next_pending.push((face(*key), *x)),
                             [(_, x), (_, y)] => link(&mut self.adj, *x, *y),
@@ -177,15 +174,6 @@ impl AdjacencyBuilder {
             v0 = v1;
         }
         self.pending = next_pending;
-    }
-
-    /// Lets go of the buffers a round used to pair its faces (the unpaired faces and the
-    /// neighbours found stay); the next round allocates its own.
-    pub fn shed_scratch(&mut self) {
-        self.start = Vec::new();
-        self.keys = Vec::new();
-        self.ids = Vec::new();
-        self.bucket = Vec::new();
     }
 
     /// The neighbours of every tet added (faces still unpaired have none).

@@ -155,14 +155,8 @@ impl BodyPrep {
             self.mesh.tets.push(tet);
             self.original.push((done + local as usize) as u32);
         }
-        // A body is prepared in a few pieces (a window's two or three slabs, a horizon's
-        // dozen), the largest of them a cap that fills the body's volume: the buffers the
-        // piece's tree was built in, and the pairing's buckets, are let go after each piece
-        // rather than kept for the next.
-        self.forest.shed_piece();
         self.adjacency
             .add(&self.mesh.tets[first..], self.mesh.vertices.len());
-        self.adjacency.shed_scratch();
         Ok(())
     }
 

@@ -35,9 +35,6 @@ pub struct Forest {
     /// Each non-empty piece's root as it will sit in the top (children and items in the
     /// forest's numbering), with its item count and its index in `tree`.
     roots: Vec<(Node, u32, u32)>,
-    /// The buffers a piece's build works in (the piece's nodes and leaf boxes go straight
-    /// into `tree`).
-    scratch: BuildScratch,
     /// The last piece's items in leaf order, as indices into its boxes.
     piece_order: Vec<u32>,
 }
@@ -135,7 +132,9 @@ impl Forest {
             n,
             &box_of,
             CentreBounds::of((0..n).map(&box_of)),
-            &mut self.scratch,
+            // Its own buffers: a body is prepared in a few pieces, the largest a cap that
+            // fills its volume, and nothing is held for a next piece.
+            &mut BuildScratch::default(),
             &mut self.piece_order,
             &mut t.nodes,
             &mut t.leaf_boxes,
@@ -144,13 +143,6 @@ impl Forest {
         t.order.extend(items..items + n as u32);
         self.roots.push((t.nodes[base], n as u32, base as u32));
         Ok(&self.piece_order)
-    }
-
-    /// Lets go of the buffers the last piece was built in, and of the order
-    /// [`add`](Self::add) returned; the next piece allocates its own.
-    pub fn shed_piece(&mut self) {
-        self.scratch = BuildScratch::default();
-        self.piece_order = Vec::new();
     }
 
     /// The tree over every item added, the pieces joined under a top split at the median
