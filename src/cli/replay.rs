@@ -250,6 +250,10 @@ impl Output {
 /// tick.
 const REPLAY_TICK_NS: i64 = 100_000_000;
 
+/// Inputs read ahead of the one being delivered, at most (one frame of each body, up to
+/// this many bodies): a node reading only the bag works on them meanwhile.
+const AHEAD_INPUTS_MAX: usize = 16;
+
 /// Replays `bag` through the nodes of `config` (the default config if `None`).
 ///
 /// # Errors
@@ -331,6 +335,9 @@ pub fn replay(
     };
     // What neither a node nor the output bag reads is not built (markers without --out).
     bus.set_demand(|t| output.as_ref().is_some_and(|o| o.selection.wants(t)));
+    // The mesher (any node reading only the bag) works a frame of each body ahead of the
+    // checker, on a thread of its own; the output is the same message for message.
+    bus.run_ahead(bag_bodies.len().clamp(1, AHEAD_INPUTS_MAX));
     let bar = if progress && std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new_spinner();
         b.set_style(
@@ -417,9 +424,9 @@ pub fn replay(
         // (a mesher closes a stream whose frames stopped for its idle timeout).
         if last_tick.is_none_or(|t| log_ns.saturating_sub(t) >= REPLAY_TICK_NS) {
             last_tick = Some(log_ns);
-            misrouted.extend(bus.tick(log_ns, &mut sink));
+            misrouted.extend(bus.put_tick(log_ns, &mut sink));
         }
-        misrouted.extend(bus.deliver(Message::new(&m.topic, log_ns, payload), &mut sink));
+        misrouted.extend(bus.put(Message::new(&m.topic, log_ns, payload), &mut sink));
     }
     input.refused_topics = refused.into_values().collect();
     input.recovery = Some(reader.recovery().clone());

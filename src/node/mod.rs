@@ -6,6 +6,7 @@
 //! (the in-process [`bus::Bus`] for `chronotope replay` and the tests; DDS for live use). A
 //! message a node cannot use is a counted, logged problem in its [`NodeStatus`], never a panic.
 
+mod ahead;
 pub mod bus;
 pub mod carving;
 pub mod checker;

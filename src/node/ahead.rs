@@ -1,0 +1,222 @@
+//! A node of the in-process bus run ahead on a thread of its own (see
+//! [`Bus::run_ahead`](super::bus::Bus::run_ahead)).
+//!
+//! A node whose inputs all come from outside the bus (a mesher reading a bag's frames) does
+//! not depend on what the other nodes do. The bus can hand it each input as soon as the input
+//! is read, so that it works on the next frames while the nodes after it work on the ones
+//! before, and take what it published in the input's turn. Nothing changes in what is
+//! published or in its order: the node sees the same inputs in the same order, and its
+//! outputs are put on the bus exactly where its handler would have put them.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::{mpsc, Arc};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use super::{Message, Node, NodeStatus, TopicRef};
+
+/// What the bus hands a node ahead of its turn.
+pub(crate) enum Event {
+    /// A message on one of its subscriptions.
+    Message(Message),
+    /// The transport's clock.
+    Tick(i64),
+    /// The inputs have ended.
+    Finish,
+}
+
+/// What the node published for one event, with its handler's wall time and its status after.
+struct Reply {
+    out: Vec<Message>,
+    busy: Duration,
+    status: NodeStatus,
+}
+
+/// Where a node run ahead is fed: the bus keeps one per such node.
+pub(crate) struct Feed {
+    /// Its subscriptions (topic and type), as the bus routes them.
+    pub subscriptions: Vec<TopicRef>,
+    events: mpsc::Sender<Event>,
+    /// Events sent and not yet answered (shared with the stand-in).
+    owed: Arc<AtomicUsize>,
+}
+
+impl Feed {
+    /// Hands the node `event` ahead of its turn.
+    pub fn send(&self, event: Event) {
+        self.owed.fetch_add(1, Ordering::Relaxed);
+        // A worker that has gone (its node panicked) is found when its reply is taken.
+        let _ = self.events.send(event);
+    }
+
+    /// Whether the node reads `msg` (the bus's routing: its topic, with the right type).
+    pub fn takes(&self, msg: &Message) -> bool {
+        self.subscriptions
+            .iter()
+            .any(|s| *s.topic == *msg.topic && s.type_name == msg.payload.type_name())
+    }
+}
+
+/// The node's stand-in on the bus while it runs on its own thread: each handler takes the
+/// node's reply to the event the bus announced for that turn.
+pub(crate) struct AheadNode {
+    name: String,
+    subscriptions: Vec<TopicRef>,
+    publications: Vec<TopicRef>,
+    rank: u8,
+    status: NodeStatus,
+    feed: Feed,
+    replies: mpsc::Receiver<Reply>,
+    worker: Option<JoinHandle<Box<dyn Node>>>,
+    /// The node, back from its thread once it has finished.
+    home: Option<Box<dyn Node>>,
+    /// Its handlers' wall time on its thread.
+    pub busy: Duration,
+}
+
+impl AheadNode {
+    /// Moves `node` onto a thread of its own; returns its stand-in and its feed.
+    pub fn start(node: Box<dyn Node>) -> (Self, Feed) {
+        let (events, inbox) = mpsc::channel::<Event>();
+        let (outbox, replies) = mpsc::channel::<Reply>();
+        let name = node.name().to_string();
+        let subscriptions = node.subscriptions();
+        let publications = node.publications();
+        let rank = node.rank();
+        let status = node.status().clone();
+        let worker = std::thread::Builder::new()
+            .name(format!("ahead{name}").chars().take(15).collect())
+            .spawn(move || {
+                let mut node = node;
+                // Ends when the bus is gone (every sender dropped) or after `Finish`.
+                while let Ok(event) = inbox.recv() {
+                    let mut out = Vec::new();
+                    let t = Instant::now();
+                    let last = matches!(event, Event::Finish);
+                    match event {
+                        Event::Message(m) => node.on_message(&m, &mut out),
+                        Event::Tick(now) => node.on_tick(now, &mut out),
+                        Event::Finish => node.finish(&mut out),
+                    }
+                    let reply = Reply {
+                        out,
+                        busy: t.elapsed(),
+                        status: node.status().clone(),
+                    };
+                    if outbox.send(reply).is_err() || last {
+                        break;
+                    }
+                }
+                node
+            })
+            .expect("a thread for a node run ahead");
+        let feed = Feed {
+            subscriptions: subscriptions.clone(),
+            events,
+            owed: Arc::new(AtomicUsize::new(0)),
+        };
+        let mine = Feed {
+            subscriptions: subscriptions.clone(),
+            events: feed.events.clone(),
+            owed: feed.owed.clone(),
+        };
+        (
+            Self {
+                name,
+                subscriptions,
+                publications,
+                rank,
+                status,
+                feed: mine,
+                replies,
+                worker: Some(worker),
+                home: None,
+                busy: Duration::ZERO,
+            },
+            feed,
+        )
+    }
+
+    /// Takes the node's reply to its next event and pushes what it published; `event` is
+    /// handed over first if the bus did not announce it.
+    fn take(&mut self, event: impl FnOnce() -> Event, out: &mut Vec<Message>) {
+        if self.feed.owed.load(Ordering::Relaxed) == 0 {
+            self.feed.send(event());
+        }
+        self.take_reply(out);
+    }
+
+    /// Takes the node's reply to the oldest event it was handed.
+    fn take_reply(&mut self, out: &mut Vec<Message>) {
+        let reply = self.replies.recv();
+        self.feed.owed.fetch_sub(1, Ordering::Relaxed);
+        match reply {
+            Ok(r) => {
+                out.extend(r.out);
+                self.busy += r.busy;
+                self.status = r.status;
+            }
+            // The worker is gone: its node panicked. Raise the panic here, as the node's
+            // handler would have on the bus's thread.
+            Err(_) => {
+                if let Some(w) = self.worker.take() {
+                    if let Err(panic) = w.join() {
+                        std::panic::resume_unwind(panic);
+                    }
+                }
+                panic!("node {} run ahead stopped answering", self.name);
+            }
+        }
+    }
+}
+
+impl Node for AheadNode {
+    fn as_any(&self) -> &dyn std::any::Any {
+        match &self.home {
+            Some(n) => n.as_any(),
+            None => self,
+        }
+    }
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn subscriptions(&self) -> Vec<TopicRef> {
+        self.subscriptions.clone()
+    }
+    fn publications(&self) -> Vec<TopicRef> {
+        self.publications.clone()
+    }
+    fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
+        self.take(|| Event::Message(msg.clone()), out);
+    }
+    fn on_tick(&mut self, now_ns: i64, out: &mut Vec<Message>) {
+        self.take(|| Event::Tick(now_ns), out);
+    }
+    fn finish(&mut self, out: &mut Vec<Message>) {
+        if self.home.is_some() {
+            return;
+        }
+        // Replies the bus did not take go out first (there are none: the bus runs every
+        // input it announced before its nodes finish).
+        while self.feed.owed.load(Ordering::Relaxed) > 0 {
+            self.take_reply(out);
+        }
+        self.feed.send(Event::Finish);
+        self.take_reply(out);
+        if let Some(w) = self.worker.take() {
+            match w.join() {
+                Ok(node) => self.home = Some(node),
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        }
+    }
+    fn status(&self) -> &NodeStatus {
+        match &self.home {
+            Some(n) => n.status(),
+            None => &self.status,
+        }
+    }
+    fn rank(&self) -> u8 {
+        self.rank
+    }
+}
