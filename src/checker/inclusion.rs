@@ -196,6 +196,33 @@ impl<'a> Inclusion<'a> {
         (0..FAR_POINTS).find_map(|k| self.contains_towards(p, k))
     }
 
+    /// Whether the closed tet `t` lies in one closed tet of the mesh, found through its
+    /// point `p` (exact): then every point of `t` is on the boundary, and [`Self::contains`]
+    /// answers `None` for each. Tets face to face with the other body mostly lie in one of
+    /// its tets (both meshed on one lattice); this settles them with one point query
+    /// rather than one per point tried.
+    pub fn lies_in_boundary(&mut self, p: &LatticePoint, t: &[LatticePoint; 4]) -> bool {
+        let wide = p.map(i64::from);
+        self.hits.clear();
+        let hits = &mut self.hits;
+        self.bvh
+            .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
+        self.hits
+            .iter()
+            .any(|&i| t.iter().all(|v| self.holds(i, v)))
+    }
+
+    /// Whether the closed tet `i` of the mesh holds `p` (exact).
+    #[inline]
+    fn holds(&self, i: u32, p: &LatticePoint) -> bool {
+        let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
+        let side = match self.normals.map(|n| n[i as usize]) {
+            Some(n) if n != super::NO_NORMAL => orient_by_normal(&n, &t[0], p),
+            _ => orient4_i128([&t[0], &t[1], &t[2], &t[3], p]),
+        };
+        side == 0 && in_tet_on_hyperplane(p, &t)
+    }
+
     /// Whether `p` lies in a closed tet of the mesh (exact).
     fn on_boundary(&mut self, p: &LatticePoint) -> bool {
         let wide = p.map(i64::from);
@@ -203,14 +230,7 @@ impl<'a> Inclusion<'a> {
         let hits = &mut self.hits;
         self.bvh
             .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
-        self.hits.iter().any(|&i| {
-            let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
-            let side = match self.normals.map(|n| n[i as usize]) {
-                Some(n) if n != super::NO_NORMAL => orient_by_normal(&n, &t[0], p),
-                _ => orient4_i128([&t[0], &t[1], &t[2], &t[3], p]),
-            };
-            side == 0 && in_tet_on_hyperplane(p, &t)
-        })
+        self.hits.iter().any(|&i| self.holds(i, p))
     }
 
     /// The signed count towards far point `k`, or `None` if degenerate.
@@ -266,6 +286,68 @@ mod tests {
     use super::*;
 
     use crate::kernel::intersect::test_rng::Rng;
+
+    /// A tet lies in the boundary exactly when some one tet of the mesh holds its four
+    /// vertices (brute force over all tets), and then no point of it is decided.
+    #[test]
+    fn a_tet_lies_in_the_boundary_exactly_when_one_tet_holds_it() {
+        let mut rng = Rng(0x2545_F491_4F6C_DD1D);
+        let mut mesh = TetMesh::default();
+        // Overlapping tets with coordinates ×32 (so that the sub-tets below have coordinates
+        // ×8, and interior points are lattice points, as in the checker), in a few
+        // hyperplanes (x or y constant) and off them, so that sub-tets of one often touch
+        // or straddle others.
+        for k in 0..200u32 {
+            let at = [0; 4].map(|_| (rng.next() % 9) as i32 * 32);
+            for j in 0..4 {
+                let mut v = at.map(|x| x + (rng.next() % 5) as i32 * 32);
+                match k % 3 {
+                    0 => v[0] = at[0],
+                    1 => v[1] = at[1],
+                    _ => v[j] += 32,
+                }
+                mesh.vertices.push(v);
+            }
+            mesh.tets.push([0, 1, 2, 3].map(|j| 4 * k + j));
+        }
+        let bvh = Bvh::from_tets(&mesh.vertices, &mesh.tets).expect("a tree");
+        let normals = super::super::tet_normals(&mesh);
+        let mut inc = Inclusion::with_normals(&mesh, &bvh, &normals);
+        let holds = |t: &[LatticePoint; 4], v: &LatticePoint| tets_intersect(&[*v; 4], t);
+        let (mut inside, mut not) = (0, 0);
+        for k in 0..2000 {
+            let m = super::super::tet_of(&mesh, (k % mesh.tets.len()) as u32);
+            // A tet of points (w·m)/4 with weights summing to 4: inside m; or one vertex
+            // moved a step (8), often out of it.
+            let mut t = [0; 4].map(|_| {
+                let mut w = [0i64; 4];
+                for _ in 0..4 {
+                    w[(rng.next() % 4) as usize] += 1;
+                }
+                [0, 1, 2, 3]
+                    .map(|c| ((0..4).map(|v| w[v] * i64::from(m[v][c])).sum::<i64>() / 4) as i32)
+            });
+            if k % 2 == 1 {
+                t[(rng.next() % 4) as usize][(rng.next() % 4) as usize] += 8;
+            }
+            let p = super::super::walk::interior_point(&t, &super::super::INTERIOR_WEIGHTS[0]);
+            let expected = mesh.tets.iter().any(|x| {
+                let x = x.map(|v| mesh.vertices[v as usize]);
+                t.iter().all(|v| holds(&x, v))
+            });
+            assert_eq!(inc.lies_in_boundary(&p, &t), expected, "tet {t:?}");
+            if expected {
+                inside += 1;
+                for w in &super::super::INTERIOR_WEIGHTS {
+                    let q = super::super::walk::interior_point(&t, w);
+                    assert_eq!(inc.contains(&q), None, "a point of {t:?} on the boundary");
+                }
+            } else {
+                not += 1;
+            }
+        }
+        assert!(inside > 500 && not > 300, "{inside} in, {not} not");
+    }
 
     /// The normal-based side is the sign of orient4 for every tet and point, including
     /// normals reduced by their gcd on coarse-to-fine lattices and far points.

@@ -490,6 +490,16 @@ impl<'a> TetInside<'a> {
 
 impl labels::InsideTest for TetInside<'_> {
     fn far(&mut self, t: u32, tries: usize) -> Option<(bool, LatticePoint)> {
+        // A tet lying in one tet of the other boundary has every point on it: each try
+        // would be undecided.
+        let tet = tet_of(self.mesh, t);
+        if tries > 1
+            && self
+                .inc
+                .lies_in_boundary(&interior_point(&tet, &INTERIOR_WEIGHTS[0]), &tet)
+        {
+            return None;
+        }
         INTERIOR_WEIGHTS.iter().take(tries).find_map(|w| {
             let c = self.interior(t, w);
             self.inc.contains(&c).map(|inside| (inside, c))
