@@ -24,6 +24,14 @@ fn main() -> std::process::ExitCode {
     ) {
         limit_malloc_arenas();
     }
+    // rayon's pool, made here and named (after the allocator's settings: its threads
+    // allocate as they start): its threads would otherwise take the name (and the
+    // scheduling policy) of whichever thread first asks for them, a replay's mesher run
+    // ahead or a live node's thread. Its size is rayon's default (`RAYON_NUM_THREADS`, or
+    // one per core).
+    let _ = rayon::ThreadPoolBuilder::new()
+        .thread_name(|i| format!("rayon {i}"))
+        .build_global();
     match chronotope::cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

@@ -14,10 +14,11 @@
 //! [`CommonLattice::place`]: super::CommonLattice::place
 
 use super::adjacency::AdjacencyBuilder;
-use super::{tet_normal, CHECKER_FACTOR};
+use super::{tet_normal, CHECKER_FACTOR, NO_NORMAL};
 use crate::kernel::bvh::{Aabb4, BvhError, Forest};
 use crate::kernel::LatticePoint;
 use crate::mesh::TetMesh;
+use rayon::prelude::*;
 
 /// Why a body's mesh cannot be prepared.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -51,6 +52,11 @@ pub struct BodyPrep {
 
 /// A prepared vertex not assigned yet.
 const UNSEEN: u32 = u32::MAX;
+
+/// Pieces of at least this many tets get their normals and adjacency at once, on the pool.
+const PARALLEL_PIECE_TETS: usize = 16_384;
+/// Tets per chunk of normals on the pool.
+const NORMAL_CHUNK: usize = 4096;
 
 /// The coordinates, tree and topology [`BodyPrep::finish`] hands over.
 #[derive(Debug)]
@@ -150,13 +156,37 @@ impl BodyPrep {
                 }
                 *slot
             });
-            self.normals
-                .push(tet_normal(tet.map(|v| self.mesh.vertices[v as usize])));
             self.mesh.tets.push(tet);
             self.original.push((done + local as usize) as u32);
         }
-        self.adjacency
-            .add(&self.mesh.tets[first..], self.mesh.vertices.len());
+        // The normals and the face adjacency read the renumbered tets and nothing else of
+        // each other: a big piece gets both at once, its normals in chunks on the pool,
+        // written in place (the result is the same). A window prepared alone (the other
+        // bodies' windows moved or cached) no longer leaves a core idle for it.
+        let (mesh, normals, adjacency) = (&self.mesh, &mut self.normals, &mut self.adjacency);
+        let tets = &mesh.tets[first..];
+        let normal = |t: &[u32; 4]| tet_normal(t.map(|v| mesh.vertices[v as usize]));
+        if tets.len() < PARALLEL_PIECE_TETS {
+            normals.extend(tets.iter().map(normal));
+            adjacency.add(tets, mesh.vertices.len());
+        } else {
+            let from = normals.len();
+            normals.resize(from + tets.len(), NO_NORMAL);
+            let fresh = &mut normals[from..];
+            rayon::join(
+                || {
+                    fresh
+                        .par_chunks_mut(NORMAL_CHUNK)
+                        .zip(tets.par_chunks(NORMAL_CHUNK))
+                        .for_each(|(out, ts)| {
+                            for (n, t) in out.iter_mut().zip(ts) {
+                                *n = normal(t);
+                            }
+                        });
+                },
+                || adjacency.add(tets, mesh.vertices.len()),
+            );
+        }
         Ok(())
     }
 
@@ -252,6 +282,34 @@ mod tests {
 
     fn tet_mesh(vertices: Vec<LatticePoint>, tets: Vec<[u32; 4]>) -> TetMesh {
         TetMesh { vertices, tets }
+    }
+
+    /// A piece big enough for its normals to be computed on the pool, next to small ones:
+    /// every tet's normal is its own, in the prepared order, whichever path made it.
+    #[test]
+    fn normals_match_their_tets_in_big_and_small_pieces() {
+        let mut rng = crate::kernel::intersect::test_rng::Rng(0x5DEE_CE66_D1CE_4E5B);
+        let vertices: Vec<LatticePoint> = (0..5000)
+            .map(|_| [0; 4].map(|_| (rng.next() % 200) as i32 - 100))
+            .collect();
+        let tets: Vec<[u32; 4]> = (0..PARALLEL_PIECE_TETS * 2 + 77)
+            .map(|_| [0; 4].map(|_| (rng.next() % vertices.len() as u64) as u32))
+            .collect();
+        let m = tet_mesh(vertices, tets);
+        for pieces in [vec![], vec![100, 200], vec![PARALLEL_PIECE_TETS + 5]] {
+            let l = BodyPrep::of(&m, &pieces).unwrap();
+            assert_eq!(l.normals.len(), l.mesh.tets.len());
+            for (t, n) in l.mesh.tets.iter().zip(&l.normals) {
+                assert_eq!(*n, tet_normal(t.map(|v| l.mesh.vertices[v as usize])));
+            }
+            // And each prepared tet is its original one, moved onto the checker lattice.
+            for (t, &o) in l.mesh.tets.iter().zip(&l.original) {
+                let p = t.map(|v| l.mesh.vertices[v as usize]);
+                let q =
+                    m.tets[o as usize].map(|v| m.vertices[v as usize].map(|c| c * CHECKER_FACTOR));
+                assert_eq!(p, q);
+            }
+        }
     }
 
     #[test]
