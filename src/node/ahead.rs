@@ -11,7 +11,6 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
-use std::time::{Duration, Instant};
 
 use super::{Message, Node, NodeStatus, TopicRef};
 
@@ -25,10 +24,9 @@ pub(crate) enum Event {
     Finish,
 }
 
-/// What the node published for one event, with its handler's wall time and its status after.
+/// What the node published for one event, and its status after.
 struct Reply {
     out: Vec<Message>,
-    busy: Duration,
     status: NodeStatus,
 }
 
@@ -49,11 +47,13 @@ impl Feed {
         let _ = self.events.send(event);
     }
 
-    /// Whether the node reads `msg` (the bus's routing: its topic, with the right type).
-    pub fn takes(&self, msg: &Message) -> bool {
+    /// How many times the bus delivers `msg` to the node: once per subscription to its
+    /// topic with its type (the bus routes each subscription).
+    pub fn takes(&self, msg: &Message) -> usize {
         self.subscriptions
             .iter()
-            .any(|s| *s.topic == *msg.topic && s.type_name == msg.payload.type_name())
+            .filter(|s| *s.topic == *msg.topic && s.type_name == msg.payload.type_name())
+            .count()
     }
 }
 
@@ -70,8 +70,6 @@ pub(crate) struct AheadNode {
     worker: Option<JoinHandle<Box<dyn Node>>>,
     /// The node, back from its thread once it has finished.
     home: Option<Box<dyn Node>>,
-    /// Its handlers' wall time on its thread.
-    pub busy: Duration,
 }
 
 impl AheadNode {
@@ -91,7 +89,6 @@ impl AheadNode {
                 // Ends when the bus is gone (every sender dropped) or after `Finish`.
                 while let Ok(event) = inbox.recv() {
                     let mut out = Vec::new();
-                    let t = Instant::now();
                     let last = matches!(event, Event::Finish);
                     match event {
                         Event::Message(m) => node.on_message(&m, &mut out),
@@ -100,7 +97,6 @@ impl AheadNode {
                     }
                     let reply = Reply {
                         out,
-                        busy: t.elapsed(),
                         status: node.status().clone(),
                     };
                     if outbox.send(reply).is_err() || last {
@@ -131,7 +127,6 @@ impl AheadNode {
                 replies,
                 worker: Some(worker),
                 home: None,
-                busy: Duration::ZERO,
             },
             feed,
         )
@@ -153,7 +148,6 @@ impl AheadNode {
         match reply {
             Ok(r) => {
                 out.extend(r.out);
-                self.busy += r.busy;
                 self.status = r.status;
             }
             // The worker is gone: its node panicked. Raise the panic here, as the node's

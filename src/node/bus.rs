@@ -139,9 +139,12 @@ impl Bus {
     fn announce(&self, step: &Step) {
         for f in &self.feeds {
             match step {
-                Step::Message(m) if f.takes(m) => f.send(Event::Message(m.clone())),
+                Step::Message(m) => {
+                    for _ in 0..f.takes(m) {
+                        f.send(Event::Message(m.clone()));
+                    }
+                }
                 Step::Tick(now) => f.send(Event::Tick(*now)),
-                Step::Message(_) => {}
             }
         }
     }
@@ -272,7 +275,8 @@ impl Bus {
 
     /// Name of every node and the wall time (s) it spent in its handlers so far (on the
     /// threads it ran on: a node whose work is split over rayon's pool counts its wall time
-    /// once, not the pool's CPU time).
+    /// once, not the pool's CPU time; for a node run ahead, the time the bus waited for
+    /// its outputs).
     pub fn busy_s(&self) -> Vec<(&str, f64)> {
         self.nodes
             .iter()
@@ -308,6 +312,8 @@ mod tests {
         seen: i64,
         sleep_us: u64,
         panic_at: Option<i64>,
+        /// Subscriptions to `input` (the bus delivers a message once per subscription).
+        copies: usize,
         status: NodeStatus,
     }
 
@@ -320,6 +326,7 @@ mod tests {
                 seen: 0,
                 sleep_us: 0,
                 panic_at: None,
+                copies: 1,
                 status: NodeStatus::default(),
             })
         }
@@ -333,10 +340,13 @@ mod tests {
             &self.name
         }
         fn subscriptions(&self) -> Vec<TopicRef> {
-            vec![TopicRef {
-                topic: self.input.into(),
-                type_name: <Clock as RosMessage>::TYPE_NAME,
-            }]
+            vec![
+                TopicRef {
+                    topic: self.input.into(),
+                    type_name: <Clock as RosMessage>::TYPE_NAME,
+                };
+                self.copies
+            ]
         }
         fn publications(&self) -> Vec<TopicRef> {
             vec![TopicRef {
@@ -377,12 +387,14 @@ mod tests {
         }
     }
 
-    /// Two nodes reading only `/in` (both run ahead) and a node reading the first one's
-    /// output (so not run ahead).
+    /// Two nodes reading only `/in` (both run ahead; the second subscribes twice, so it
+    /// gets each message twice) and a node reading the first one's output (so not run
+    /// ahead).
     fn nodes(sleep_us: u64) -> Vec<Box<dyn Node>> {
         let mut source = Counter::boxed("/source", "/in", "/mid");
         source.sleep_us = sleep_us;
-        let other = Counter::boxed("/other", "/in", "/side");
+        let mut other = Counter::boxed("/other", "/in", "/side");
+        other.copies = 2;
         let after = Counter::boxed("/after", "/mid", "/out");
         vec![source, other, after]
     }
@@ -439,8 +451,11 @@ mod tests {
     #[test]
     fn a_node_run_ahead_publishes_the_same_messages_in_the_same_order() {
         let plain = run(None, 0);
-        assert_eq!(plain.1, 2, "the mistyped message, for each reader of /in");
-        assert_eq!(plain.2, vec![40, 40, plain.2[2]]);
+        assert_eq!(
+            plain.1, 3,
+            "the mistyped message, for each subscription to /in"
+        );
+        assert_eq!(plain.2, vec![40, 80, plain.2[2]]);
         for depth in [0, 1, 2, 5, 64] {
             for sleep_us in [0, 200] {
                 assert_eq!(run(Some(depth), sleep_us), plain, "depth {depth}");
