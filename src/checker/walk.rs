@@ -501,7 +501,7 @@ impl labels::InsideTest for TetInside<'_> {
             return None;
         }
         INTERIOR_WEIGHTS.iter().take(tries).find_map(|w| {
-            let c = self.interior(t, w);
+            let c = interior_point(&tet, w);
             self.inc.contains(&c).map(|inside| (inside, c))
         })
     }

@@ -61,7 +61,6 @@ impl Feed {
 /// node's reply to the event the bus announced for that turn.
 pub(crate) struct AheadNode {
     name: String,
-    subscriptions: Vec<TopicRef>,
     publications: Vec<TopicRef>,
     rank: u8,
     status: NodeStatus,
@@ -107,19 +106,18 @@ impl AheadNode {
             })
             .expect("a thread for a node run ahead");
         let feed = Feed {
-            subscriptions: subscriptions.clone(),
+            subscriptions,
             events,
             owed: Arc::new(AtomicUsize::new(0)),
         };
         let mine = Feed {
-            subscriptions: subscriptions.clone(),
+            subscriptions: feed.subscriptions.clone(),
             events: feed.events.clone(),
             owed: feed.owed.clone(),
         };
         (
             Self {
                 name,
-                subscriptions,
                 publications,
                 rank,
                 status,
@@ -175,7 +173,7 @@ impl Node for AheadNode {
         &self.name
     }
     fn subscriptions(&self) -> Vec<TopicRef> {
-        self.subscriptions.clone()
+        self.feed.subscriptions.clone()
     }
     fn publications(&self) -> Vec<TopicRef> {
         self.publications.clone()
