@@ -113,14 +113,14 @@ fn touch_or_no(p: &LatticePoint, q: &LatticePoint, t: &[LatticePoint; 4]) -> Cro
 fn in_tet_on_hyperplane(p: &LatticePoint, t: &[LatticePoint; 4]) -> bool {
     for k in 0..4 {
         let drop = |x: &LatticePoint| {
-            let mut out = [0i128; 3];
+            let mut out = [0i64; 3];
             for (o, j) in out.iter_mut().zip((0..4).filter(|&j| j != k)) {
-                *o = i128::from(x[j]);
+                *o = i64::from(x[j]);
             }
             out
         };
         let q = t.map(|v| drop(&v));
-        let o = orient3(&q).signum();
+        let o = orient3(&q);
         if o == 0 {
             continue;
         }
@@ -128,15 +128,28 @@ fn in_tet_on_hyperplane(p: &LatticePoint, t: &[LatticePoint; 4]) -> bool {
         return (0..4).all(|i| {
             let mut r = q;
             r[i] = pk;
-            orient3(&r).signum() * o >= 0
+            orient3(&r) * o >= 0
         });
     }
     tets_intersect(&[*p; 4], t)
 }
 
-/// det[b − a, c − a, d − a] of a 3D tet with `i32` coordinates (below 2^99: exact).
-fn orient3(t: &[[i128; 3]; 4]) -> i128 {
+/// The sign of det[b − a, c − a, d − a] of a 3D tet with `i32` coordinates (exact).
+fn orient3(t: &[[i64; 3]; 4]) -> i8 {
     let e = [1, 2, 3].map(|i| [0, 1, 2].map(|k| t[i][k] - t[0][k]));
+    // Edges below 2^20 (every voxel-sized tet, and a point near it) keep each triple
+    // product below 2^60 and the sum of six below 2^63: i64 is exact there. Longer edges
+    // (below 2^32) take i128, whose products stay below 2^99.
+    if e.iter().flatten().all(|c| c.unsigned_abs() < 1 << 20) {
+        return det3(e).signum() as i8;
+    }
+    det3(e.map(|r| r.map(i128::from))).signum() as i8
+}
+
+fn det3<T>(e: [[T; 3]; 3]) -> T
+where
+    T: Copy + std::ops::Mul<Output = T> + std::ops::Sub<Output = T> + std::ops::Add<Output = T>,
+{
     e[0][0] * (e[1][1] * e[2][2] - e[1][2] * e[2][1])
         - e[0][1] * (e[1][0] * e[2][2] - e[1][2] * e[2][0])
         + e[0][2] * (e[1][0] * e[2][1] - e[1][1] * e[2][0])
@@ -178,6 +191,24 @@ impl<'a> Inclusion<'a> {
         for (k, f) in self.far.iter_mut().enumerate() {
             let t = i64::from(t0) + span * (k as i64 + 1) / (FAR_POINTS as i64 + 1);
             f[3] = t as i32;
+        }
+        self
+    }
+
+    /// Far points beyond the box `full` (spatial, holding the whole mesh the tests stand
+    /// for, of which this one may be a part) on each axis's chosen side: below it where
+    /// `low`, above it otherwise. The time coordinate is kept.
+    #[must_use]
+    pub fn far_beyond(mut self, full: ([i64; 3], [i64; 3]), low: [bool; 3]) -> Self {
+        for (f, o) in self.far.iter_mut().zip(FAR_OFFSETS) {
+            for k in 0..3 {
+                let at = if low[k] {
+                    full.0[k] - i64::from(o[k])
+                } else {
+                    full.1[k] + i64::from(o[k])
+                };
+                f[k] = at.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+            }
         }
         self
     }
@@ -347,6 +378,29 @@ mod tests {
             }
         }
         assert!(inside > 500 && not > 300, "{inside} in, {not} not");
+    }
+
+    /// The 3D orientation's i64 shortcut against i128 throughout, for tets of every size
+    /// up to the checker's range (the shortcut is taken below 2^20 per edge).
+    #[test]
+    fn orient3_is_exact_for_small_and_large_tets() {
+        let mut rng = Rng(0x2545_F491_4F6C_DD1D);
+        let mut signs = [0usize; 3];
+        for size in [3i64, 1 << 10, (1 << 20) - 1, 1 << 20, 1 << 30] {
+            for _ in 0..2000 {
+                let at = [0; 3].map(|_| (rng.next() % (1 << 30)) as i64 - (1 << 29));
+                let mut t = [0; 4].map(|_| at.map(|x| x + (rng.next() % (size as u64 + 1)) as i64));
+                if rng.next() % 3 == 0 {
+                    // Flat: the fourth point on the plane of the first three.
+                    t[3] = [0, 1, 2].map(|k| t[1][k] + t[2][k] - t[0][k]);
+                }
+                let e = [1, 2, 3].map(|i| [0, 1, 2].map(|k| i128::from(t[i][k] - t[0][k])));
+                let expected = det3(e).signum() as i8;
+                assert_eq!(orient3(&t), expected, "{t:?}");
+                signs[(expected + 1) as usize] += 1;
+            }
+        }
+        assert!(signs.iter().all(|&n| n > 1000), "{signs:?}");
     }
 
     /// The normal-based side is the sign of orient4 for every tet and point, including

@@ -96,6 +96,12 @@ pub trait InsideTest {
     ) -> Option<(bool, LatticePoint)>;
     /// An interior point of tet `t`.
     fn point(&self, t: u32) -> LatticePoint;
+    /// Whether tet `t` lies in one tet of the other boundary (then every point of it is on
+    /// that boundary: [`Self::far`] and [`Self::from_known`] answer `None`). `false` when
+    /// not known.
+    fn lies_in_boundary(&mut self, _t: u32) -> bool {
+        false
+    }
 }
 
 /// Labels every tet. `touch[t]` says how tet `t` meets the other boundary.
@@ -157,6 +163,17 @@ pub fn label_regions(
                 .any(|&u| (u as usize) < n && decided[u as usize])
         })
         .collect();
+    // Queues the contact neighbours of `t` not yet decided.
+    let push_contact_neighbours = |t: u32, done: &[bool], queue: &mut VecDeque<u32>| {
+        for &u in &adjacency[t as usize] {
+            if (u as usize) < n
+                && !done[u as usize]
+                && matches!(touch[u as usize], Touch::Contact | Touch::FaceToFace)
+            {
+                queue.push_back(u);
+            }
+        }
+    };
     // Records a contact tet's verdict.
     let decide = |t: u32, verdict: Option<(bool, LatticePoint)>, st: &mut State| {
         st.done[t as usize] = true;
@@ -191,6 +208,13 @@ pub fn label_regions(
         if st.done[t as usize] {
             continue;
         }
+        // A tet face to face with the other body mostly lies in one of its tets: every
+        // test would be undecided, so none is made.
+        if touch[t as usize] == Touch::FaceToFace && test.lies_in_boundary(t) {
+            decide(t, None, &mut st);
+            push_contact_neighbours(t, &st.done, &mut queue);
+            continue;
+        }
         let reference = adjacency[t as usize].iter().find_map(|&u| {
             if u as usize >= n || !st.decided[u as usize] {
                 return None;
@@ -202,14 +226,7 @@ pub fn label_regions(
             .and_then(|(q, q_inside)| test.from_known(t, &q, q_inside))
             .or_else(|| test.far(t, usize::MAX));
         decide(t, verdict, &mut st);
-        for &u in &adjacency[t as usize] {
-            if (u as usize) < n
-                && !st.done[u as usize]
-                && matches!(touch[u as usize], Touch::Contact | Touch::FaceToFace)
-            {
-                queue.push_back(u);
-            }
-        }
+        push_contact_neighbours(t, &st.done, &mut queue);
     }
     for &t in &contact {
         if !st.done[t as usize] {

@@ -171,6 +171,20 @@ pub(super) fn sides(n: &[i32; 4], p: &[LatticePoint; 4], q: &[LatticePoint; 4]) 
     Some(q.map(|x| side(&x)))
 }
 
+/// Parallel normals `na` and `nb` (of tets in one hyperplane) point opposite ways: the
+/// tets' orientations differ, as [`crate::kernel::classify`] compares them (the sign of
+/// the first coordinate where `na` is not zero). False for a zero normal or
+/// [`NO_NORMAL`].
+pub(super) fn facing(na: &[i32; 4], nb: &[i32; 4]) -> bool {
+    if *na == NO_NORMAL || *nb == NO_NORMAL {
+        return false;
+    }
+    match na.iter().position(|&c| c != 0) {
+        Some(k) => nb[k] != 0 && (na[k] > 0) != (nb[k] > 0),
+        None => false,
+    }
+}
+
 /// All vertices strictly on one side: the closed tets are disjoint.
 pub(super) fn strictly_one_side(s: &[i8; 4]) -> bool {
     s[0] != 0 && s[1] == s[0] && s[2] == s[0] && s[3] == s[0]

@@ -58,7 +58,72 @@ pub struct WindowBody<'a> {
     pub mul: i64,
     /// See `mul`.
     pub add: [i64; 4],
+    /// If set, the box (checker coordinates on the pair's lattice) the partners' windows
+    /// lie in: only the tets a partner's check can need are prepared (see [`Clip`]).
+    pub clip: Option<SpatialBox>,
 }
+
+/// Which tets of a window are prepared when its partners lie in a box, and how inclusion
+/// tests against it are made so that they need no other.
+///
+/// On each spatial axis the far points of the inclusion tests against this window lie
+/// beyond the whole window on one side (`far_low`: below its minimum, else above its
+/// maximum), and the tets kept are those that reach the partners' box or that side of
+/// it. A segment from a partner's point to a far point then only meets kept tets; a
+/// partner's tets meet only kept tets; and a tet left out is apart from the partners'
+/// box, so it is OUTSIDE.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Clip {
+    /// The partners' box.
+    pub near: SpatialBox,
+    /// Per axis, whether the far points lie below the window (tets above the partners'
+    /// box are left out) or above it (those below are).
+    pub far_low: [bool; 3],
+    /// The whole window's box.
+    pub full: SpatialBox,
+}
+
+impl Clip {
+    /// Whether a tet with coordinates `c` (per axis, its four vertices') is kept.
+    fn keeps(&self, c: &[[i64; 4]; 3]) -> bool {
+        (0..3).all(|k| {
+            if self.far_low[k] {
+                c[k].iter().any(|&x| x <= self.near.1[k])
+            } else {
+                c[k].iter().any(|&x| x >= self.near.0[k])
+            }
+        })
+    }
+
+    /// Whether every tet a partner in box `b` can need is kept.
+    fn serves(&self, b: &SpatialBox) -> bool {
+        (0..3).all(|k| {
+            if self.far_low[k] {
+                b.1[k] <= self.near.1[k]
+            } else {
+                self.near.0[k] <= b.0[k]
+            }
+        })
+    }
+
+    fn moved(&self, d: [i64; 3]) -> Self {
+        let m = |b: &SpatialBox| (add3(b.0, d), add3(b.1, d));
+        Clip {
+            near: m(&self.near),
+            far_low: self.far_low,
+            full: m(&self.full),
+        }
+    }
+}
+
+/// `a + d` on each spatial axis.
+pub(crate) fn add3(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+    [a[0] + d[0], a[1] + d[1], a[2] + d[2]]
+}
+
+/// A closed box in space, `(min, max)` on x, y, z (checker coordinates on a pair's
+/// lattice).
+pub type SpatialBox = ([i64; 3], [i64; 3]);
 
 /// Why a window cannot be checked.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -95,6 +160,8 @@ pub struct PreparedWindow {
     pub taken: [Range<usize>; 3],
     /// Checker times of the centre slab's two frames on the pair's lattice.
     pub band: (i32, i32),
+    /// How its tets were clipped (see [`WindowBody::clip`]); `None`: every tet is kept.
+    pub clip: Option<Clip>,
 }
 
 impl PreparedWindow {
@@ -103,12 +170,36 @@ impl PreparedWindow {
         self.taken.iter().map(|r| r.len()).sum()
     }
 
+    /// Whether this window can be checked against a partner window lying in the box
+    /// `partner` (see [`Clip`]).
+    pub fn serves(&self, partner: &SpatialBox) -> bool {
+        self.clip.is_none_or(|c| c.serves(partner))
+    }
+
+    /// Inclusion tests against this window (far points as its [`Clip`] needs them).
+    fn inclusion(&self) -> Inclusion<'_> {
+        let inc = Inclusion::with_normals(&self.body.mesh, &self.body.bvh, &self.body.normals);
+        match &self.clip {
+            Some(c) => inc.far_beyond(c.full, c.far_low),
+            None => inc,
+        }
+    }
+
+    /// The box the whole window (every tet, kept or not) lies in.
+    fn reach(&self) -> SpatialBox {
+        match &self.clip {
+            Some(c) => c.full,
+            None => {
+                let b = self.body.bvh.aabb();
+                (
+                    [0, 1, 2].map(|k| i64::from(b.min[k])),
+                    [0, 1, 2].map(|k| i64::from(b.max[k])),
+                )
+            }
+        }
+    }
+
     /// Position of window tet `original` among the taken tets (piece order), if taken.
-    ///
-    /// Given a leaf index instead, it is the position in leaf order: each piece keeps its
-    /// range of indices in both orders, and its tets in leaf order are the order the full
-    /// check's streamed preparation gives them, so this position plus the piece's first tet
-    /// is the tet's leaf index in the full check.
     fn position(&self, original: u32) -> Option<u32> {
         let o = original as usize;
         let mut before = 0;
@@ -152,6 +243,41 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
         ranges.push(start..mesh.tets.len());
     }
     let centre = w.centre + usize::from(w.low.is_some());
+    // Only the tets the partners can need, if clipped; `kept` maps their new indices to
+    // the window mesh's.
+    let f = i64::from(CHECKER_FACTOR) * w.mul;
+    let coords = |t: &[u32; 4]| {
+        [0, 1, 2].map(|k| t.map(|v| i64::from(mesh.vertices[v as usize][k]) * f + w.add[k]))
+    };
+    let clip = w.clip.and_then(|near| {
+        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+        for t in &mesh.tets {
+            for (k, c) in coords(t).iter().enumerate() {
+                lo[k] = lo[k].min(c.iter().copied().min().unwrap_or(lo[k]));
+                hi[k] = hi[k].max(c.iter().copied().max().unwrap_or(hi[k]));
+            }
+        }
+        // Far points on the side where more of the window lies beyond the partners.
+        let far_low = [0, 1, 2].map(|k| hi[k] - near.1[k] > near.0[k] - lo[k]);
+        (lo[0] <= hi[0]).then_some(Clip {
+            near,
+            far_low,
+            full: (lo, hi),
+        })
+    });
+    let mut kept: Option<Vec<u32>> = None;
+    if let Some(c) = &clip {
+        let keep: Vec<u32> = (0..mesh.tets.len() as u32)
+            .filter(|&t| c.keeps(&coords(&mesh.tets[t as usize])))
+            .collect();
+        if keep.len() < mesh.tets.len() {
+            for start in &mut pieces {
+                *start = keep.partition_point(|&t| (t as usize) < *start);
+            }
+            mesh.tets = keep.iter().map(|&t| mesh.tets[t as usize]).collect();
+            kept = Some(keep);
+        }
+    }
     let empty = 0..0;
     let taken = [
         if w.centre == 0 && w.low.is_some() {
@@ -166,8 +292,14 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
             empty
         },
     ];
-    let local =
+    let mut local =
         BodyPrep::of(&mesh, &pieces).map_err(|source| WindowError::Prep { id: id(), source })?;
+    drop(mesh);
+    if let Some(keep) = &kept {
+        for o in &mut local.original {
+            *o = keep[*o as usize];
+        }
+    }
     let mut body = Prepared {
         id: w.id.to_string(),
         mesh: local.mesh,
@@ -188,7 +320,12 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
         i32::try_from(frame * period * w.mul + w.add[3]).map_err(|_| overflow())
     };
     let band = (time(w.centre as i64)?, time(w.centre as i64 + 1)?);
-    Ok(PreparedWindow { body, taken, band })
+    Ok(PreparedWindow {
+        body,
+        taken,
+        band,
+        clip,
+    })
 }
 
 impl PreparedWindow {
@@ -199,10 +336,12 @@ impl PreparedWindow {
     pub fn moved_by(&self, d: [i64; 4]) -> Option<PreparedWindow> {
         let body = self.body.mapped([1; 4], d)?;
         let moved = |t: i32| i32::try_from(i64::from(t) + d[3]).ok();
+        let clip = self.clip.map(|c| c.moved([d[0], d[1], d[2]]));
         Some(PreparedWindow {
             body,
             taken: self.taken.clone(),
             band: (moved(self.band.0)?, moved(self.band.1)?),
+            clip,
         })
     }
 }
@@ -212,7 +351,7 @@ impl PreparedWindow {
 pub struct Crossing {
     /// Checker-time range of the section.
     pub t: (f64, f64),
-    /// Positions of the two tets among their bodies' taken tets, in leaf order (see
+    /// Positions of the two tets among their bodies' taken tets, in piece order (see
     /// [`PreparedWindow::position`]).
     pub tets: (u32, u32),
     /// Their hyperplane normals (exact integers in `f64`, so sums are exact).
@@ -259,15 +398,18 @@ pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
     };
     for (k, (w, (labels, _))) in [(a, la), (b, lb)].into_iter().enumerate() {
         let mut counts = LabelCounts::default();
+        for &l in &labels {
+            match l {
+                x if x == Label::Interference as u8 => counts.interference += 1,
+                x if x == Label::Inside as u8 => counts.inside += 1,
+                _ => counts.outside += 1,
+            }
+        }
+        // A tet left out by a clip is OUTSIDE: the INSIDE ones are all prepared.
         for (leaf, &orig) in w.body.original.iter().enumerate() {
             let Some(p) = w.position(orig) else { continue };
-            match labels[p as usize] {
-                x if x == Label::Interference as u8 => counts.interference += 1,
-                x if x == Label::Inside as u8 => {
-                    counts.inside += 1;
-                    out.ranges.push(t_range(&tet_of(&w.body.mesh, leaf as u32)));
-                }
-                _ => counts.outside += 1,
+            if labels[p as usize] == Label::Inside as u8 {
+                out.ranges.push(t_range(&tet_of(&w.body.mesh, leaf as u32)));
             }
         }
         out.labels[k] = TakenLabels {
@@ -277,7 +419,10 @@ pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
         };
     }
     for &(t0, t1, i, j) in &all.ranges {
-        let (Some(pa), Some(pb)) = (a.position(i), b.position(j)) else {
+        let (Some(pa), Some(pb)) = (
+            a.position(a.body.original[i as usize]),
+            b.position(b.body.original[j as usize]),
+        ) else {
             continue;
         };
         out.ranges.push((t0, t1));
@@ -303,8 +448,19 @@ fn label_taken(p: &PreparedWindow, other: &PreparedWindow, hit: &[Touch]) -> (Ve
     let n = p.body.mesh.tets.len();
     let mut leaves: Vec<u32> = Vec::with_capacity(p.taken_len());
     let mut compact = vec![u32::MAX; n];
+    // The other window lies in its box: a tet whose box is apart from it in space meets
+    // none of its tets and lies outside the other body at every time of the band, so it
+    // is OUTSIDE without a test (and the regions to test are only those near the other).
+    let (lo, hi) = other.reach();
+    let near = |leaf: usize| {
+        let tet = tet_of(&p.body.mesh, leaf as u32);
+        (0..3).all(|k| {
+            tet.iter().any(|v| i64::from(v[k]) <= hi[k])
+                && tet.iter().any(|v| i64::from(v[k]) >= lo[k])
+        })
+    };
     for (leaf, &orig) in p.body.original.iter().enumerate() {
-        if p.position(orig).is_some() {
+        if p.position(orig).is_some() && near(leaf) {
             compact[leaf] = leaves.len() as u32;
             leaves.push(leaf as u32);
         }
@@ -323,8 +479,7 @@ fn label_taken(p: &PreparedWindow, other: &PreparedWindow, hit: &[Touch]) -> (Ve
     let mut test = Taken {
         inner: TetInside {
             mesh: &p.body.mesh,
-            inc: Inclusion::with_normals(&other.body.mesh, &other.body.bvh, &other.body.normals)
-                .within_time(p.band.0, p.band.1),
+            inc: other.inclusion().within_time(p.band.0, p.band.1),
         },
         leaves: &leaves,
     };
@@ -359,6 +514,9 @@ impl InsideTest for Taken<'_> {
         q_inside: bool,
     ) -> Option<(bool, LatticePoint)> {
         self.inner.from_known(self.leaves[t as usize], q, q_inside)
+    }
+    fn lies_in_boundary(&mut self, t: u32) -> bool {
+        self.inner.lies_in_boundary(self.leaves[t as usize])
     }
     fn point(&self, t: u32) -> LatticePoint {
         self.inner.point(self.leaves[t as usize])

@@ -36,7 +36,8 @@ use super::bounds;
 use super::labels::{Label, LabelCounts};
 
 use super::window::{
-    check_window, prepare_window, PreparedWindow, TakenLabels, WindowBody, WindowResult,
+    add3, check_window, prepare_window, PreparedWindow, SpatialBox, TakenLabels, WindowBody,
+    WindowResult,
 };
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
@@ -1088,29 +1089,46 @@ impl RollingChecker {
             return Vec::new();
         }
         // Each distinct body window once: a body in several pairs often has the same
-        // window in each (the same pieces and placement).
-        let mut distinct: Vec<(&str, &WindowSpec)> = Vec::new();
+        // window in each (the same pieces and placement). It holds the tets near any of
+        // its partners' windows (the box around them all).
+        let mut distinct: Vec<(&str, &WindowSpec, SpatialBox)> = Vec::new();
         for (i, _, wa, wb) in &ready {
             let p = &self.pairs[*i];
-            for (id, w) in [(p.a.as_str(), wa), (p.b.as_str(), wb)] {
-                let known = cached(&self.prepared, id, w).is_some()
-                    || distinct.iter().any(|(d, x)| *d == id && x.same_as(w));
-                if !known {
-                    distinct.push((id, w));
+            for (id, w, partner) in [(p.a.as_str(), wa, wb), (p.b.as_str(), wb, wa)] {
+                let Some(near) = partner.spatial_box() else {
+                    continue;
+                };
+                if cached(&self.prepared, id, w, &near).is_some() {
+                    continue;
+                }
+                match distinct
+                    .iter_mut()
+                    .find(|(d, x, _)| *d == id && x.same_as(w))
+                {
+                    Some((_, _, clip)) => {
+                        *clip = (
+                            [0, 1, 2].map(|k| clip.0[k].min(near.0[k])),
+                            [0, 1, 2].map(|k| clip.1[k].max(near.1[k])),
+                        );
+                    }
+                    None => distinct.push((id, w, near)),
                 }
             }
         }
         // A window that fails to prepare is prepared again by its pair, for the error.
         let shared: Vec<Option<Arc<PreparedWindow>>> = distinct
             .par_iter()
-            .map(|(id, w)| self.moved(id, w).or_else(|| prepare_spec(id, w).ok()))
+            .map(|(id, w, clip)| {
+                self.moved(id, w, clip)
+                    .or_else(|| prepare_spec(id, w, Some(*clip)).ok())
+            })
             .collect();
-        let ready_for = |id: &str, w: &WindowSpec| {
-            cached(&self.prepared, id, w).or_else(|| {
+        let ready_for = |id: &str, w: &WindowSpec, partner: &SpatialBox| {
+            cached(&self.prepared, id, w, partner).or_else(|| {
                 let n = distinct
                     .iter()
-                    .position(|(d, x)| *d == id && x.same_as(w))?;
-                shared.get(n)?.clone()
+                    .position(|(d, x, _)| *d == id && x.same_as(w))?;
+                shared.get(n)?.clone().filter(|p| p.serves(partner))
             })
         };
         ready

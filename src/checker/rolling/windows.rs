@@ -278,8 +278,8 @@ impl RollingChecker {
             });
             let result = match ahead {
                 Some(n) => self.prefetched.swap_remove(n).result,
-                None => check_specs((&a, &wa), (&b, &wb), |id, w| {
-                    cached(&self.prepared, id, w).or_else(|| self.moved(id, w))
+                None => check_specs((&a, &wa), (&b, &wb), |id, w, partner| {
+                    cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
                 }),
             };
             match result {
@@ -666,18 +666,25 @@ pub(super) fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
 /// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
 ///
 /// A body's window already prepared (for another pair's period: `ready` gives it, when it
-/// is the same window) is not prepared again; the two prepared windows are returned with
-/// the result, for the cache.
+/// is the same window and holds every tet near the partner's box) is not prepared again;
+/// one prepared here holds only the tets near the partner's box. The two prepared windows
+/// are returned with the result, for the cache.
 pub(super) fn check_specs(
     (a, wa): (&str, &WindowSpec),
     (b, wb): (&str, &WindowSpec),
-    ready: impl Fn(&str, &WindowSpec) -> Option<Arc<PreparedWindow>> + Sync,
+    ready: impl Fn(&str, &WindowSpec, &SpatialBox) -> Option<Arc<PreparedWindow>> + Sync,
 ) -> WindowChecked {
-    let prepared = |id: &str, w: &WindowSpec| match ready(id, w) {
-        Some(p) => Ok(p),
-        None => prepare_spec(id, w),
+    let prepared = |id: &str, w: &WindowSpec, partner: Option<SpatialBox>| {
+        let Some(partner) = partner else {
+            return prepare_spec(id, w, None);
+        };
+        match ready(id, w, &partner) {
+            Some(p) => Ok(p),
+            None => prepare_spec(id, w, Some(partner)),
+        }
     };
-    let (ra, rb) = rayon::join(|| prepared(a, wa), || prepared(b, wb));
+    let (ba, bb) = (wa.spatial_box(), wb.spatial_box());
+    let (ra, rb) = rayon::join(|| prepared(a, wa, bb), || prepared(b, wb, ba));
     let (pa, pb) = (ra?, rb?);
     Ok((check_window(&pa, &pb), [pa, pb]))
 }
@@ -685,35 +692,47 @@ pub(super) fn check_specs(
 impl RollingChecker {
     /// Body `id`'s window `w` as a window prepared before (for an earlier period, kept in
     /// the cache or for a body at rest) moved, if `w` is that window's moved copy
-    /// ([`WindowSpec::moved_copy_of`]).
-    pub(super) fn moved(&self, id: &str, w: &WindowSpec) -> Option<Arc<PreparedWindow>> {
+    /// ([`WindowSpec::moved_copy_of`]) and, moved, it serves a partner in box `partner`.
+    pub(super) fn moved(
+        &self,
+        id: &str,
+        w: &WindowSpec,
+        partner: &SpatialBox,
+    ) -> Option<Arc<PreparedWindow>> {
         [self.prepared.get(id), self.rest.get(id)]
             .into_iter()
             .flatten()
             .find_map(|(spec, p, _)| {
                 let d = w.moved_copy_of(spec)?;
-                p.moved_by(d).map(Arc::new)
+                let back = [-d[0], -d[1], -d[2]];
+                let partner_back = (add3(partner.0, back), add3(partner.1, back));
+                p.serves(&partner_back)
+                    .then(|| p.moved_by(d).map(Arc::new))
+                    .flatten()
             })
     }
 }
 
-/// Prepares body `id`'s window.
+/// Prepares body `id`'s window, only its tets near `clip` if given.
 pub(super) fn prepare_spec(
     id: &str,
     w: &WindowSpec,
+    clip: Option<SpatialBox>,
 ) -> Result<Arc<PreparedWindow>, crate::checker::window::WindowError> {
-    prepare_window(&w.body(id)).map(Arc::new)
+    prepare_window(&w.body(id, clip)).map(Arc::new)
 }
 
-/// The window prepared for body `id` in `cache`, if it is the same window as `w`.
+/// The window prepared for body `id` in `cache`, if it is the same window as `w` and
+/// serves a partner in box `partner`.
 pub(super) fn cached(
     cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
     id: &str,
     w: &WindowSpec,
+    partner: &SpatialBox,
 ) -> Option<Arc<PreparedWindow>> {
     cache
         .get(id)
-        .filter(|c| c.0.same_as(w))
+        .filter(|c| c.0.same_as(w) && c.1.serves(partner))
         .map(|c| c.1.clone())
 }
 
@@ -802,7 +821,7 @@ impl WindowSpec {
 
     /// The box of every vertex of the window on the pair's lattice, spatial axes only
     /// (`None` for a window without vertices).
-    fn spatial_box(&self) -> Option<([i64; 3], [i64; 3])> {
+    pub(super) fn spatial_box(&self) -> Option<SpatialBox> {
         let mut lo = [i64::MAX; 3];
         let mut hi = [i64::MIN; 3];
         let parts = self
@@ -853,7 +872,7 @@ impl WindowSpec {
         }
     }
 
-    fn body<'a>(&'a self, id: &'a str) -> WindowBody<'a> {
+    fn body<'a>(&'a self, id: &'a str, clip: Option<SpatialBox>) -> WindowBody<'a> {
         WindowBody {
             id,
             geometry: self.geometry,
@@ -864,6 +883,7 @@ impl WindowSpec {
             high: self.high.as_deref(),
             mul: self.mul,
             add: self.add,
+            clip,
         }
     }
 }
@@ -935,6 +955,72 @@ mod tests {
         }
     }
 
+    /// Two windows checked with each prepared only near the other (and inclusion tests
+    /// towards far points on the side its clip chose) give every label, count, crossing
+    /// and range the full windows give: a small body moved all around and through a
+    /// bigger one (apart, touching, crossing, nested, and at the bigger one's hollow).
+    #[test]
+    fn windows_prepared_near_their_partner_answer_as_whole_ones() {
+        let big = crate::mesh::mesher::test_stream([12; 3], 3, |k, x, y, z| {
+            let x = x - i32::from(k >= 2);
+            let shell = (2..10).contains(&x) && (2..9).contains(&y) && (3..8).contains(&z);
+            let hollow = (4..7).contains(&x) && (4..7).contains(&y) && (5..7).contains(&z);
+            shell && !hollow
+        })
+        .1;
+        let small = crate::mesh::mesher::test_stream([12; 3], 3, |k, x, y, z| {
+            (x - 3 - i32::from(k >= 1)).pow(2) + (y - 3).pow(2) + (z - 3).pow(2) <= 2
+        })
+        .1;
+        let geometry = big[0].geometry;
+        let (big, small): (Vec<Arc<TetMesh>>, Vec<Arc<TetMesh>>) = (
+            big.into_iter().map(|s| Arc::new(s.mesh)).collect(),
+            small.into_iter().map(|s| Arc::new(s.mesh)).collect(),
+        );
+        let f = i64::from(CHECKER_FACTOR) * i64::from(geometry.scale);
+        let (mut clipped, mut inside, mut crossing) = (0, 0, 0);
+        for lo in 0..2u32 {
+            let t = i64::from(lo) * f;
+            let wa = spec(&(big.clone(), geometry), lo, 1, [0, 0, 0, t]);
+            for d in 0..5i64.pow(3) {
+                let d = [d % 5, d / 5 % 5, d / 25].map(|v| (2 * v - 2) * f);
+                let wb = spec(&(small.clone(), geometry), lo, 1, [d[0], d[1], d[2], t]);
+                if apart(&wa, &wb) {
+                    continue;
+                }
+                let whole = |id: &str, w: &WindowSpec| prepare_spec(id, w, None).unwrap();
+                let near = |id: &str, w: &WindowSpec, o: &WindowSpec| {
+                    prepare_spec(id, w, o.spatial_box()).unwrap()
+                };
+                let full = check_window(&whole("/a", &wa), &whole("/b", &wb));
+                let (pa, pb) = (near("/a", &wa, &wb), near("/b", &wb, &wa));
+                clipped +=
+                    usize::from(pa.body.mesh.tets.len() < whole("/a", &wa).body.mesh.tets.len());
+                let part = check_window(&pa, &pb);
+                for k in 0..2 {
+                    assert_eq!(
+                        part.labels[k].labels, full.labels[k].labels,
+                        "{lo} {d:?} body {k}"
+                    );
+                    assert_eq!(part.labels[k].counts, full.labels[k].counts);
+                    inside += full.labels[k].counts.inside as usize;
+                }
+                assert_eq!(part.crossings, full.crossings, "{lo} {d:?}");
+                crossing += usize::from(!full.crossings.is_empty());
+                let sorted = |mut r: Vec<(f64, f64)>| {
+                    r.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
+                    r
+                };
+                assert_eq!(sorted(part.ranges), sorted(full.ranges), "{lo} {d:?}");
+                assert_eq!(part.undecided, full.undecided, "{lo} {d:?}");
+            }
+        }
+        assert!(
+            clipped > 20 && inside > 0 && crossing > 20,
+            "{clipped} {inside} {crossing}"
+        );
+    }
+
     /// Each tet of a prepared window by its four corners (sorted): the window as a set,
     /// whatever its leaf order.
     fn corners(p: &PreparedWindow) -> Vec<[LatticePoint; 4]> {
@@ -979,8 +1065,8 @@ mod tests {
                 let (wa, wb) = (at(a), at(b));
                 assert_eq!(wb.moved_copy_of(&wa), want, "mul {mul}: {a} -> {b}");
                 let Some(d) = want else { continue };
-                let moved = prepare_spec("/x", &wa).unwrap().moved_by(d).unwrap();
-                let fresh = prepare_spec("/x", &wb).unwrap();
+                let moved = prepare_spec("/x", &wa, None).unwrap().moved_by(d).unwrap();
+                let fresh = prepare_spec("/x", &wb, None).unwrap();
                 assert_eq!(corners(&moved), corners(&fresh), "mul {mul}: {a} -> {b}");
                 assert_eq!(moved.band, fresh.band);
                 assert_eq!(moved.taken, fresh.taken);
