@@ -225,39 +225,27 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     let scale = i64::from(w.geometry.scale);
     let shift_t = scale * i64::from(w.lo);
     let overflow = || WindowError::Overflow { id: id() };
-    let mut mesh = TetMesh::default();
-    let mut welder = Welder::default();
-    let mut pieces = Vec::with_capacity(w.slabs.len() + 2);
-    let mut ranges = Vec::with_capacity(w.slabs.len() + 2);
-    let parts = w.low.iter().chain(&w.slabs).chain(w.high.iter()).copied();
-    for part in parts {
-        let start = mesh.tets.len();
-        let first_vertex = mesh.vertices.len();
-        pieces.push(start);
-        welder.append(&mut mesh, part);
-        // New vertices only: welded ones are already shifted.
-        for p in &mut mesh.vertices[first_vertex..] {
-            let t = i64::from(p[3]) - shift_t;
-            p[3] = i32::try_from(t).map_err(|_| overflow())?;
-        }
-        ranges.push(start..mesh.tets.len());
-    }
-    let centre = w.centre + usize::from(w.low.is_some());
-    // Only the tets the partners can need, if clipped; `kept` maps their new indices to
-    // the window mesh's.
+    // Only the tets the partners can need, if clipped (see [`Clip`]): the whole window's
+    // box from its parts' vertices, then each part's tets kept, before any is welded.
     let f = i64::from(CHECKER_FACTOR) * w.mul;
-    let coords = |t: &[u32; 4]| {
-        [0, 1, 2].map(|k| t.map(|v| i64::from(mesh.vertices[v as usize][k]) * f + w.add[k]))
-    };
+    let parts: Vec<&TetMesh> = w
+        .low
+        .iter()
+        .chain(&w.slabs)
+        .chain(w.high.iter())
+        .copied()
+        .collect();
     let clip = w.clip.and_then(|near| {
         let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
-        for t in &mesh.tets {
-            for (k, c) in coords(t).iter().enumerate() {
-                lo[k] = lo[k].min(c.iter().copied().min().unwrap_or(lo[k]));
-                hi[k] = hi[k].max(c.iter().copied().max().unwrap_or(hi[k]));
+        for p in parts.iter().flat_map(|m| &m.vertices) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(i64::from(p[k]));
+                hi[k] = hi[k].max(i64::from(p[k]));
             }
         }
-        // Far points on the side where more of the window lies beyond the partners.
+        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + w.add[k]);
+        let (lo, hi) = (map(lo), map(hi));
+        // Far points away from the side where more of the window lies beyond the partners.
         let far_low = [0, 1, 2].map(|k| hi[k] - near.1[k] > near.0[k] - lo[k]);
         (lo[0] <= hi[0]).then_some(Clip {
             near,
@@ -265,19 +253,46 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
             full: (lo, hi),
         })
     });
-    let mut kept: Option<Vec<u32>> = None;
-    if let Some(c) = &clip {
-        let keep: Vec<u32> = (0..mesh.tets.len() as u32)
-            .filter(|&t| c.keeps(&coords(&mesh.tets[t as usize])))
-            .collect();
-        if keep.len() < mesh.tets.len() {
-            for start in &mut pieces {
-                *start = keep.partition_point(|&t| (t as usize) < *start);
+    let mut mesh = TetMesh::default();
+    let mut welder = Welder::default();
+    let mut pieces = Vec::with_capacity(parts.len());
+    let mut ranges = Vec::with_capacity(parts.len());
+    // Window tet (all parts' tets in order) of each kept tet, if any is left out.
+    let mut kept: Vec<u32> = Vec::new();
+    let mut all = 0usize;
+    let mut keep: Vec<u32> = Vec::new();
+    for part in &parts {
+        let first_vertex = mesh.vertices.len();
+        pieces.push(mesh.tets.len());
+        ranges.push(all..all + part.tets.len());
+        match &clip {
+            Some(c) => {
+                let coords = |t: &[u32; 4]| {
+                    [0, 1, 2]
+                        .map(|k| t.map(|v| i64::from(part.vertices[v as usize][k]) * f + w.add[k]))
+                };
+                keep.clear();
+                keep.extend(
+                    (0..part.tets.len() as u32)
+                        .filter(|&t| c.keeps(&coords(&part.tets[t as usize]))),
+                );
+                welder.append_tets(&mut mesh, part, &keep);
+                kept.extend(keep.iter().map(|&t| (all + t as usize) as u32));
             }
-            mesh.tets = keep.iter().map(|&t| mesh.tets[t as usize]).collect();
-            kept = Some(keep);
+            None => {
+                welder.append(&mut mesh, part);
+                kept.extend((all..all + part.tets.len()).map(|t| t as u32));
+            }
+        }
+        all += part.tets.len();
+        // New vertices only: welded ones are already shifted.
+        for p in &mut mesh.vertices[first_vertex..] {
+            let t = i64::from(p[3]) - shift_t;
+            p[3] = i32::try_from(t).map_err(|_| overflow())?;
         }
     }
+    let kept = (kept.len() < all).then_some(kept);
+    let centre = w.centre + usize::from(w.low.is_some());
     let empty = 0..0;
     let taken = [
         if w.centre == 0 && w.low.is_some() {

@@ -100,6 +100,27 @@ impl Welder {
         into.tets
             .extend(part.tets.iter().map(|t| t.map(|v| remap[v as usize])));
     }
+
+    /// Appends the tets `which` of `part` (indices, each below its tet count) to `into`,
+    /// with only the vertices they use, as [`Self::append`] would.
+    pub fn append_tets(&mut self, into: &mut TetMesh, part: &TetMesh, which: &[u32]) {
+        let mut remap = vec![NONE; part.vertices.len()];
+        into.tets.reserve(which.len());
+        for &t in which {
+            let tet = part.tets[t as usize].map(|v| {
+                let r = &mut remap[v as usize];
+                if *r == NONE {
+                    let p = part.vertices[v as usize];
+                    *r = *self.index.entry(p).or_insert_with(|| {
+                        into.vertices.push(p);
+                        (into.vertices.len() - 1) as u32
+                    });
+                }
+                *r
+            });
+            into.tets.push(tet);
+        }
+    }
 }
 
 const NONE: u32 = u32::MAX;
@@ -535,4 +556,45 @@ fn for_each_cap_cube(
         }
     }
     true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Appending some tets of a part welds exactly as appending the part with only those
+    /// tets: the same tets on the same points, and no point the chosen tets do not use.
+    #[test]
+    fn appending_some_tets_welds_as_appending_them_alone() {
+        let part = TetMesh {
+            vertices: (0..12).map(|i| [i % 3, i / 3, i % 2, 1]).collect(),
+            tets: vec![[0, 1, 2, 3], [3, 4, 5, 6], [6, 7, 8, 9], [9, 10, 11, 0]],
+        };
+        let base = TetMesh {
+            vertices: vec![[0, 0, 0, 1], [2, 1, 0, 1], [9, 9, 9, 9]],
+            tets: vec![[0, 1, 2, 2]],
+        };
+        for which in [vec![], vec![1], vec![0, 3], vec![0, 1, 2, 3]] {
+            let (mut a, mut b) = (base.clone(), base.clone());
+            Welder::of(&a).append_tets(&mut a, &part, &which);
+            let alone = TetMesh {
+                vertices: part.vertices.clone(),
+                tets: which.iter().map(|&t| part.tets[t as usize]).collect(),
+            };
+            Welder::of(&b).append(&mut b, &alone);
+            let points = |m: &TetMesh| -> Vec<[LatticePoint; 4]> {
+                m.tets
+                    .iter()
+                    .map(|t| t.map(|v| m.vertices[v as usize]))
+                    .collect()
+            };
+            assert_eq!(points(&a), points(&b), "{which:?}");
+            let used: std::collections::BTreeSet<u32> = a.tets.iter().flatten().copied().collect();
+            assert_eq!(
+                used.len(),
+                a.vertices.len(),
+                "{which:?}: only used points added"
+            );
+        }
+    }
 }
