@@ -356,6 +356,42 @@ struct BodyStream {
     /// Slabs since its latest one that was the one before moved one period later (0: the
     /// body is at rest; counted once its slabs come).
     moving_for: u32,
+    /// The statistics of its latest piece, being added on rayon's pool (see
+    /// [`RollingChecker::settle_stats`]).
+    stats_job: Option<StatsJob>,
+}
+
+/// A piece's statistics being added on the pool: its run, and where the run's accumulator
+/// comes back, with whether the piece repeats the one before (or the job's panic).
+#[derive(Debug)]
+struct StatsJob {
+    run: u64,
+    /// (In a mutex only so that the checker can be shared with the pool's windows.)
+    done: std::sync::Mutex<std::sync::mpsc::Receiver<StatsAdded>>,
+}
+
+/// What a [`StatsJob`] sends back.
+type StatsAdded = std::thread::Result<(StatsAccumulator, bool)>;
+
+/// The value a job on rayon's pool sends on `rx` (`None` if it was dropped unsent). On a
+/// thread of the pool, the pool's other work is done meanwhile, the job itself included:
+/// a pool of one thread that only waited would wait for ever.
+fn wait_on_pool<T>(rx: &std::sync::mpsc::Receiver<T>) -> Option<T> {
+    use std::sync::mpsc::TryRecvError;
+    if rayon::current_thread_index().is_none() {
+        return rx.recv().ok();
+    }
+    loop {
+        match rx.try_recv() {
+            Ok(v) => return Some(v),
+            Err(TryRecvError::Disconnected) => return None,
+            Err(TryRecvError::Empty) => {
+                if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                    std::thread::yield_now();
+                }
+            }
+        }
+    }
 }
 
 /// A body's window kept from its last rest ([`RollingChecker::moved`]) is dropped once it
@@ -714,6 +750,7 @@ impl RollingChecker {
         if !self.bodies.contains_key(&p.body) {
             return;
         }
+        self.settle_stats(&p.body);
         self.pending_stats = None;
         if let Err((kind, text)) = self.accept(&p) {
             self.problem(out, kind, text);
@@ -722,46 +759,95 @@ impl RollingChecker {
             self.pump(out);
             return;
         };
-        // The body's statistics of the piece (closedness, hypervolume) and the windows it
-        // makes ready are independent: both at once.
-        let acc = self
-            .bodies
-            .get_mut(&p.body)
-            .and_then(|b| b.runs.iter_mut().find(|r| r.id == run))
-            .map(|r| std::mem::take(&mut r.acc));
-        let Some(mut acc) = acc else {
+        // The body's statistics of the piece (closedness, hypervolume) do not wait for the
+        // windows it makes ready, nor they for them: the statistics go on the pool and are
+        // taken back when something reads them (its next piece, a report, a closed stream).
+        let Some(b) = self.bodies.get_mut(&p.body) else {
             self.pump(out);
             return;
         };
-        let lateral = LateralRef {
-            index: u64::from(p.index),
-            stamps_ns: p.stamps_ns,
-            geometry: &p.geometry,
-            mesh: &p.mesh,
-            vanishes: p.vanishes,
+        let Some(mut acc) = b
+            .runs
+            .iter_mut()
+            .find(|r| r.id == run)
+            .map(|r| std::mem::take(&mut r.acc))
+        else {
+            self.pump(out);
+            return;
         };
-        let (at_rest, ahead) = rayon::join(
-            || acc.add_lateral_shared(lateral, first_cap.as_deref(), &p.mesh),
-            || self.prefetch(1),
+        let (tx, done) = std::sync::mpsc::channel();
+        let (index, stamps_ns, geometry, mesh, vanishes) = (
+            u64::from(p.index),
+            p.stamps_ns,
+            p.geometry,
+            p.mesh.clone(),
+            p.vanishes,
         );
-        if let Some(b) = self.bodies.get_mut(&p.body) {
-            b.moving_for = if at_rest {
-                0
-            } else {
-                b.moving_for.saturating_add(1)
-            };
-            if let Some(r) = b.runs.iter_mut().find(|r| r.id == run) {
-                r.acc = acc;
-            }
-            // A window kept from its last rest serves it once it rests again, moved or not
-            // (a table that steps by whole voxels now and then); not once it has moved for
-            // long.
-            if b.moving_for > REST_KEPT_SLABS {
-                self.rest.remove(&p.body);
-            }
-        }
-        self.prefetched = ahead;
+        rayon::spawn(move || {
+            let added = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+                let lateral = LateralRef {
+                    index,
+                    stamps_ns,
+                    geometry: &geometry,
+                    mesh: &mesh,
+                    vanishes,
+                };
+                let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
+                (acc, at_rest)
+            }));
+            let _ = tx.send(added);
+        });
+        b.stats_job = Some(StatsJob {
+            run,
+            done: std::sync::Mutex::new(done),
+        });
+        self.prefetched = self.prefetch(1);
         self.pump_prefetched(out);
+    }
+
+    /// Takes back body `body`'s statistics being added, if any (waiting for them).
+    pub(super) fn settle_stats(&mut self, body: &str) {
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        let Some(job) = b.stats_job.take() else {
+            return;
+        };
+        let done = job
+            .done
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let (acc, at_rest) = match wait_on_pool(&done) {
+            Some(Ok(added)) => added,
+            Some(Err(panic)) => std::panic::resume_unwind(panic),
+            None => panic!("{body}: the statistics of a piece were lost"),
+        };
+        b.moving_for = if at_rest {
+            0
+        } else {
+            b.moving_for.saturating_add(1)
+        };
+        if let Some(r) = b.runs.iter_mut().find(|r| r.id == job.run) {
+            r.acc = acc;
+        }
+        // A window kept from its last rest serves it once it rests again, moved or not (a
+        // table that steps by whole voxels now and then); not once it has moved for long.
+        if b.moving_for > REST_KEPT_SLABS {
+            self.rest.remove(body);
+        }
+    }
+
+    /// Takes back every body's statistics being added.
+    pub(super) fn settle_all_stats(&mut self) {
+        let ids: Vec<String> = self
+            .bodies
+            .iter()
+            .filter(|(_, b)| b.stats_job.is_some())
+            .map(|(id, _)| id.clone())
+            .collect();
+        for id in ids {
+            self.settle_stats(&id);
+        }
     }
 
     fn accept(&mut self, p: &PieceIn) -> Result<(), (&'static str, String)> {
@@ -991,6 +1077,7 @@ impl RollingChecker {
     /// The inputs have ended: every open stream is closed at its last slab, every period
     /// decided with what there is, every open contact closed.
     pub fn finish(&mut self, out: &mut Vec<RollOut>) {
+        self.settle_all_stats();
         self.finishing = true;
         for b in self.bodies.values_mut() {
             if let Some(r) = b.runs.last_mut() {

@@ -180,6 +180,7 @@ impl RollingChecker {
                     self.seconds_of_stamp(s),
                     self.cfg.max_lead_frames
                 );
+                self.settle_stats(id);
                 let body = self.bodies.get_mut(id.as_str()).expect("a paired body");
                 let run = body.slabs[&s].run;
                 if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
