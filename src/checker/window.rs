@@ -63,6 +63,35 @@ pub struct WindowBody<'a> {
     pub clip: Option<SpatialBox>,
 }
 
+impl WindowBody<'_> {
+    /// Its parts: the first cap, the slabs, the last cap (those it has).
+    fn parts(&self) -> impl Iterator<Item = &TetMesh> + '_ {
+        self.low
+            .iter()
+            .chain(&self.slabs)
+            .chain(self.high.iter())
+            .copied()
+    }
+
+    /// The box of every vertex of the window on the pair's lattice, spatial axes only
+    /// (`None` for a window without vertices).
+    pub fn spatial_box(&self) -> Option<SpatialBox> {
+        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
+        for v in self.parts().flat_map(|m| &m.vertices) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(i64::from(v[k]));
+                hi[k] = hi[k].max(i64::from(v[k]));
+            }
+        }
+        if lo[0] > hi[0] {
+            return None;
+        }
+        let f = i64::from(CHECKER_FACTOR) * self.mul;
+        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + self.add[k]);
+        Some((map(lo), map(hi)))
+    }
+}
+
 /// Which tets of a window are prepared when its partners lie in a box, and how inclusion
 /// tests against it are made so that they need no other.
 ///
@@ -117,7 +146,7 @@ impl Clip {
 }
 
 /// `a + d` on each spatial axis.
-pub(crate) fn add3(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
+fn add3(a: [i64; 3], d: [i64; 3]) -> [i64; 3] {
     [a[0] + d[0], a[1] + d[1], a[2] + d[2]]
 }
 
@@ -176,6 +205,13 @@ impl PreparedWindow {
         self.clip.is_none_or(|c| c.serves(partner))
     }
 
+    /// Whether this window moved by `d` ([`Self::moved_by`]) would serve a partner in box
+    /// `partner`.
+    pub fn serves_moved(&self, d: [i64; 4], partner: &SpatialBox) -> bool {
+        self.clip
+            .is_none_or(|c| c.moved([d[0], d[1], d[2]]).serves(partner))
+    }
+
     /// Inclusion tests against this window (far points as its [`Clip`] needs them).
     fn inclusion(&self) -> Inclusion<'_> {
         let inc = Inclusion::with_normals(&self.body.mesh, &self.body.bvh, &self.body.normals);
@@ -228,36 +264,21 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     // Only the tets the partners can need, if clipped (see [`Clip`]): the whole window's
     // box from its parts' vertices, then each part's tets kept, before any is welded.
     let f = i64::from(CHECKER_FACTOR) * w.mul;
-    let parts: Vec<&TetMesh> = w
-        .low
-        .iter()
-        .chain(&w.slabs)
-        .chain(w.high.iter())
-        .copied()
-        .collect();
-    let clip = w.clip.and_then(|near| {
-        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
-        for p in parts.iter().flat_map(|m| &m.vertices) {
-            for k in 0..3 {
-                lo[k] = lo[k].min(i64::from(p[k]));
-                hi[k] = hi[k].max(i64::from(p[k]));
-            }
-        }
-        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + w.add[k]);
-        let (lo, hi) = (map(lo), map(hi));
+    let parts: Vec<&TetMesh> = w.parts().collect();
+    let clip = w.clip.zip(w.spatial_box()).map(|(near, (lo, hi))| {
         // Far points away from the side where more of the window lies beyond the partners.
         let far_low = [0, 1, 2].map(|k| hi[k] - near.1[k] > near.0[k] - lo[k]);
-        (lo[0] <= hi[0]).then_some(Clip {
+        Clip {
             near,
             far_low,
             full: (lo, hi),
-        })
+        }
     });
     let mut mesh = TetMesh::default();
     let mut welder = Welder::default();
     let mut pieces = Vec::with_capacity(parts.len());
     let mut ranges = Vec::with_capacity(parts.len());
-    // Window tet (all parts' tets in order) of each kept tet, if any is left out.
+    // Window tet (all parts' tets in order) of each kept tet, when clipped.
     let mut kept: Vec<u32> = Vec::new();
     let mut all = 0usize;
     let mut keep: Vec<u32> = Vec::new();
@@ -279,10 +300,7 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
                 welder.append_tets(&mut mesh, part, &keep);
                 kept.extend(keep.iter().map(|&t| (all + t as usize) as u32));
             }
-            None => {
-                welder.append(&mut mesh, part);
-                kept.extend((all..all + part.tets.len()).map(|t| t as u32));
-            }
+            None => welder.append(&mut mesh, part),
         }
         all += part.tets.len();
         // New vertices only: welded ones are already shifted.
@@ -291,7 +309,7 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
             p[3] = i32::try_from(t).map_err(|_| overflow())?;
         }
     }
-    let kept = (kept.len() < all).then_some(kept);
+    let kept = (clip.is_some() && kept.len() < all).then_some(kept);
     let centre = w.centre + usize::from(w.low.is_some());
     let empty = 0..0;
     let taken = [

@@ -36,8 +36,7 @@ use super::bounds;
 use super::labels::{Label, LabelCounts};
 
 use super::window::{
-    add3, check_window, prepare_window, PreparedWindow, SpatialBox, TakenLabels, WindowBody,
-    WindowResult,
+    check_window, prepare_window, PreparedWindow, SpatialBox, TakenLabels, WindowBody, WindowResult,
 };
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};

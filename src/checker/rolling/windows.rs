@@ -705,9 +705,7 @@ impl RollingChecker {
             .flatten()
             .find_map(|(spec, p, _)| {
                 let d = w.moved_copy_of(spec)?;
-                let back = [-d[0], -d[1], -d[2]];
-                let partner_back = (add3(partner.0, back), add3(partner.1, back));
-                p.serves(&partner_back)
+                p.serves_moved(d, partner)
                     .then(|| p.moved_by(d).map(Arc::new))
                     .flatten()
             })
@@ -823,27 +821,7 @@ impl WindowSpec {
     /// The box of every vertex of the window on the pair's lattice, spatial axes only
     /// (`None` for a window without vertices).
     pub(super) fn spatial_box(&self) -> Option<SpatialBox> {
-        let mut lo = [i64::MAX; 3];
-        let mut hi = [i64::MIN; 3];
-        let parts = self
-            .low
-            .iter()
-            .chain(self.slabs.iter())
-            .chain(self.high.iter());
-        for m in parts {
-            for v in &m.vertices {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(i64::from(v[k]));
-                    hi[k] = hi[k].max(i64::from(v[k]));
-                }
-            }
-        }
-        if lo[0] > hi[0] {
-            return None;
-        }
-        let f = i64::from(CHECKER_FACTOR) * self.mul;
-        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + self.add[k]);
-        Some((map(lo), map(hi)))
+        self.body("", None).spatial_box()
     }
 
     /// Every taken tet OUTSIDE.
