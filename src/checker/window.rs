@@ -32,7 +32,7 @@ use super::prep::{BodyPrep, PrepError};
 use super::{t_range, tet_of, walk, Prepared, TetInside, CHECKER_FACTOR};
 use crate::kernel::float::tet_normal;
 use crate::kernel::LatticePoint;
-use crate::mesh::march::Welder;
+use crate::mesh::march::{union_bounds, SpatialBounds, Welder};
 use crate::mesh::{GridGeometry, TetMesh};
 
 /// One body's part of a window.
@@ -76,20 +76,19 @@ impl WindowBody<'_> {
     /// The box of every vertex of the window on the pair's lattice, spatial axes only
     /// (`None` for a window without vertices).
     pub fn spatial_box(&self) -> Option<SpatialBox> {
-        let (mut lo, mut hi) = ([i64::MAX; 3], [i64::MIN; 3]);
-        for v in self.parts().flat_map(|m| &m.vertices) {
-            for k in 0..3 {
-                lo[k] = lo[k].min(i64::from(v[k]));
-                hi[k] = hi[k].max(i64::from(v[k]));
-            }
-        }
-        if lo[0] > hi[0] {
-            return None;
-        }
-        let f = i64::from(CHECKER_FACTOR) * self.mul;
-        let map = |x: [i64; 3]| [0, 1, 2].map(|k| x[k] * f + self.add[k]);
-        Some((map(lo), map(hi)))
+        let bounds = self
+            .parts()
+            .fold(None, |b, m| union_bounds(b, m.spatial_bounds()))?;
+        Some(on_pair_lattice(bounds, self.mul, &self.add))
     }
+}
+
+/// Spatial bounds on a body's lattice as a box on the pair's lattice, by the axis map of a
+/// [`WindowBody`] (`mul`, `add`).
+pub fn on_pair_lattice((lo, hi): SpatialBounds, mul: i64, add: &[i64; 4]) -> SpatialBox {
+    let f = i64::from(CHECKER_FACTOR) * mul;
+    let map = |x: [i32; 3]| [0, 1, 2].map(|k| i64::from(x[k]) * f + add[k]);
+    (map(lo), map(hi))
 }
 
 /// Which tets of a window are prepared when its partners lie in a box, and how inclusion

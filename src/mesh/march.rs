@@ -45,6 +45,24 @@ impl TetMesh {
         }
     }
 
+    /// The box of its vertices on the spatial axes (lowest and highest x, y, z), if it has
+    /// any.
+    pub fn spatial_bounds(&self) -> Option<SpatialBounds> {
+        let mut v = self.vertices.iter();
+        let first = v.next()?;
+        let start = (
+            [first[0], first[1], first[2]],
+            [first[0], first[1], first[2]],
+        );
+        Some(v.fold(start, |(mut lo, mut hi), p| {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+            (lo, hi)
+        }))
+    }
+
     /// Whether this mesh is `earlier` moved by `d`, exactly: the same tets on the same
     /// vertex numbers, every vertex at its place in `earlier` plus `d`. A body at rest
     /// meshes to such a copy each frame period (the slab of two equal frames is the one
@@ -61,6 +79,21 @@ impl TetMesh {
                 .iter()
                 .zip(&earlier.vertices)
                 .all(|(p, q)| (0..4).all(|k| q[k].checked_add(d[k]) == Some(p[k])))
+    }
+}
+
+/// Lowest and highest lattice coordinates on the spatial axes (x, y, z).
+pub type SpatialBounds = ([i32; 3], [i32; 3]);
+
+/// The smallest box holding both.
+pub fn union_bounds(a: Option<SpatialBounds>, b: Option<SpatialBounds>) -> Option<SpatialBounds> {
+    match (a, b) {
+        (Some(a), Some(b)) => Some((
+            [0, 1, 2].map(|k| a.0[k].min(b.0[k])),
+            [0, 1, 2].map(|k| a.1[k].max(b.1[k])),
+        )),
+        (a, None) => a,
+        (None, b) => b,
     }
 }
 
@@ -471,42 +504,68 @@ pub fn march_cap(
         return false;
     }
     out.tets.reserve(count);
-    let mut index: FastMap<LatticePoint, u32> = fast_map();
+    // Vertices are welded through ids kept per grid corner for two z-layers of corners (the
+    // layer of corner z is z mod 2): the corner itself and the edges from it along x, y
+    // and z. A vertex lies on its corner or strictly inside its edge, so this merges the
+    // same points as welding by coordinates, and numbers them in the same order.
+    let [px, py, _] = f.padded;
+    let layer = 4 * px * py;
+    let mut ids = vec![NONE; 2 * layer];
+    let mut touched: [Vec<usize>; 2] = [Vec::new(), Vec::new()];
+    let mut at_z: Option<usize> = None;
     for_each_cap_cube(f, |x, y, z, case| {
+        if at_z != Some(z) {
+            // The layer of corners z + 1 held corners z - 1 (or older): cleared. On a jump
+            // over empty planes, the layer of corners z is stale too.
+            let stale: &[usize] = if at_z.map(|a| a + 1) == Some(z) {
+                &[(z + 1) % 2]
+            } else {
+                &[0, 1]
+            };
+            for &l in stale {
+                for i in touched[l].drain(..) {
+                    ids[i] = NONE;
+                }
+            }
+            at_z = Some(z);
+        }
         for tet in table.cap(case) {
-            let mut ids = [0u32; 4];
+            let mut vs = [0u32; 4];
             for (k, &pid) in tet.iter().enumerate() {
                 let pid = usize::from(pid);
-                let (c0, c1, d, is_edge) = if pid < 8 {
-                    (pid, pid, 0, false)
+                let (c0, c1, d, kind) = if pid < 8 {
+                    (pid, pid, 0, 0)
                 } else {
                     let (a, b, d) = edge3(pid - 8);
-                    (a, b, d, true)
+                    (a, b, d, 1 + d)
                 };
                 let (gx, gy, gz) = (x + (c0 & 1), y + ((c0 >> 1) & 1), z + (c0 >> 2));
-                let mut p: LatticePoint = [
-                    s * (gx as i32 - 1),
-                    s * (gy as i32 - 1),
-                    s * (gz as i32 - 1),
-                    t,
-                ];
-                if is_edge {
-                    p[d] += if s == 2 {
-                        1
-                    } else {
-                        let va = f.value(gx, gy, gz);
-                        let vb = f.value(x + (c1 & 1), y + ((c1 >> 1) & 1), z + (c1 >> 2));
-                        crossing(va, vb, at.iso, s)
-                    };
-                }
-                ids[k] = *index.entry(p).or_insert_with(|| {
+                let slot = (gz % 2) * layer + (kind * py + gy) * px + gx;
+                if ids[slot] == NONE {
+                    let mut p: LatticePoint = [
+                        s * (gx as i32 - 1),
+                        s * (gy as i32 - 1),
+                        s * (gz as i32 - 1),
+                        t,
+                    ];
+                    if kind != 0 {
+                        p[d] += if s == 2 {
+                            1
+                        } else {
+                            let va = f.value(gx, gy, gz);
+                            let vb = f.value(x + (c1 & 1), y + ((c1 >> 1) & 1), z + (c1 >> 2));
+                            crossing(va, vb, at.iso, s)
+                        };
+                    }
                     out.vertices.push(p);
-                    (out.vertices.len() - 1) as u32
-                });
+                    ids[slot] = (out.vertices.len() - 1) as u32;
+                    touched[gz % 2].push(slot);
+                }
+                vs[k] = ids[slot];
             }
             out.tets.push(match side {
-                CapSide::Low => [ids[0], ids[1], ids[3], ids[2]],
-                CapSide::High => ids,
+                CapSide::Low => [vs[0], vs[1], vs[3], vs[2]],
+                CapSide::High => vs,
             });
         }
         true
@@ -561,6 +620,99 @@ fn for_each_cap_cube(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mesh::grid::DecodeOptions;
+    use crate::mesh::mesher::{test_bits, test_frame};
+    use crate::mesh::table::table;
+
+    /// A cap welded by coordinates through a hash map, as the cap's vertices are defined.
+    fn cap_welded_by_coordinates(f: &OccupancyGrid, at: SlabPlacement, side: CapSide) -> TetMesh {
+        let (s, t, table) = (at.scale, at.scale * at.frame as i32, table());
+        let mut out = TetMesh::default();
+        let mut index: FastMap<LatticePoint, u32> = fast_map();
+        for_each_cap_cube(f, |x, y, z, case| {
+            for tet in table.cap(case) {
+                let ids = tet.map(|pid| {
+                    let pid = usize::from(pid);
+                    let (c0, c1, d) = if pid < 8 {
+                        (pid, pid, 3)
+                    } else {
+                        edge3(pid - 8)
+                    };
+                    let corner = |c: usize| (x + (c & 1), y + ((c >> 1) & 1), z + (c >> 2));
+                    let (gx, gy, gz) = corner(c0);
+                    let p = [gx, gy, gz].map(|g| s * (g as i32 - 1));
+                    let mut p = [p[0], p[1], p[2], t];
+                    if d < 3 {
+                        let (hx, hy, hz) = corner(c1);
+                        let (va, vb) = (f.value(gx, gy, gz), f.value(hx, hy, hz));
+                        p[d] += crossing(va, vb, at.iso, s);
+                    }
+                    *index.entry(p).or_insert_with(|| {
+                        out.vertices.push(p);
+                        (out.vertices.len() - 1) as u32
+                    })
+                });
+                out.tets.push(match side {
+                    CapSide::Low => [ids[0], ids[1], ids[3], ids[2]],
+                    CapSide::High => ids,
+                });
+            }
+            true
+        });
+        out
+    }
+
+    /// Caps welded through the two layers of corner ids equal caps welded by coordinates,
+    /// vertex for vertex and tet for tet: random bit and percent frames, with empty planes
+    /// between occupied ones (the layers are then both stale) and bodies at the grid's edge.
+    #[test]
+    fn caps_weld_as_by_coordinates() {
+        let size = [11u32, 7, 9];
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let n = size.iter().product::<u32>() as usize;
+        for round in 0..24u32 {
+            let density = 1 + u64::from(round % 4);
+            let raw: Vec<u64> = (0..n).map(|_| next()).collect();
+            // Planes 3 and 4 stay empty; in half the rounds, so does plane 0.
+            let keep = |i: usize| {
+                let z = i / (size[0] * size[1]) as usize;
+                !(3..5).contains(&z) && (round % 2 == 0 || z != 0)
+            };
+            for encoding in [0u8, 1] {
+                let data: Vec<u8> = if encoding == 0 {
+                    test_bits(size, |x, y, z| {
+                        let i = (x + size[0] as i32 * (y + size[1] as i32 * z)) as usize;
+                        keep(i) && raw[i] % 5 < density
+                    })
+                } else {
+                    (0..n)
+                        .map(|i| if keep(i) { (raw[i] % 101) as u8 } else { 0 })
+                        .collect()
+                };
+                let f = test_frame(round, size, encoding, &data);
+                let grid = OccupancyGrid::decode(&f, &DecodeOptions::default()).unwrap();
+                let scale = if encoding == 0 { 2 } else { 64 };
+                let at = SlabPlacement {
+                    scale,
+                    frame: i64::from(round),
+                    iso: 50,
+                };
+                for side in [CapSide::Low, CapSide::High] {
+                    let mut cap = TetMesh::default();
+                    assert!(march_cap(table(), &grid, at, side, usize::MAX, &mut cap));
+                    assert!(!cap.tets.is_empty());
+                    let expected = cap_welded_by_coordinates(&grid, at, side);
+                    assert_eq!(cap, expected, "round {round}, encoding {encoding}");
+                }
+            }
+        }
+    }
 
     /// Appending some tets of a part welds exactly as appending the part with only those
     /// tets: the same tets on the same points, and no point the chosen tets do not use.

@@ -36,7 +36,8 @@ use super::bounds;
 use super::labels::{Label, LabelCounts};
 
 use super::window::{
-    check_window, prepare_window, PreparedWindow, SpatialBox, TakenLabels, WindowBody, WindowResult,
+    check_window, on_pair_lattice, prepare_window, PreparedWindow, SpatialBox, TakenLabels,
+    WindowBody, WindowResult,
 };
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
@@ -44,7 +45,7 @@ use crate::checker::pipeline::CheckPlan;
 use crate::checker::report::{BodyReport, PairLabels, PairReport, Report, Resolution, Timings};
 use crate::kernel::float::tet_normal as float_normal;
 use crate::mesh::glue::BodyMesh;
-use crate::mesh::march::Welder;
+use crate::mesh::march::{union_bounds, SpatialBounds, Welder};
 use crate::mesh::stats::{LateralRef, StatsAccumulator};
 use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
 
@@ -243,6 +244,8 @@ struct RSlab {
     index: u32,
     hi: i64,
     mesh: Arc<TetMesh>,
+    /// Its vertices' box (see [`TetMesh::spatial_bounds`]).
+    bounds: Option<SpatialBounds>,
     /// Number of the slab's first tet in the body's run (first cap, slabs, last cap).
     first_tet: u64,
     /// Strongest label per tet over the pairs so far (if slabs are reported).
@@ -1064,6 +1067,7 @@ impl RollingChecker {
                         index: p.index,
                         hi: p.stamps_ns.1,
                         mesh: p.mesh.clone(),
+                        bounds: p.mesh.spatial_bounds(),
                         first_tet,
                         worst,
                     },

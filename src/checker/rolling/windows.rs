@@ -119,7 +119,18 @@ impl RollingChecker {
         let low = (r.first_stamp == lo_stamp).then(|| r.first_cap.clone());
         let high = r.last_cap_at(hi_stamp).cloned();
         let lo_common = k - centre as i64;
+        let bounds = slabs
+            .iter()
+            .map(|(_, x)| x.bounds)
+            .chain(
+                [&low, &high]
+                    .into_iter()
+                    .flatten()
+                    .map(|m| m.spatial_bounds()),
+            )
+            .fold(None, union_bounds);
         Some(WindowSpec {
+            bounds,
             geometry: r.geometry,
             lo: slabs[0].1.index,
             slabs: slabs.iter().map(|(_, x)| x.mesh.clone()).collect(),
@@ -653,6 +664,9 @@ pub(super) struct WindowSpec {
     pub(super) add: [i64; 4],
     /// Run number of the first taken tet.
     pub(super) first_tet: u64,
+    /// The box of its parts' vertices on the body's lattice (from each slab's, kept with
+    /// it, and the caps').
+    pub(super) bounds: Option<SpatialBounds>,
 }
 
 /// Whether two windows' boxes are apart (a gap on some spatial axis) on the pair's
@@ -821,7 +835,11 @@ impl WindowSpec {
     /// The box of every vertex of the window on the pair's lattice, spatial axes only
     /// (`None` for a window without vertices).
     pub(super) fn spatial_box(&self) -> Option<SpatialBox> {
-        self.body("", None).spatial_box()
+        debug_assert_eq!(
+            self.bounds.map(|b| on_pair_lattice(b, self.mul, &self.add)),
+            self.body("", None).spatial_box()
+        );
+        self.bounds.map(|b| on_pair_lattice(b, self.mul, &self.add))
     }
 
     /// Every taken tet OUTSIDE.
@@ -931,6 +949,7 @@ mod tests {
             mul,
             add,
             first_tet: 0,
+            bounds: slabs[lo as usize].spatial_bounds(),
         }
     }
 
