@@ -10,13 +10,15 @@
 //! - the last slab's upper-plane triangles pair with the last cap's boundary.
 //!
 //! Matching a time plane's triangles from its two sides uses two order-independent 128-bit
-//! multiset hashes: one adds each triangle's hash with its orientation as sign (a matching
+//! multiset hashes (each a sum of per-triangle hashes from multiply-folding lanes, see
+//! `tri_hash`): one adds each triangle's hash with its orientation as sign (a matching
 //! pair cancels), the other without sign (both sides must carry the same triangles, as
 //! many times each). O(n), no sorting. Only when either check fails are the triangles
 //! sorted and paired exactly, and then the report counts exactly what is wrong. What the
 //! hashes cannot see is a triangle present k > 1 times on *both* sides with balanced
-//! orientations (over-shared but consistent); the exact fallback is not run then. (Two
-//! different multisets hashing equal has probability about 2^-128.)
+//! orientations (over-shared but consistent); the exact fallback is not run then. (Were
+//! the triangle hash a random function, two different multisets would hash equal with
+//! probability about 2^-128.)
 //!
 //! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
 //! physical time scale (frame periods may differ). The upper cap's contribution to the
@@ -248,6 +250,12 @@ impl StatsAccumulator {
         // order-independent set, so the result does not depend on the chunking.
         let chunk = |tets: &[[u32; 4]]| {
             let mut c = Scan::default();
+            // Most faces are off the time planes: room for all at once, not by doubling.
+            if packed {
+                c.keys.reserve(4 * tets.len());
+            } else {
+                c.wide.reserve(4 * tets.len());
+            }
             for t in tets {
                 let p = t.map(|v| m.vertices[v as usize]);
                 let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
@@ -547,36 +555,77 @@ impl PlaneHash {
     }
 }
 
-/// Two independent 128-bit hashes of a triangle's nine coordinates (four splitmix64
-/// chains).
+/// Two independent 128-bit hashes of a triangle's nine coordinates: four 64-bit lanes, each
+/// the coordinates (packed losslessly into five words) folded by 64 × 64 → 128-bit
+/// multiplications under its own random keys, as wyhash folds its input.
 #[inline]
 fn tri_hash(t: &PlaneTri) -> (u128, u128) {
-    let mix = |mut z: u64| {
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    };
-    let mut h = [
-        0x9e37_79b9_7f4a_7c15u64,
-        0x6a09_e667_f3bc_c909,
-        0xbb67_ae85_84ca_a73b,
-        0x3c6e_f372_fe94_f82b,
-    ];
-    for p in t {
-        for &c in p {
-            let c = u64::from(c as u32);
-            for (k, hk) in h.iter_mut().enumerate() {
-                *hk = mix(hk
-                    .wrapping_add(c.wrapping_mul(2 * k as u64 + 1))
-                    .wrapping_add(0x9e37_79b9_7f4a_7c15));
-            }
-        }
+    #[inline]
+    fn fold(a: u64, b: u64) -> u64 {
+        let r = u128::from(a) * u128::from(b);
+        (r as u64) ^ ((r >> 64) as u64)
     }
+    let c = |p: &[i32; 3], k: usize| u64::from(p[k] as u32);
+    let words = [
+        (c(&t[0], 0) << 32) | c(&t[0], 1),
+        (c(&t[1], 0) << 32) | c(&t[1], 1),
+        (c(&t[2], 0) << 32) | c(&t[2], 1),
+        (c(&t[0], 2) << 32) | c(&t[1], 2),
+        c(&t[2], 2),
+    ];
+    let lane = |k: &[u64; 7]| {
+        let a = fold(words[0] ^ k[0], words[1] ^ k[1]);
+        let b = fold(words[2] ^ k[2], words[3] ^ k[3]);
+        let c = fold(words[4] ^ k[4], a ^ k[5]);
+        fold(b ^ k[6], c ^ k[0])
+    };
+    let h = TRI_HASH_KEYS.each_ref().map(lane);
     (
         (u128::from(h[0]) << 64) | u128::from(h[1]),
         (u128::from(h[2]) << 64) | u128::from(h[3]),
     )
 }
+
+/// The keys of [`tri_hash`]'s four lanes: published constants (wyhash's secrets, the golden
+/// ratio, SHA-2's initial hash values and round constants), none chosen for these inputs.
+const TRI_HASH_KEYS: [[u64; 7]; 4] = [
+    [
+        0xa076_1d64_78bd_642f,
+        0xe703_7ed1_a0b4_28db,
+        0x8ebc_6af0_9c88_c6e3,
+        0x5899_65cc_7537_4cc3,
+        0x1d8e_4e27_c47d_124f,
+        0x9e37_79b9_7f4a_7c15,
+        0xd6e8_feb8_6659_fd93,
+    ],
+    [
+        0x2d35_8dcc_aa6c_78a5,
+        0x8bb8_4b93_962e_acc9,
+        0x4b33_a62e_d433_d4a3,
+        0x4d5a_2da5_1de1_aa47,
+        0xa0b4_28db_e703_7ed1,
+        0x6a09_e667_f3bc_c909,
+        0xbb67_ae85_84ca_a73b,
+    ],
+    [
+        0x3c6e_f372_fe94_f82b,
+        0xa54f_f53a_5f1d_36f1,
+        0x510e_527f_ade6_82d1,
+        0x9b05_688c_2b3e_6c1f,
+        0x1f83_d9ab_fb41_bd6b,
+        0x5be0_cd19_137e_2179,
+        0xcbbb_9d5d_c105_9ed8,
+    ],
+    [
+        0x629a_292a_367c_d507,
+        0x9159_015a_3070_dd17,
+        0x152f_ecd8_f70e_5939,
+        0x6733_2667_ffc0_0b31,
+        0x8eb4_4a87_6858_1511,
+        0xdb0c_2e0d_64f9_8fa7,
+        0x47b5_481d_befa_4fa4,
+    ],
+];
 
 #[cfg(test)]
 mod tests {

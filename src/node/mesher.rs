@@ -223,8 +223,22 @@ impl Ctx<'_> {
         side: CapSide,
         problems: &mut Vec<Problem>,
     ) -> Option<Message> {
+        let cap = b.stream.mesher().cap(k, side);
+        self.cap_marched(body, b, k, side, cap, problems)
+    }
+
+    /// [`Self::cap`] with the cap marched already (`None`: over `max_slab_tets`).
+    fn cap_marched(
+        &self,
+        body: &str,
+        b: &Body,
+        k: &KeptFrame,
+        side: CapSide,
+        cap: Option<TetMesh>,
+        problems: &mut Vec<Problem>,
+    ) -> Option<Message> {
         let g = *b.stream.mesher().geometry()?;
-        let cap = b.stream.mesher().cap(k, side).unwrap_or_else(|| {
+        let cap = cap.unwrap_or_else(|| {
             problems.push((
                 "cap_too_complex",
                 format!(
@@ -437,15 +451,25 @@ impl Ctx<'_> {
 impl MesherNode {
     /// Publishes the closing cap of `b`'s mesh (or says why there is none).
     fn close(&mut self, topic: &str, b: &mut Body, out: &mut Vec<Message>) {
+        let cap = closing_cap(b);
+        self.close_with(topic, b, cap, out);
+    }
+
+    /// [`Self::close`] with the closing cap marched already (see [`closing_cap`]).
+    fn close_with(
+        &mut self,
+        topic: &str,
+        b: &mut Body,
+        cap: Option<TetMesh>,
+        out: &mut Vec<Message>,
+    ) {
         b.closed = true;
         if b.stream.mesher().frames() >= 2 {
             let mut problems = Vec::new();
-            if let Some(m) = b
-                .stream
-                .mesher()
-                .last_frame()
-                .and_then(|k| self.ctx().cap(topic, b, k, CapSide::High, &mut problems))
-            {
+            if let Some(m) = b.stream.mesher().last_frame().and_then(|k| {
+                self.ctx()
+                    .cap_marched(topic, b, k, CapSide::High, cap, &mut problems)
+            }) {
                 out.push(m);
             }
             for (kind, text) in problems {
@@ -459,6 +483,15 @@ impl MesherNode {
             self.status.problem(&self.fqn, "too_few_frames", why);
         }
     }
+}
+
+/// The cap closing `b`'s mesh at its last frame, if it has the two frames a 4D mesh needs
+/// (`None` too for a cap over `max_slab_tets`).
+fn closing_cap(b: &Body) -> Option<TetMesh> {
+    let m = b.stream.mesher();
+    (m.frames() >= 2)
+        .then(|| m.last_frame().and_then(|k| m.cap(k, CapSide::High)))
+        .flatten()
 }
 
 /// A frame's stamp in words: seconds, and the raw fields when they are out of range.
@@ -714,12 +747,21 @@ impl Node for MesherNode {
 
     fn finish(&mut self, out: &mut Vec<Message>) {
         let before = out.len();
-        let topics: Vec<String> = self.bodies.keys().cloned().collect();
-        for topic in topics {
+        // Every open body's closing cap, marched at once on rayon's pool (a cap fills the
+        // body's volume: the end of a replay waits for them), then published in order.
+        let open: Vec<String> = self
+            .bodies
+            .iter()
+            .filter(|(_, b)| !b.closed)
+            .map(|(t, _)| t.clone())
+            .collect();
+        let caps: Vec<Option<TetMesh>> = open
+            .par_iter()
+            .map(|t| closing_cap(&self.bodies[t]))
+            .collect();
+        for (topic, cap) in open.into_iter().zip(caps) {
             if let Some(mut b) = self.bodies.remove(&topic) {
-                if !b.closed {
-                    self.close(&topic, &mut b, out);
-                }
+                self.close_with(&topic, &mut b, cap, out);
                 self.bodies.insert(topic, b);
             }
         }

@@ -444,11 +444,12 @@ impl RollingChecker {
                 };
                 bytes -= k.grid.heap_bytes();
             }
-            // Finished runs none of whose slabs are kept: their figures go to the totals.
+            // Finished runs none of whose slabs are kept: their figures go to the totals
+            // (once they are finished: a run ended by its cap has them finished on the pool).
             while let Some(r) = b.runs.first() {
                 let last = b.runs.len() == 1;
                 let in_use = b.slabs.values().any(|s| s.run == r.id);
-                if !r.ended() || in_use || (last && !finishing) {
+                if !r.ended() || r.stats.is_none() || in_use || (last && !finishing) {
                     break;
                 }
                 let r = b.runs.remove(0);

@@ -46,7 +46,7 @@ use crate::checker::report::{BodyReport, PairLabels, PairReport, Report, Resolut
 use crate::kernel::float::tet_normal as float_normal;
 use crate::mesh::glue::BodyMesh;
 use crate::mesh::march::{union_bounds, SpatialBounds, Welder};
-use crate::mesh::stats::{LateralRef, StatsAccumulator};
+use crate::mesh::stats::{BodyStats, LateralRef, StatsAccumulator};
 use crate::mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
 
 mod episodes;
@@ -270,7 +270,7 @@ struct Run {
     tets: u64,
     acc: StatsAccumulator,
     /// The run's statistics, once it ended.
-    stats: Option<crate::mesh::stats::BodyStats>,
+    stats: Option<BodyStats>,
 }
 
 impl Run {
@@ -294,18 +294,25 @@ impl Run {
 
     /// Ends the run at its latest frame, with its closing cap if one came.
     fn close(&mut self, cap: Option<(Arc<TetMesh>, u64)>) {
-        if self.end.is_some() {
-            return;
+        if let Some(closing) = self.end_at_frontier(cap) {
+            self.stats = Some(closing.finish());
         }
-        let acc = std::mem::take(&mut self.acc);
-        let last = cap.as_ref().map(|(c, o)| (c.as_ref(), *o));
-        let frames = self.frames();
-        self.stats = Some(acc.finish(
-            frames,
-            Some((self.first_cap.as_ref(), self.first_occupied)),
-            last,
-        ));
+    }
+
+    /// Ends the run as [`Self::close`] does, leaving its statistics to be finished (by
+    /// whoever sets [`Self::stats`]); `None` if it had ended.
+    fn end_at_frontier(&mut self, cap: Option<(Arc<TetMesh>, u64)>) -> Option<Closing> {
+        if self.end.is_some() {
+            return None;
+        }
+        let closing = Closing {
+            acc: std::mem::take(&mut self.acc),
+            frames: self.frames(),
+            first: (self.first_cap.clone(), self.first_occupied),
+            last: cap.clone(),
+        };
         self.end = Some((self.frontier, cap));
+        Some(closing)
     }
 
     fn ended(&self) -> bool {
@@ -320,6 +327,27 @@ impl Run {
             Some((s, Some((cap, _)))) if *s == stamp => Some(cap),
             _ => None,
         }
+    }
+}
+
+/// An ended run's statistics, to be finished: its accumulator, frames, and first and last
+/// caps with their occupied voxels.
+#[derive(Debug)]
+struct Closing {
+    acc: StatsAccumulator,
+    frames: u64,
+    first: (Arc<TetMesh>, u64),
+    last: Option<(Arc<TetMesh>, u64)>,
+}
+
+impl Closing {
+    fn finish(self) -> BodyStats {
+        let last = self.last.as_ref().map(|(c, o)| (c.as_ref(), *o));
+        self.acc.finish(
+            self.frames,
+            Some((self.first.0.as_ref(), self.first.1)),
+            last,
+        )
     }
 }
 
@@ -363,17 +391,34 @@ struct BodyStream {
     stats_job: Option<StatsJob>,
 }
 
-/// A piece's statistics being added on the pool: its run, and where the run's accumulator
-/// comes back, with whether the piece repeats the one before (or the job's panic).
+/// A piece's statistics being added on the pool (or an ended run's being finished): its
+/// run, and where the outcome (or the job's panic) comes back.
 #[derive(Debug)]
 struct StatsJob {
     run: u64,
     /// (In a mutex only so that the checker can be shared with the pool's windows.)
-    done: std::sync::Mutex<std::sync::mpsc::Receiver<StatsAdded>>,
+    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<StatsDone>>>,
 }
 
-/// What a [`StatsJob`] sends back.
-type StatsAdded = std::thread::Result<(StatsAccumulator, bool)>;
+/// What a [`StatsJob`] gives back.
+enum StatsDone {
+    /// The run's accumulator with a lateral piece added, and whether the piece repeats the
+    /// one before.
+    Added(StatsAccumulator, bool),
+    /// The ended run's statistics.
+    Finished(BodyStats),
+}
+
+/// What the piece just accepted leaves to the statistics (see
+/// [`RollingChecker::pending_stats`]).
+#[derive(Debug)]
+enum PendingStats {
+    /// A lateral piece to add to run `run` (with the run's first cap if it is its first
+    /// slab).
+    Add(u64, Option<Arc<TetMesh>>),
+    /// Run `run`, ended by its closing cap, to finish.
+    Finish(u64, Closing),
+}
 
 /// The value a job on rayon's pool sends on `rx` (`None` if it was dropped unsent). On a
 /// thread of the pool, the pool's other work is done meanwhile, the job itself included:
@@ -561,10 +606,10 @@ pub struct RollingChecker {
     /// prepared again. One window per body; dropped once the body has moved for
     /// [`REST_KEPT_SLABS`] slabs.
     rest: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
-    /// The lateral piece just accepted still has to be added to its run's statistics
-    /// (run id, and the run's first cap if the piece is its first slab): done while the
-    /// windows it makes ready are checked.
-    pending_stats: Option<(u64, Option<Arc<TetMesh>>)>,
+    /// The piece just accepted still has to be added to its run's statistics (or, a
+    /// closing cap, the run's statistics finished): done on the pool while the windows it
+    /// makes ready are checked.
+    pending_stats: Option<PendingStats>,
     /// The resolver's pool (made when the first resolution is handed over).
     resolver: Option<rayon::ThreadPool>,
     /// Resolutions running there, oldest first: which episode, and where its result will
@@ -757,7 +802,7 @@ impl RollingChecker {
         if let Err((kind, text)) = self.accept(&p) {
             self.problem(out, kind, text);
         }
-        let Some((run, first_cap)) = self.pending_stats.take() else {
+        let Some(pending) = self.pending_stats.take() else {
             self.pump(out);
             return;
         };
@@ -768,36 +813,44 @@ impl RollingChecker {
             self.pump(out);
             return;
         };
-        let Some(mut acc) = b
-            .runs
-            .iter_mut()
-            .find(|r| r.id == run)
-            .map(|r| std::mem::take(&mut r.acc))
-        else {
-            self.pump(out);
-            return;
+        let (run, job): (u64, Box<dyn FnOnce() -> StatsDone + Send>) = match pending {
+            PendingStats::Finish(run, closing) => {
+                (run, Box::new(move || StatsDone::Finished(closing.finish())))
+            }
+            PendingStats::Add(run, first_cap) => {
+                let Some(mut acc) = b
+                    .runs
+                    .iter_mut()
+                    .find(|r| r.id == run)
+                    .map(|r| std::mem::take(&mut r.acc))
+                else {
+                    self.pump(out);
+                    return;
+                };
+                let (index, stamps_ns, geometry, mesh, vanishes) = (
+                    u64::from(p.index),
+                    p.stamps_ns,
+                    p.geometry,
+                    p.mesh.clone(),
+                    p.vanishes,
+                );
+                let add = move || {
+                    let lateral = LateralRef {
+                        index,
+                        stamps_ns,
+                        geometry: &geometry,
+                        mesh: &mesh,
+                        vanishes,
+                    };
+                    let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
+                    StatsDone::Added(acc, at_rest)
+                };
+                (run, Box::new(add))
+            }
         };
         let (tx, done) = std::sync::mpsc::channel();
-        let (index, stamps_ns, geometry, mesh, vanishes) = (
-            u64::from(p.index),
-            p.stamps_ns,
-            p.geometry,
-            p.mesh.clone(),
-            p.vanishes,
-        );
         rayon::spawn(move || {
-            let added = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
-                let lateral = LateralRef {
-                    index,
-                    stamps_ns,
-                    geometry: &geometry,
-                    mesh: &mesh,
-                    vanishes,
-                };
-                let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
-                (acc, at_rest)
-            }));
-            let _ = tx.send(added);
+            let _ = tx.send(std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)));
         });
         b.stats_job = Some(StatsJob {
             run,
@@ -819,8 +872,15 @@ impl RollingChecker {
             .done
             .into_inner()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let run = b.runs.iter_mut().find(|r| r.id == job.run);
         let (acc, at_rest) = match wait_on_pool(&done) {
-            Some(Ok(added)) => added,
+            Some(Ok(StatsDone::Added(acc, at_rest))) => (acc, at_rest),
+            Some(Ok(StatsDone::Finished(stats))) => {
+                if let Some(r) = run {
+                    r.stats = Some(stats);
+                }
+                return;
+            }
             Some(Err(panic)) => std::panic::resume_unwind(panic),
             None => panic!("{body}: the statistics of a piece were lost"),
         };
@@ -829,7 +889,7 @@ impl RollingChecker {
         } else {
             b.moving_for.saturating_add(1)
         };
-        if let Some(r) = b.runs.iter_mut().find(|r| r.id == job.run) {
+        if let Some(r) = run {
             r.acc = acc;
         }
         // A window kept from its last rest serves it once it rests again, moved or not (a
@@ -1030,7 +1090,12 @@ impl RollingChecker {
                         ));
                     }
                     r.tets += p.mesh.tets.len() as u64;
-                    r.close(Some((p.mesh.clone(), p.occupied)));
+                    // Its statistics (the cap's faces paired: a cap fills the body's
+                    // volume) are finished by `on_piece`, on the pool.
+                    let cap = Some((p.mesh.clone(), p.occupied));
+                    if let Some(closing) = r.end_at_frontier(cap) {
+                        self.pending_stats = Some(PendingStats::Finish(r.id, closing));
+                    }
                     return Ok(());
                 }
                 if p.index != r.next_index
@@ -1049,7 +1114,7 @@ impl RollingChecker {
                 // Added to the run's statistics by `on_piece`, while windows are checked.
                 // A run that starts after lost pieces has no opening cap to pair with.
                 let first_cap = (r.next_index == 0).then(|| r.first_cap.clone());
-                self.pending_stats = Some((r.id, first_cap));
+                self.pending_stats = Some(PendingStats::Add(r.id, first_cap));
                 let first_tet = r.tets;
                 r.tets += p.mesh.tets.len() as u64;
                 r.next_index += 1;
