@@ -238,9 +238,11 @@ impl<'a> Inclusion<'a> {
         let hits = &mut self.hits;
         self.bvh
             .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
+        // A tet holding `t` holds its point `p` first: most candidates (tets sharing a
+        // vertex or an edge with `t`) fail there, at one test rather than after several.
         self.hits
             .iter()
-            .any(|&i| t.iter().all(|v| self.holds(i, v)))
+            .any(|&i| self.holds(i, p) && t.iter().all(|v| self.holds(i, v)))
     }
 
     /// Whether the closed tet `i` of the mesh holds `p` (exact).
