@@ -361,10 +361,22 @@ pub fn decoded_bytes(size: [u32; 3], encoding: Encoding) -> u64 {
 /// Copies `len` bits starting at bit `start` of `src` (LSB first) into `dst` at bit 1.
 fn copy_bits(src: &[u8], start: usize, len: usize, dst: &mut [u64]) {
     let mut x = 0;
-    // Bit-by-bit until the source is byte aligned, then whole bytes.
+    // Bit-by-bit until the source is byte aligned, then whole words, whole bytes, bits.
     while x < len && (start + x) % 8 != 0 {
         set_from(src, start + x, x + 1, dst);
         x += 1;
+    }
+    while x + 64 <= len {
+        let at_byte = (start + x) / 8;
+        let mut le = [0u8; 8];
+        le.copy_from_slice(&src[at_byte..at_byte + 8]);
+        let word = u64::from_le_bytes(le);
+        let at = x + 1;
+        dst[at / 64] |= word << (at % 64);
+        if at % 64 != 0 {
+            dst[at / 64 + 1] |= word >> (64 - at % 64);
+        }
+        x += 64;
     }
     while x + 8 <= len {
         let byte = u64::from(src[(start + x) / 8]);
@@ -385,5 +397,37 @@ fn copy_bits(src: &[u8], start: usize, len: usize, dst: &mut [u64]) {
 fn set_from(src: &[u8], bit: usize, at: usize, dst: &mut [u64]) {
     if (src[bit / 8] >> (bit % 8)) & 1 == 1 {
         dst[at / 64] |= 1 << (at % 64);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Copying a bit row by words and bytes sets the bits one by one would: every start
+    /// offset within a byte and every length across word boundaries, on random bits.
+    #[test]
+    fn rows_copy_as_bit_by_bit() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let src: Vec<u8> = (0..64)
+            .map(|_| {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                seed as u8
+            })
+            .collect();
+        for start in 0..24 {
+            for len in 0..=(src.len() * 8 - start).min(300) {
+                let words = (len + 2) / 64 + 2;
+                let mut fast = vec![0u64; words];
+                copy_bits(&src, start, len, &mut fast);
+                let mut slow = vec![0u64; words];
+                for x in 0..len {
+                    set_from(&src, start + x, x + 1, &mut slow);
+                }
+                assert_eq!(fast, slow, "start {start}, length {len}");
+            }
+        }
     }
 }
