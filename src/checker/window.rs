@@ -112,15 +112,19 @@ pub struct Clip {
 }
 
 impl Clip {
-    /// Whether a tet with coordinates `c` (per axis, its four vertices') is kept.
-    fn keeps(&self, c: &[[i64; 4]; 3]) -> bool {
-        (0..3).all(|k| {
-            if self.far_low[k] {
-                c[k].iter().any(|&x| x <= self.near.1[k])
-            } else {
-                c[k].iter().any(|&x| x >= self.near.0[k])
-            }
-        })
+    /// Per spatial axis (bit k), whether a point with coordinates `c` lies on the partners'
+    /// box or on the far points' side of it: a tet is kept when its vertices' bits,
+    /// or-ed, are all set.
+    fn reaches(&self, c: [i64; 3]) -> u8 {
+        (0..3)
+            .filter(|&k| {
+                if self.far_low[k] {
+                    c[k] <= self.near.1[k]
+                } else {
+                    c[k] >= self.near.0[k]
+                }
+            })
+            .fold(0, |bits, k| bits | 1 << k)
     }
 
     /// Whether every tet a partner in box `b` can need is kept.
@@ -281,21 +285,26 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     let mut kept: Vec<u32> = Vec::new();
     let mut all = 0usize;
     let mut keep: Vec<u32> = Vec::new();
+    let mut reach: Vec<u8> = Vec::new();
     for part in &parts {
         let first_vertex = mesh.vertices.len();
         pieces.push(mesh.tets.len());
         ranges.push(all..all + part.tets.len());
         match &clip {
             Some(c) => {
-                let coords = |t: &[u32; 4]| {
-                    [0, 1, 2]
-                        .map(|k| t.map(|v| i64::from(part.vertices[v as usize][k]) * f + w.add[k]))
-                };
-                keep.clear();
-                keep.extend(
-                    (0..part.tets.len() as u32)
-                        .filter(|&t| c.keeps(&coords(&part.tets[t as usize]))),
+                reach.clear();
+                reach.extend(
+                    part.vertices
+                        .iter()
+                        .map(|p| c.reaches([0, 1, 2].map(|k| i64::from(p[k]) * f + w.add[k]))),
                 );
+                keep.clear();
+                keep.extend((0..part.tets.len() as u32).filter(|&t| {
+                    let bits = part.tets[t as usize]
+                        .iter()
+                        .fold(0, |b, &v| b | reach[v as usize]);
+                    bits == 0b111
+                }));
                 welder.append_tets(&mut mesh, part, &keep);
                 kept.extend(keep.iter().map(|&t| (all + t as usize) as u32));
             }
