@@ -230,7 +230,8 @@ fn pair_in_buckets<I: Iterator<Item = (usize, u64)>>(
     for b in 0..buckets {
         ends[b + 1] += ends[b];
     }
-    scratch.clear();
+    // Every slot is written below: only its length matters (no zeroing when it had room).
+    scratch.truncate(len);
     scratch.resize(len, 0);
     for (b, key) in faces() {
         let slot = &mut ends[b];
@@ -317,7 +318,8 @@ impl ClosedReport {
 pub fn radix_sort_u64(v: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) {
     const DIGIT: u32 = 11;
     const MASK: u64 = (1 << DIGIT) - 1;
-    scratch.clear();
+    // Every slot is written by each pass: only its length matters.
+    scratch.truncate(v.len());
     scratch.resize(v.len(), 0);
     let mut counts = vec![0usize; 1 << DIGIT];
     let mut shift = 0;
