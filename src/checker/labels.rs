@@ -35,6 +35,9 @@ pub enum Touch {
     /// Lies in one of its tets' hyperplane, overlapping with opposite orientation: the two
     /// bodies face each other there (contact, not interference).
     FaceToFace,
+    /// [`Touch::FaceToFace`] with one of its tets on the same four points (its twin): the
+    /// tet lies in the other boundary, every point of it on that boundary.
+    Twin,
     /// Crosses it, or overlaps it with the same orientation.
     Interference,
 }
@@ -124,7 +127,7 @@ pub fn label_regions(
     for t in 0..n {
         match touch[t] {
             Touch::Interference => labels[t] = Label::Interference,
-            Touch::Contact | Touch::FaceToFace => contact.push(t as u32),
+            Touch::Contact | Touch::FaceToFace | Touch::Twin => contact.push(t as u32),
             Touch::Clear => {}
         }
     }
@@ -168,7 +171,10 @@ pub fn label_regions(
         for &u in &adjacency[t as usize] {
             if (u as usize) < n
                 && !done[u as usize]
-                && matches!(touch[u as usize], Touch::Contact | Touch::FaceToFace)
+                && matches!(
+                    touch[u as usize],
+                    Touch::Contact | Touch::FaceToFace | Touch::Twin
+                )
             {
                 queue.push_back(u);
             }
@@ -190,7 +196,7 @@ pub fn label_regions(
             // Every point undecided: the tet lies in the other boundary. Face to face that
             // is contact (outside); otherwise report it.
             None => {
-                if touch[t as usize] != Touch::FaceToFace {
+                if !matches!(touch[t as usize], Touch::FaceToFace | Touch::Twin) {
                     st.out.undecided_regions += 1;
                 }
                 Label::Outside
@@ -208,9 +214,14 @@ pub fn label_regions(
         if st.done[t as usize] {
             continue;
         }
-        // A tet face to face with the other body mostly lies in one of its tets: every
-        // test would be undecided, so none is made.
-        if touch[t as usize] == Touch::FaceToFace && test.lies_in_boundary(t) {
+        // A tet face to face with the other body mostly lies in one of its tets (its twin,
+        // as a rule): every test would be undecided, so none is made.
+        let lies_in = match touch[t as usize] {
+            Touch::Twin => true,
+            Touch::FaceToFace => test.lies_in_boundary(t),
+            _ => false,
+        };
+        if lies_in {
             decide(t, None, &mut st);
             push_contact_neighbours(t, &st.done, &mut queue);
             continue;

@@ -427,8 +427,8 @@ pub(super) fn visit(a: Side<'_>, b: Side<'_>, i: u32, j: u32, part: &mut Part) {
     // the walk, when most are moot (both tets face to face by then).
     if sides_of_b == Some([0; 4]) && facing(&a.normals[i as usize], &b.normals[j as usize]) {
         if same_points(&ta, &tb) {
-            part.hit_a[i as usize] = ha.max(Touch::FaceToFace);
-            part.hit_b[j as usize] = hb.max(Touch::FaceToFace);
+            part.hit_a[i as usize] = ha.max(Touch::Twin);
+            part.hit_b[j as usize] = hb.max(Touch::Twin);
         } else if ha < Touch::FaceToFace || hb < Touch::FaceToFace {
             part.facing.push((i, j));
             if part.facing.len() >= FACING_HELD {
@@ -701,6 +701,10 @@ mod tests {
                         TetPairRelation::Coplanar {
                             overlap_volume_positive: true,
                             same_orientation: false,
+                        } if same_points(&ta, &tb) => Touch::Twin,
+                        TetPairRelation::Coplanar {
+                            overlap_volume_positive: true,
+                            same_orientation: false,
                         } => Touch::FaceToFace,
                         TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => {
                             Touch::Contact
@@ -710,7 +714,7 @@ mod tests {
                     if touch == Touch::Interference {
                         interfering.push((i, j));
                     }
-                    faces += usize::from(touch == Touch::FaceToFace);
+                    faces += usize::from(matches!(touch, Touch::FaceToFace | Touch::Twin));
                     twins += usize::from(same_points(&ta, &tb));
                     hit_a[i as usize] = hit_a[i as usize].max(touch);
                     hit_b[j as usize] = hit_b[j as usize].max(touch);
