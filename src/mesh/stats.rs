@@ -20,6 +20,14 @@
 //! the triangle hash a random function, two different multisets would hash equal with
 //! probability about 2^-128.)
 //!
+//! A slab that is one of the latest few (`RECENT_SLABS`, 4) moved by whole periods in time
+//! and whole lattice steps in space, compared exactly, adds that slab's figures again
+//! without a scan: its interior faces pair as that slab's did, its planes' triangles are
+//! that slab's moved (hashed again when moved in space), and its hypervolume is the same
+//! (moved in space, only when the slab copied is closed: its two planes then bound, and the
+//! hypervolume of a closed slab does not depend on where it lies). A body at rest, or one
+//! stepping by whole voxels, is scanned once per step.
+//!
 //! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
 //! physical time scale (frame periods may differ). The upper cap's contribution to the
 //! divergence sum follows from its boundary alone (a 3-chain in a hyperplane contributes
@@ -123,25 +131,70 @@ pub struct StatsAccumulator {
     scratch: Vec<u64>,
     lateral_vertices: u64,
     shared_vertices: u64,
-    /// The last slab added through [`StatsAccumulator::add_lateral_shared`], with what a
-    /// copy of it one period later adds again.
-    last: Option<LastSlab>,
+    /// The latest slabs added through [`StatsAccumulator::add_lateral_shared`] (at most
+    /// [`RECENT_SLABS`], newest last), with what a moved copy of one adds again.
+    recent: std::collections::VecDeque<Recent>,
+    /// Slabs added as copies of one of the latest, unmoved and moved in space.
+    copies: [u64; 2],
 }
 
-/// What a slab added to the figures, kept to add again for its copy one period later (see
-/// [`TetMesh::is_moved_copy_of`]): its interior faces' report, its hypervolume, its
-/// lower plane's triangles (the upper plane's are [`StatsAccumulator::prev_hi`] while it is
-/// the last slab) and the number of vertices in that plane.
+/// How many of the latest slabs a new one is compared with (see
+/// [`StatsAccumulator::add_lateral_shared`]). A table stepping by whole voxels now and then
+/// repeats its step slab a few periods later, moved.
+const RECENT_SLABS: usize = 4;
+
+/// One of the latest slabs (see [`StatsAccumulator::recent`]): its tets, index and lattice
+/// step, and its figures.
 #[derive(Debug)]
-struct LastSlab {
+struct Recent {
     mesh: Arc<TetMesh>,
     index: u64,
     scale: i32,
+    figures: Arc<SlabFigures>,
+}
+
+/// What a slab added to the figures, kept to add again for a copy of it moved (see
+/// [`TetMesh::is_moved_copy_of`]): its interior faces' report, its hypervolume, the
+/// triangles of its two time planes with their hashes, and the number of vertices in its
+/// lower plane.
+#[derive(Debug)]
+struct SlabFigures {
     interior: ClosedReport,
     vol24: i128,
     lo: Vec<(PlaneTri, i8)>,
     lo_hash: PlaneHash,
+    hi: Vec<(PlaneTri, i8)>,
+    hi_hash: PlaneHash,
     lo_vertices: u64,
+}
+
+impl SlabFigures {
+    /// The figures of the slab moved by `d` in space: the same faces and hypervolume, its
+    /// planes' triangles moved (sorted points stay sorted) and hashed again.
+    fn moved(&self, d: [i32; 3]) -> Self {
+        let plane = |tris: &[(PlaneTri, i8)]| {
+            let mut hash = PlaneHash::default();
+            let moved: Vec<(PlaneTri, i8)> = tris
+                .iter()
+                .map(|(t, s)| {
+                    let t = t.map(|p| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]);
+                    hash.add(&t, *s);
+                    (t, *s)
+                })
+                .collect();
+            (moved, hash)
+        };
+        let ((lo, lo_hash), (hi, hi_hash)) = (plane(&self.lo), plane(&self.hi));
+        Self {
+            interior: self.interior,
+            vol24: self.vol24,
+            lo,
+            lo_hash,
+            hi,
+            hi_hash,
+            lo_vertices: self.lo_vertices,
+        }
+    }
 }
 
 impl StatsAccumulator {
@@ -154,6 +207,12 @@ impl StatsAccumulator {
     /// closing plane's faces, count only at [`finish`](Self::finish)).
     pub fn so_far(&self) -> &BodyStats {
         &self.stats
+    }
+
+    /// How many slabs were added as copies of one of the latest (see
+    /// [`Self::add_lateral_shared`]): moved in time only, and moved in space too.
+    pub fn copies(&self) -> [u64; 2] {
+        self.copies
     }
 
     /// Records the meshing time of one slab.
@@ -173,10 +232,11 @@ impl StatsAccumulator {
     }
 
     /// [`Self::add_lateral`] for a slab whose tets are `shared` (`slab.mesh` must be
-    /// them), kept until the next slab: a next slab that is this one moved one frame
-    /// period later (a body at rest: [`TetMesh::is_moved_copy_of`], compared exactly)
-    /// adds this one's figures again without scanning its tets. Returns whether `slab`
-    /// was such a copy.
+    /// them), kept for the next few slabs: a slab that is one of the latest
+    /// `RECENT_SLABS` (4) moved by whole periods in time and whole lattice steps in space
+    /// (compared exactly, [`TetMesh::is_moved_copy_of`]) adds its figures again without
+    /// scanning its tets: a body at rest, or one stepping by whole voxels. Returns whether
+    /// `slab` is the slab before it one period later (the body rests).
     pub fn add_lateral_shared(
         &mut self,
         slab: LateralRef<'_>,
@@ -184,46 +244,81 @@ impl StatsAccumulator {
         shared: &Arc<TetMesh>,
     ) -> bool {
         debug_assert!(std::ptr::eq(slab.mesh, &**shared));
-        if self.add_repeat(slab, shared) {
-            return true;
+        if let Some(at_rest) = self.add_copy(slab, shared) {
+            return at_rest;
         }
         self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS, Some(shared));
         false
     }
 
-    /// Adds `slab` as a copy of the last slab one period later, if it is one.
-    fn add_repeat(&mut self, slab: LateralRef<'_>, shared: &Arc<TetMesh>) -> bool {
-        let Some(mut last) = self.last.take() else {
-            return false;
-        };
+    /// Adds `slab` as a moved copy of one of the latest slabs, if it is one; whether it is
+    /// the last slab one period later.
+    fn add_copy(&mut self, slab: LateralRef<'_>, shared: &Arc<TetMesh>) -> Option<bool> {
         let scale = slab.geometry.scale;
-        if last.index + 1 != slab.index
-            || last.scale != scale
-            || !slab.mesh.is_moved_copy_of(&last.mesh, [0, 0, 0, scale])
-        {
-            return false;
-        }
-        // Its interior faces pair as the last slab's did; its lower plane is the last
-        // slab's lower plane, to pair with the last slab's upper one (which is also its
-        // own upper plane, the next slab's partner).
-        self.merge(last.interior);
+        let (k, d) = self.recent.iter().enumerate().rev().find_map(|(k, r)| {
+            let periods = i32::try_from(slab.index.checked_sub(r.index)?).ok()?;
+            let (p, q) = (slab.mesh.vertices.first()?, r.mesh.vertices.first()?);
+            let d = [
+                p[0].checked_sub(q[0])?,
+                p[1].checked_sub(q[1])?,
+                p[2].checked_sub(q[2])?,
+                periods.checked_mul(scale)?,
+            ];
+            // Moved in space, its hypervolume is the same only if it is a closed slab
+            // (its interior faces paired, so its two planes bound): else it is scanned.
+            let moved = d[..3] != [0, 0, 0];
+            (periods > 0
+                && r.scale == scale
+                && (!moved || r.figures.interior.is_closed())
+                && slab.mesh.is_moved_copy_of(&r.mesh, d))
+            .then_some((k, d))
+        })?;
+        let source = &self.recent[k];
+        let at_rest = k + 1 == self.recent.len() && d == [0, 0, 0, scale];
+        let figures = if d[..3] == [0, 0, 0] {
+            source.figures.clone()
+        } else {
+            Arc::new(source.figures.moved([d[0], d[1], d[2]]))
+        };
+        // Its interior faces pair as the source's did; its lower plane pairs with the
+        // previous slab's upper one, and its upper plane is the next slab's partner.
+        self.merge(figures.interior);
         let prev_hi = std::mem::take(&mut self.prev_hi);
-        self.match_planes(&prev_hi, self.prev_hi_hash, &last.lo, last.lo_hash);
-        self.prev_hi = prev_hi;
-        self.shared_vertices += last.lo_vertices;
+        self.match_planes(&prev_hi, self.prev_hi_hash, &figures.lo, figures.lo_hash);
+        // The last slab unmoved in space: its upper plane, the previous one, is this one's.
+        let moved = d[..3] != [0, 0, 0];
+        self.prev_hi = if k + 1 == self.recent.len() && !moved {
+            prev_hi
+        } else {
+            figures.hi.clone()
+        };
+        self.prev_hi_hash = figures.hi_hash;
+        self.copies[usize::from(moved)] += 1;
+        self.shared_vertices += figures.lo_vertices;
         self.lateral_vertices += slab.mesh.vertices.len() as u64;
         self.stats.vanishing_slabs += u64::from(slab.vanishes);
         self.stats.tets += slab.mesh.tets.len() as u64;
         self.stats.slabs += 1;
         self.add_volume(
-            last.vol24,
+            figures.vol24,
             slab.geometry,
             slab.stamps_ns.1 - slab.stamps_ns.0,
         );
-        last.index = slab.index;
-        last.mesh = shared.clone();
-        self.last = Some(last);
-        true
+        self.remember(Recent {
+            mesh: shared.clone(),
+            index: slab.index,
+            scale,
+            figures,
+        });
+        Some(at_rest)
+    }
+
+    /// Keeps `r` among the latest slabs.
+    fn remember(&mut self, r: Recent) {
+        if self.recent.len() == RECENT_SLABS {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(r);
     }
 
     /// [`Self::add_lateral`], scanning the tets in chunks of `chunk_tets` on rayon's pool.
@@ -343,18 +438,24 @@ impl StatsAccumulator {
             let prev = std::mem::take(&mut self.prev_hi);
             self.match_planes(&prev, self.prev_hi_hash, &lo, lo_hash);
         }
+        if let Some(mesh) = shared {
+            self.remember(Recent {
+                mesh: mesh.clone(),
+                index: slab.index,
+                scale: slab.geometry.scale,
+                figures: Arc::new(SlabFigures {
+                    interior,
+                    vol24,
+                    lo,
+                    lo_hash,
+                    hi: hi.clone(),
+                    hi_hash,
+                    lo_vertices,
+                }),
+            });
+        }
         self.prev_hi = hi;
         self.prev_hi_hash = hi_hash;
-        self.last = shared.map(|mesh| LastSlab {
-            mesh: mesh.clone(),
-            index: slab.index,
-            scale: slab.geometry.scale,
-            interior,
-            vol24,
-            lo,
-            lo_hash,
-            lo_vertices,
-        });
 
         self.lateral_vertices += m.vertices.len() as u64;
         self.stats.vanishing_slabs += u64::from(slab.vanishes);
@@ -727,6 +828,69 @@ mod tests {
             let (a, b) = (
                 figures(scan.finish(9, Some((&cap, 0)), Some((&end, 0)))),
                 figures(shared.finish(9, Some((&cap, 0)), Some((&end, 0)))),
+            );
+            assert_eq!(a, b, "defect {defect}");
+            assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
+        }
+    }
+
+    /// A body stepping by whole voxels every third period: its slabs at rest after a step
+    /// are the ones before it moved in space, added as copies with the figures a scan of
+    /// each gives; and only while the slab copied is closed (with one tet gone from every
+    /// slab, none is copied in space, and the figures are still a scan's).
+    #[test]
+    fn slabs_moved_in_space_add_the_figures_of_scanning_them() {
+        let place = |k: u32| (k / 3) as i32;
+        let (m, slabs) = test_stream([15, 9, 8], 11, |k, x, y, z| {
+            let x = x - place(k);
+            let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 3).pow(2) <= 5;
+            ball || (x == 1 && y == 2 && (1..6).contains(&z))
+        });
+        let first = m.first_frame().unwrap().clone();
+        let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
+        let last = m.last_frame().unwrap().clone();
+        let end = m.cap(&last, crate::mesh::CapSide::High).unwrap();
+        let figures = |st: BodyStats| {
+            (
+                st.closed,
+                st.tets,
+                st.vertices,
+                st.slabs,
+                st.hypervolume_lattice.to_bits(),
+                st.hypervolume_m3s.to_bits(),
+            )
+        };
+        for defect in [false, true] {
+            let meshes: Vec<Arc<TetMesh>> = slabs
+                .iter()
+                .map(|s| {
+                    let mut mesh = s.mesh.clone();
+                    if defect {
+                        mesh.tets.remove(7);
+                    }
+                    Arc::new(mesh)
+                })
+                .collect();
+            let lateral = |j: usize| LateralRef {
+                mesh: &meshes[j],
+                ..slabs[j].lateral_ref()
+            };
+            let mut scan = StatsAccumulator::new();
+            let mut shared = StatsAccumulator::new();
+            for j in 0..slabs.len() {
+                scan.add_lateral(lateral(j), Some(&cap));
+                shared.add_lateral_shared(lateral(j), Some(&cap), &meshes[j]);
+            }
+            let [unmoved, moved] = shared.copies();
+            assert!(unmoved > 0, "defect {defect}: {unmoved} copies in time");
+            if defect {
+                assert_eq!(moved, 0, "a slab that is not closed is scanned");
+            } else {
+                assert!(moved >= 2, "{moved} copies moved in space");
+            }
+            let (a, b) = (
+                figures(scan.finish(11, Some((&cap, 0)), Some((&end, 0)))),
+                figures(shared.finish(11, Some((&cap, 0)), Some((&end, 0)))),
             );
             assert_eq!(a, b, "defect {defect}");
             assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
