@@ -771,6 +771,32 @@ mod tests {
         }
     }
 
+    /// A test stream's slabs (see [`test_stream`]) with its opening and closing caps.
+    fn capped_stream(
+        size: [u32; 3],
+        n: u32,
+        occ: impl Fn(u32, i32, i32, i32) -> bool,
+    ) -> (Vec<Slab>, TetMesh, TetMesh) {
+        let (m, slabs) = test_stream(size, n, occ);
+        let first = m.first_frame().unwrap().clone();
+        let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
+        let last = m.last_frame().unwrap().clone();
+        let end = m.cap(&last, crate::mesh::CapSide::High).unwrap();
+        (slabs, cap, end)
+    }
+
+    /// The figures two ways of adding the same slabs must agree on (floats bit for bit).
+    fn figures(st: BodyStats) -> (ClosedReport, u64, u64, u64, u64, u64) {
+        (
+            st.closed,
+            st.tets,
+            st.vertices,
+            st.slabs,
+            st.hypervolume_lattice.to_bits(),
+            st.hypervolume_m3s.to_bits(),
+        )
+    }
+
     /// A body at rest for some periods, then moving, then at rest again: the periods that
     /// copy the one before are recognised (and only they), and the figures equal a full scan
     /// of every slab, on a closed stream and on one whose copied slabs carry a defect.
@@ -782,23 +808,10 @@ mod tests {
             4..=7 => 2,
             _ => 3,
         };
-        let (m, slabs) = test_stream([9, 8, 7], 9, |k, x, y, z| {
+        let (slabs, cap, end) = capped_stream([9, 8, 7], 9, |k, x, y, z| {
             let r2 = (x - 3 - place(k)).pow(2) + (y - 4).pow(2);
             r2 + (z - 3).pow(2) <= 6 || (x + 2 * y + 3 * z) % 13 == 0
         });
-        let first = m.first_frame().unwrap().clone();
-        let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
-        let last = m.last_frame().unwrap().clone();
-        let end = m.cap(&last, crate::mesh::CapSide::High).unwrap();
-        let figures = |st: BodyStats| {
-            (
-                st.closed,
-                st.tets,
-                st.vertices,
-                st.hypervolume_lattice.to_bits(),
-                st.hypervolume_m3s.to_bits(),
-            )
-        };
         // Slabs 1, 2 and 5, 6 copy the slab before them; a defect in slabs 5 and 6 (one
         // tet gone from each, the same one) keeps 6 a copy of 5, but 5 no copy of 4.
         for defect in [false, true] {
@@ -841,25 +854,11 @@ mod tests {
     #[test]
     fn slabs_moved_in_space_add_the_figures_of_scanning_them() {
         let place = |k: u32| (k / 3) as i32;
-        let (m, slabs) = test_stream([15, 9, 8], 11, |k, x, y, z| {
+        let (slabs, cap, end) = capped_stream([15, 9, 8], 11, |k, x, y, z| {
             let x = x - place(k);
             let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 3).pow(2) <= 5;
             ball || (x == 1 && y == 2 && (1..6).contains(&z))
         });
-        let first = m.first_frame().unwrap().clone();
-        let cap = m.cap(&first, crate::mesh::CapSide::Low).unwrap();
-        let last = m.last_frame().unwrap().clone();
-        let end = m.cap(&last, crate::mesh::CapSide::High).unwrap();
-        let figures = |st: BodyStats| {
-            (
-                st.closed,
-                st.tets,
-                st.vertices,
-                st.slabs,
-                st.hypervolume_lattice.to_bits(),
-                st.hypervolume_m3s.to_bits(),
-            )
-        };
         for defect in [false, true] {
             let meshes: Vec<Arc<TetMesh>> = slabs
                 .iter()
