@@ -408,15 +408,8 @@ mod tests {
     /// offset within a byte and every length across word boundaries, on random bits.
     #[test]
     fn rows_copy_as_bit_by_bit() {
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-        let src: Vec<u8> = (0..64)
-            .map(|_| {
-                seed ^= seed << 13;
-                seed ^= seed >> 7;
-                seed ^= seed << 17;
-                seed as u8
-            })
-            .collect();
+        let mut rng = crate::kernel::intersect::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let src: Vec<u8> = (0..64).map(|_| rng.next() as u8).collect();
         for start in 0..24 {
             for len in 0..=(src.len() * 8 - start).min(300) {
                 let words = (len + 2) / 64 + 2;

@@ -668,17 +668,11 @@ mod tests {
     #[test]
     fn caps_weld_as_by_coordinates() {
         let size = [11u32, 7, 9];
-        let mut seed = 0x2545_f491_4f6c_dd1du64;
-        let mut next = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            seed
-        };
+        let mut rng = crate::kernel::intersect::test_rng::Rng(0x2545_f491_4f6c_dd1d);
         let n = size.iter().product::<u32>() as usize;
         for round in 0..24u32 {
             let density = 1 + u64::from(round % 4);
-            let raw: Vec<u64> = (0..n).map(|_| next()).collect();
+            let raw: Vec<u64> = (0..n).map(|_| rng.next()).collect();
             // Planes 3 and 4 stay empty; in half the rounds, so does plane 0.
             let keep = |i: usize| {
                 let z = i / (size[0] * size[1]) as usize;

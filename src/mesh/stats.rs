@@ -125,7 +125,8 @@ impl Slab {
 #[derive(Debug, Default)]
 pub struct StatsAccumulator {
     stats: BodyStats,
-    prev_hi: Vec<(PlaneTri, i8)>,
+    /// The upper plane's triangles of the last slab (shared with its figures when kept).
+    prev_hi: Arc<[(PlaneTri, i8)]>,
     prev_hi_hash: PlaneHash,
     keys: Vec<u64>,
     scratch: Vec<u64>,
@@ -163,7 +164,7 @@ struct SlabFigures {
     vol24: i128,
     lo: Vec<(PlaneTri, i8)>,
     lo_hash: PlaneHash,
-    hi: Vec<(PlaneTri, i8)>,
+    hi: Arc<[(PlaneTri, i8)]>,
     hi_hash: PlaneHash,
     lo_vertices: u64,
 }
@@ -190,7 +191,7 @@ impl SlabFigures {
             vol24: self.vol24,
             lo,
             lo_hash,
-            hi,
+            hi: hi.into(),
             hi_hash,
             lo_vertices: self.lo_vertices,
         }
@@ -275,7 +276,8 @@ impl StatsAccumulator {
         })?;
         let source = &self.recent[k];
         let at_rest = k + 1 == self.recent.len() && d == [0, 0, 0, scale];
-        let figures = if d[..3] == [0, 0, 0] {
+        let moved = d[..3] != [0, 0, 0];
+        let figures = if !moved {
             source.figures.clone()
         } else {
             Arc::new(source.figures.moved([d[0], d[1], d[2]]))
@@ -285,13 +287,7 @@ impl StatsAccumulator {
         self.merge(figures.interior);
         let prev_hi = std::mem::take(&mut self.prev_hi);
         self.match_planes(&prev_hi, self.prev_hi_hash, &figures.lo, figures.lo_hash);
-        // The last slab unmoved in space: its upper plane, the previous one, is this one's.
-        let moved = d[..3] != [0, 0, 0];
-        self.prev_hi = if k + 1 == self.recent.len() && !moved {
-            prev_hi
-        } else {
-            figures.hi.clone()
-        };
+        self.prev_hi = figures.hi.clone();
         self.prev_hi_hash = figures.hi_hash;
         self.copies[usize::from(moved)] += 1;
         self.shared_vertices += figures.lo_vertices;
@@ -438,6 +434,7 @@ impl StatsAccumulator {
             let prev = std::mem::take(&mut self.prev_hi);
             self.match_planes(&prev, self.prev_hi_hash, &lo, lo_hash);
         }
+        let hi: Arc<[(PlaneTri, i8)]> = hi.into();
         if let Some(mesh) = shared {
             self.remember(Recent {
                 mesh: mesh.clone(),
@@ -516,7 +513,7 @@ impl StatsAccumulator {
                     self.match_planes(&prev, self.prev_hi_hash, &boundary, hash);
                 }
                 // No closing cap (not built): the last upper plane stays open.
-                None => self.merge(pair_plane_faces(prev)),
+                None => self.merge(pair_plane_faces(prev.to_vec())),
             }
             for (cap, occupied) in [first_cap, last_cap].into_iter().flatten() {
                 self.stats.tets += cap.tets.len() as u64;
