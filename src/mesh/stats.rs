@@ -40,8 +40,8 @@ use rayon::prelude::*;
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pack_face, pair_by_first_vertex, pair_packed,
-    pair_packed_boundary, pair_plane_faces, tet_faces, ClosedReport, PACKED_VERTEX_LIMIT,
+    canonical_triangle, det4_small_tet, id_bits, pair_by_first_vertex, pair_plane_faces, tet_faces,
+    ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,
 };
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
@@ -128,7 +128,6 @@ pub struct StatsAccumulator {
     /// The upper plane's triangles of the last slab (shared with its figures when kept).
     prev_hi: Arc<[(PlaneTri, i8)]>,
     prev_hi_hash: PlaneHash,
-    keys: Vec<u64>,
     scratch: Vec<u64>,
     lateral_vertices: u64,
     shared_vertices: u64,
@@ -335,16 +334,17 @@ impl StatsAccumulator {
             .iter()
             .map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1))
             .collect();
-        let packed = m.vertices.len() <= PACKED_VERTEX_LIMIT;
-        let bits = id_bits(m.vertices.len());
+        // Faces off the two time planes pair up inside the slab: packed and gathered by
+        // their smallest vertex (counted as they come), else by their ids.
+        let shape = (m.vertices.len() <= PACKED_VERTEX_LIMIT)
+            .then(|| FaceShape::new(m.vertices.len(), 4 * m.tets.len()));
         // The tets in chunks on rayon's pool: every figure below is an exact sum or an
         // order-independent set, so the result does not depend on the chunking.
         let chunk = |tets: &[[u32; 4]]| {
             let mut c = Scan::default();
             // Most faces are off the time planes: room for all at once, not by doubling.
-            if packed {
-                c.keys.reserve(4 * tets.len());
-            } else {
+            let mut faces = shape.map(|shape| shape.gather(4 * tets.len()));
+            if faces.is_none() {
                 c.wide.reserve(4 * tets.len());
             }
             for t in tets {
@@ -368,20 +368,32 @@ impl StatsAccumulator {
                         }
                     } else {
                         let (key, parity) = canonical_triangle(f.map(|i| t[i]));
-                        if packed {
-                            c.keys.push(pack_face(key, s * parity > 0, bits));
-                        } else {
-                            c.wide.push((key, s * parity));
+                        match faces.as_mut() {
+                            Some(faces) => faces.push(key, s * parity > 0),
+                            None => c.wide.push((key, s * parity)),
                         }
                     }
                 }
             }
+            c.faces = faces;
             c
         };
-        let parts: Vec<Scan> = if m.tets.len() <= chunk_tets {
-            vec![chunk(&m.tets)]
-        } else {
-            m.tets.par_chunks(chunk_tets).map(chunk).collect()
+        let scan = || -> Vec<Scan> {
+            if m.tets.len() <= chunk_tets {
+                vec![chunk(&m.tets)]
+            } else {
+                m.tets.par_chunks(chunk_tets).map(chunk).collect()
+            }
+        };
+        // The first slab's lower plane pairs with the first cap: its boundary is found
+        // while the slab is scanned.
+        let cap = first_cap.filter(|_| self.stats.slabs == 0);
+        let (parts, cap) = match cap {
+            Some(cap) => {
+                let (parts, cap) = rayon::join(scan, || cap_boundary(cap));
+                (parts, Some(cap))
+            }
+            None => (scan(), None),
         };
         let mut parts = parts.into_iter();
         let Scan {
@@ -391,10 +403,10 @@ impl StatsAccumulator {
             mut hi,
             mut lo_hash,
             mut hi_hash,
-            keys,
+            faces,
             mut wide,
         } = parts.next().unwrap_or_default();
-        self.keys = keys;
+        let mut gathered = Vec::from_iter(faces);
         for c in parts {
             vol24 += c.vol24;
             hi_cone += c.hi_cone;
@@ -403,26 +415,22 @@ impl StatsAccumulator {
             lo.extend(c.lo);
             hi.extend(c.hi);
             wide.extend(c.wide);
-            self.keys.extend(c.keys);
+            gathered.extend(c.faces);
         }
         // Upper cap: Σ det over its tets = Σ over its boundary (the upper faces, reversed)
         // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
         vol24 -= i128::from(t_hi - t_lo) * hi_cone;
-        // Faces off the two time planes pair up inside the slab.
-        let interior = if packed {
-            pair_packed(&mut self.keys, &mut self.scratch, bits)
-        } else {
-            pair_by_first_vertex(&wide, m.vertices.len())
+        let interior = match shape {
+            Some(_) => FaceParts::pair(gathered, &mut self.scratch, false).0,
+            None => pair_by_first_vertex(&wide, m.vertices.len()),
         };
         self.merge(interior);
         let lo_vertices = plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
 
         // Lower plane: pairs with the previous slab's upper plane, or the first cap.
         if self.stats.slabs == 0 {
-            match first_cap {
-                Some(cap) => {
-                    let (report, boundary, hash) =
-                        cap_boundary(cap, &mut self.keys, &mut self.scratch);
+            match cap {
+                Some((report, boundary, hash)) => {
                     self.merge(report);
                     self.match_planes(&boundary, hash, &lo, lo_hash);
                 }
@@ -507,8 +515,7 @@ impl StatsAccumulator {
             let prev = std::mem::take(&mut self.prev_hi);
             match last_cap {
                 Some((cap, _)) => {
-                    let (report, boundary, hash) =
-                        cap_boundary(cap, &mut self.keys, &mut self.scratch);
+                    let (report, boundary, hash) = cap_boundary(cap);
                     self.merge(report);
                     self.match_planes(&prev, self.prev_hi_hash, &boundary, hash);
                 }
@@ -534,11 +541,7 @@ fn det3_i128(t: &PlaneTri) -> i128 {
 
 /// Checks a cap's interior faces (exactly, by packed vertex ids) and returns the report, its
 /// boundary triangles keyed by coordinates, and their multiset hash.
-fn cap_boundary(
-    cap: &TetMesh,
-    keys: &mut Vec<u64>,
-    scratch: &mut Vec<u64>,
-) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash) {
+fn cap_boundary(cap: &TetMesh) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash) {
     let point = |v: u32| {
         let p = cap.vertices[v as usize];
         [p[0], p[1], p[2]]
@@ -576,15 +579,22 @@ fn cap_boundary(
         }
         return (report, boundary, hash);
     }
+    // A cap fills its body's volume (hundreds of thousands of tets): gathered in chunks and
+    // paired in parts on rayon's pool.
     let bits = id_bits(cap.vertices.len());
-    keys.clear();
-    for t in &cap.tets {
-        for (f, s) in tet_faces(*t) {
-            let (k, parity) = canonical_triangle(f);
-            keys.push(pack_face(k, s * parity > 0, bits));
+    let shape = FaceShape::new(cap.vertices.len(), 4 * cap.tets.len());
+    let gather = |tets: &[[u32; 4]]| {
+        let mut faces = shape.gather(4 * tets.len());
+        for t in tets {
+            for (f, s) in tet_faces(*t) {
+                let (k, parity) = canonical_triangle(f);
+                faces.push(k, s * parity > 0);
+            }
         }
-    }
-    let (report, single) = pair_packed_boundary(keys, scratch, bits);
+        faces
+    };
+    let gathered = cap.tets.par_chunks(SCAN_CHUNK_TETS).map(gather).collect();
+    let (report, single) = FaceParts::pair(gathered, &mut Vec::new(), true);
     let mut boundary = Vec::with_capacity(single.len());
     let mut hash = PlaneHash::default();
     let mask = (1u64 << bits) - 1;
@@ -616,7 +626,7 @@ struct Scan {
     hi: Vec<(PlaneTri, i8)>,
     lo_hash: PlaneHash,
     hi_hash: PlaneHash,
-    keys: Vec<u64>,
+    faces: Option<FaceParts>,
     wide: Vec<([u32; 3], i8)>,
 }
 

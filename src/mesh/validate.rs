@@ -187,46 +187,58 @@ fn pair_packed_or_single(
     let n = keys.len();
     let span = if n == 0 { 0 } else { (hi - lo) as usize + 1 };
     if n < BUCKET_MIN_FACES || span > 4 * n + 64 || u32::try_from(n).is_err() {
-        radix_sort_u64(keys, scratch, 3 * bits + 1);
-        let mut r = ClosedReport::default();
-        let mut single = Vec::new();
-        for group in packed_groups(keys) {
-            match group {
-                [one] if keep_single => single.push(*one),
-                _ => r.count(group),
-            }
-        }
-        return (r, single);
+        return pair_radix_sorted(keys, scratch, bits, keep_single);
     }
-    pair_in_buckets(
-        span,
-        || keys.iter().map(|&k| (((k >> shift) - lo) as usize, k)),
-        n,
-        scratch,
-        keep_single,
-    )
+    let faces = || keys.iter().map(|&k| (((k >> shift) - lo) as usize, k));
+    pair_in_buckets(count_buckets(span, faces()), faces, n, scratch, keep_single)
 }
 
-/// Counts how `len` faces pair up, each given by `faces()` (called twice, the same faces
-/// each time) as its bucket below `buckets` and a key: a triangle's faces share a bucket,
-/// and two faces of a bucket are of one triangle when their keys agree above bit 0 (the
-/// orientation). The buckets are placed in `scratch` by a counting sort (one pass to count,
-/// one to place), and each, the few dozen faces around one vertex, is sorted alone; runs of
-/// whole buckets, about [`BUCKET_RUN`] faces each, are counted on rayon's pool. With
-/// `keep_single`, the keys of triangles used once are returned rather than counted.
+/// [`pair_packed_or_single`] by a radix sort of all the keys.
+fn pair_radix_sorted(
+    keys: &mut Vec<u64>,
+    scratch: &mut Vec<u64>,
+    bits: u32,
+    keep_single: bool,
+) -> (ClosedReport, Vec<u64>) {
+    radix_sort_u64(keys, scratch, 3 * bits + 1);
+    let mut r = ClosedReport::default();
+    let mut single = Vec::new();
+    for group in packed_groups(keys) {
+        match group {
+            [one] if keep_single => single.push(*one),
+            _ => r.count(group),
+        }
+    }
+    (r, single)
+}
+
+/// The bucket ends [`pair_in_buckets`] starts from: `ends[b + 1]` is the number of faces in
+/// bucket b below `buckets`.
+fn count_buckets(buckets: usize, faces: impl Iterator<Item = (usize, u64)>) -> Vec<u32> {
+    let mut ends = vec![0u32; buckets + 1];
+    for (b, _) in faces {
+        ends[b + 1] += 1;
+    }
+    ends
+}
+
+/// Counts how `len` faces pair up, each given by `faces()` as its bucket below
+/// `ends.len() - 1` and a key, with `ends[b + 1]` the number of faces in bucket b: a
+/// triangle's faces share a bucket, and two faces of a bucket are of one triangle when
+/// their keys agree above bit 0 (the orientation). The buckets are placed in `scratch` (a
+/// counting sort's second pass), and each, the few dozen faces around one vertex, is sorted
+/// alone; runs of whole buckets, about [`BUCKET_RUN`] faces each, are counted on rayon's
+/// pool. With `keep_single`, the keys of triangles used once are returned rather than
+/// counted.
 fn pair_in_buckets<I: Iterator<Item = (usize, u64)>>(
-    buckets: usize,
+    mut ends: Vec<u32>,
     faces: impl Fn() -> I,
     len: usize,
     scratch: &mut Vec<u64>,
     keep_single: bool,
 ) -> (ClosedReport, Vec<u64>) {
-    // ends[b + 1] counts bucket b; after the prefix sum ends[b] is its first slot, and
-    // after placing, its end.
-    let mut ends = vec![0u32; buckets + 1];
-    for (b, _) in faces() {
-        ends[b + 1] += 1;
-    }
+    // After the prefix sum ends[b] is bucket b's first slot, and after placing, its end.
+    let buckets = ends.len() - 1;
     for b in 0..buckets {
         ends[b + 1] += ends[b];
     }
@@ -271,17 +283,20 @@ fn pair_in_buckets<I: Iterator<Item = (usize, u64)>>(
             }
             (r, single)
         })
-        .reduce(
-            || (ClosedReport::default(), Vec::new()),
-            |(mut a, mut sa), (b, sb)| {
-                a.triangles += b.triangles;
-                a.unpaired += b.unpaired;
-                a.overshared += b.overshared;
-                a.misoriented += b.misoriented;
-                sa.extend(sb);
-                (a, sa)
-            },
-        )
+        .reduce(Default::default, add_pairing)
+}
+
+/// Two pairings' reports and single faces together.
+fn add_pairing(
+    (mut a, mut sa): (ClosedReport, Vec<u64>),
+    (b, sb): (ClosedReport, Vec<u64>),
+) -> (ClosedReport, Vec<u64>) {
+    a.triangles += b.triangles;
+    a.unpaired += b.unpaired;
+    a.overshared += b.overshared;
+    a.misoriented += b.misoriented;
+    sa.extend(sb);
+    (a, sa)
 }
 
 /// Below this many faces, [`pair_packed`] radix sorts (its buckets' table would cost more
@@ -290,6 +305,144 @@ const BUCKET_MIN_FACES: usize = 4096;
 
 /// Faces per run of buckets counted as one task of [`pair_packed`].
 const BUCKET_RUN: usize = 1 << 16;
+
+/// Faces a part of a [`FaceParts`] is sized for.
+const PART_FACES: usize = 1 << 18;
+
+/// Most ids in a part of a [`FaceParts`] (2^16: its counts, 256 KiB, stay in cache).
+const PART_ID_BITS: u32 = 16;
+
+/// How the packed faces of one mesh are split into the parts of a [`FaceParts`]: by their
+/// smallest vertex id, 2^`shift` ids per part. Every [`FaceParts`] gathering the faces of
+/// one mesh (one per chunk of its tets) has the same shape, so that they can be appended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaceShape {
+    bits: u32,
+    shift: u32,
+    parts: usize,
+}
+
+impl FaceShape {
+    /// The shape for about `faces` faces over vertex ids below `vertices` (at most
+    /// [`PACKED_VERTEX_LIMIT`]): parts of about [`PART_FACES`] faces, at most 2^16 ids each.
+    pub fn new(vertices: usize, faces: usize) -> Self {
+        Self::with_part_faces(vertices, faces, PART_FACES)
+    }
+
+    fn with_part_faces(vertices: usize, faces: usize, part_faces: usize) -> Self {
+        let bits = id_bits(vertices);
+        let want = faces.div_ceil(part_faces.max(1)).max(1);
+        let shift = id_bits(vertices.div_ceil(want)).min(PART_ID_BITS);
+        Self {
+            bits,
+            shift,
+            parts: vertices.div_ceil(1 << shift).max(1),
+        }
+    }
+
+    /// An empty gathering with room for about `faces` faces.
+    pub fn gather(self, faces: usize) -> FaceParts {
+        let ids = 1usize << self.shift;
+        let each = faces / self.parts + faces / (8 * self.parts) + 64;
+        FaceParts {
+            shape: self,
+            parts: (0..self.parts)
+                .map(|_| FacePart {
+                    keys: Vec::with_capacity(each),
+                    counts: vec![0; ids + 1],
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Packed faces (see [`check_closed_with`]) gathered by their smallest vertex id into the
+/// parts of a [`FaceShape`], each part counting its faces per id as they come. Pairing them
+/// ([`Self::pair`]) then needs neither a pass to find their range nor one to count them,
+/// each part's buckets fit in cache, and the parts pair on rayon's pool: the same report as
+/// [`pair_packed`] (or [`pair_packed_boundary`]) over all the faces.
+#[derive(Debug, Clone)]
+pub struct FaceParts {
+    shape: FaceShape,
+    parts: Vec<FacePart>,
+}
+
+#[derive(Debug, Clone)]
+struct FacePart {
+    keys: Vec<u64>,
+    /// `counts[i + 1]`: the faces whose smallest id is the part's i-th.
+    counts: Vec<u32>,
+}
+
+impl FaceParts {
+    /// Adds a canonical triangle of ids below the shape's vertex count, with its orientation.
+    #[inline]
+    pub fn push(&mut self, k: [u32; 3], positive: bool) {
+        let shift = self.shape.shift;
+        let part = &mut self.parts[(k[0] >> shift) as usize];
+        part.counts[(k[0] & ((1 << shift) - 1)) as usize + 1] += 1;
+        part.keys.push(pack_face(k, positive, self.shape.bits));
+    }
+
+    /// Counts how the faces `gathered` (of one shape, e.g. one per chunk of a mesh's tets)
+    /// pair up; with `keep_single`, the keys of the triangles used once are returned (in no
+    /// particular order) rather than counted. Each part's faces are taken together from
+    /// every gathering and paired on rayon's pool; `scratch` serves the first part.
+    pub fn pair(
+        gathered: Vec<FaceParts>,
+        scratch: &mut Vec<u64>,
+        keep_single: bool,
+    ) -> (ClosedReport, Vec<u64>) {
+        let Some(shape) = gathered.first().map(|g| g.shape) else {
+            return Default::default();
+        };
+        assert!(
+            gathered.iter().all(|g| g.shape == shape),
+            "faces gathered in different shapes"
+        );
+        let FaceShape { bits, shift, parts } = shape;
+        // part j: its faces in each gathering.
+        let mut by_part: Vec<Vec<FacePart>> = (0..parts).map(|_| Vec::new()).collect();
+        for g in gathered {
+            for (j, part) in g.parts.into_iter().enumerate() {
+                by_part[j].push(part);
+            }
+        }
+        let one = |pieces: Vec<FacePart>, scratch: &mut Vec<u64>| {
+            let mut pieces = pieces.into_iter();
+            let Some(FacePart {
+                mut keys,
+                mut counts,
+            }) = pieces.next()
+            else {
+                return Default::default();
+            };
+            for more in pieces {
+                keys.extend_from_slice(&more.keys);
+                for (x, y) in counts.iter_mut().zip(&more.counts) {
+                    *x += y;
+                }
+            }
+            let n = keys.len();
+            if n < BUCKET_MIN_FACES || u32::try_from(n).is_err() {
+                return pair_radix_sorted(&mut keys, scratch, bits, keep_single);
+            }
+            let (at, mask) = (2 * bits + 1, (1u64 << shift) - 1);
+            let faces = || keys.iter().map(|&k| (((k >> at) & mask) as usize, k));
+            pair_in_buckets(counts, faces, n, scratch, keep_single)
+        };
+        let rest = by_part.split_off(1);
+        let (first, rest) = rayon::join(
+            || by_part.pop().map(|p| one(p, scratch)).unwrap_or_default(),
+            || {
+                rest.into_par_iter()
+                    .map(|p| one(p, &mut Vec::new()))
+                    .reduce(Default::default, add_pairing)
+            },
+        );
+        add_pairing(first, rest)
+    }
+}
 
 /// Runs of sorted packed faces that share a triangle (they differ at most in bit 0, the
 /// orientation).
@@ -367,10 +520,12 @@ pub fn pair_by_first_vertex(faces: &[([u32; 3], i8)], n: usize) -> ClosedReport 
     let rest = |k: &[u32; 3], s: i8| {
         (u64::from(k[1]) << (bits + 1)) | (u64::from(k[2]) << 1) | u64::from(s > 0)
     };
+    let len = faces.len();
+    let faces = || faces.iter().map(|(k, s)| (k[0] as usize, rest(k, *s)));
     pair_in_buckets(
-        n,
-        || faces.iter().map(|(k, s)| (k[0] as usize, rest(k, *s))),
-        faces.len(),
+        count_buckets(n, faces()),
+        faces,
+        len,
         &mut Vec::new(),
         false,
     )
@@ -560,14 +715,53 @@ mod tests {
             }
             single.sort_unstable();
             assert_eq!(single, once, "{ids} ids x {stride}");
-            assert_eq!(
-                report,
-                ClosedReport {
-                    unpaired: 0,
-                    triangles: want.triangles - want.unpaired,
-                    ..want
-                },
-                "{ids} ids x {stride}"
+            let bounded = ClosedReport {
+                unpaired: 0,
+                triangles: want.triangles - want.unpaired,
+                ..want
+            };
+            assert_eq!(report, bounded, "{ids} ids x {stride}");
+            // Gathered in parts (one to many, some with too few faces to bucket) from
+            // one to several chunks of the faces: the same reports and single faces.
+            for (part_faces, chunks) in [(usize::MAX, 1), (1 << 14, 1), (5_000, 3), (700, 4)] {
+                let what = format!("{ids} ids x {stride}, {part_faces} per part, {chunks}");
+                let shape = FaceShape::with_part_faces((ids * stride) as usize, faces, part_faces);
+                let gather = || {
+                    wide.chunks(wide.len().div_ceil(chunks))
+                        .map(|c| {
+                            let mut g = shape.gather(c.len());
+                            c.iter().for_each(|&(k, s)| g.push(k, s > 0));
+                            g
+                        })
+                        .collect::<Vec<_>>()
+                };
+                assert_eq!(
+                    FaceParts::pair(gather(), &mut Vec::new(), false),
+                    (want, Vec::new()),
+                    "{what}"
+                );
+                let (report, mut single) = FaceParts::pair(gather(), &mut Vec::new(), true);
+                single.sort_unstable();
+                assert_eq!((report, single), (bounded, once.clone()), "{what}");
+            }
+        }
+    }
+
+    #[test]
+    fn face_shapes_split_ids_into_parts_that_cover_them() {
+        for (vertices, faces, part_faces) in [
+            (1, 0, 1),
+            (3_000, 200_000, 1 << 18),
+            (3_000, 200_000, 700),
+            (98_176, 2_156_952, 1 << 18),
+            (1 << 21, 1 << 24, 1 << 18),
+        ] {
+            let shape = FaceShape::with_part_faces(vertices, faces, part_faces);
+            assert!(shape.shift <= PART_ID_BITS && shape.shift <= shape.bits);
+            assert!(shape.parts << shape.shift >= vertices, "{shape:?}");
+            assert!(
+                (shape.parts - 1) << shape.shift < vertices.max(1),
+                "{shape:?}"
             );
         }
     }
