@@ -40,8 +40,8 @@ use rayon::prelude::*;
 use super::march::TetMesh;
 use super::mesher::{GridGeometry, Slab};
 use super::validate::{
-    canonical_triangle, det4_small_tet, id_bits, pair_by_first_vertex, pair_plane_faces, tet_faces,
-    ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,
+    canonical_tet_faces, canonical_triangle, det4_small_tet, id_bits, pair_by_first_vertex,
+    pair_plane_faces, tet_faces, ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,
 };
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
@@ -351,12 +351,17 @@ impl StatsAccumulator {
                 let p = t.map(|v| m.vertices[v as usize]);
                 let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
                 c.vol24 -= det4_small_tet(&local[0], &local[1], &local[2], &local[3]);
-                let flags = t.map(|v| plane[v as usize]);
-                for (f, s) in tet_faces([0usize, 1, 2, 3]) {
+                let (sorted, order) = canonical_tet_faces(*t);
+                let flags = order.map(|i| plane[t[i] as usize]);
+                for (j, (key, s)) in sorted.into_iter().enumerate() {
+                    // The face omits the j-th smallest id (the others in order, as `key`).
+                    let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
                     let on = flags[f[0]] & flags[f[1]] & flags[f[2]];
                     if on != 0 {
-                        let (key, parity) =
-                            canonical_triangle(f.map(|i| [p[i][0], p[i][1], p[i][2]]));
+                        let (key, parity) = canonical_triangle(f.map(|k| {
+                            let q = p[order[k]];
+                            [q[0], q[1], q[2]]
+                        }));
                         let s = s * parity;
                         if on & 1 != 0 {
                             c.lo_hash.add(&key, s);
@@ -367,10 +372,9 @@ impl StatsAccumulator {
                             c.hi.push((key, s));
                         }
                     } else {
-                        let (key, parity) = canonical_triangle(f.map(|i| t[i]));
                         match faces.as_mut() {
-                            Some(faces) => faces.push(key, s * parity > 0),
-                            None => c.wide.push((key, s * parity)),
+                            Some(faces) => faces.push(key, s > 0),
+                            None => c.wide.push((key, s)),
                         }
                     }
                 }
@@ -586,9 +590,8 @@ fn cap_boundary(cap: &TetMesh) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash)
     let gather = |tets: &[[u32; 4]]| {
         let mut faces = shape.gather(4 * tets.len());
         for t in tets {
-            for (f, s) in tet_faces(*t) {
-                let (k, parity) = canonical_triangle(f);
-                faces.push(k, s * parity > 0);
+            for (k, s) in canonical_tet_faces(*t).0 {
+                faces.push(k, s > 0);
             }
         }
         faces

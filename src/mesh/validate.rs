@@ -92,6 +92,40 @@ pub fn tet_faces<T: Copy>(t: [T; 4]) -> [([T; 3], i8); 4] {
     ]
 }
 
+/// [`tet_faces`] of a tet of ids, each as [`canonical_triangle`] gives it, from one sort
+/// of the four ids: the faces of the sorted tet are canonical already, and each carries the
+/// sort's parity (an odd permutation reverses the tet, so every face). Face j omits the
+/// j-th smallest id; `order[k]` is the position in `t` of the k-th smallest (equal ids
+/// stay in their order).
+#[inline]
+pub fn canonical_tet_faces(t: [u32; 4]) -> ([([u32; 3], i8); 4], [usize; 4]) {
+    // id << 2 | position: sorting these sorts the ids and carries the positions.
+    let mut k = [0, 1, 2, 3].map(|i| u64::from(t[i]) << 2 | i as u64);
+    for (i, j) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+        let (lo, hi) = (k[i].min(k[j]), k[i].max(k[j]));
+        (k[i], k[j]) = (lo, hi);
+    }
+    let order = k.map(|x| (x & 3) as usize);
+    // The permutation's parity: its inversions.
+    let mut inversions = 0;
+    for i in 0..4 {
+        for j in i + 1..4 {
+            inversions += u32::from(order[i] > order[j]);
+        }
+    }
+    let parity = if inversions % 2 == 0 { 1 } else { -1 };
+    let s = k.map(|x| (x >> 2) as u32);
+    (
+        [
+            ([s[1], s[2], s[3]], parity),
+            ([s[0], s[2], s[3]], -parity),
+            ([s[0], s[1], s[3]], parity),
+            ([s[0], s[1], s[2]], -parity),
+        ],
+        order,
+    )
+}
+
 /// Checks that every triangle is shared by exactly two tets with opposite induced
 /// orientation. Works on vertex ids: weld first if vertices may be duplicated.
 pub fn check_closed(mesh: &TetMesh) -> ClosedReport {
@@ -744,6 +778,28 @@ mod tests {
                 single.sort_unstable();
                 assert_eq!((report, single), (bounded, once.clone()), "{what}");
             }
+        }
+    }
+
+    #[test]
+    fn a_tets_faces_from_one_sort_are_each_face_sorted() {
+        // Every tuple of four ids below 5 (repeated ids included).
+        for n in 0..5u32.pow(4) {
+            let t = [n % 5, n / 5 % 5, n / 25 % 5, n / 125];
+            let want = tet_faces(t).map(|(f, s)| {
+                let (k, p) = canonical_triangle(f);
+                (k, s * p)
+            });
+            let (mut got, order) = canonical_tet_faces(t);
+            let mut want = want.to_vec();
+            want.sort_unstable();
+            got.sort_unstable();
+            assert_eq!(got.to_vec(), want, "{t:?}");
+            let sorted = order.map(|i| t[i]);
+            assert!(sorted.windows(2).all(|w| w[0] <= w[1]), "{t:?}");
+            let mut positions = order;
+            positions.sort_unstable();
+            assert_eq!(positions, [0, 1, 2, 3], "{t:?}");
         }
     }
 
