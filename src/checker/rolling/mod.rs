@@ -400,6 +400,13 @@ struct StatsJob {
     done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<StatsDone>>>,
 }
 
+/// A pair's overlap fed on rayon's pool ([`RollingChecker::overlap_push`]).
+#[derive(Debug)]
+struct OverlapJob {
+    /// (In a mutex only so that the checker can be shared with the pool's windows.)
+    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<Overlap>>>,
+}
+
 /// What a [`StatsJob`] gives back.
 enum StatsDone {
     /// The run's accumulator with a lateral piece added, and whether the piece repeats the
@@ -566,6 +573,8 @@ struct PairRoll {
     contacts: u64,
     records: VecDeque<Record>,
     overlap: Overlap,
+    /// The overlap being fed on rayon's pool, if it is (then `overlap` is a stand-in).
+    overlap_job: Option<OverlapJob>,
     stopped: Option<String>,
     /// Steps per frame period of the pair's lattice (0 until the first window).
     per: i64,
@@ -705,6 +714,7 @@ impl RollingChecker {
                     contacts: 0,
                     records: VecDeque::new(),
                     overlap: Overlap::default(),
+                    overlap_job: None,
                     stopped: None,
                     per: 0,
                     checked: false,
@@ -899,8 +909,27 @@ impl RollingChecker {
         }
     }
 
+    /// Takes back pair `i`'s overlap being fed, if it is (waiting for it).
+    pub(super) fn settle_overlap(&mut self, i: usize) {
+        let Some(job) = self.pairs.get_mut(i).and_then(|p| p.overlap_job.take()) else {
+            return;
+        };
+        let done = job
+            .done
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        match wait_on_pool(&done) {
+            Some(Ok(ov)) => self.pairs[i].overlap = ov,
+            Some(Err(panic)) => std::panic::resume_unwind(panic),
+            None => panic!("pair {i}: its overlap was lost"),
+        }
+    }
+
     /// Takes back every body's statistics being added.
     pub(super) fn settle_all_stats(&mut self) {
+        for i in 0..self.pairs.len() {
+            self.settle_overlap(i);
+        }
         let ids: Vec<String> = self
             .bodies
             .iter()

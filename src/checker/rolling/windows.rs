@@ -274,6 +274,7 @@ impl RollingChecker {
                 self.seconds_of_stamp(hi)
             );
             self.problem(out, "period_unchecked", why);
+            self.settle_overlap(i);
             self.pairs[i].overlap.unknown = true;
             self.advance(i, s, hi, k, out);
             return true;
@@ -556,8 +557,11 @@ impl RollingChecker {
     }
 
     /// Feeds the intersection of the two bodies' frames at `s` and `hi` to the pair's
-    /// overlap mesher.
+    /// overlap mesher. The frames are found here; they are intersected and meshed on
+    /// rayon's pool, while the checker goes on ([`Self::settle_overlap`] takes the overlap
+    /// back, before anything reads it or feeds it again).
     pub(super) fn overlap_push(&mut self, i: usize, s: i64, hi: i64) {
+        self.settle_overlap(i);
         let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
         let opts = self.opts;
         let geometry = |id: &str| {
@@ -587,66 +591,97 @@ impl RollingChecker {
                 None => ov.unknown = true,
             }
         }
+        let mut frames = Vec::with_capacity(2);
         for stamp in [s, hi] {
             let ov = &self.pairs[i].overlap;
             if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
                 continue;
             }
-            let (Some(ga), Some(gb)) = (ga, gb) else {
-                self.pairs[i].overlap.unknown = true;
-                continue;
-            };
-            let (fa, fb) = (
-                self.bodies[&a].frame_at(stamp, &ga),
-                self.bodies[&b].frame_at(stamp, &gb),
-            );
-            let ov = &mut self.pairs[i].overlap;
-            let (Some(fa), Some(fb)) = (fa, fb) else {
-                ov.unknown = true;
-                continue;
-            };
-            let Some((both, ga)) = crate::mesh::grid::intersect_across(&fa, &ga, &fb, &gb) else {
-                ov.unknown = true;
-                continue;
-            };
-            if ov.geometry.is_some_and(|g| g != ga) {
-                ov.unknown = true;
-                continue;
-            }
-            if ov.mesher.is_none() {
-                match Mesher::new(opts) {
-                    Ok(m) => ov.mesher = Some(m),
-                    Err(_) => {
-                        ov.unknown = true;
-                        continue;
-                    }
+            let both = ga.zip(gb).and_then(|(ga, gb)| {
+                let fa = self.bodies[&a].frame_at(stamp, &ga)?;
+                let fb = self.bodies[&b].frame_at(stamp, &gb)?;
+                Some(OverlapFrames { fa, ga, fb, gb })
+            });
+            frames.push((stamp, both));
+        }
+        if frames.is_empty() {
+            return;
+        }
+        let mut ov = std::mem::take(&mut self.pairs[i].overlap);
+        let (tx, done) = std::sync::mpsc::channel();
+        rayon::spawn(move || {
+            let fed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+                feed_overlap(&mut ov, opts, frames);
+                ov
+            }));
+            let _ = tx.send(fed);
+        });
+        self.pairs[i].overlap_job = Some(OverlapJob {
+            done: std::sync::Mutex::new(done),
+        });
+    }
+}
+
+/// Two bodies' frames at one stamp, each with its grid's geometry.
+pub(super) struct OverlapFrames {
+    fa: Arc<OccupancyGrid>,
+    ga: GridGeometry,
+    fb: Arc<OccupancyGrid>,
+    gb: GridGeometry,
+}
+
+/// Feeds `ov` the intersection of each stamp's frames, in order (`None`: a frame or a
+/// geometry missing, so the overlap is not measurable).
+fn feed_overlap(ov: &mut Overlap, opts: MesherOptions, frames: Vec<(i64, Option<OverlapFrames>)>) {
+    for (stamp, both) in frames {
+        if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
+            continue;
+        }
+        let Some(OverlapFrames { fa, ga, fb, gb }) = both else {
+            ov.unknown = true;
+            continue;
+        };
+        let Some((both, ga)) = crate::mesh::grid::intersect_across(&fa, &ga, &fb, &gb) else {
+            ov.unknown = true;
+            continue;
+        };
+        if ov.geometry.is_some_and(|g| g != ga) {
+            ov.unknown = true;
+            continue;
+        }
+        if ov.mesher.is_none() {
+            match Mesher::new(opts) {
+                Ok(m) => ov.mesher = Some(m),
+                Err(_) => {
+                    ov.unknown = true;
+                    continue;
                 }
             }
-            let m = ov.mesher.as_mut().expect("set above");
-            ov.geometry = Some(ga);
-            match m.push_decoded(stamp, ga, both) {
-                Ok(slab) => {
-                    ov.last_pushed = Some(stamp);
-                    ov.stamps = if ov.stamps.2 == 0 {
-                        (stamp, stamp, 1)
-                    } else {
-                        (ov.stamps.0, stamp, ov.stamps.2 + 1)
-                    };
-                    if let Some(slab) = slab {
-                        if slab.index == 0 {
-                            let cap = m.first_frame().and_then(|k| m.cap(k, CapSide::Low));
-                            if let Some(cap) = &cap {
-                                ov.sums = add_normals(ov.sums, cap);
-                            }
-                            ov.first_cap = cap;
+        }
+        let m = ov.mesher.as_mut().expect("set above");
+        ov.geometry = Some(ga);
+        match m.push_decoded(stamp, ga, both) {
+            Ok(slab) => {
+                ov.last_pushed = Some(stamp);
+                ov.stamps = if ov.stamps.2 == 0 {
+                    (stamp, stamp, 1)
+                } else {
+                    (ov.stamps.0, stamp, ov.stamps.2 + 1)
+                };
+                if let Some(slab) = slab {
+                    if slab.index == 0 {
+                        let cap = m.first_frame().and_then(|k| m.cap(k, CapSide::Low));
+                        if let Some(cap) = &cap {
+                            ov.sums = add_normals(ov.sums, cap);
                         }
-                        ov.acc
-                            .add_lateral(slab.lateral_ref(), ov.first_cap.as_ref());
-                        ov.sums = add_normals(ov.sums, &slab.mesh);
+                        ov.first_cap = cap;
                     }
+                    ov.acc
+                        .add_lateral(slab.lateral_ref(), ov.first_cap.as_ref());
+                    ov.sums = add_normals(ov.sums, &slab.mesh);
                 }
-                Err(_) => ov.unknown = true,
             }
+            Err(_) => ov.unknown = true,
         }
     }
 }
