@@ -547,6 +547,10 @@ struct Overlap {
     acc: StatsAccumulator,
     first_cap: Option<TetMesh>,
     sums: (f64, f64),
+    /// `sums` with the normals of the cap closing the run at its last frame (the bound's
+    /// sums once two frames are in), worked out as the frame is fed when the pair
+    /// interferes (only then is it reported), else when it is reported.
+    closed_sums: Option<(f64, f64)>,
     last_pushed: Option<i64>,
     stamps: (i64, i64, u64),
     unknown: bool,
@@ -1436,6 +1440,14 @@ impl RollingChecker {
             }
             _ => false,
         }
+    }
+}
+
+impl PairRoll {
+    /// Whether a tet of either body has interfered with the other or lain inside it.
+    fn interfering(&self) -> bool {
+        let (a, b) = &self.counts;
+        a.interference + a.inside + b.interference + b.inside > 0
     }
 }
 

@@ -129,9 +129,7 @@ pub(super) fn pair_report(p: &PairRoll, tets_a: u64, tets_b: u64, resolution: f6
         inside: c.inside,
         outside: n.saturating_sub(c.interference + c.inside),
     };
-    let interfering =
-        p.counts.0.interference + p.counts.0.inside + p.counts.1.interference + p.counts.1.inside
-            > 0;
+    let interfering = p.interfering();
     let overlap = if !interfering {
         Some((0.0, 0.0))
     } else {
@@ -187,14 +185,19 @@ pub(super) fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
     } else {
         0.0
     };
-    let mut sums = o.sums;
-    if n >= 2 {
-        if let Some(m) = &o.mesher {
-            if let Some(cap) = m.last_frame().and_then(|k| m.cap(k, CapSide::High)) {
-                sums = add_normals(sums, &cap);
-            }
-        }
-    }
+    let closed = || {
+        // Worked out as the last frame was fed, for a pair interfering by then.
+        o.closed_sums.or_else(|| {
+            let m = o.mesher.as_ref()?;
+            let cap = m.last_frame().and_then(|k| m.cap(k, CapSide::High))?;
+            Some(add_normals(o.sums, &cap))
+        })
+    };
+    let sums = if n >= 2 {
+        closed().unwrap_or(o.sums)
+    } else {
+        o.sums
+    };
     let hv = if n >= 2 {
         o.acc.so_far().hypervolume_m3s
     } else {

@@ -585,6 +585,7 @@ impl RollingChecker {
                     ov.acc = StatsAccumulator::default();
                     ov.first_cap = None;
                     ov.sums = (0.0, 0.0);
+                    ov.closed_sums = None;
                     ov.last_pushed = None;
                     ov.stamps = (0, 0, 0);
                 }
@@ -607,11 +608,12 @@ impl RollingChecker {
         if frames.is_empty() {
             return;
         }
+        let closing = self.pairs[i].interfering();
         let mut ov = std::mem::take(&mut self.pairs[i].overlap);
         let (tx, done) = std::sync::mpsc::channel();
         rayon::spawn(move || {
             let fed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
-                feed_overlap(&mut ov, opts, frames);
+                feed_overlap(&mut ov, opts, frames, closing);
                 ov
             }));
             let _ = tx.send(fed);
@@ -631,8 +633,14 @@ pub(super) struct OverlapFrames {
 }
 
 /// Feeds `ov` the intersection of each stamp's frames, in order (`None`: a frame or a
-/// geometry missing, so the overlap is not measurable).
-fn feed_overlap(ov: &mut Overlap, opts: MesherOptions, frames: Vec<(i64, Option<OverlapFrames>)>) {
+/// geometry missing, so the overlap is not measurable); with `closing`, works out the
+/// normals of the run closed at its last frame too (see `Overlap::closed_sums`).
+fn feed_overlap(
+    ov: &mut Overlap,
+    opts: MesherOptions,
+    frames: Vec<(i64, Option<OverlapFrames>)>,
+    closing: bool,
+) {
     for (stamp, both) in frames {
         if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
             continue;
@@ -680,6 +688,12 @@ fn feed_overlap(ov: &mut Overlap, opts: MesherOptions, frames: Vec<(i64, Option<
                         .add_lateral(slab.lateral_ref(), ov.first_cap.as_ref());
                     ov.sums = add_normals(ov.sums, &slab.mesh);
                 }
+                // The run as it would close now, at this frame.
+                ov.closed_sums = m
+                    .last_frame()
+                    .filter(|_| closing && ov.stamps.2 >= 2)
+                    .and_then(|k| m.cap(k, CapSide::High))
+                    .map(|cap| add_normals(ov.sums, &cap));
             }
             Err(_) => ov.unknown = true,
         }
