@@ -959,12 +959,18 @@ impl RollingChecker {
             ));
         }
         let nv = p.mesh.vertices.len();
-        if let Some(t) = p
+        // The largest id first (a reduction over all the ids, which vectorises), the tet
+        // naming it only if it is past the vertices.
+        let past = |t: &[u32; 4]| t.iter().any(|&v| v as usize >= nv);
+        let largest = p
             .mesh
             .tets
             .iter()
-            .position(|t| t.iter().any(|&v| v as usize >= nv))
-        {
+            .fold(0, |m, t| m.max(t[0]).max(t[1]).max(t[2]).max(t[3]));
+        let bad = (!p.mesh.tets.is_empty() && largest as usize >= nv)
+            .then(|| p.mesh.tets.iter().position(past))
+            .flatten();
+        if let Some(t) = bad {
             return Err((
                 "bad_piece",
                 format!("{id}: tet {t} of a piece names a vertex past its {nv}; ignored"),

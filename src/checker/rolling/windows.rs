@@ -1002,6 +1002,55 @@ mod tests {
         }
     }
 
+    /// A piece whose tet names a vertex past its vertex table is refused by name (the tet
+    /// said), and nothing of it is kept; the same piece with its tets in range is taken.
+    #[test]
+    fn a_piece_naming_a_vertex_past_its_table_is_refused() {
+        let (slabs, geometry) = slabs();
+        let plan = CheckPlan {
+            pairs: Some(vec![("/a".into(), "/b".into())]),
+            movable: Vec::new(),
+            time_scale: None,
+            frame_ids: Default::default(),
+        };
+        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let piece = |mesh: TetMesh| PieceIn {
+            body: "/a".into(),
+            kind: PieceKind::CapStart,
+            index: 0,
+            stamps_ns: (0, 0),
+            geometry,
+            occupied: 1,
+            vanishes: false,
+            mesh: Arc::new(mesh),
+            frame_id: String::new(),
+        };
+        let mut bad = (*slabs[0]).clone();
+        let past = bad.vertices.len() as u32;
+        let at = bad.tets.len() / 2;
+        bad.tets[at][2] = past;
+        let mut out = Vec::new();
+        c.on_piece(piece(bad), &mut out);
+        let problems: Vec<String> = out
+            .iter()
+            .filter_map(|o| match o {
+                RollOut::Problem(kind, text) => Some(format!("{kind}: {text}")),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            problems,
+            [format!(
+                "bad_piece: /a: tet {at} of a piece names a vertex past its {past}; ignored"
+            )]
+        );
+        assert!(c.bodies["/a"].runs.is_empty());
+        let mut out = Vec::new();
+        c.on_piece(piece((*slabs[0]).clone()), &mut out);
+        assert!(!out.iter().any(|o| matches!(o, RollOut::Problem(..))));
+        assert_eq!(c.bodies["/a"].runs.len(), 1);
+    }
+
     /// Two windows checked with each prepared only near the other (and inclusion tests
     /// towards far points on the side its clip chose) give every label, count, crossing
     /// and range the full windows give: a small body moved all around and through a
