@@ -215,6 +215,8 @@ struct Output {
     selection: Selection,
     counts: OutputCounts,
     error: Option<crate::bag::BagError>,
+    /// One serialisation buffer for every message (grown to the largest once).
+    bytes: Vec<u8>,
 }
 
 impl Output {
@@ -228,16 +230,15 @@ impl Output {
                 let (ty, schema) = m.payload.schema();
                 self.writer.add_topic_with_schema(&m.topic, ty, &schema)?;
             }
-            let bytes = m
-                .payload
-                .encode()
+            m.payload
+                .encode_into(&mut self.bytes)
                 .map_err(|source| crate::bag::BagError::Cdr {
                     path: self.writer.path().to_path_buf(),
                     topic: m.topic.to_string(),
                     source,
                 })?;
             self.writer
-                .write_cdr(&m.topic, m.stamp_ns.max(0) as u64, &bytes)
+                .write_cdr(&m.topic, m.stamp_ns.max(0) as u64, &self.bytes)
         })();
         match r {
             Ok(()) => *self.counts.topics.entry(m.topic.to_string()).or_default() += 1,
@@ -329,6 +330,7 @@ pub fn replay(
                 selection,
                 counts: OutputCounts::default(),
                 error: None,
+                bytes: Vec::new(),
             })
         }
         None => None,

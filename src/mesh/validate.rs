@@ -465,6 +465,10 @@ impl FaceParts {
             let faces = || keys.iter().map(|&k| (((k >> at) & mask) as usize, k));
             pair_in_buckets(counts, faces, n, scratch, keep_single)
         };
+        if let [_] = by_part.as_slice() {
+            // One part: paired here (no pool to wait for from a thread outside it).
+            return by_part.pop().map(|p| one(p, scratch)).unwrap_or_default();
+        }
         let rest = by_part.split_off(1);
         let (first, rest) = rayon::join(
             || by_part.pop().map(|p| one(p, scratch)).unwrap_or_default(),

@@ -192,13 +192,27 @@ impl de::Error for CdrError {
 /// cannot express (a sequence of unknown length, a 128-bit integer, more than `u32::MAX`
 /// elements), [`CdrError::Serialize`] if its `Serialize` impl fails. Message structs never do.
 pub fn encode_cdr<T: Serialize>(msg: &T) -> Result<Vec<u8>, CdrError> {
+    let mut out = Vec::with_capacity(64);
+    encode_cdr_into(msg, &mut out)?;
+    Ok(out)
+}
+
+/// [`encode_cdr`] into `out` (cleared first): a writer of many messages keeps one buffer,
+/// grown to the largest, rather than growing a new one by doubling for each.
+///
+/// # Errors
+///
+/// As [`encode_cdr`]; `out` then holds a part of the message.
+pub fn encode_cdr_into<T: Serialize>(msg: &T, out: &mut Vec<u8>) -> Result<(), CdrError> {
+    out.clear();
     let mut writer = CdrWriter {
-        out: Vec::with_capacity(64),
+        out: std::mem::take(out),
     };
     writer.out.extend_from_slice(&CDR_LE);
     writer.out.extend_from_slice(&[0x00, 0x00]);
-    msg.serialize(&mut writer)?;
-    Ok(writer.out)
+    let done = msg.serialize(&mut writer);
+    *out = writer.out;
+    done
 }
 
 /// Decodes a message serialised with its encapsulation header (either byte order).
@@ -906,6 +920,24 @@ mod tests {
         ];
         assert_eq!(bytes, expected);
         assert_eq!(decode_cdr::<Mixed>(&bytes).unwrap(), mixed());
+    }
+
+    /// Into a buffer that held a longer message, the same bytes as a fresh encoding (its
+    /// alignment counted from the new header, nothing of the old one left).
+    #[test]
+    fn encoding_into_a_used_buffer_gives_the_fresh_bytes() {
+        let mut buf = vec![0xAB; 3];
+        let long = Mixed {
+            s: "a longer string".into(),
+            v: (0..50).collect(),
+            ..mixed()
+        };
+        encode_cdr_into(&long, &mut buf).unwrap();
+        assert_eq!(buf, encode_cdr(&long).unwrap());
+        let room = buf.capacity();
+        encode_cdr_into(&mixed(), &mut buf).unwrap();
+        assert_eq!(buf, encode_cdr(&mixed()).unwrap());
+        assert_eq!(buf.capacity(), room);
     }
 
     #[test]

@@ -10,7 +10,7 @@ mod std_types;
 mod suite;
 mod voxel_grid;
 
-pub use cdr::{decode_cdr, encapsulation, encode_cdr, CdrEndianness, CdrError};
+pub use cdr::{decode_cdr, encapsulation, encode_cdr, encode_cdr_into, CdrEndianness, CdrError};
 pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
 };

@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::msg::{
-    decode_cdr, encode_cdr, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport,
+    decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport,
     Marker, MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
     TetLabels, VoxelGrid, WrenchStamped,
 };
@@ -51,6 +51,16 @@ macro_rules! payloads {
             pub fn encode(&self) -> Result<Vec<u8>, CdrError> {
                 match self {
                     $(Self::$variant(m) => encode_cdr(m.as_ref()),)*
+                }
+            }
+
+            /// [`Self::encode`] into `out` (cleared first, its room reused).
+            ///
+            /// # Errors
+            /// As [`Self::encode`].
+            pub fn encode_into(&self, out: &mut Vec<u8>) -> Result<(), CdrError> {
+                match self {
+                    $(Self::$variant(m) => encode_cdr_into(m.as_ref(), out),)*
                 }
             }
 
