@@ -214,12 +214,7 @@ fn link(adj: &mut [[u32; 4]], x: u64, y: u64) {
 /// The faces of a tet as sorted vertex triples, each with its face index (the position of
 /// the vertex it omits): one sorting network over the four ids rather than a sort per face.
 fn sorted_faces(tet: [u32; 4]) -> [([u32; 3], u32); 4] {
-    // id << 2 | position: sorting these sorts the ids and carries the positions.
-    let mut k = [0, 1, 2, 3].map(|i| u64::from(tet[i]) << 2 | i as u64);
-    for (i, j) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
-        let (lo, hi) = (k[i].min(k[j]), k[i].max(k[j]));
-        (k[i], k[j]) = (lo, hi);
-    }
+    let k = crate::mesh::validate::sorted_tet_ids(tet);
     let id = |x: u64| (x >> 2) as u32;
     let omit = |j: usize| {
         let mut f = [0; 3];

@@ -92,6 +92,18 @@ pub fn tet_faces<T: Copy>(t: [T; 4]) -> [([T; 3], i8); 4] {
     ]
 }
 
+/// A tet's four ids sorted, each as `id << 2 | its position in the tet` (so equal ids keep
+/// their order), by a sorting network of five compare-exchanges.
+#[inline]
+pub fn sorted_tet_ids(t: [u32; 4]) -> [u64; 4] {
+    let mut k = [0, 1, 2, 3].map(|i| u64::from(t[i]) << 2 | i as u64);
+    for (i, j) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+        let (lo, hi) = (k[i].min(k[j]), k[i].max(k[j]));
+        (k[i], k[j]) = (lo, hi);
+    }
+    k
+}
+
 /// [`tet_faces`] of a tet of ids, each as [`canonical_triangle`] gives it, from one sort
 /// of the four ids: the faces of the sorted tet are canonical already, and each carries the
 /// sort's parity (an odd permutation reverses the tet, so every face). Face j omits the
@@ -99,12 +111,7 @@ pub fn tet_faces<T: Copy>(t: [T; 4]) -> [([T; 3], i8); 4] {
 /// stay in their order).
 #[inline]
 pub fn canonical_tet_faces(t: [u32; 4]) -> ([([u32; 3], i8); 4], [usize; 4]) {
-    // id << 2 | position: sorting these sorts the ids and carries the positions.
-    let mut k = [0, 1, 2, 3].map(|i| u64::from(t[i]) << 2 | i as u64);
-    for (i, j) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
-        let (lo, hi) = (k[i].min(k[j]), k[i].max(k[j]));
-        (k[i], k[j]) = (lo, hi);
-    }
+    let k = sorted_tet_ids(t);
     let order = k.map(|x| (x & 3) as usize);
     // The permutation's parity: its inversions.
     let mut inversions = 0;

@@ -625,7 +625,7 @@ impl RollingChecker {
 }
 
 /// Two bodies' frames at one stamp, each with its grid's geometry.
-pub(super) struct OverlapFrames {
+struct OverlapFrames {
     fa: Arc<OccupancyGrid>,
     ga: GridGeometry,
     fb: Arc<OccupancyGrid>,
