@@ -202,25 +202,6 @@ pub fn pack_face(k: [u32; 3], positive: bool, bits: u32) -> u64 {
 /// than there are faces are radix sorted instead. Both give the report sorting everything
 /// gives: a triangle's faces all share its bucket.
 pub fn pair_packed(keys: &mut Vec<u64>, scratch: &mut Vec<u64>, bits: u32) -> ClosedReport {
-    pair_packed_or_single(keys, scratch, bits, false).0
-}
-
-/// [`pair_packed`] for a mesh with a boundary: the faces of triangles used once are returned
-/// (packed, in no particular order) instead of counted as unpaired.
-pub fn pair_packed_boundary(
-    keys: &mut Vec<u64>,
-    scratch: &mut Vec<u64>,
-    bits: u32,
-) -> (ClosedReport, Vec<u64>) {
-    pair_packed_or_single(keys, scratch, bits, true)
-}
-
-fn pair_packed_or_single(
-    keys: &mut Vec<u64>,
-    scratch: &mut Vec<u64>,
-    bits: u32,
-    keep_single: bool,
-) -> (ClosedReport, Vec<u64>) {
     let shift = 2 * bits + 1;
     let (lo, hi) = keys.iter().fold((u64::MAX, 0), |(lo, hi), &k| {
         (lo.min(k >> shift), hi.max(k >> shift))
@@ -228,13 +209,14 @@ fn pair_packed_or_single(
     let n = keys.len();
     let span = if n == 0 { 0 } else { (hi - lo) as usize + 1 };
     if n < BUCKET_MIN_FACES || span > 4 * n + 64 || u32::try_from(n).is_err() {
-        return pair_radix_sorted(keys, scratch, bits, keep_single);
+        return pair_radix_sorted(keys, scratch, bits, false).0;
     }
     let faces = || keys.iter().map(|&k| (((k >> shift) - lo) as usize, k));
-    pair_in_buckets(count_buckets(span, faces()), faces, n, scratch, keep_single)
+    pair_in_buckets(count_buckets(span, faces()), faces, n, scratch, false).0
 }
 
-/// [`pair_packed_or_single`] by a radix sort of all the keys.
+/// Counts how packed faces pair up by a radix sort of all their keys; with `keep_single`,
+/// the keys of triangles used once are returned rather than counted.
 fn pair_radix_sorted(
     keys: &mut Vec<u64>,
     scratch: &mut Vec<u64>,
@@ -401,7 +383,7 @@ impl FaceShape {
 /// parts of a [`FaceShape`], each part counting its faces per id as they come. Pairing them
 /// ([`Self::pair`]) then needs neither a pass to find their range nor one to count them,
 /// each part's buckets fit in cache, and the parts pair on rayon's pool: the same report as
-/// [`pair_packed`] (or [`pair_packed_boundary`]) over all the faces.
+/// [`pair_packed`] over all the faces (with the faces used once returned, if asked).
 #[derive(Debug, Clone)]
 pub struct FaceParts {
     shape: FaceShape,
@@ -739,14 +721,12 @@ mod tests {
                 .collect();
             let want = pair_faces(wide.clone());
             assert!(want.unpaired > 0 && want.misoriented > 0 && want.overshared > 0);
-            let mut again = keys.clone();
             assert_eq!(
                 pair_packed(&mut keys, &mut Vec::new(), bits),
                 want,
                 "{ids} ids x {stride}"
             );
-            // With a boundary: the triangles used once are given back, not counted.
-            let (report, mut single) = pair_packed_boundary(&mut again, &mut Vec::new(), bits);
+            // With a boundary (below): the triangles used once are given back, not counted.
             let mut once: Vec<u64> = Vec::new();
             let mut sorted: Vec<u64> = wide
                 .iter()
@@ -758,14 +738,11 @@ mod tests {
                     once.push(*one);
                 }
             }
-            single.sort_unstable();
-            assert_eq!(single, once, "{ids} ids x {stride}");
             let bounded = ClosedReport {
                 unpaired: 0,
                 triangles: want.triangles - want.unpaired,
                 ..want
             };
-            assert_eq!(report, bounded, "{ids} ids x {stride}");
             // Gathered in parts (one to many, some with too few faces to bucket) from
             // one to several chunks of the faces: the same reports and single faces.
             for (part_faces, chunks) in [(usize::MAX, 1), (1 << 14, 1), (5_000, 3), (700, 4)] {

@@ -1510,6 +1510,14 @@ fn speed<'a>(records: impl Iterator<Item = &'a Record>) -> Option<f64> {
 }
 
 /// Running sums of |N_s| and |N_t| over tets (see [`bounds::hypervolume_bound`]).
+/// The overlap's normal sums with those of the cap that would close its run at its last
+/// frame, if the mesher has one (see `Overlap::closed_sums`).
+fn closing_sums(o: &Overlap) -> Option<(f64, f64)> {
+    let m = o.mesher.as_ref()?;
+    let cap = m.last_frame().and_then(|k| m.cap(k, CapSide::High))?;
+    Some(add_normals(o.sums, &cap))
+}
+
 fn add_normals(mut sums: (f64, f64), m: &TetMesh) -> (f64, f64) {
     for t in &m.tets {
         let n = float_normal(&t.map(|v| m.vertices[v as usize]));

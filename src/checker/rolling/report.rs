@@ -185,16 +185,9 @@ pub(super) fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
     } else {
         0.0
     };
-    let closed = || {
-        // Worked out as the last frame was fed, for a pair interfering by then.
-        o.closed_sums.or_else(|| {
-            let m = o.mesher.as_ref()?;
-            let cap = m.last_frame().and_then(|k| m.cap(k, CapSide::High))?;
-            Some(add_normals(o.sums, &cap))
-        })
-    };
+    // Worked out as the last frame was fed for a pair interfering by then, else here.
     let sums = if n >= 2 {
-        closed().unwrap_or(o.sums)
+        o.closed_sums.or_else(|| closing_sums(o)).unwrap_or(o.sums)
     } else {
         o.sums
     };

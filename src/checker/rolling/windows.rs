@@ -689,11 +689,10 @@ fn feed_overlap(
                     ov.sums = add_normals(ov.sums, &slab.mesh);
                 }
                 // The run as it would close now, at this frame.
-                ov.closed_sums = m
-                    .last_frame()
-                    .filter(|_| closing && ov.stamps.2 >= 2)
-                    .and_then(|k| m.cap(k, CapSide::High))
-                    .map(|cap| add_normals(ov.sums, &cap));
+                ov.closed_sums = None;
+                if closing && ov.stamps.2 >= 2 {
+                    ov.closed_sums = closing_sums(ov);
+                }
             }
             Err(_) => ov.unknown = true,
         }
