@@ -16,6 +16,7 @@ pub mod bench;
 pub mod carving;
 pub mod checker;
 pub mod cli;
+pub mod fsio;
 pub mod kernel;
 pub mod live;
 pub mod mesh;

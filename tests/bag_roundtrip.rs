@@ -861,8 +861,10 @@ fn writer_misuse_is_reported() {
             ..
         })
     ));
+    // Missing parent directories are made; a parent that is a file is not a directory.
+    std::fs::write(dir.path().join("file"), b"x").unwrap();
     assert!(matches!(
-        BagWriter::create(dir.path().join("no/such/dir/w.mcap")),
+        BagWriter::create(dir.path().join("file/w.mcap")),
         Err(BagError::Io { .. })
     ));
 }

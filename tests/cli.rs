@@ -11,6 +11,10 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_chronotope"))
 }
 
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
 fn run_ok(args: &[&str]) -> Output {
     let out = bin().args(args).output().expect("run chronotope");
     assert!(
@@ -436,4 +440,179 @@ fn bench_config_without_markers_is_machine_tool_yaml_but_markers() {
         "machine_tool.yaml has no `markers: true` line"
     );
     assert_eq!(swapped, without);
+}
+
+/// Every file under `dir` (recursively) with its bytes, to tell whether anything changed.
+fn snapshot(dir: &Path) -> Vec<(PathBuf, Vec<u8>)> {
+    let mut out = Vec::new();
+    let mut stack = vec![dir.to_path_buf()];
+    while let Some(d) = stack.pop() {
+        for e in std::fs::read_dir(&d).unwrap() {
+            let path = e.unwrap().path();
+            let meta = std::fs::symlink_metadata(&path).unwrap();
+            if meta.is_dir() {
+                stack.push(path);
+            } else if meta.is_file() {
+                out.push((path.clone(), std::fs::read(&path).unwrap()));
+            } else {
+                out.push((path.clone(), Vec::new()));
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// `chronotope ARGS` that must fail: its stderr.
+fn run_refused(args: &[&str]) -> String {
+    let out = bin().args(args).output().expect("run chronotope");
+    assert!(!out.status.success(), "chronotope {args:?} succeeded");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn outputs_that_would_destroy_an_input_are_refused_and_nothing_changes() {
+    let d = tmp();
+    let bag = p(d.path(), "in.mcap");
+    std::fs::copy(root().join("bags/four-spheres-32-bits.mcap"), &bag).unwrap();
+    std::os::unix::fs::symlink(&bag, d.path().join("link.mcap")).unwrap();
+    std::fs::hard_link(&bag, d.path().join("hard.mcap")).unwrap();
+    let out = p(d.path(), "o.mcap");
+    run_ok(&["replay", &bag, "--out", &out]);
+    let rec = p(d.path(), "rec/");
+    run_ok(&["scene", "four-spheres", "--grid", "8", "--frames", "3", "--out", &rec]);
+    let before = snapshot(d.path());
+    let link = p(d.path(), "link.mcap");
+    let hard = p(d.path(), "hard.mcap");
+    let x = p(d.path(), "x");
+    let rec_report = format!("{rec}r.json");
+    let cases: Vec<Vec<&str>> = vec![
+        vec!["replay", &bag, "--out", &bag],
+        vec!["replay", &bag, "--report", &bag],
+        vec!["replay", &bag, "--out", &link, "--overwrite"],
+        vec!["replay", &bag, "--report", &hard, "--overwrite"],
+        vec!["replay", &bag, "--report", &x, "--out", &x],
+        vec!["replay", &rec, "--out", &rec, "--overwrite"],
+        vec!["replay", &rec, "--report", &rec_report],
+        vec!["check", &bag, "--report", &bag],
+        vec!["mesh", &bag, "--stats", &link],
+        vec!["render", &out, "--out", &out],
+        vec!["scene", "four-spheres", "--out", &bag],
+    ];
+    for args in &cases {
+        let err = run_refused(args);
+        assert!(
+            err.contains("--out") || err.contains("--report") || err.contains("--stats"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(snapshot(d.path()), before, "{args:?} changed a file");
+    }
+}
+
+#[test]
+fn the_readme_command_runs_twice_and_recordings_need_overwrite() {
+    let d = tmp();
+    let report = p(d.path(), "out/report.json");
+    let out = p(d.path(), "out/replay.mcap");
+    let bag = root().join("bags/machine-tool-32-bits.mcap");
+    let launch = root().join("launch_configs/machine_tool.yaml");
+    let args = [
+        "replay",
+        bag.to_str().unwrap(),
+        "--launch",
+        launch.to_str().unwrap(),
+        "--report",
+        &report,
+        "--out",
+        &out,
+    ];
+    run_ok(&args);
+    let first = std::fs::read(&out).unwrap();
+    run_ok(&args);
+    assert_eq!(std::fs::read(&out).unwrap(), first, "the same run gives the same bag");
+    let mut names: Vec<String> = std::fs::read_dir(d.path().join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["replay.mcap", "report.json"], "nothing else is left");
+    // A bag this program did not derive (the bundled bags predate the mark: as a recording)
+    // is replaced only with --overwrite.
+    let rec = p(d.path(), "recording.mcap");
+    std::fs::copy(&bag, &rec).unwrap();
+    let four = root().join("bags/four-spheres-32-bits.mcap");
+    let err = run_refused(&["replay", four.to_str().unwrap(), "--out", &rec]);
+    assert!(err.contains("--overwrite"), "{err}");
+    assert_eq!(std::fs::read(&rec).unwrap(), std::fs::read(&bag).unwrap());
+    run_ok(&["replay", four.to_str().unwrap(), "--out", &rec, "--overwrite"]);
+    assert_ne!(std::fs::read(&rec).unwrap(), std::fs::read(&bag).unwrap());
+}
+
+#[test]
+fn a_link_planted_at_an_output_is_replaced_never_written_through() {
+    let d = tmp();
+    let precious = d.path().join("precious.txt");
+    std::fs::write(&precious, b"keep me").unwrap();
+    std::fs::create_dir(d.path().join("out")).unwrap();
+    let report = d.path().join("out/report.json");
+    std::os::unix::fs::symlink(&precious, &report).unwrap();
+    let bag = root().join("bags/four-spheres-32-bits.mcap");
+    run_ok(&[
+        "replay",
+        bag.to_str().unwrap(),
+        "--report",
+        report.to_str().unwrap(),
+    ]);
+    assert_eq!(std::fs::read(&precious).unwrap(), b"keep me");
+    assert!(read_json(report.to_str().unwrap())["pairs"].is_array());
+}
+
+#[test]
+fn a_killed_replay_leaves_no_partial_output() {
+    let d = tmp();
+    let bag = p(d.path(), "mt.mcap");
+    run_ok(&["scene", "machine-tool", "--grid", "48", "--frames", "24", "--out", &bag]);
+    let out_dir = d.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let tmp_dir = d.path().join("tmp");
+    std::fs::create_dir(&tmp_dir).unwrap();
+    // The bag compressed as a whole: read through a temporary copy in TMPDIR.
+    let z = p(d.path(), "mt.mcap.zstd");
+    std::fs::write(
+        &z,
+        zstd::encode_all(std::fs::File::open(&bag).unwrap(), 1).unwrap(),
+    )
+    .unwrap();
+    for (i, wait_ms) in [50u64, 300, 800].into_iter().enumerate() {
+        let out = out_dir.join(format!("o{i}.mcap"));
+        let mut child = bin()
+            .args(["replay", &z, "--out", out.to_str().unwrap()])
+            .arg("--report")
+            .arg(out_dir.join(format!("r{i}.json")))
+            .env("TMPDIR", &tmp_dir)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(wait_ms));
+        let _ = child.kill(); // SIGKILL: no handler runs.
+        child.wait().unwrap();
+        // Nothing half-made: no hidden staging file, and an output is there whole or not at all.
+        let left: Vec<String> = std::fs::read_dir(&out_dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with('.'))
+            .collect();
+        assert!(left.is_empty(), "killed after {wait_ms} ms: left {left:?}");
+        assert!(
+            std::fs::read_dir(&tmp_dir).unwrap().next().is_none(),
+            "killed after {wait_ms} ms: TMPDIR not empty"
+        );
+        // What is there is whole: a complete bag or nothing.
+        if out.exists() {
+            assert!(chronotope::bag::BagReader::open(&out)
+                .unwrap()
+                .all(|m| m.is_ok()));
+        }
+    }
 }

@@ -584,6 +584,7 @@ fn sample_command_writes_point_clouds_and_ply() {
     let out = dir.path().join("s.mcap");
     let ply = dir.path().join("s.ply");
     let args = SampleArgs {
+        overwrite: false,
         scene,
         out: out.clone(),
         ply: Some(ply.clone()),
@@ -637,6 +638,7 @@ fn sample_command_writes_point_clouds_and_ply() {
     let bad = dir.path().join("bad.yaml");
     std::fs::write(&bad, "dim: 3\nbodies: []\nsample: [nothing]\n").unwrap();
     let e = run(&SampleArgs {
+        overwrite: false,
         scene: bad,
         ..args.clone()
     })
@@ -646,6 +648,7 @@ fn sample_command_writes_point_clouds_and_ply() {
     for (patch, want) in [
         (
             SampleArgs {
+                overwrite: false,
                 samples: Some(0),
                 ..args.clone()
             },
@@ -653,6 +656,7 @@ fn sample_command_writes_point_clouds_and_ply() {
         ),
         (
             SampleArgs {
+                overwrite: false,
                 walkers: Some(0),
                 ..args.clone()
             },
@@ -660,6 +664,7 @@ fn sample_command_writes_point_clouds_and_ply() {
         ),
         (
             SampleArgs {
+                overwrite: false,
                 thin: Some(0),
                 ..args.clone()
             },
@@ -667,6 +672,7 @@ fn sample_command_writes_point_clouds_and_ply() {
         ),
         (
             SampleArgs {
+                overwrite: false,
                 burn_in: Some(5),
                 ..args.clone()
             },
@@ -674,6 +680,7 @@ fn sample_command_writes_point_clouds_and_ply() {
         ),
         (
             SampleArgs {
+                overwrite: false,
                 dt: Some(f64::NAN),
                 ..args.clone()
             },
@@ -681,6 +688,7 @@ fn sample_command_writes_point_clouds_and_ply() {
         ),
         (
             SampleArgs {
+                overwrite: false,
                 target_acceptance: Some(0.0),
                 ..args.clone()
             },
@@ -689,6 +697,7 @@ fn sample_command_writes_point_clouds_and_ply() {
     ] {
         let fresh = dir.path().join("refused.mcap");
         let e = run(&SampleArgs {
+            overwrite: false,
             out: fresh.clone(),
             ..patch
         })

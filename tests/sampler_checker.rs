@@ -191,6 +191,7 @@ fn sample(yaml: &str, seed: u64) -> Result<Vec<[f64; 4]>, String> {
     std::fs::write(&scene, yaml).unwrap();
     let out = dir.path().join("s.mcap");
     run(&SampleArgs {
+        overwrite: false,
         scene,
         out: out.clone(),
         ply: None,

@@ -141,6 +141,7 @@ fn the_cli_streams_the_same_samples_to_the_bag_and_the_ply() {
     let ply = dir.path().join("s.ply");
     let n = 3000;
     run(&SampleArgs {
+        overwrite: false,
         scene: scene.clone(),
         out: out.clone(),
         ply: Some(ply.clone()),

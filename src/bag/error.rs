@@ -63,6 +63,19 @@ pub enum BagError {
         #[source]
         source: std::io::Error,
     },
+    /// The path names something other than a regular file or a directory (a FIFO, a socket,
+    /// a device): refused before it is opened, as it could block or never end.
+    #[error(
+        "{}: it is {kind}, not a regular file (it could block or never end); give a bag file or \
+         a rosbag2 directory",
+        path.display()
+    )]
+    NotAFile {
+        /// The path.
+        path: PathBuf,
+        /// What it is.
+        kind: crate::fsio::SpecialKind,
+    },
     /// The file is not MCAP at all.
     #[error("{}: not an MCAP file: {reason}", path.display())]
     NotMcap {
@@ -357,6 +370,15 @@ pub enum BagError {
         /// SQLite's own words.
         reason: String,
     },
+    /// A rosbag2 SQLite file with a write-ahead log left beside it, which is not read (the
+    /// database is read as it is, immutable); the rows in the database are read.
+    #[error("{}: {reason}", path.display())]
+    LogNotRead {
+        /// The `.db3` file.
+        path: PathBuf,
+        /// What lies beside it and what it means.
+        reason: String,
+    },
     /// One message row of a rosbag2 SQLite file that cannot be used; it is skipped.
     #[error("{}: message row {row}: {reason}; it is skipped", path.display())]
     BadRow {
@@ -380,6 +402,16 @@ pub enum BagError {
         /// The compression format (`zstd`).
         format: String,
         /// Why.
+        reason: String,
+    },
+    /// A rosbag2 directory's `metadata.yaml` disagrees with what its split files hold
+    /// (messages it counts that were not read, files it does not list, a time span not
+    /// covered); reported once all files are read.
+    #[error("{}: disagrees with what was read: {reason}", path.display())]
+    MetadataDisagrees {
+        /// The `metadata.yaml` file.
+        path: PathBuf,
+        /// Where and by how much.
         reason: String,
     },
     /// An error of one split file of a rosbag2 directory that ends that file's reading; the
@@ -409,8 +441,10 @@ impl BagError {
             BagError::CorruptChunk { .. }
                 | BagError::SplitFile { .. }
                 | BagError::BadRow { .. }
+                | BagError::LogNotRead { .. }
                 | BagError::Decompression { .. }
                 | BagError::InSplitFile { .. }
+                | BagError::MetadataDisagrees { .. }
                 | BagError::RecordTooLarge { .. }
                 | BagError::Skipped { .. }
                 | BagError::Duplicate { .. }

@@ -34,13 +34,13 @@ pub use frames::{voxel_channel_refusal, voxel_frames, voxel_topics, RefusedTopic
 pub use reader::{
     BagChannel, BagMessage, BagReadOptions, BagSchema, McapReader,
     DEFAULT_MAX_DECOMPRESSED_FILE_BYTES, DEFAULT_MAX_RECORD_BYTES, MAX_CHANNELS,
-    MAX_SCHEMA_BYTES,
+    MAX_DECOMPRESSED_ENV, MAX_SCHEMA_BYTES,
 };
+pub use recovery::{BagLoss, Integrity, LossKind, Recovery, Unverified, MAX_LISTED_LOSSES};
 pub use rosbag2::{
-    is_directory_path, Compression, MetadataTopic, Rosbag2Dir, MAX_METADATA_BYTES,
-    MAX_SPLIT_FILES, METADATA_FILE,
+    is_directory_path, storage_file_name, Compression, MetadataTopic, Rosbag2Dir,
+    MAX_METADATA_BYTES, MAX_SPLIT_FILES, METADATA_FILE, METADATA_LIMITS,
 };
 pub use source::{BagLayout, BagReader};
 pub use sqlite::PAGE_BYTES;
-pub use recovery::{BagLoss, LossKind, Recovery, MAX_LISTED_LOSSES};
-pub use writer::{BagCompression, BagWriteOptions, BagWriter, OFFERED_QOS_PROFILES};
+pub use writer::{derived_by, BagCompression, BagWriteOptions, BagWriter, OFFERED_QOS_PROFILES};

@@ -62,16 +62,45 @@ pub struct BagReadOptions {
     pub(crate) max_decompressed_file_bytes: u64,
 }
 
-/// Default of [`BagReadOptions::max_decompressed_file_bytes`]: 64 GiB.
-pub const DEFAULT_MAX_DECOMPRESSED_FILE_BYTES: u64 = 64 << 30;
+/// Default of [`BagReadOptions::max_decompressed_file_bytes`]: 4 GiB.
+pub const DEFAULT_MAX_DECOMPRESSED_FILE_BYTES: u64 = 4 << 30;
 
 impl Default for BagReadOptions {
+    /// The defaults; `CHRONOTOPE_MAX_DECOMPRESSED_GB` (a number of GiB), if set, replaces
+    /// [`DEFAULT_MAX_DECOMPRESSED_FILE_BYTES`].
     fn default() -> Self {
         Self {
             max_record_bytes: DEFAULT_MAX_RECORD_BYTES,
-            max_decompressed_file_bytes: DEFAULT_MAX_DECOMPRESSED_FILE_BYTES,
+            max_decompressed_file_bytes: max_decompressed_from_env(),
         }
     }
+}
+
+/// The environment variable that sets the temporary copy's cap, in GiB.
+pub const MAX_DECOMPRESSED_ENV: &str = "CHRONOTOPE_MAX_DECOMPRESSED_GB";
+
+/// [`DEFAULT_MAX_DECOMPRESSED_FILE_BYTES`], or what [`MAX_DECOMPRESSED_ENV`] says (a
+/// non-negative number of GiB; anything else is ignored with a warning, once).
+fn max_decompressed_from_env() -> u64 {
+    static VALUE: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *VALUE.get_or_init(|| {
+        let Some(v) = std::env::var_os(MAX_DECOMPRESSED_ENV) else {
+            return DEFAULT_MAX_DECOMPRESSED_FILE_BYTES;
+        };
+        match v.to_str().and_then(|s| s.trim().parse::<f64>().ok()) {
+            Some(gb) if gb.is_finite() && gb >= 0.0 && gb < 1e9 => {
+                (gb * (1u64 << 30) as f64) as u64
+            }
+            _ => {
+                tracing::warn!(
+                    "{MAX_DECOMPRESSED_ENV}={}: not a number of GiB; using the default {} GiB",
+                    crate::yaml::quote(&v.to_string_lossy()),
+                    DEFAULT_MAX_DECOMPRESSED_FILE_BYTES >> 30
+                );
+                DEFAULT_MAX_DECOMPRESSED_FILE_BYTES
+            }
+        }
+    })
 }
 
 impl BagReadOptions {
@@ -89,8 +118,11 @@ impl BagReadOptions {
     }
 
     /// The largest size a whole-file-compressed split file (`.mcap.zstd`, `.db3.zstd`) may
-    /// decompress to. It is decompressed into a temporary file (in `TMPDIR`), which is
-    /// deleted once the file has been read; beyond this size the split file is skipped and
+    /// decompress to. It is decompressed into a temporary copy without a name (in `TMPDIR`),
+    /// whose space is freed once the file has been read or the process ends, however it
+    /// ends. The copy may also take at most half the space free in `TMPDIR`. A file whose
+    /// zstd header declares more is refused before anything is written; one that turns out
+    /// larger is refused when it passes the cap. Either way the split file is skipped and
     /// reported, so a hostile file cannot fill the disk.
     pub fn max_decompressed_file_bytes(mut self, bytes: u64) -> Self {
         self.max_decompressed_file_bytes = bytes;
@@ -217,6 +249,8 @@ pub struct McapReader {
     scan_budget: u64,
     pending: VecDeque<BagError>,
     done: bool,
+    /// The chunk being read carries CRC 0: its messages are not verified.
+    chunk_crc_zero: bool,
 }
 
 /// The records of one chunk, decompressed (and CRC-checked) by a reader of its own, so that a
@@ -373,6 +407,7 @@ impl McapReader {
             scan_budget: len.saturating_mul(4).saturating_add(64 << 20),
             pending: VecDeque::new(),
             done: false,
+            chunk_crc_zero: false,
         };
         reader.read_header()?;
         // Schemas and channels from the summary, whether or not the rest of it is usable: they
@@ -809,6 +844,15 @@ impl McapReader {
             }
         }
         self.recovery.messages_read += 1;
+        match location {
+            RecordLocation::File { .. } => self
+                .recovery
+                .note_unverified(&self.path, super::recovery::NO_CRC_UNCHUNKED),
+            RecordLocation::Chunk { .. } if self.chunk_crc_zero => self
+                .recovery
+                .note_unverified(&self.path, super::recovery::NO_CRC_CHUNK),
+            RecordLocation::Chunk { .. } => {}
+        }
         Some(Ok(BagMessage {
             topic: channel.topic.clone(),
             channel_id: id,
@@ -954,6 +998,7 @@ impl McapReader {
             }
         }
         let reader = chunk_reader(body, self.limit);
+        self.chunk_crc_zero = chunk.uncompressed_crc == 0;
         self.chunk = Some(ChunkCursor {
             reader,
             offset,

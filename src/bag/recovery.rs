@@ -57,6 +57,9 @@ pub enum LossKind {
     Database,
     /// A message that does not decompress (rosbag2 per-message compression).
     Decompression,
+    /// A rosbag2 directory's `metadata.yaml` disagrees with what its files hold: messages it
+    /// counts that were not read, storage files it does not list, a time span not covered.
+    MetadataMismatch,
 }
 
 /// One damaged region of a bag and what it cost.
@@ -83,7 +86,12 @@ pub struct BagLoss {
 impl BagLoss {
     /// One line for a log or an error message: where, what, and what it cost.
     pub fn describe(&self) -> String {
-        let mut s = format!("byte {}: {}", self.offset, self.reason);
+        // A loss of a whole file (a split file, the metadata) has no place in a file.
+        let mut s = if self.offset == 0 && self.bytes.is_none() {
+            self.reason.clone()
+        } else {
+            format!("byte {}: {}", self.offset, self.reason)
+        };
         match self.messages {
             Some(n) => s.push_str(&format!(" ({n} messages lost")),
             None => s.push_str(" (messages lost: unknown"),
@@ -128,12 +136,100 @@ pub struct Recovery {
     pub losses: Vec<BagLoss>,
     /// Damaged regions beyond [`MAX_LISTED_LOSSES`], counted but not listed.
     pub losses_not_listed: u64,
+    /// Whether every message read was covered by a checksum that held: `unverified` when
+    /// some were read from parts of the bag no checksum covers (listed in `unverified`), so
+    /// that damage there could not have been seen and a clean result is not a verified one.
+    pub integrity: Integrity,
+    /// The messages read that no checksum covered, per file and reason.
+    pub unverified: Vec<Unverified>,
 }
+
+/// Whether what was read could be checked against the bag's own checksums.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Integrity {
+    /// Every message read lay in a part of the bag whose checksum was checked and held.
+    #[default]
+    Verified,
+    /// Some messages lay where the format (or its writer) keeps no checksum.
+    Unverified,
+}
+
+/// Messages of one file read where no checksum covers them.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Unverified {
+    /// The storage file.
+    pub file: String,
+    /// Why nothing checks them.
+    pub reason: &'static str,
+    /// How many were read.
+    pub messages: u64,
+}
+
+/// Why messages of an SQLite file are not verified.
+pub(crate) const NO_CRC_SQLITE: &str = "rosbag2's SQLite storage keeps no checksum of the messages";
+/// Why messages of an MCAP chunk with CRC 0 are not verified.
+pub(crate) const NO_CRC_CHUNK: &str =
+    "its chunks carry CRC 0 (their writer did not compute one; PyPI rosbags writes them so)";
+/// Why messages outside MCAP chunks are not verified.
+pub(crate) const NO_CRC_UNCHUNKED: &str = "messages outside chunks carry no CRC";
 
 impl Recovery {
     /// True if nothing was lost.
     pub fn is_clean(&self) -> bool {
         self.losses.is_empty() && self.losses_not_listed == 0
+    }
+
+    /// Counts one message of `file` read where no checksum covers it, for `reason`.
+    pub(crate) fn note_unverified(&mut self, file: &std::path::Path, reason: &'static str) {
+        self.integrity = Integrity::Unverified;
+        if let Some(u) = self.unverified.iter_mut().find(|u| u.reason == reason) {
+            u.messages += 1;
+            return;
+        }
+        self.unverified.push(Unverified {
+            file: file.display().to_string(),
+            reason,
+            messages: 1,
+        });
+    }
+
+    /// Adds the unverified counts of another file's recovery.
+    pub(crate) fn add_unverified(&mut self, other: &Recovery) {
+        for u in &other.unverified {
+            self.integrity = Integrity::Unverified;
+            match self
+                .unverified
+                .iter_mut()
+                .find(|v| v.file == u.file && v.reason == u.reason)
+            {
+                Some(v) => v.messages += u.messages,
+                None => self.unverified.push(u.clone()),
+            }
+        }
+    }
+
+    /// One line for the console if some messages were read unverified ("" if none).
+    pub fn describe_unverified(&self) -> String {
+        if self.integrity == Integrity::Verified {
+            return String::new();
+        }
+        let total: u64 = self.unverified.iter().map(|u| u.messages).sum();
+        let mut parts: Vec<String> = self
+            .unverified
+            .iter()
+            .take(3)
+            .map(|u| format!("{}: {} messages: {}", u.file, u.messages, u.reason))
+            .collect();
+        if self.unverified.len() > 3 {
+            parts.push(format!("and {} more files", self.unverified.len() - 3));
+        }
+        format!(
+            "the bag's integrity could not be verified: {total} messages were read where no \
+             checksum covers them ({}); damage there would go unseen, so a clean result is not \
+             a verified one",
+            parts.join("; ")
+        )
     }
 
     /// Adds a loss, listing it if there is room.

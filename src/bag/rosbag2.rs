@@ -25,12 +25,12 @@ use super::error::BagError;
 /// The metadata file of a rosbag2 directory.
 pub const METADATA_FILE: &str = "metadata.yaml";
 
-/// Largest `metadata.yaml` read: 16 MiB (a bag of the maximum number of topics and thousands
-/// of split files takes well under 1 MiB).
-pub const MAX_METADATA_BYTES: u64 = 16 << 20;
+/// Largest `metadata.yaml` read: 4 MiB (a bag of the maximum number of topics and split files
+/// takes under 3 MiB).
+pub const MAX_METADATA_BYTES: u64 = 4 << 20;
 
-/// Most split files read from one directory.
-pub const MAX_SPLIT_FILES: usize = 100_000;
+/// Most split files read from one directory (a day recorded in 10-second splits is 8 640).
+pub const MAX_SPLIT_FILES: usize = 10_000;
 
 /// The newest `metadata.yaml` version this program knows.
 pub const METADATA_VERSION: u64 = 9;
@@ -66,12 +66,17 @@ pub struct MetadataTopic {
 pub struct Rosbag2Dir {
     /// The directory.
     pub dir: PathBuf,
+    /// The directory with every link resolved (a split file must lie inside it).
+    #[serde(skip)]
+    pub canonical_dir: PathBuf,
     /// The metadata version (`None` without `metadata.yaml`).
     pub version: Option<u64>,
     /// The storage plugin (`mcap`, `sqlite3`).
     pub storage: String,
     /// The split files, in order, as paths.
     pub files: Vec<PathBuf>,
+    /// Storage files in the directory that `metadata.yaml` does not list (not read).
+    pub unlisted: Vec<PathBuf>,
     /// The compression format (`zstd`), if any.
     pub compression_format: Option<String>,
     /// How the compression applies.
@@ -86,6 +91,9 @@ pub struct Rosbag2Dir {
     pub duration_ns: Option<u64>,
     /// The ROS distribution that wrote it, if said.
     pub ros_distro: Option<String>,
+    /// The command of this program that derived the bag, if its `custom_data` says so (see
+    /// [`BagWriteOptions::derived`](super::BagWriteOptions::derived)).
+    pub derived_by: Option<String>,
     /// What was odd about the directory (a newer version, no metadata, a listed file that
     /// does not exist), one line each.
     pub warnings: Vec<String>,
@@ -95,13 +103,21 @@ impl Rosbag2Dir {
     /// Reads the directory `dir`: its `metadata.yaml`, or without one its storage files.
     ///
     /// # Errors
-    /// [`BagError::Metadata`] if `metadata.yaml` is present but unusable (too large, not YAML,
-    /// no file list, an unknown storage or compression); [`BagError::NotABag`] if there is no
-    /// `metadata.yaml` and no storage file.
+    /// [`BagError::Metadata`] if `metadata.yaml` is present but unusable (too large, too
+    /// deep, not YAML, a field of the wrong type, no file list, an unknown storage or
+    /// compression, a link leading out of the directory, not a regular file);
+    /// [`BagError::NotABag`] if there is no `metadata.yaml` and no storage file.
     pub fn open(dir: &Path) -> Result<Self, BagError> {
+        let canonical = dir.canonicalize().map_err(|source| BagError::Io {
+            path: dir.to_path_buf(),
+            action: "cannot open the rosbag2 directory",
+            source,
+        })?;
         let meta = dir.join(METADATA_FILE);
-        if meta.is_file() {
-            return Self::from_metadata(dir, &meta);
+        if std::fs::symlink_metadata(&meta).is_ok() {
+            let mut info = Self::from_metadata(dir, &meta, &canonical)?;
+            info.unlisted = unlisted_files(dir, &info.files);
+            return Ok(info);
         }
         let mut files: Vec<(u64, PathBuf)> = Vec::new();
         let entries = std::fs::read_dir(dir).map_err(|source| BagError::Io {
@@ -112,10 +128,16 @@ impl Rosbag2Dir {
         for e in entries.flatten() {
             let p = e.path();
             let name = p.file_name().and_then(|n| n.to_str()).unwrap_or_default();
-            if storage_of(name).is_some() && p.is_file() {
+            if storage_of(name).is_some() && !name.starts_with('.') {
                 files.push((split_index(name), p));
                 if files.len() > MAX_SPLIT_FILES {
-                    break;
+                    return Err(BagError::NotABag {
+                        path: dir.to_path_buf(),
+                        reason: format!(
+                            "the directory has no {METADATA_FILE} and more than MAX_SPLIT_FILES \
+                             = {MAX_SPLIT_FILES} storage files"
+                        ),
+                    });
                 }
             }
         }
@@ -140,9 +162,11 @@ impl Rosbag2Dir {
             .any(|(_, p)| p.extension().is_some_and(|e| e == "zstd"));
         Ok(Self {
             dir: dir.to_path_buf(),
+            canonical_dir: canonical,
             version: None,
             storage,
             files: files.into_iter().map(|(_, p)| p).collect(),
+            unlisted: Vec::new(),
             compression_format: compressed.then(|| "zstd".to_owned()),
             compression: if compressed {
                 Compression::File
@@ -154,6 +178,7 @@ impl Rosbag2Dir {
             starting_time_ns: None,
             duration_ns: None,
             ros_distro: None,
+            derived_by: None,
             warnings: vec![format!(
                 "no {METADATA_FILE} (was the recording stopped before rosbag2 wrote it?): \
                  reading the storage files in split order"
@@ -161,76 +186,122 @@ impl Rosbag2Dir {
         })
     }
 
-    fn from_metadata(dir: &Path, meta: &Path) -> Result<Self, BagError> {
+    /// Where a split file leads if it is a link out of the bag directory (it is then not
+    /// read: a bag's files are its own); `None` for a file of the directory.
+    pub fn outside_link(&self, file: &Path) -> Option<PathBuf> {
+        let is_link = std::fs::symlink_metadata(file).is_ok_and(|m| m.file_type().is_symlink());
+        if !is_link {
+            return None;
+        }
+        match file.canonicalize() {
+            Ok(target) if target.starts_with(&self.canonical_dir) => None,
+            Ok(target) => Some(target),
+            // A dangling link: opening it says so.
+            Err(_) => None,
+        }
+    }
+
+    fn from_metadata(dir: &Path, meta: &Path, canonical: &Path) -> Result<Self, BagError> {
         let bad = |reason: String| BagError::Metadata {
             path: meta.to_path_buf(),
             reason,
         };
-        let file = std::fs::File::open(meta).map_err(|source| BagError::Io {
-            path: meta.to_path_buf(),
-            action: "cannot open the metadata",
-            source,
+        if let Ok(target) = meta.canonicalize() {
+            if !target.starts_with(canonical) {
+                return Err(bad(format!(
+                    "it is a link to {}, outside the bag directory: refused (a bag's metadata \
+                     is its own file)",
+                    target.display()
+                )));
+            }
+        }
+        let mut file = crate::fsio::open_regular(meta).map_err(|e| match e {
+            crate::fsio::OpenError::Special(kind) => bad(format!(
+                "it is {kind}, not a regular file (it could block or never end)"
+            )),
+            crate::fsio::OpenError::Io(source) => BagError::Io {
+                path: meta.to_path_buf(),
+                action: "cannot open the metadata",
+                source,
+            },
         })?;
-        let mut text = String::new();
-        file.take(MAX_METADATA_BYTES + 1)
-            .read_to_string(&mut text)
-            .map_err(|e| bad(format!("cannot read it as UTF-8 text: {e}")))?;
-        if text.len() as u64 > MAX_METADATA_BYTES {
+        let mut bytes = Vec::new();
+        (&mut file)
+            .take(MAX_METADATA_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(|e| bad(format!("cannot read it: {e}")))?;
+        if bytes.len() as u64 > MAX_METADATA_BYTES {
             return Err(bad(format!(
                 "it is larger than MAX_METADATA_BYTES = {MAX_METADATA_BYTES} bytes"
             )));
         }
-        let root: Value =
-            serde_yaml_ng::from_str(&text).map_err(|e| bad(format!("not valid YAML: {e}")))?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            bad(format!(
+                "it is not UTF-8 text (byte {})",
+                e.utf8_error().valid_up_to()
+            ))
+        })?;
+        // Bounded before it is parsed: nesting, entries and aliases are measured in one
+        // linear pass, so no file can make the parser slow (crate::yaml).
+        crate::yaml::prescan(&text, &METADATA_LIMITS).map_err(|e| bad(e.to_string()))?;
+        let root: Value = serde_yaml_ng::from_str(&text).map_err(|e| bad(yaml_error(&e)))?;
         let info = root
             .get("rosbag2_bagfile_information")
             .ok_or_else(|| bad("it has no rosbag2_bagfile_information section".to_owned()))?;
+        let field = |key: &str| info.get(key).filter(|v| !v.is_null());
         let mut warnings = Vec::new();
-        let version = info.get("version").and_then(Value::as_u64);
-        match version {
+        let version = match field("version") {
             None => return Err(bad("it has no version".to_owned())),
-            Some(v) if v > METADATA_VERSION => warnings.push(format!(
-                "metadata version {v} is newer than the {METADATA_VERSION} this program knows; \
-                 reading the fields it knows"
-            )),
-            Some(_) => {}
+            Some(v) => whole_number(v).map_err(|e| bad(format!("version {e}")))?,
+        };
+        if version > METADATA_VERSION {
+            warnings.push(format!(
+                "metadata version {version} is newer than the {METADATA_VERSION} this program \
+                 knows; reading the fields it knows"
+            ));
         }
-        let storage = info
-            .get("storage_identifier")
-            .and_then(Value::as_str)
-            .unwrap_or_default()
-            .to_owned();
+        let storage = match field("storage_identifier") {
+            None => String::new(),
+            Some(v) => text_field(v).map_err(|e| bad(format!("storage_identifier {e}")))?,
+        };
         if storage != "mcap" && storage != "sqlite3" {
             return Err(bad(format!(
-                "storage_identifier is {storage:?}; this program reads \"mcap\" and \"sqlite3\""
+                "storage_identifier is {}; this program reads \"mcap\" and \"sqlite3\"",
+                crate::yaml::quote(&storage)
             )));
         }
-        let format = info
-            .get("compression_format")
-            .and_then(Value::as_str)
-            .filter(|s| !s.is_empty())
-            .map(str::to_owned);
-        let mode = info
-            .get("compression_mode")
-            .and_then(Value::as_str)
-            .unwrap_or_default()
-            .to_ascii_lowercase();
+        let format = match field("compression_format") {
+            None => None,
+            Some(v) => Some(text_field(v).map_err(|e| bad(format!("compression_format {e}")))?),
+        }
+        .filter(|s| !s.is_empty());
+        let mode = match field("compression_mode") {
+            None => String::new(),
+            Some(v) => text_field(v).map_err(|e| bad(format!("compression_mode {e}")))?,
+        }
+        .to_ascii_lowercase();
         let compression = match (mode.as_str(), format.as_deref()) {
             ("" | "none", _) => Compression::None,
             ("file", Some("zstd")) => Compression::File,
             ("message", Some("zstd")) => Compression::Message,
             (m, f) => {
                 return Err(bad(format!(
-                    "compression_mode {m:?} with compression_format {:?}: this program reads \
-                     zstd compression of files or messages",
-                    f.unwrap_or("")
+                    "compression_mode {} with compression_format {}: this program reads zstd \
+                     compression of files or messages",
+                    crate::yaml::quote(m),
+                    crate::yaml::quote(f.unwrap_or(""))
                 )))
             }
         };
-        let paths = info
-            .get("relative_file_paths")
-            .and_then(Value::as_sequence)
-            .ok_or_else(|| bad("it has no relative_file_paths list".to_owned()))?;
+        let paths = match field("relative_file_paths") {
+            None => return Err(bad("it has no relative_file_paths list".to_owned())),
+            Some(v) => v.as_sequence().ok_or_else(|| {
+                bad(format!(
+                    "relative_file_paths {}; expected a list of file names",
+                    shape(v)
+                ))
+            })?,
+        };
         if paths.len() > MAX_SPLIT_FILES {
             return Err(bad(format!(
                 "it lists {} split files, more than MAX_SPLIT_FILES = {MAX_SPLIT_FILES}",
@@ -238,59 +309,204 @@ impl Rosbag2Dir {
             )));
         }
         let mut files = Vec::with_capacity(paths.len());
-        for p in paths {
-            let Some(p) = p.as_str() else {
-                return Err(bad(
-                    "relative_file_paths holds a non-string entry".to_owned()
-                ));
-            };
+        for (i, p) in paths.iter().enumerate() {
+            let p = text_field(p)
+                .map_err(|e| bad(format!("relative_file_paths entry {} {e}", i + 1)))?;
             // Before version 4 the paths included the directory's own name; rosbag2 and
             // rosbags both take the file name alone.
-            let name = Path::new(p)
-                .file_name()
-                .ok_or_else(|| bad(format!("relative file path {p:?} names no file")))?;
+            let name = Path::new(&p).file_name().ok_or_else(|| {
+                bad(format!(
+                    "relative file path {} names no file",
+                    crate::yaml::quote(&p)
+                ))
+            })?;
             files.push(dir.join(name));
         }
-        let ns = |v: Option<&Value>, key: &str| v.and_then(|v| v.get(key)).and_then(Value::as_u64);
-        let topics = info
-            .get("topics_with_message_count")
-            .and_then(Value::as_sequence)
-            .map(|seq| {
-                seq.iter()
-                    .filter_map(|t| {
-                        let m = t.get("topic_metadata")?;
-                        let s = |k: &str| m.get(k).and_then(Value::as_str).map(str::to_owned);
-                        Some(MetadataTopic {
-                            name: s("name")?,
-                            type_name: s("type").unwrap_or_default(),
-                            serialization_format: s("serialization_format").unwrap_or_default(),
-                            message_count: t
-                                .get("message_count")
-                                .and_then(Value::as_u64)
-                                .unwrap_or(0),
-                        })
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
+        // Fields only reported (and compared with what is read): a wrong type is a warning.
+        let mut number = |v: Option<&Value>, name: &str| -> Option<u64> {
+            match v.filter(|v| !v.is_null()).map(whole_number) {
+                None => None,
+                Some(Ok(n)) => Some(n),
+                Some(Err(e)) => {
+                    warnings.push(format!("{METADATA_FILE}: {name} {e}; not used"));
+                    None
+                }
+            }
+        };
+        let message_count = number(field("message_count"), "message_count");
+        let starting_time_ns = number(
+            field("starting_time").and_then(|v| v.get("nanoseconds_since_epoch")),
+            "starting_time.nanoseconds_since_epoch",
+        );
+        let duration_ns = number(
+            field("duration").and_then(|v| v.get("nanoseconds")),
+            "duration.nanoseconds",
+        );
+        let mut topics = Vec::new();
+        if let Some(seq) = field("topics_with_message_count") {
+            match seq.as_sequence() {
+                None => warnings.push(format!(
+                    "{METADATA_FILE}: topics_with_message_count {}; expected a list; not used",
+                    shape(seq)
+                )),
+                Some(seq) => {
+                    for (i, t) in seq.iter().enumerate() {
+                        match metadata_topic(t) {
+                            Ok(t) => topics.push(t),
+                            Err(e) => warnings.push(format!(
+                                "{METADATA_FILE}: topics_with_message_count entry {}: {e}; not \
+                                 used",
+                                i + 1
+                            )),
+                        }
+                    }
+                }
+            }
+        }
+        let derived_by = field("custom_data")
+            .and_then(|c| c.get(DERIVED_KEY))
+            .and_then(Value::as_str)
+            .map(str::to_owned);
         Ok(Self {
             dir: dir.to_path_buf(),
-            version,
+            canonical_dir: canonical.to_path_buf(),
+            version: Some(version),
             storage,
             files,
+            unlisted: Vec::new(),
             compression_format: format,
             compression,
             topics,
-            message_count: info.get("message_count").and_then(Value::as_u64),
-            starting_time_ns: ns(info.get("starting_time"), "nanoseconds_since_epoch"),
-            duration_ns: ns(info.get("duration"), "nanoseconds"),
-            ros_distro: info
-                .get("ros_distro")
+            message_count,
+            starting_time_ns,
+            duration_ns,
+            ros_distro: field("ros_distro")
                 .and_then(Value::as_str)
                 .map(str::to_owned),
+            derived_by,
             warnings,
         })
     }
+}
+
+/// The bounds a `metadata.yaml` must keep before it is parsed (see [`crate::yaml`]): at most
+/// [`MAX_METADATA_BYTES`], collections nested at most 32 deep, at most 400 000 entries. The
+/// largest accepted file parses in well under a second.
+pub const METADATA_LIMITS: crate::yaml::YamlLimits = crate::yaml::YamlLimits {
+    max_bytes: MAX_METADATA_BYTES as usize,
+    max_depth: 32,
+    max_entries: 400_000,
+};
+
+/// serde_yaml_ng's complaint in the user's terms: an integer beyond 64 bits (which it cannot
+/// hold as any value) named by its field, anything else as a YAML error.
+fn yaml_error(e: &serde_yaml_ng::Error) -> String {
+    let text = e.to_string();
+    if let Some((field, rest)) = text.split_once(": invalid type: integer") {
+        if rest.contains("as u128") || rest.contains("as i128") {
+            let field = field.strip_prefix("rosbag2_bagfile_information.").unwrap_or(field);
+            let at = e
+                .location()
+                .map(|l| format!(" (line {}, column {})", l.line(), l.column()))
+                .unwrap_or_default();
+            return format!(
+                "{} is a whole number beyond 64 bits{at}; expected a whole number from 0 to \
+                 18446744073709551615",
+                crate::yaml::cut(field)
+            );
+        }
+    }
+    format!("not valid YAML: {}", crate::yaml::shorten(&text))
+}
+
+/// What a YAML value is, for an error naming an unexpected type.
+fn shape(v: &Value) -> String {
+    match v {
+        Value::Null => "is empty".to_owned(),
+        Value::Bool(b) => format!("is {b}"),
+        Value::Number(n) => format!("is the number {}", crate::yaml::cut(&n.to_string())),
+        Value::String(s) => format!("is the string {}", crate::yaml::quote(s)),
+        Value::Sequence(_) => "is a list".to_owned(),
+        Value::Mapping(_) => "is a mapping".to_owned(),
+        Value::Tagged(t) => format!("is tagged {}", crate::yaml::quote(&t.tag.to_string())),
+    }
+}
+
+/// A whole number from 0 to 2^64 - 1, or why the value is not one.
+fn whole_number(v: &Value) -> Result<u64, String> {
+    if let Some(n) = v.as_u64() {
+        return Ok(n);
+    }
+    let expected = "expected a whole number from 0 to 18446744073709551615";
+    Err(match v {
+        Value::Number(n) if n.as_i64().is_some() => {
+            format!("{}: negative; {expected}", shape(v))
+        }
+        Value::Number(_) => format!("{}: not a whole number in range; {expected}", shape(v)),
+        Value::String(_) => format!("{}; {expected} (written without quotes)", shape(v)),
+        _ => format!("{}; {expected}", shape(v)),
+    })
+}
+
+/// A text value, or why the value is not one.
+fn text_field(v: &Value) -> Result<String, String> {
+    v.as_str()
+        .map(str::to_owned)
+        .ok_or_else(|| format!("{}; expected text", shape(v)))
+}
+
+/// One entry of `topics_with_message_count`.
+fn metadata_topic(t: &Value) -> Result<MetadataTopic, String> {
+    let m = t
+        .get("topic_metadata")
+        .ok_or_else(|| "it has no topic_metadata".to_owned())?;
+    let s = |k: &str| -> Result<String, String> {
+        match m.get(k).filter(|v| !v.is_null()) {
+            None => Ok(String::new()),
+            Some(v) => text_field(v).map_err(|e| format!("topic_metadata.{k} {e}")),
+        }
+    };
+    let name = s("name")?;
+    if name.is_empty() {
+        return Err("topic_metadata has no name".to_owned());
+    }
+    let message_count = match t.get("message_count").filter(|v| !v.is_null()) {
+        None => 0,
+        Some(v) => whole_number(v).map_err(|e| format!("message_count {e}"))?,
+    };
+    Ok(MetadataTopic {
+        name,
+        type_name: s("type")?,
+        serialization_format: s("serialization_format")?,
+        message_count,
+    })
+}
+
+/// Storage files in `dir` that `listed` does not name (hidden files aside): their messages
+/// are not read, and a reader says so.
+fn unlisted_files(dir: &Path, listed: &[PathBuf]) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let names: std::collections::HashSet<&std::ffi::OsStr> =
+        listed.iter().filter_map(|p| p.file_name()).collect();
+    let mut out: Vec<PathBuf> = entries
+        .flatten()
+        .filter(|e| {
+            let name = e.file_name();
+            let s = name.to_string_lossy();
+            storage_of(&s).is_some() && !s.starts_with('.') && !names.contains(name.as_os_str())
+        })
+        .map(|e| e.path())
+        .take(MAX_SPLIT_FILES)
+        .collect();
+    out.sort();
+    out
+}
+
+/// True if a file name is a rosbag2 storage file's (`.mcap`, `.db3`, either with `.zstd`).
+pub fn storage_file_name(name: &str) -> bool {
+    storage_of(name).is_some()
 }
 
 /// The storage plugin a file name says (`mcap`, `sqlite3`), compressed or not.
@@ -344,6 +560,9 @@ pub(crate) struct MetadataWriter<'a> {
     pub topics: &'a BTreeMap<String, WrittenTopic>,
     pub start_ns: Option<u64>,
     pub end_ns: Option<u64>,
+    /// The command that derived the bag ([`BagWriteOptions::derived`](super::BagWriteOptions::derived)),
+    /// kept in `custom_data` as `chronotope_derived_by`.
+    pub derived: Option<&'a str>,
 }
 
 impl MetadataWriter<'_> {
@@ -396,25 +615,31 @@ impl MetadataWriter<'_> {
         y.push_str("      duration:\n");
         y.push_str(&format!("        nanoseconds: {duration}\n"));
         y.push_str(&format!("      message_count: {count}\n"));
-        y.push_str("  custom_data: {}\n");
+        match self.derived {
+            Some(by) => y.push_str(&format!(
+                "  custom_data:\n    {DERIVED_KEY}: {}\n",
+                yaml_str(by)
+            )),
+            None => y.push_str("  custom_data: {}\n"),
+        }
         y.push_str("  ros_distro: chronotope\n");
         y
     }
 
-    /// Writes `metadata.yaml` into the directory (through a temporary file, so a reader never
-    /// sees half of it).
+    /// Writes `metadata.yaml` into the directory (complete or not at all, see
+    /// [`crate::fsio::write_atomic`]).
     pub(crate) fn write(&self) -> Result<(), BagError> {
         let path = self.dir.join(METADATA_FILE);
-        let tmp = self.dir.join(format!(".{METADATA_FILE}.tmp"));
-        let io = |source| BagError::Io {
+        crate::fsio::write_atomic(&path, self.yaml().as_bytes()).map_err(|source| BagError::Io {
             path: path.clone(),
             action: "cannot write the metadata",
             source,
-        };
-        std::fs::write(&tmp, self.yaml()).map_err(io)?;
-        std::fs::rename(&tmp, &path).map_err(io)
+        })
     }
 }
+
+/// The `custom_data` key of `metadata.yaml` naming the command that derived a bag.
+pub const DERIVED_KEY: &str = "chronotope_derived_by";
 
 /// The offered QoS profile of every written topic, as version 9 writes it: the same profile as
 /// the MCAP channels' [`OFFERED_QOS_PROFILES`](super::OFFERED_QOS_PROFILES) (reliable,
@@ -470,6 +695,7 @@ mod tests {
             topics: &topics,
             start_ns: Some(5),
             end_ns: Some(25),
+            derived: None,
         };
         w.write().unwrap();
         let back = Rosbag2Dir::open(dir.path()).unwrap();

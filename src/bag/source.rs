@@ -17,7 +17,7 @@
 
 use std::collections::{HashMap, VecDeque};
 use std::fs::File;
-use std::io::{Read, Write};
+use std::io::{BufRead, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -84,11 +84,11 @@ impl Part {
     }
 }
 
-/// A storage file opened, with the temporary file it was decompressed into (deleted when
-/// dropped, after the part).
+/// A storage file opened, with the temporary copy it was decompressed into (a file without a
+/// name: its space is freed when it is dropped, after the part, or when the process dies).
 struct OpenPart {
     part: Part,
-    _temp: Option<tempfile::NamedTempFile>,
+    _temp: Option<File>,
 }
 
 /// What identifies a channel across split files.
@@ -154,6 +154,12 @@ pub struct BagReader {
     undelivered: u64,
     pending: VecDeque<BagError>,
     profile: String,
+    /// Messages delivered per topic, and the log times of the first and last (a directory's,
+    /// to compare with its `metadata.yaml`).
+    read_by_topic: HashMap<String, u64>,
+    read_span: Option<(u64, u64)>,
+    /// The directory's `metadata.yaml` has been compared with what was read.
+    compared: bool,
 }
 
 impl BagReader {
@@ -193,7 +199,36 @@ impl BagReader {
             return Self::open_dir(path, &dir, options);
         }
         let (part, layout) = open_file(&path, &options)?;
-        Ok(Self::single(path, options, layout, part))
+        let mut reader = Self::single(path, options, layout, part);
+        reader.message_compression = reader.lone_split_file_compressed();
+        Ok(reader)
+    }
+
+    /// True if this single file is a split file of a rosbag2 directory whose `metadata.yaml`
+    /// says its messages are compressed one by one: they are then decompressed as the
+    /// directory would have them (and a warning says to pass the directory for all of it).
+    fn lone_split_file_compressed(&self) -> bool {
+        let dir = crate::fsio::parent_dir(&self.path);
+        if std::fs::symlink_metadata(dir.join(METADATA_FILE)).is_err() {
+            return false;
+        }
+        let Ok(info) = Rosbag2Dir::open(dir) else {
+            return false;
+        };
+        let name = self.path.file_name();
+        let listed = info.files.iter().any(|f| f.file_name() == name);
+        if listed && info.compression == Compression::Message {
+            tracing::warn!(
+                "{}: a split file of the rosbag2 directory {}, whose {METADATA_FILE} says its \
+                 messages are compressed one by one: decompressing them; pass the directory to \
+                 read all {} split files",
+                self.path.display(),
+                dir.display(),
+                info.files.len()
+            );
+            return true;
+        }
+        false
     }
 
     /// A reader of an MCAP file held in memory; errors name the file as `name`.
@@ -254,6 +289,9 @@ impl BagReader {
             undelivered: 0,
             pending: VecDeque::new(),
             profile,
+            read_by_topic: HashMap::new(),
+            read_span: None,
+            compared: true,
         }
     }
 
@@ -280,13 +318,17 @@ impl BagReader {
             undelivered: 0,
             pending: VecDeque::new(),
             profile: "ros2".to_owned(),
+            read_by_topic: HashMap::new(),
+            read_span: None,
+            compared: false,
         };
         // The channels of every split file that opens cheaply (not compressed as a whole),
         // so that they are known before the first message, as an MCAP summary makes them.
         let mut all_summaries = true;
         let mut statistics = Some(0u64);
         for file in reader.files.clone() {
-            let cheap = !file.extension().is_some_and(|e| e == "zstd");
+            let cheap = !file.extension().is_some_and(|e| e == "zstd")
+                && reader.outside_link(&file).is_none();
             let opened = if cheap {
                 open_file(&file, &options).ok().map(|(p, _)| p)
             } else {
@@ -404,7 +446,18 @@ impl BagReader {
     fn open_next(&mut self) -> bool {
         self.finish_part();
         while let Some(file) = self.files.pop_front() {
-            match open_file(&file, &self.options) {
+            let opened = match self.outside_link(&file) {
+                Some(target) => Err(BagError::SplitFile {
+                    path: file.clone(),
+                    reason: format!(
+                        "it is a link to {}, outside the bag directory: refused (a bag's split \
+                         files are its own; copy the file into the bag, or pass it on its own)",
+                        target.display()
+                    ),
+                }),
+                None => open_file(&file, &self.options),
+            };
+            match opened {
                 Ok(p) => {
                     self.current = Some(p.0);
                     self.part_ids.clear();
@@ -418,6 +471,7 @@ impl BagReader {
                         {
                             format!("it is listed in {METADATA_FILE} but does not exist")
                         }
+                        BagError::SplitFile { reason, .. } => reason.clone(),
                         _ => e.to_string(),
                     };
                     self.base.push(BagLoss {
@@ -550,7 +604,140 @@ impl BagReader {
                 }
             }
         }
+        self.count_read(&m);
         Some(Ok(m))
+    }
+
+    /// Counts a delivered message for the comparison with `metadata.yaml`.
+    fn count_read(&mut self, m: &BagMessage) {
+        match self.read_by_topic.get_mut(&m.topic) {
+            Some(n) => *n += 1,
+            None => {
+                self.read_by_topic.insert(m.topic.clone(), 1);
+            }
+        }
+        let t = m.log_time_ns;
+        self.read_span = Some(self.read_span.map_or((t, t), |(a, b)| (a.min(t), b.max(t))));
+    }
+
+    /// Where a split file leads if it is a link out of the bag directory.
+    fn outside_link(&self, file: &Path) -> Option<PathBuf> {
+        match &self.layout {
+            BagLayout::Directory(info) => info.outside_link(file),
+            BagLayout::File { .. } => None,
+        }
+    }
+
+    /// Once every split file is read: where `metadata.yaml` disagrees with what was read
+    /// (messages it counts that were neither read nor already counted as lost, storage files
+    /// it does not list, a time span the messages do not cover), as one loss in the
+    /// recovery, so that `check` and `replay` say it and not only `info`.
+    fn compare_with_metadata(&mut self) {
+        if self.compared {
+            return;
+        }
+        self.compared = true;
+        let BagLayout::Directory(info) = &self.layout else {
+            return;
+        };
+        if info.version.is_none() {
+            return;
+        }
+        let mut said: Vec<String> = Vec::new();
+        let mut missing_total = 0u64;
+        let mut topics = std::collections::BTreeMap::new();
+        // Messages each topic lost in losses already listed (with a known count).
+        let mut lost: HashMap<&str, u64> = HashMap::new();
+        for l in &self.base.losses {
+            for (t, n) in &l.topics {
+                *lost.entry(t.as_str()).or_default() += n;
+            }
+        }
+        for t in &info.topics {
+            let read = self.read_by_topic.get(&t.name).copied().unwrap_or(0);
+            let known = read + lost.get(t.name.as_str()).copied().unwrap_or(0);
+            if t.message_count > known {
+                let n = t.message_count - known;
+                missing_total += n;
+                topics.insert(t.name.clone(), n);
+            }
+        }
+        if missing_total > 0 {
+            let per: Vec<String> = topics.iter().map(|(t, n)| format!("{t}: {n}")).collect();
+            said.push(format!(
+                "it counts {missing_total} more messages than were read or counted as lost \
+                 ({}); a split file it does not list, or a file cut short, may hold them",
+                per.join(", ")
+            ));
+        }
+        let read_total: u64 = self.read_by_topic.values().sum();
+        if let Some(listed) = info.message_count {
+            let known = read_total + self.base.messages_lost;
+            if listed > known && missing_total == 0 {
+                missing_total = listed - known;
+                said.push(format!(
+                    "it counts {listed} messages in all; {read_total} were read and {} counted \
+                     as lost",
+                    self.base.messages_lost
+                ));
+            }
+        }
+        if !info.unlisted.is_empty() {
+            let names: Vec<String> = info
+                .unlisted
+                .iter()
+                .take(5)
+                .map(|p| p.display().to_string())
+                .collect();
+            let more = info.unlisted.len().saturating_sub(5);
+            said.push(format!(
+                "the directory holds storage files it does not list, which were not read: {}{}",
+                names.join(", "),
+                if more > 0 {
+                    format!(" and {more} more")
+                } else {
+                    String::new()
+                }
+            ));
+        }
+        if let (Some(start), Some(duration), Some((first, last))) =
+            (info.starting_time_ns, info.duration_ns, self.read_span)
+        {
+            let end = start.saturating_add(duration);
+            // Beyond a millisecond of rounding, a span the messages do not reach.
+            if first > start.saturating_add(1_000_000) || last.saturating_add(1_000_000) < end {
+                said.push(format!(
+                    "it says the recording spans {:.3} s from its start; the messages read span \
+                     {:.3}-{:.3} s",
+                    duration as f64 * 1e-9,
+                    first.saturating_sub(start) as f64 * 1e-9,
+                    last.saturating_sub(start) as f64 * 1e-9
+                ));
+            }
+        }
+        if said.is_empty() {
+            return;
+        }
+        let reason = format!(
+            "{} disagrees with what was read: {}",
+            info.dir.join(METADATA_FILE).display(),
+            said.join("; ")
+        );
+        self.pending.push_back(BagError::MetadataDisagrees {
+            path: info.dir.join(METADATA_FILE),
+            reason: said.join("; "),
+        });
+        self.base.push(BagLoss {
+            offset: 0,
+            bytes: None,
+            kind: LossKind::MetadataMismatch,
+            reason,
+            messages: Some(missing_total),
+            start_ns: None,
+            end_ns: None,
+            topics,
+        });
+        self.total = self.base.clone();
     }
 }
 
@@ -559,7 +746,25 @@ impl Iterator for BagReader {
 
     fn next(&mut self) -> Option<Self::Item> {
         if self.single {
-            return self.current.as_mut()?.part.next();
+            let item = self.current.as_mut()?.part.next()?;
+            return Some(match item {
+                Ok(mut m) if self.message_compression => {
+                    match decompress_message(&m.data, self.options.max_record_bytes) {
+                        Ok(data) => {
+                            m.data = data;
+                            Ok(m)
+                        }
+                        Err(reason) => Err(BagError::Decompression {
+                            path: self.path.clone(),
+                            topic: m.topic,
+                            log_time_ns: m.log_time_ns,
+                            format: "zstd".to_owned(),
+                            reason,
+                        }),
+                    }
+                }
+                other => other,
+            });
         }
         loop {
             if let Some(e) = self.pending.pop_front() {
@@ -572,7 +777,8 @@ impl Iterator for BagReader {
                 if let Some(e) = self.pending.pop_front() {
                     return Some(Err(e));
                 }
-                return None;
+                self.compare_with_metadata();
+                return self.pending.pop_front().map(Err);
             };
             let item = p.part.next();
             self.sync_total();
@@ -599,7 +805,8 @@ impl Iterator for BagReader {
                 Some(Err(e)) => return Some(Err(e)),
                 None => {
                     if !self.open_next() && self.pending.is_empty() {
-                        return None;
+                        self.compare_with_metadata();
+                        return self.pending.pop_front().map(Err);
                     }
                 }
             }
@@ -619,6 +826,7 @@ fn part_name(p: &OpenPart) -> String {
 fn add_recovery(total: &mut Recovery, r: &Recovery, file: &str) {
     total.indexed_chunks += r.indexed_chunks;
     total.messages_read += r.messages_read;
+    total.add_unverified(r);
     for loss in &r.losses {
         let mut loss = loss.clone();
         loss.reason = format!("{file}: {}", loss.reason);
@@ -639,28 +847,30 @@ fn open_file(path: &Path, options: &BagReadOptions) -> Result<(OpenPart, BagLayo
         action: "cannot open the bag",
         source,
     };
-    let mut file = File::open(path).map_err(io)?;
-    let meta = file.metadata().map_err(io)?;
-    if !meta.is_file() {
-        return Err(BagError::NotMcap {
-            path: path.to_path_buf(),
-            reason: "it is not a regular file".to_owned(),
-        });
-    }
+    let mut file = open_bag_file(path)?;
     let mut head = [0u8; 16];
     let n = read_up_to(&mut file, &mut head).map_err(io)?;
     let head = &head[..n];
-    drop(file);
     if head.starts_with(&ZSTD_MAGIC) {
-        let temp = decompress_file(path, options.max_decompressed_file_bytes)?;
+        file.seek(SeekFrom::Start(0)).map_err(io)?;
+        let mut temp = decompress_file(path, file, options.max_decompressed_file_bytes)?;
         let mut inner = [0u8; 16];
-        let n = read_up_to(&mut temp.reopen().map_err(io)?, &mut inner).map_err(io)?;
+        temp.seek(SeekFrom::Start(0)).map_err(io)?;
+        let n = read_up_to(&mut temp, &mut inner).map_err(io)?;
         let inner = &inner[..n];
         let (part, storage) = if inner.starts_with(SQLITE_MAGIC) {
-            let r = Db3Reader::open(temp.path(), path, options.max_record_bytes)?;
+            // SQLite opens by path: the copy without a name is reached through /proc.
+            let by_fd = crate::fsio::proc_path(&temp).ok_or_else(|| BagError::NotABag {
+                path: path.to_path_buf(),
+                reason: "a compressed SQLite file is read through /proc/self/fd, which this \
+                         system does not have; decompress it first (zstd -d)"
+                    .to_owned(),
+            })?;
+            let r = Db3Reader::open(&by_fd, path, options.max_record_bytes)?;
             (Part::Db3(Box::new(r)), "sqlite3")
         } else {
-            let f = temp.reopen().map_err(io)?;
+            let mut f = temp.try_clone().map_err(io)?;
+            f.seek(SeekFrom::Start(0)).map_err(io)?;
             let r = McapReader::from_reader(f, path.to_path_buf(), *options)?;
             (Part::Mcap(Box::new(r)), "mcap")
         };
@@ -676,6 +886,7 @@ fn open_file(path: &Path, options: &BagReadOptions) -> Result<(OpenPart, BagLayo
         ));
     }
     if head.starts_with(SQLITE_MAGIC) {
+        drop(file);
         let r = Db3Reader::open(path, path, options.max_record_bytes)?;
         return Ok((
             OpenPart {
@@ -704,7 +915,8 @@ fn open_file(path: &Path, options: &BagReadOptions) -> Result<(OpenPart, BagLayo
         }
     }
     // MCAP, or something that claims to be one: its reader says what is wrong.
-    let r = McapReader::open_with(path, *options)?;
+    file.seek(SeekFrom::Start(0)).map_err(io)?;
+    let r = McapReader::from_reader(file, path.to_path_buf(), *options)?;
     Ok((
         OpenPart {
             part: Part::Mcap(Box::new(r)),
@@ -715,6 +927,22 @@ fn open_file(path: &Path, options: &BagReadOptions) -> Result<(OpenPart, BagLayo
             compressed: false,
         },
     ))
+}
+
+/// Opens a bag's storage file for reading if it is a regular file (a FIFO or a device is
+/// refused before `open()` could block).
+pub(crate) fn open_bag_file(path: &Path) -> Result<File, BagError> {
+    crate::fsio::open_regular(path).map_err(|e| match e {
+        crate::fsio::OpenError::Special(kind) => BagError::NotAFile {
+            path: path.to_path_buf(),
+            kind,
+        },
+        crate::fsio::OpenError::Io(source) => BagError::Io {
+            path: path.to_path_buf(),
+            action: "cannot open the bag",
+            source,
+        },
+    })
 }
 
 /// Reads until `buf` is full or the end; the bytes read.
@@ -731,36 +959,57 @@ fn read_up_to(r: &mut impl Read, buf: &mut [u8]) -> std::io::Result<usize> {
     Ok(filled)
 }
 
-/// Decompresses a zstd-compressed storage file into a temporary file (deleted when dropped).
-fn decompress_file(path: &Path, limit: u64) -> Result<tempfile::NamedTempFile, BagError> {
+/// Decompresses a zstd-compressed storage file into a temporary copy that has no name (in
+/// `TMPDIR`; its space is freed when it is dropped or the process dies), at most `limit`
+/// bytes and at most half the space free there. A size declared in the first frame's header
+/// above that is refused before anything is written.
+fn decompress_file(path: &Path, input: File, limit: u64) -> Result<File, BagError> {
     let fail = |reason: String| BagError::NotABag {
         path: path.to_path_buf(),
         reason: format!("cannot decompress it: {reason}"),
     };
-    let input = File::open(path).map_err(|source| BagError::Io {
-        path: path.to_path_buf(),
-        action: "cannot open the bag",
-        source,
+    let temp_dir = std::env::temp_dir();
+    let free = crate::fsio::free_bytes(&temp_dir);
+    let cap = free.map_or(limit, |f| limit.min(f / 2));
+    let why_cap = || match free {
+        Some(f) if f / 2 < limit => format!(
+            "half of the {f} bytes free in {} (TMPDIR), where the copy is made",
+            temp_dir.display()
+        ),
+        _ => format!(
+            "max_decompressed_file_bytes = {limit}; {} (GiB) raises it for a trusted file",
+            super::reader::MAX_DECOMPRESSED_ENV
+        ),
+    };
+    let mut input = std::io::BufReader::with_capacity(1 << 20, input);
+    let head = input.fill_buf().map_err(|e| fail(e.to_string()))?;
+    if let Ok(Some(declared)) = zstd::zstd_safe::get_frame_content_size(&head[..head.len().min(18)])
+    {
+        if declared > cap {
+            return Err(fail(format!(
+                "its first frame declares {declared} bytes once decompressed, more than the \
+                 {cap} bytes its temporary copy may take ({}); refused before writing",
+                why_cap()
+            )));
+        }
+    }
+    let mut temp = tempfile::tempfile_in(&temp_dir).map_err(|e| {
+        fail(format!(
+            "cannot create a temporary file in {}: {e}",
+            temp_dir.display()
+        ))
     })?;
-    let mut temp = tempfile::Builder::new()
-        .prefix("chronotope-")
-        .suffix(".bag")
-        .tempfile()
-        .map_err(|e| fail(format!("cannot create a temporary file: {e}")))?;
-    let decoder = zstd::stream::read::Decoder::new(std::io::BufReader::new(input))
-        .map_err(|e| fail(e.to_string()))?;
-    let mut limited = decoder.take(limit.saturating_add(1));
-    let copied =
-        std::io::copy(&mut limited, temp.as_file_mut()).map_err(|e| fail(e.to_string()))?;
-    if copied > limit {
+    let decoder =
+        zstd::stream::read::Decoder::with_buffer(input).map_err(|e| fail(e.to_string()))?;
+    let mut limited = decoder.take(cap.saturating_add(1));
+    let copied = std::io::copy(&mut limited, &mut temp).map_err(|e| fail(e.to_string()))?;
+    if copied > cap {
         return Err(fail(format!(
-            "it decompresses to more than the reader's limit of {limit} bytes \
-             (BagReadOptions::max_decompressed_file_bytes)"
+            "it decompresses to more than the {cap} bytes its temporary copy may take ({})",
+            why_cap()
         )));
     }
-    temp.as_file_mut()
-        .flush()
-        .map_err(|e| fail(e.to_string()))?;
+    temp.flush().map_err(|e| fail(e.to_string()))?;
     Ok(temp)
 }
 

@@ -40,6 +40,22 @@ struct Topic {
     message_encoding: String,
 }
 
+/// `path` as an SQLite URI that opens it read-only and immutable (every byte outside
+/// `[A-Za-z0-9/._~-]` percent-encoded, so `?`, `#` and `%` in a path stay part of it).
+fn sqlite_uri(path: &Path) -> String {
+    use std::os::unix::ffi::OsStrExt;
+    let mut uri = String::from("file:");
+    for &b in path.as_os_str().as_bytes() {
+        if b.is_ascii_alphanumeric() || b"/._~-".contains(&b) {
+            uri.push(b as char);
+        } else {
+            uri.push_str(&format!("%{b:02X}"));
+        }
+    }
+    uri.push_str("?mode=ro&immutable=1");
+    uri
+}
+
 /// Reads the messages of one `.db3` file, in row order.
 pub(crate) struct Db3Reader {
     conn: Connection,
@@ -66,11 +82,23 @@ impl Db3Reader {
             path: name.to_path_buf(),
             reason: e.to_string(),
         };
+        // Read-only and immutable: SQLite then takes no lock and creates nothing beside the
+        // file (no -wal or -shm, as a database in WAL mode otherwise gets), so a bag in a
+        // directory the user cannot write reads as PyPI rosbags reads it. A write-ahead log
+        // left beside by a writer that did not close is therefore not read: said below.
         let conn = Connection::open_with_flags(
-            path,
-            OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+            sqlite_uri(path),
+            OpenFlags::SQLITE_OPEN_READ_ONLY
+                | OpenFlags::SQLITE_OPEN_URI
+                | OpenFlags::SQLITE_OPEN_NO_MUTEX,
         )
         .map_err(sql)?;
+        let wal = {
+            let mut w = path.as_os_str().to_owned();
+            w.push("-wal");
+            PathBuf::from(w)
+        };
+        let wal_bytes = std::fs::metadata(&wal).map(|m| m.len()).unwrap_or(0);
         let has_table = |name: &str| -> Result<bool, BagError> {
             conn.query_row(
                 "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = ?1",
@@ -133,6 +161,29 @@ impl Db3Reader {
             },
             done: false,
         };
+        if wal_bytes > 0 {
+            let reason = format!(
+                "{} ({wal_bytes} bytes) lies beside the database: its writer did not close it, \
+                 and what that log holds is not read (the database is read as it is, changing \
+                 nothing and creating nothing beside it; to include the log, open a copy of the \
+                 bag once with sqlite3)",
+                wal.display()
+            );
+            reader.recovery.push(BagLoss {
+                offset: 0,
+                bytes: Some(wal_bytes),
+                kind: LossKind::Database,
+                reason: reason.clone(),
+                messages: None,
+                start_ns: None,
+                end_ns: None,
+                topics: Default::default(),
+            });
+            reader.page.push_back(Err(BagError::LogNotRead {
+                path: name.to_path_buf(),
+                reason,
+            }));
+        }
         let topics: Vec<(i64, String, String, String)> = {
             let mut st = reader
                 .conn
@@ -287,6 +338,7 @@ impl Db3Reader {
                     let data = data.unwrap_or_default();
                     bytes += data.len();
                     recovery.messages_read += 1;
+                    recovery.note_unverified(path, super::recovery::NO_CRC_SQLITE);
                     Ok(BagMessage {
                         topic: t.topic.clone(),
                         channel_id: t.channel_id,

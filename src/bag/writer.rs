@@ -47,6 +47,8 @@ pub enum BagCompression {
 pub struct BagWriteOptions {
     compression: Option<BagCompression>,
     chunk_size: u64,
+    derived: Option<&'static str>,
+    visible: bool,
 }
 
 impl Default for BagWriteOptions {
@@ -54,6 +56,8 @@ impl Default for BagWriteOptions {
         Self {
             compression: Some(BagCompression::Zstd),
             chunk_size: mcap::WriteOptions::DEFAULT_CHUNK_SIZE,
+            derived: None,
+            visible: false,
         }
     }
 }
@@ -76,6 +80,59 @@ impl BagWriteOptions {
         self.chunk_size = chunk_size;
         self
     }
+
+    /// Marks the bag as derived by the command `by` (`replay`, `scene`, `sample`): a result
+    /// that the same command can make again from its inputs, which the next run may replace
+    /// without `--overwrite` ([`derived_by`]). A recording is never marked.
+    pub fn derived(mut self, by: &'static str) -> Self {
+        self.derived = Some(by);
+        self
+    }
+
+    /// Writes the bag where it will stay while it grows (a recording: what was recorded
+    /// survives a crash), instead of giving it its name only once complete. A path that
+    /// exists is written beside under a hidden name and replaces it at the end.
+    pub fn visible(mut self, visible: bool) -> Self {
+        self.visible = visible;
+        self
+    }
+}
+
+/// What the MCAP header's `library` says after the version for a bag [derived](BagWriteOptions::derived)
+/// by a command: `chronotope 0.1.0 (mcap-rs); derived by replay`.
+const DERIVED_MARK: &str = "; derived by ";
+
+/// The command that derived the MCAP file `path` ([`BagWriteOptions::derived`]), if it is one
+/// this program wrote so marked; `None` for any other file, a recording, or one that cannot be
+/// read. Only the file's first bytes (magic and header record) are read.
+pub fn derived_by(path: &Path) -> Option<String> {
+    use std::io::Read;
+    let mut head = Vec::with_capacity(1024);
+    crate::fsio::open_regular(path)
+        .ok()?
+        .take(1024)
+        .read_to_end(&mut head)
+        .ok()?;
+    let rest = head.strip_prefix(&super::summary::MAGIC[..])?;
+    // The header record: opcode 0x01, u64 length, then profile and library as u32-prefixed
+    // strings.
+    let (&op, rest) = rest.split_first()?;
+    if op != 0x01 {
+        return None;
+    }
+    let rest = rest.get(8..)?;
+    let string = |b: &[u8]| -> Option<(String, usize)> {
+        let n = u32::from_le_bytes(b.get(..4)?.try_into().ok()?) as usize;
+        let s = std::str::from_utf8(b.get(4..4 + n)?).ok()?;
+        Some((s.to_owned(), 4 + n))
+    };
+    let (_, used) = string(rest)?;
+    let (library, _) = string(rest.get(used..)?)?;
+    let by = library
+        .strip_prefix("chronotope ")?
+        .split_once(DERIVED_MARK)?
+        .1;
+    Some(by.to_owned())
 }
 
 /// A topic being written.
@@ -102,16 +159,38 @@ struct Topic {
 /// # Ok::<(), chronotope::bag::BagError>(())
 /// ```
 ///
-/// Dropping the writer without [`finish`](Self::finish) still completes the file, but errors
-/// are lost then.
+/// The bag takes its name only in [`finish`](Self::finish) (see [`crate::fsio`]): until then
+/// nothing is at the path (or what was there stays), and dropping the writer without
+/// `finish` leaves no file. A [visible](BagWriteOptions::visible) bag (a recording) is
+/// written in place instead, so that what was recorded survives a crash.
 pub struct BagWriter {
+    /// The storage file as the user will know it (messages in errors).
     path: PathBuf,
     inner: mcap::Writer<BufWriter<File>>,
     topics: HashMap<String, Topic>,
-    /// The rosbag2 directory being written, if the output is one.
-    dir: Option<PathBuf>,
+    /// How the file and its directory get their names at the end.
+    placement: Placement,
     /// Log times of the first and last message written.
     span: Option<(u64, u64)>,
+    /// The command that derived it, if it is marked so.
+    derived: Option<&'static str>,
+}
+
+/// How a bag being written takes its place in [`BagWriter::finish`].
+enum Placement {
+    /// A storage file with no name yet: linked at its path (or into a directory's staging).
+    Unnamed {
+        file: crate::fsio::NewFile,
+        dir: Option<PathBuf>,
+    },
+    /// A storage file written under its own name (a visible bag whose path was free).
+    InPlace { dir: Option<PathBuf> },
+    /// A visible file written under a hidden name beside an existing one, renamed over it at
+    /// the end.
+    Beside { written: PathBuf },
+    /// A visible directory bag assembled in a hidden staging directory beside an existing
+    /// one, which it replaces at the end.
+    StagedDir { staging: PathBuf, target: PathBuf },
 }
 
 impl BagWriter {
@@ -138,33 +217,79 @@ impl BagWriter {
     pub fn create_with(path: impl AsRef<Path>, options: BagWriteOptions) -> Result<Self, BagError> {
         let given = path.as_ref();
         let dir = super::rosbag2::is_directory_path(given).then(|| given.to_path_buf());
-        if let Some(dir) = &dir {
-            std::fs::create_dir_all(dir).map_err(|source| BagError::Io {
-                path: dir.clone(),
-                action: "cannot create the rosbag2 directory",
+        let io = |path: &Path, action: &'static str| {
+            let path = path.to_path_buf();
+            move |source| BagError::Io {
+                path,
+                action,
                 source,
-            })?;
-        }
+            }
+        };
+        // The directory the output goes in is made (making missing parents destroys nothing).
+        let home = crate::fsio::parent_dir(dir.as_deref().unwrap_or(given)).to_path_buf();
+        std::fs::create_dir_all(&home)
+            .map_err(io(&home, "cannot create the output's directory"))?;
         let path = match &dir {
             Some(d) => super::rosbag2::split_file_of(d),
             None => given.to_path_buf(),
         };
-        let file = File::create(&path).map_err(|source| BagError::Io {
-            path: path.clone(),
-            action: "cannot create the bag",
-            source,
-        })?;
+        let exists = std::fs::symlink_metadata(dir.as_deref().unwrap_or(given)).is_ok();
+        let (file, placement) = if !options.visible {
+            let mut staged = crate::fsio::NewFile::create_staged_in(&path, &home)
+                .map_err(io(&path, "cannot create the bag"))?;
+            let file = staged
+                .file()
+                .try_clone()
+                .map_err(io(&path, "cannot create the bag"))?;
+            (file, Placement::Unnamed { file: staged, dir })
+        } else {
+            let create_new = |p: &Path| {
+                std::fs::OpenOptions::new()
+                    .write(true)
+                    .create_new(true)
+                    .open(p)
+                    .map_err(io(p, "cannot create the bag"))
+            };
+            match (&dir, exists) {
+                (None, false) => (create_new(&path)?, Placement::InPlace { dir: None }),
+                (None, true) => {
+                    let (f, written) = crate::fsio::create_hidden_beside(&path)
+                        .map_err(io(&path, "cannot create the bag"))?;
+                    (f, Placement::Beside { written })
+                }
+                (Some(d), _) if !exists || dir_is_empty(d) => {
+                    std::fs::create_dir_all(d)
+                        .map_err(io(d, "cannot create the rosbag2 directory"))?;
+                    (create_new(&path)?, Placement::InPlace { dir: dir.clone() })
+                }
+                (Some(d), _) => {
+                    let staging = crate::fsio::stage_dir(d)
+                        .map_err(io(d, "cannot create the rosbag2 directory"))?;
+                    let file = create_new(&staging.join(path.file_name().unwrap_or_default()))?;
+                    (
+                        file,
+                        Placement::StagedDir {
+                            staging,
+                            target: d.clone(),
+                        },
+                    )
+                }
+            }
+        };
         let compression = options.compression.map(|c| match c {
             BagCompression::Zstd => mcap::Compression::Zstd,
             BagCompression::Lz4 => mcap::Compression::Lz4,
         });
+        let library = match options.derived {
+            Some(by) => format!(
+                "chronotope {} (mcap-rs){DERIVED_MARK}{by}",
+                env!("CARGO_PKG_VERSION")
+            ),
+            None => format!("chronotope {} (mcap-rs)", env!("CARGO_PKG_VERSION")),
+        };
         let inner = mcap::WriteOptions::new()
             .profile("ros2")
-            .library(concat!(
-                "chronotope ",
-                env!("CARGO_PKG_VERSION"),
-                " (mcap-rs)"
-            ))
+            .library(library)
             .compression(compression)
             .chunk_size(Some(options.chunk_size))
             .create(BufWriter::new(file))
@@ -176,8 +301,9 @@ impl BagWriter {
             path,
             inner,
             topics: HashMap::new(),
-            dir,
+            placement,
             span: None,
+            derived: options.derived,
         })
     }
 
@@ -355,6 +481,15 @@ impl BagWriter {
         self.inner
             .finish()
             .map_err(|source| self.write_error(source))?;
+        let path = self.path.clone();
+        let io = |action: &'static str| {
+            let path = path.clone();
+            move |source| BagError::Io {
+                path,
+                action,
+                source,
+            }
+        };
         self.inner
             .into_inner()
             .into_inner()
@@ -363,30 +498,63 @@ impl BagWriter {
                 action: "cannot flush the bag",
                 source: err.into_error(),
             })?;
-        if let Some(dir) = &self.dir {
-            let topics = self
-                .topics
-                .iter()
-                .map(|(name, t)| {
-                    (
-                        name.clone(),
-                        super::rosbag2::WrittenTopic {
-                            type_name: t.type_name.to_owned(),
-                            count: t.count,
-                        },
-                    )
-                })
-                .collect();
+        let topics: BTreeMap<String, super::rosbag2::WrittenTopic> = self
+            .topics
+            .iter()
+            .map(|(name, t)| {
+                (
+                    name.clone(),
+                    super::rosbag2::WrittenTopic {
+                        type_name: t.type_name.to_owned(),
+                        count: t.count,
+                    },
+                )
+            })
+            .collect();
+        let metadata = |dir: &Path| {
             super::rosbag2::MetadataWriter {
                 dir,
                 file: &self.path,
                 topics: &topics,
                 start_ns: self.span.map(|s| s.0),
                 end_ns: self.span.map(|s| s.1),
+                derived: self.derived,
             }
-            .write()?;
+            .write()
+        };
+        match &mut self.placement {
+            Placement::Unnamed { file, dir: None } => file
+                .commit_as(&self.path)
+                .map_err(io("cannot name the bag")),
+            Placement::Unnamed {
+                file,
+                dir: Some(dir),
+            } => {
+                let staging = crate::fsio::stage_dir(dir)
+                    .map_err(io("cannot create the rosbag2 directory"))?;
+                let done = (|| {
+                    file.commit_as(&staging.join(self.path.file_name().unwrap_or_default()))
+                        .map_err(io("cannot name the bag"))?;
+                    metadata(&staging)?;
+                    crate::fsio::replace_dir(&staging, dir)
+                        .map_err(io("cannot put the rosbag2 directory in place"))
+                })();
+                if done.is_err() {
+                    let _ = std::fs::remove_dir_all(&staging);
+                }
+                done
+            }
+            Placement::InPlace { dir: None } => Ok(()),
+            Placement::InPlace { dir: Some(dir) } => metadata(dir),
+            Placement::Beside { written } => {
+                std::fs::rename(&*written, &self.path).map_err(io("cannot name the bag"))
+            }
+            Placement::StagedDir { staging, target } => {
+                metadata(staging)?;
+                crate::fsio::replace_dir(staging, target)
+                    .map_err(io("cannot put the rosbag2 directory in place"))
+            }
         }
-        Ok(())
     }
 
     fn topic(&self, topic: &str) -> Result<&Topic, BagError> {
@@ -413,4 +581,9 @@ impl BagWriter {
             source,
         }
     }
+}
+
+/// True if `dir` is a directory with nothing in it.
+fn dir_is_empty(dir: &Path) -> bool {
+    std::fs::read_dir(dir).is_ok_and(|mut d| d.next().is_none())
 }

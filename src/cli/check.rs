@@ -29,6 +29,9 @@ pub struct CheckArgs {
     /// Mesher options.
     #[command(flatten)]
     pub mesher: MesherArgs,
+    /// Replace a report path that holds a bag. Inputs are never replaced.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Meshes every VoxelGrid topic of a bag into whole-body meshes (frames kept).
@@ -166,6 +169,14 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
             )));
         }
     }
+    super::paths::Paths::new(a.overwrite)
+        .bag(&a.bag)
+        .output(
+            "--report",
+            a.report.as_deref(),
+            super::paths::OutputKind::File,
+        )
+        .check()?;
     let r = check_bag(&a.bag, mesher_options_from(&a.mesher), a.time_scale)?;
     for b in &r.bodies {
         println!(
@@ -210,18 +221,12 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
         "mesh {:.0} ms, check {:.0} ms, resolve {:.0} ms, total {:.0} ms",
         r.timings_ms.mesh, r.timings_ms.check, r.timings_ms.resolve, r.timings_ms.total
     );
+    if let Some(line) = super::integrity_note(r.input.recovery.as_ref()) {
+        println!("{line}");
+    }
     if let Some(p) = &a.report {
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
-                path: dir.to_path_buf(),
-                source,
-            })?;
-        }
         let text = serde_json::to_string_pretty(&r).expect("plain data serialises");
-        std::fs::write(p, text).map_err(|source| CliError::Io {
-            path: p.clone(),
-            source,
-        })?;
+        super::write_output(p, text.as_bytes())?;
     }
     Ok(())
 }

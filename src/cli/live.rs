@@ -50,6 +50,9 @@ pub struct RunArgs {
     /// At exit, write what the nodes and the transport counted (JSON).
     #[arg(long)]
     pub summary: Option<PathBuf>,
+    /// Replace a summary path that holds a bag. Inputs are never replaced.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Options of `chronotope launch`.
@@ -112,6 +115,9 @@ pub struct RecordArgs {
     /// Seconds to wait for the publishers of TOPICS to be discovered.
     #[arg(long, default_value_t = 5.0)]
     pub discovery: f64,
+    /// Replace an output path that holds a bag (a recording is never replaced otherwise).
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// What Ctrl-C (SIGINT) or SIGTERM asks for: the first a stop, the second an abort, the
@@ -270,7 +276,26 @@ fn read_config(p: &std::path::Path) -> Result<LaunchConfig, CliError> {
 /// # Errors
 /// A bad config, or DDS cannot start.
 pub fn launch(a: &LaunchArgs) -> Result<(), CliError> {
-    run_config(&read_config(&a.config)?, None, &a.run)
+    let config = read_config(&a.config)?;
+    summary_paths(&a.config, &config, &a.run)?;
+    run_config(&config, None, &a.run)
+}
+
+/// Checks the summary path against the launch config and the files it reads, before the
+/// nodes start.
+fn summary_paths(
+    path: &std::path::Path,
+    config: &crate::node::launch::LaunchConfig,
+    a: &RunArgs,
+) -> Result<(), CliError> {
+    super::paths::Paths::new(a.overwrite)
+        .launch_config(path, Some(config))
+        .output(
+            "--summary",
+            a.summary.as_deref(),
+            super::paths::OutputKind::File,
+        )
+        .check()
 }
 
 /// `chronotope node`.
@@ -278,7 +303,9 @@ pub fn launch(a: &LaunchArgs) -> Result<(), CliError> {
 /// # Errors
 /// A bad config, no such node, or DDS cannot start.
 pub fn node(a: &NodeArgs) -> Result<(), CliError> {
-    run_config(&read_config(&a.launch)?, Some(&a.name), &a.run)
+    let config = read_config(&a.launch)?;
+    summary_paths(&a.launch, &config, &a.run)?;
+    run_config(&config, Some(&a.name), &a.run)
 }
 
 /// Longest `play` waits, once the bag is sent, for its reliable readers to acknowledge it.
@@ -425,6 +452,17 @@ fn make_writer(p: &Participant, topic: &str, ty: &str, encoding: &str) -> Option
 /// Bad options, a topic of a type the suite has no definition for, DDS cannot start, or the
 /// bag cannot be written.
 pub fn record(a: &RecordArgs) -> Result<(), CliError> {
+    let mut paths = super::paths::Paths::new(a.overwrite);
+    if let Some(l) = &a.launch {
+        paths = paths.input("the launch config", l);
+    }
+    paths
+        .output(
+            "--out",
+            Some(&a.out),
+            super::paths::OutputKind::Bag { derived: false },
+        )
+        .check()?;
     let stop = stop_on_signal();
     let participant = Participant::new(domain_id_from_env()?)?;
     let mut topics: BTreeMap<String, &'static str> = BTreeMap::new();
@@ -477,7 +515,10 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
             "nothing to record: name topics or --launch".into(),
         ));
     }
-    let mut writer = BagWriter::create(&a.out)?;
+    // A recording is written where it stays while it grows, so that what was recorded
+    // survives a crash (an existing bag it replaces, with --overwrite, is replaced at the end).
+    let mut writer =
+        BagWriter::create_with(&a.out, crate::bag::BagWriteOptions::new().visible(true))?;
     let (tx, rx) = std::sync::mpsc::sync_channel::<(usize, u64, u64, RawCdr)>(1024);
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .worker_threads(1)

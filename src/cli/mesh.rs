@@ -38,6 +38,9 @@ pub struct MeshArgs {
     /// Mesher options.
     #[command(flatten)]
     pub mesher: MesherArgs,
+    /// Replace an output path that holds a bag. Inputs are never replaced.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// Mesher options on the command line.
@@ -442,6 +445,16 @@ fn file_safe(topic: &str) -> String {
 /// # Errors
 /// See [`mesh_bag`]; also a stats or PLY file that cannot be written.
 pub fn run(a: &MeshArgs) -> Result<(), CliError> {
+    use super::paths::{OutputKind, Paths};
+    Paths::new(a.overwrite)
+        .bag(&a.bag)
+        .output("--stats", a.stats.as_deref(), OutputKind::File)
+        .output(
+            "--ply-dir",
+            (!a.slices.is_empty()).then_some(a.ply_dir.as_path()),
+            OutputKind::Dir,
+        )
+        .check()?;
     let r = mesh_bag(&a.bag, mesher_options_from(&a.mesher), &a.slices)?;
     println!(
         "{:<28} {:>6} {:>11} {:>11} {:>7} {:>14} {:>9} {:>9} {:>7}",
@@ -487,16 +500,7 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
         r.seconds_total, r.peak_rss_mb
     );
     if let Some(p) = &a.stats {
-        if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
-                path: dir.to_path_buf(),
-                source,
-            })?;
-        }
-        std::fs::write(p, stats_json(&r)).map_err(|source| CliError::Io {
-            path: p.clone(),
-            source,
-        })?;
+        super::write_output(p, stats_json(&r).as_bytes())?;
     }
     if !a.slices.is_empty() {
         std::fs::create_dir_all(&a.ply_dir).map_err(|source| CliError::Io {
@@ -511,17 +515,16 @@ pub fn run(a: &MeshArgs) -> Result<(), CliError> {
             let path = a
                 .ply_dir
                 .join(format!("{}_{axis}{}.ply", file_safe(&b.id), spec.value));
-            let file = std::fs::File::create(&path).map_err(|source| CliError::Io {
+            let io = |source| CliError::Io {
                 path: path.clone(),
                 source,
-            })?;
+            };
+            // Named once complete; a link at the path is replaced, not followed.
+            let mut file = crate::fsio::NewFile::create(&path).map_err(io)?;
             let to_world = slice_to_world(spec.axis, &g, b);
-            crate::mesh::slice::write_ply(mesh, std::io::BufWriter::new(file), to_world).map_err(
-                |source| CliError::Io {
-                    path: path.clone(),
-                    source,
-                },
-            )?;
+            crate::mesh::slice::write_ply(mesh, std::io::BufWriter::new(file.file()), to_world)
+                .map_err(io)?;
+            file.commit().map_err(io)?;
             tracing::info!("{}: {} triangles", path.display(), mesh.triangles.len());
         }
     }

@@ -9,6 +9,7 @@ pub mod info;
 pub mod live;
 pub mod mesh;
 pub mod param;
+pub mod paths;
 pub mod render;
 pub mod replay;
 pub mod sample;
@@ -85,6 +86,26 @@ pub enum CliError {
     /// A command-line value is malformed.
     #[error("{0}")]
     Usage(String),
+    /// An output path is refused before anything is written (it is an input, another
+    /// output, a bag the user did not ask to replace, a special file).
+    #[error("{option} {}: {reason}", path.display())]
+    Output {
+        /// The option naming it (`--out`).
+        option: String,
+        /// The path.
+        path: PathBuf,
+        /// Why, and what to do.
+        reason: String,
+    },
+    /// The bag offers no body to check, so the nodes that mesh the bag's bodies cannot run:
+    /// why no body could be read, then what the config says.
+    #[error("{why}; so {config}")]
+    NoBodies {
+        /// Why the bag has no body (names the bag and each topic or file).
+        why: String,
+        /// The launch config's complaint.
+        config: String,
+    },
     /// An implicit scene cannot be sampled.
     #[error(transparent)]
     Sample(#[from] crate::sampler::scene_file::SceneFileError),
@@ -227,6 +248,30 @@ impl Iterator for BagFrames {
         }
         None
     }
+}
+
+/// Writes an output file whole, creating its directory: complete or not at all, and a link
+/// at the path is replaced, never followed ([`crate::fsio::write_atomic`]). The caller has
+/// checked the path ([`paths::Paths::check`]).
+///
+/// # Errors
+/// The directory or the file cannot be written.
+pub fn write_output(path: &std::path::Path, bytes: &[u8]) -> Result<(), CliError> {
+    let dir = crate::fsio::parent_dir(path);
+    std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    crate::fsio::write_atomic(path, bytes).map_err(|source| CliError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
+}
+
+/// The console line saying what could not be verified about a bag read, if anything.
+pub fn integrity_note(recovery: Option<&crate::bag::Recovery>) -> Option<String> {
+    let line = recovery?.describe_unverified();
+    (!line.is_empty()).then(|| format!("note: {line}"))
 }
 
 /// Runs a parsed command line.

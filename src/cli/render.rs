@@ -54,6 +54,9 @@ pub struct RenderArgs {
     /// Where it is seen from.
     #[arg(long, value_enum, default_value_t = View::Oblique)]
     pub view: View,
+    /// Replace an output path that holds a bag. Inputs are never replaced.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// One triangle to draw: corners (m) and colour.
@@ -310,22 +313,20 @@ fn rasterise(tris: &[Tri], size: u32, view: View) -> Vec<u8> {
 }
 
 fn write_png(path: &std::path::Path, size: u32, rgb: &[u8]) -> Result<(), CliError> {
-    let io = |source| CliError::Io {
+    let png_err = |e: png::EncodingError| CliError::Io {
         path: path.to_path_buf(),
-        source,
+        source: std::io::Error::other(format!("cannot write the PNG: {e}")),
     };
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(io)?;
+    let mut bytes = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut bytes, size, size);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut w = enc.write_header().map_err(png_err)?;
+        w.write_image_data(rgb).map_err(png_err)?;
+        w.finish().map_err(png_err)?;
     }
-    let file = std::fs::File::create(path).map_err(io)?;
-    let mut enc = png::Encoder::new(std::io::BufWriter::new(file), size, size);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let png_err =
-        |e: png::EncodingError| io(std::io::Error::other(format!("cannot write the PNG: {e}")));
-    let mut w = enc.write_header().map_err(png_err)?;
-    w.write_image_data(rgb).map_err(png_err)?;
-    w.finish().map_err(png_err)
+    super::write_output(path, &bytes)
 }
 
 /// `chronotope render`.
@@ -333,6 +334,10 @@ fn write_png(path: &std::path::Path, size: u32, rgb: &[u8]) -> Result<(), CliErr
 /// # Errors
 /// See [`render`].
 pub fn run(a: &RenderArgs) -> Result<(), CliError> {
+    super::paths::Paths::new(a.overwrite)
+        .bag(&a.bag)
+        .output("--out", Some(&a.out), super::paths::OutputKind::File)
+        .check()?;
     let (stamp, n) = render(a)?;
     println!(
         "{}: {n} triangles of the slice stamped {:.3} s, seen {:?}",

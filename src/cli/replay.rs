@@ -39,6 +39,10 @@ pub struct ReplayArgs {
     /// an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path ends with `/`.
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Replace an output path that holds a bag this command did not derive (a recording, a
+    /// bag of another program). Inputs are never replaced.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 pub use crate::cli::InputCounts;
@@ -301,8 +305,22 @@ pub fn replay(
         bag_bodies.truncate(super::MAX_BODIES);
     }
     let default = default_config();
-    let (nodes, selection) = build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none())
-        .map_err(|e| CliError::Usage(e.to_string()))?;
+    let (nodes, selection) =
+        match build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none()) {
+            Ok(built) => built,
+            // Nothing to mesh because the bag offers no body: say why the bag has none.
+            Err(e) if bag_bodies.is_empty() => {
+                let why = match crate::bag::voxel_frames(bag) {
+                    Err(why) => why.to_string(),
+                    Ok(_) => format!("{}: no VoxelGrid topic can be read", bag.display()),
+                };
+                return Err(CliError::NoBodies {
+                    why,
+                    config: e.to_string(),
+                });
+            }
+            Err(e) => return Err(CliError::Usage(e.to_string())),
+        };
     // The bag's bodies are VoxelGrid topics: a node that reads one as anything else is
     // refused (a carving `pose_topic` set to a body's topic, say).
     let uses = crate::node::routes::topic_uses(config.unwrap_or(&default), &nodes);
@@ -318,21 +336,16 @@ pub fn replay(
     .map_err(|e| CliError::Usage(e.to_string()))?;
     let mut bus = Bus::new(nodes);
     let mut output = match out {
-        Some(p) => {
-            if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
-                    path: dir.to_path_buf(),
-                    source,
-                })?;
-            }
-            Some(Output {
-                writer: BagWriter::create(p)?,
-                selection,
-                counts: OutputCounts::default(),
-                error: None,
-                bytes: Vec::new(),
-            })
-        }
+        Some(p) => Some(Output {
+            writer: BagWriter::create_with(
+                p,
+                crate::bag::BagWriteOptions::new().derived("replay"),
+            )?,
+            selection,
+            counts: OutputCounts::default(),
+            error: None,
+            bytes: Vec::new(),
+        }),
         None => None,
     };
     // What neither a node nor the output bag reads is not built (markers without --out).
@@ -590,6 +603,9 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
             "  {problems} input problem(s): see the report's `input` and `nodes`"
         );
     }
+    if let Some(line) = super::integrity_note(r.input.recovery.as_ref()) {
+        let _ = writeln!(s, "  {line}");
+    }
     s
 }
 
@@ -604,6 +620,22 @@ pub fn run(a: &ReplayArgs) -> Result<(), CliError> {
         .map(|p| LaunchConfig::read(p))
         .transpose()
         .map_err(|e| CliError::Usage(e.to_string()))?;
+    let mut paths = super::paths::Paths::new(a.overwrite).bag(&a.bag);
+    if let Some(l) = &a.launch {
+        paths = paths.launch_config(l, config.as_ref());
+    }
+    paths
+        .output(
+            "--out",
+            a.out.as_deref(),
+            super::paths::OutputKind::Bag { derived: true },
+        )
+        .output(
+            "--report",
+            a.report.as_deref(),
+            super::paths::OutputKind::File,
+        )
+        .check()?;
     let r = replay(&a.bag, config.as_ref(), a.out.as_deref(), true)?;
     print!("{}", summary(&r, &a.bag));
     if let Some(p) = &a.report {
@@ -621,22 +653,14 @@ pub fn run(a: &ReplayArgs) -> Result<(), CliError> {
     Ok(())
 }
 
-/// Writes `value` as pretty JSON, creating the directory.
+/// Writes `value` as pretty JSON, creating the directory (complete or not at all; a link at
+/// the path is replaced, not followed: [`crate::fsio::write_atomic`]).
 ///
 /// # Errors
 /// The file cannot be written.
 pub fn write_json(p: &Path, value: &impl Serialize) -> Result<(), CliError> {
-    if let Some(dir) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|source| CliError::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
-    }
     let text = serde_json::to_string_pretty(value).expect("plain data serialises");
-    std::fs::write(p, text).map_err(|source| CliError::Io {
-        path: p.to_path_buf(),
-        source,
-    })
+    super::write_output(p, text.as_bytes())
 }
 
 #[cfg(test)]

@@ -89,6 +89,9 @@ pub struct SampleArgs {
     /// extension `quality.json`.
     #[arg(long)]
     pub summary: Option<PathBuf>,
+    /// Replace an output path that holds a bag this program did not derive.
+    #[arg(long)]
+    pub overwrite: bool,
 }
 
 /// The JSON summary of one `chronotope sample` run.
@@ -120,6 +123,17 @@ pub fn default_summary_path(out: &Path) -> PathBuf {
 /// A bad scene file or option, walkers that cannot reach the figure, or a file that cannot
 /// be written.
 pub fn run(a: &SampleArgs) -> Result<(), CliError> {
+    use super::paths::{OutputKind, Paths};
+    let summary_path = a
+        .summary
+        .clone()
+        .unwrap_or_else(|| default_summary_path(&a.out));
+    Paths::new(a.overwrite)
+        .input("the scene file", &a.scene)
+        .output("--out", Some(&a.out), OutputKind::Bag { derived: true })
+        .output("--ply", a.ply.as_deref(), OutputKind::File)
+        .output("--summary", Some(&summary_path), OutputKind::File)
+        .check()?;
     let scene = SceneFile::read(&a.scene)?.build()?;
     let mut o = scene.options.clone().seed(a.seed);
     if let Some(v) = a.scheme {
@@ -156,7 +170,8 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
     let fig = &scene.figure;
     let dim = fig.dim();
     let mut sampler = Sampler::new(fig, &o).map_err(SceneFileError::from)?;
-    let mut w = BagWriter::create(&a.out)?;
+    let mut w =
+        BagWriter::create_with(&a.out, crate::bag::BagWriteOptions::new().derived("sample"))?;
     w.add_topic::<PointCloud2>(POINTS_TOPIC)?;
     if dim == 4 {
         w.add_topic::<PointCloud2>(YZT_TOPIC)?;
@@ -239,10 +254,7 @@ pub fn run(a: &SampleArgs) -> Result<(), CliError> {
     };
     let text = serde_json::to_string_pretty(&summary)
         .map_err(|e| CliError::Usage(format!("quality summary: {e}")))?;
-    std::fs::write(&path, text + "\n").map_err(|source| CliError::Io {
-        path: path.clone(),
-        source,
-    })?;
+    super::write_output(&path, (text + "\n").as_bytes())?;
     println!("  quality summary: {}", path.display());
     Ok(())
 }
@@ -293,6 +305,8 @@ pub fn write_ply(path: &Path, points: &[Q], dim: usize) -> std::io::Result<()> {
 /// is given first.
 pub struct PlyWriter {
     f: std::io::BufWriter<std::fs::File>,
+    /// The file, named only once complete ([`crate::fsio::NewFile`]).
+    staged: crate::fsio::NewFile,
     dim: usize,
     left: usize,
 }
@@ -304,7 +318,9 @@ impl PlyWriter {
     /// # Errors
     /// The file cannot be written.
     pub fn create(path: &Path, count: usize, dim: usize) -> std::io::Result<Self> {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(path)?);
+        std::fs::create_dir_all(crate::fsio::parent_dir(path))?;
+        let mut staged = crate::fsio::NewFile::create(path)?;
+        let mut f = std::io::BufWriter::new(staged.file().try_clone()?);
         write!(
             f,
             "ply\nformat binary_little_endian 1.0\ncomment chronotope sample (seed 001 stochastic sampler)\nelement vertex {count}\nproperty float x\nproperty float y\nproperty float z\n"
@@ -315,6 +331,7 @@ impl PlyWriter {
         writeln!(f, "end_header")?;
         Ok(Self {
             f,
+            staged,
             dim: dim.clamp(3, 4),
             left: count,
         })
@@ -341,7 +358,7 @@ impl PlyWriter {
         Ok(())
     }
 
-    /// Flushes the file.
+    /// Flushes the file and gives it its name.
     ///
     /// # Errors
     /// The file cannot be written, or fewer points than the header's count.
@@ -352,6 +369,7 @@ impl PlyWriter {
                 self.left
             )));
         }
-        self.f.flush()
+        self.f.flush()?;
+        self.staged.commit()
     }
 }

@@ -2,7 +2,7 @@
 
 use super::CliError;
 use super::EncodingArg;
-use crate::bag::BagWriter;
+use crate::bag::{BagWriteOptions, BagWriter};
 use crate::msg::VoxelGrid;
 use crate::scene::{build_scene, Rasterizer, SceneName, SceneOptions};
 use clap::Args;
@@ -30,16 +30,36 @@ pub struct SceneArgs {
     /// Voxel encoding.
     #[arg(long, value_enum, default_value_t = EncodingArg::Bits)]
     pub encoding: EncodingArg,
+    /// Replace an output path that holds a bag this program did not derive (a recording, a
+    /// bag of another program).
+    #[arg(long)]
+    pub overwrite: bool,
 }
+
+/// The cut-out images the carving session writes next to its bag.
+const CARVING_IMAGES: [&str; 2] = ["carving-outline-z.pgm", "carving-outline-y.pgm"];
 
 /// Writes the scene bag: frames in time order, bodies interleaved, log time = stamp.
 ///
 /// # Errors
 /// Bad options or a bag that cannot be written.
 pub fn run(a: &SceneArgs) -> Result<(), CliError> {
+    use super::paths::{OutputKind, Paths};
+    let mut paths =
+        Paths::new(a.overwrite).output("--out", Some(&a.out), OutputKind::Bag { derived: true });
     if a.name == "carving-session" {
+        let dir = crate::fsio::parent_dir(&a.out);
+        for name in CARVING_IMAGES {
+            paths = paths.output(
+                "the cut-out image beside --out",
+                Some(&dir.join(name)),
+                OutputKind::File,
+            );
+        }
+        paths.check()?;
         return carving_session(&a.out);
     }
+    paths.check()?;
     let name: SceneName = a.name.parse()?;
     let mut opts = SceneOptions::for_scene(name).encoding(a.encoding.into());
     if let Some(g) = a.grid {
@@ -65,7 +85,7 @@ pub fn run(a: &SceneArgs) -> Result<(), CliError> {
         opts = opts.frames(frames as u32);
     }
     let scene = build_scene(name, &opts)?;
-    let mut w = BagWriter::create(&a.out)?;
+    let mut w = BagWriter::create_with(&a.out, BagWriteOptions::new().derived("scene"))?;
     let topics = scene.topics();
     for t in &topics {
         w.add_topic::<VoxelGrid>(t)?;
@@ -121,17 +141,16 @@ fn carving_outlines(dir: &std::path::Path) -> Result<(), CliError> {
             t.push_str(&line.join(" "));
             t.push('\n');
         }
-        let path = dir.join(name);
-        std::fs::write(&path, t).map_err(|source| CliError::Io { path, source })
+        super::write_output(&dir.join(name), t.as_bytes())
     };
     // From above (x right, y up): a body (ellipse) and a head (disc) towards +x.
-    write("carving-outline-z.pgm", 60, 60, &|u, v| {
+    write(CARVING_IMAGES[0], 60, 60, &|u, v| {
         let body = ((u - 0.45) / 0.4).powi(2) + ((v - 0.5) / 0.3).powi(2) < 1.0;
         let head = (u - 0.8).powi(2) + (v - 0.5).powi(2) < 0.15f64.powi(2);
         body || head
     })?;
     // From the side (x right, z up): a back rounded down towards both ends.
-    write("carving-outline-y.pgm", 60, 30, &|u, v| {
+    write(CARVING_IMAGES[1], 60, 30, &|u, v| {
         v < 1.0 - 0.5 * ((u - 0.5) / 0.5).powi(2)
     })
 }
@@ -152,7 +171,7 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(std::path::Path::new("."));
     carving_outlines(dir)?;
-    let mut w = BagWriter::create(out)?;
+    let mut w = BagWriter::create_with(out, BagWriteOptions::new().derived("scene"))?;
     w.add_topic::<PoseStamped>("/haptic/pose")?;
     w.add_topic::<VoxelGrid>("/fixture/occupancy")?;
     let n = CARVING_POSES;

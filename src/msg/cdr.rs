@@ -34,6 +34,9 @@ use serde::ser::{self, Serialize};
 const CDR_BE: [u8; 2] = [0x00, 0x00];
 /// Encapsulation identifier of plain CDR, little endian.
 const CDR_LE: [u8; 2] = [0x00, 0x01];
+/// The magic number that opens a zstd frame (a compressed message is told by it).
+const ZSTD_MAGIC: [u8; 4] = [0x28, 0xB5, 0x2F, 0xFD];
+
 /// Length of the encapsulation header (identifier and options).
 const HEADER_LEN: usize = 4;
 /// Writers may pad the body to a multiple of 4 bytes (rmw_fastrtps does, and records the count
@@ -63,6 +66,14 @@ pub enum CdrError {
         /// Length of the data.
         len: usize,
     },
+    /// The data is a zstd frame, not CDR: a message stored compressed (rosbag2's
+    /// per-message compression) read without decompressing it.
+    #[error(
+        "the data starts with the zstd magic 28 b5 2f fd, not a CDR encapsulation header: the \
+         message is stored compressed (rosbag2 per-message compression); read the bag through \
+         its rosbag2 directory, whose metadata.yaml says how it is compressed"
+    )]
+    Compressed,
     /// The encapsulation identifier names something other than plain CDR.
     #[error(
         "unsupported CDR encapsulation {:02x} {:02x}: only plain CDR is read, 00 01 (little \
@@ -261,6 +272,7 @@ pub fn encapsulation(bytes: &[u8]) -> Result<CdrEndianness, CdrError> {
     match [header[0], header[1]] {
         CDR_LE => Ok(CdrEndianness::Little),
         CDR_BE => Ok(CdrEndianness::Big),
+        _ if header == &ZSTD_MAGIC => Err(CdrError::Compressed),
         found => Err(CdrError::UnsupportedEncapsulation { found }),
     }
 }

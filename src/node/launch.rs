@@ -587,6 +587,20 @@ impl LaunchConfig {
     pub fn of_kind(&self, kind: NodeKind) -> impl Iterator<Item = &NodeSpec> {
         self.nodes.iter().filter(move |n| n.kind == kind)
     }
+
+    /// The files the config's nodes read, as written (carving cut-out images: the path of
+    /// each `cutouts` entry "AXIS PATH"), so that a command can keep its outputs off them.
+    pub fn input_files(&self) -> Vec<std::path::PathBuf> {
+        self.of_kind(NodeKind::Carving)
+            .filter_map(|n| match n.params.get("cutouts") {
+                Some(ParamValue::StringArray(v)) => Some(v),
+                _ => None,
+            })
+            .flatten()
+            .filter_map(|e| e.trim().split_once(char::is_whitespace))
+            .map(|(_, p)| std::path::PathBuf::from(p.trim()))
+            .collect()
+    }
 }
 
 /// Typed access to a node's parameters; every parameter must be taken (declared) by the
