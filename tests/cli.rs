@@ -480,7 +480,16 @@ fn outputs_that_would_destroy_an_input_are_refused_and_nothing_changes() {
     let out = p(d.path(), "o.mcap");
     run_ok(&["replay", &bag, "--out", &out]);
     let rec = p(d.path(), "rec/");
-    run_ok(&["scene", "four-spheres", "--grid", "8", "--frames", "3", "--out", &rec]);
+    run_ok(&[
+        "scene",
+        "four-spheres",
+        "--grid",
+        "8",
+        "--frames",
+        "3",
+        "--out",
+        &rec,
+    ]);
     let before = snapshot(d.path());
     let link = p(d.path(), "link.mcap");
     let hard = p(d.path(), "hard.mcap");
@@ -529,13 +538,21 @@ fn the_readme_command_runs_twice_and_recordings_need_overwrite() {
     run_ok(&args);
     let first = std::fs::read(&out).unwrap();
     run_ok(&args);
-    assert_eq!(std::fs::read(&out).unwrap(), first, "the same run gives the same bag");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        first,
+        "the same run gives the same bag"
+    );
     let mut names: Vec<String> = std::fs::read_dir(d.path().join("out"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     names.sort();
-    assert_eq!(names, ["replay.mcap", "report.json"], "nothing else is left");
+    assert_eq!(
+        names,
+        ["replay.mcap", "report.json"],
+        "nothing else is left"
+    );
     // A bag this program did not derive (the bundled bags predate the mark: as a recording)
     // is replaced only with --overwrite.
     let rec = p(d.path(), "recording.mcap");
@@ -544,7 +561,13 @@ fn the_readme_command_runs_twice_and_recordings_need_overwrite() {
     let err = run_refused(&["replay", four.to_str().unwrap(), "--out", &rec]);
     assert!(err.contains("--overwrite"), "{err}");
     assert_eq!(std::fs::read(&rec).unwrap(), std::fs::read(&bag).unwrap());
-    run_ok(&["replay", four.to_str().unwrap(), "--out", &rec, "--overwrite"]);
+    run_ok(&[
+        "replay",
+        four.to_str().unwrap(),
+        "--out",
+        &rec,
+        "--overwrite",
+    ]);
     assert_ne!(std::fs::read(&rec).unwrap(), std::fs::read(&bag).unwrap());
 }
 
@@ -571,7 +594,16 @@ fn a_link_planted_at_an_output_is_replaced_never_written_through() {
 fn a_killed_replay_leaves_no_partial_output() {
     let d = tmp();
     let bag = p(d.path(), "mt.mcap");
-    run_ok(&["scene", "machine-tool", "--grid", "48", "--frames", "24", "--out", &bag]);
+    run_ok(&[
+        "scene",
+        "machine-tool",
+        "--grid",
+        "48",
+        "--frames",
+        "24",
+        "--out",
+        &bag,
+    ]);
     let out_dir = d.path().join("out");
     std::fs::create_dir(&out_dir).unwrap();
     let tmp_dir = d.path().join("tmp");

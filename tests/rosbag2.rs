@@ -357,15 +357,26 @@ fn metadata_that_disagrees_with_the_files_is_said_by_check_and_replay() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report = d.path().join("r.json");
     let (ok, text) = run(
-        &[os("replay"), m.as_os_str(), os("--report"), report.as_os_str()],
+        &[
+            os("replay"),
+            m.as_os_str(),
+            os("--report"),
+            report.as_os_str(),
+        ],
         &[],
     );
     assert!(ok, "{text}");
-    assert!(text.contains("disagrees") && text.contains("half_1.mcap"), "{text}");
+    assert!(
+        text.contains("disagrees") && text.contains("half_1.mcap"),
+        "{text}"
+    );
     let r: Value = serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
     let losses = r["input"]["recovery"]["losses"].to_string();
     assert!(losses.contains("metadata_mismatch"), "{losses}");
-    assert!(r["input"]["recovery"]["messages_lost"].as_u64() > Some(0), "{r}");
+    assert!(
+        r["input"]["recovery"]["messages_lost"].as_u64() > Some(0),
+        "{r}"
+    );
     let (ok, text) = run(&[os("check"), m.as_os_str()], &[]);
     assert!(ok && text.contains("disagrees"), "{text}");
 }
@@ -416,7 +427,10 @@ fn sqlite_bags_are_read_without_creating_anything_beside_them() {
     let before = names(&s);
     let (ok, text) = run(&[os("replay"), s.as_os_str()], &[]);
     assert!(ok, "{text}");
-    assert!(text.contains("wal_0.db3-wal") && text.contains("not read"), "{text}");
+    assert!(
+        text.contains("wal_0.db3-wal") && text.contains("not read"),
+        "{text}"
+    );
     assert_eq!(names(&s), before);
 }
 
@@ -424,7 +438,11 @@ fn sqlite_bags_are_read_without_creating_anything_beside_them() {
 fn special_files_and_links_out_of_the_bag_are_refused_by_name() {
     let d = tempfile::tempdir().unwrap();
     let fifo = d.path().join("pipe.mcap");
-    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
     // Refused at once (a FIFO's open would wait for a writer forever).
     let (ok, text) = run(&[os("info"), fifo.as_os_str()], &[]);
     assert!(!ok && text.contains("FIFO"), "{text}");
@@ -443,8 +461,14 @@ fn special_files_and_links_out_of_the_bag_are_refused_by_name() {
     let report = d.path().join("l.json");
     let r = replay(&m, &report, None);
     let errors = r["input"]["bag_errors"].to_string();
-    assert!(errors.contains("links_1.mcap") && errors.contains("FIFO"), "{errors}");
-    assert!(errors.contains("links_2.mcap") && errors.contains("outside the bag"), "{errors}");
+    assert!(
+        errors.contains("links_1.mcap") && errors.contains("FIFO"),
+        "{errors}"
+    );
+    assert!(
+        errors.contains("links_2.mcap") && errors.contains("outside the bag"),
+        "{errors}"
+    );
     assert_eq!(r["input"]["messages"], 23, "{}", r["input"]);
     // A metadata.yaml that is a link to a file outside the bag is not parsed.
     let e = d.path().join("etc");
@@ -472,7 +496,10 @@ fn compressed_bombs_are_refused_and_leave_nothing_in_tmpdir() {
     let declared = d.path().join("declared.mcap.zstd");
     std::fs::write(&declared, zstd_header_declaring(70 << 30)).unwrap();
     let (ok, text) = run(&[os("check"), declared.as_os_str()], &[("TMPDIR", &tmp)]);
-    assert!(!ok && text.contains("declares") && text.contains("refused before writing"), "{text}");
+    assert!(
+        !ok && text.contains("declares") && text.contains("refused before writing"),
+        "{text}"
+    );
     assert!(names(&tmp).is_empty());
     // Declares nothing and decompresses past a 1 MiB cap: refused at the cap.
     let mut bomb = b"\x89MCAP0\r\n".to_vec();
@@ -518,7 +545,10 @@ fn metadata_of_the_wrong_shape_is_refused_by_field() {
         ("[9]", "is a list"),
     ] {
         let text = with_version(v);
-        assert!(text.contains("version") && text.contains(says), "{v}: {text}");
+        assert!(
+            text.contains("version") && text.contains(says),
+            "{v}: {text}"
+        );
     }
     // Nesting deeper than the metadata limits: refused by the limit's name, at once.
     let deep = format!(
@@ -542,15 +572,56 @@ fn a_bag_without_readable_bodies_names_why() {
     let (ok, text) = run(&[os("replay"), m.as_os_str()], &[]);
     assert!(!ok, "{text}");
     assert!(
-        text.contains("gone_0.db3") && text.contains("does not exist") && text.contains("no bodies"),
+        text.contains("gone_0.db3")
+            && text.contains("does not exist")
+            && text.contains("no bodies"),
         "{text}"
     );
     // A split file of a directory compressed per message, passed on its own: decompressed as
     // its metadata says, with a word to pass the directory.
     let c = d.path().join("perm");
-    write_dir(&c, &["--storage", "sqlite3", "--splits", "2", "--compression", "message"]);
+    write_dir(
+        &c,
+        &[
+            "--storage",
+            "sqlite3",
+            "--splits",
+            "2",
+            "--compression",
+            "message",
+        ],
+    );
     let (ok, text) = run(&[os("replay"), c.join("perm_0.db3").as_os_str()], &[]);
     assert!(ok, "{text}");
     assert!(text.contains("pass the directory"), "{text}");
     assert!(!text.contains("encapsulation 28 b5"), "{text}");
+}
+
+#[test]
+fn definitions_laid_out_by_other_writers_are_read_by_meaning() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("foreign");
+    let o = pyenv::python()
+        .arg(root().join("tests/py/write_foreign_defs.py"))
+        .arg(root().join(SOURCE))
+        .arg(root().join("msgs/msg"))
+        .arg(&out)
+        .output()
+        .unwrap_or_else(|e| panic!("python runs ({}): {e}", pyenv::INSTALL_HINT));
+    assert!(
+        o.status.success(),
+        "write_foreign_defs.py failed ({}):\n{}",
+        pyenv::INSTALL_HINT,
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let reference = comparable(replay(&root().join(SOURCE), &d.path().join("ref.json"), None));
+    for name in ["rosbags-mcap", "rosbags-sqlite", "mcap-ros2.mcap", "handmade.mcap"] {
+        let r = replay(&out.join(name), &d.path().join(format!("{name}.json")), None);
+        assert!(
+            r["input"].get("refused_topics").is_none(),
+            "{name}: {}",
+            r["input"]
+        );
+        assert_eq!(comparable(r), reference, "{name}");
+    }
 }

@@ -1,9 +1,9 @@
 //! The bodies of a bag: every channel with schema `chronotope_msgs/msg/VoxelGrid`, decoded.
 //!
 //! A channel is read as VoxelGrid frames only if everything about it says so: schema name
-//! `chronotope_msgs/msg/VoxelGrid`, schema encoding `ros2msg`, schema text equal to this
-//! program's definition (comments and whitespace aside, dependencies in any order), and
-//! message encoding `cdr`. A VoxelGrid channel that fails one of these, and a channel without
+//! `chronotope_msgs/msg/VoxelGrid`, schema encoding `ros2msg`, a schema text that describes
+//! this program's type by meaning (the same fields, types, order and nested types, whatever
+//! the layout: [`crate::msg::Definition`]), and message encoding `cdr`. A VoxelGrid channel that fails one of these, and a channel without
 //! a schema, is refused once by name ([`BagError::RefusedChannel`]) and its messages are counted
 //! ([`VoxelFrames::refused`]), never silently dropped. Whether a bag is empty is decided from
 //! its data, never from its Statistics record.
@@ -18,7 +18,7 @@ use super::error::{BagError, FrameError};
 use super::reader::{BagMessage, BagSchema};
 use super::source::BagReader;
 use super::recovery::Recovery;
-use crate::msg::{decode_cdr, ros2msg_schema, RosMessage, VoxelGrid};
+use crate::msg::{decode_cdr, ros2msg_schema, Definition, RosMessage, VoxelGrid};
 
 /// A topic whose messages are not read as VoxelGrid frames, and what that cost.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -208,57 +208,29 @@ fn verdict(schema: Option<&BagSchema>, message_encoding: &str) -> Verdict {
     }
     if let Some(difference) = schema_difference(&schema.data) {
         return Verdict::Refused(format!(
-            "its schema text is not the chronotope_msgs/msg/VoxelGrid definition this program \
+            "its schema text does not describe the chronotope_msgs/msg/VoxelGrid this program \
              reads ({difference})"
         ));
     }
     Verdict::Frames
 }
 
-/// A `ros2msg` schema text reduced to what matters for decoding: comments, blank lines and
-/// spacing dropped; the main definition, then the set of dependency blocks.
-fn normalise(text: &str) -> (Vec<String>, BTreeSet<Vec<String>>) {
-    let mut blocks: Vec<Vec<String>> = vec![Vec::new()];
-    for line in text.lines() {
-        let code = line.split('#').next().unwrap_or_default();
-        let code = code.split_whitespace().collect::<Vec<_>>().join(" ");
-        if code.len() >= 3 && code.bytes().all(|b| b == b'=') {
-            blocks.push(Vec::new());
-        } else if !code.is_empty() {
-            if let Some(b) = blocks.last_mut() {
-                b.push(code);
-            }
-        }
-    }
-    let main = blocks.remove(0);
-    (main, blocks.into_iter().filter(|b| !b.is_empty()).collect())
-}
-
-/// `None` if `data` is our VoxelGrid schema text (normalised), else the first difference.
+/// `None` if `data` describes our VoxelGrid by meaning (fields, types, order and nested types;
+/// layout, comments, constants' placement and `pkg/msg/Type` spellings aside: see
+/// [`crate::msg::Definition`]), else the first difference.
 fn schema_difference(data: &[u8]) -> Option<String> {
-    static EXPECTED: OnceLock<(Vec<String>, BTreeSet<Vec<String>>)> = OnceLock::new();
-    let expected = EXPECTED.get_or_init(|| normalise(&ros2msg_schema::<VoxelGrid>()));
+    static EXPECTED: OnceLock<Definition> = OnceLock::new();
+    let expected = EXPECTED.get_or_init(|| {
+        Definition::parse(VoxelGrid::TYPE_NAME, &ros2msg_schema::<VoxelGrid>())
+            .expect("our own definition parses")
+    });
     let Ok(text) = std::str::from_utf8(data) else {
         return Some("the schema text is not UTF-8".to_owned());
     };
-    let (main, deps) = normalise(text);
-    if main != expected.0 {
-        let at = main
-            .iter()
-            .zip(&expected.0)
-            .position(|(a, b)| a != b)
-            .unwrap_or(main.len().min(expected.0.len()));
-        let got = main.get(at).map_or("(nothing)", String::as_str);
-        let want = expected.0.get(at).map_or("(nothing)", String::as_str);
-        return Some(format!(
-            "field line {}: the bag has `{got}`, expected `{want}`",
-            at + 1
-        ));
+    match Definition::parse(VoxelGrid::TYPE_NAME, text) {
+        Ok(got) => expected.difference(&got),
+        Err(why) => Some(why),
     }
-    if deps != expected.1 {
-        return Some("the definitions of the types it uses differ".to_owned());
-    }
-    None
 }
 
 /// Opens a bag for iterating its VoxelGrid frames, after checking from its data that it has
@@ -463,5 +435,12 @@ mod tests {
         let changed = ours.replacen("float64 resolution", "float32 resolution", 1);
         let why = schema_difference(changed.as_bytes()).unwrap();
         assert!(why.contains("float32 resolution"), "{why}");
+        // Constants first, as PyPI rosbags writes the definition: the same type.
+        let constants_first = format!(
+            "uint8 ENCODING_BITS=0\nuint8 ENCODING_PERCENT=1\n{}",
+            ours.replacen("uint8 ENCODING_BITS=0", "", 1)
+                .replacen("uint8 ENCODING_PERCENT=1", "", 1)
+        );
+        assert_eq!(schema_difference(constants_first.as_bytes()), None);
     }
 }

@@ -404,7 +404,9 @@ fn yaml_error(e: &serde_yaml_ng::Error) -> String {
     let text = e.to_string();
     if let Some((field, rest)) = text.split_once(": invalid type: integer") {
         if rest.contains("as u128") || rest.contains("as i128") {
-            let field = field.strip_prefix("rosbag2_bagfile_information.").unwrap_or(field);
+            let field = field
+                .strip_prefix("rosbag2_bagfile_information.")
+                .unwrap_or(field);
             let at = e
                 .location()
                 .map(|l| format!(" (line {}, column {})", l.line(), l.column()))

@@ -975,7 +975,7 @@ pub fn bench_carve_accuracy(
     }
     md.push_str(&t);
     if let Some(path) = out {
-        std::fs::write(path, md).map_err(|source| BenchError::Io {
+        crate::fsio::write_atomic(path, md.as_bytes()).map_err(|source| BenchError::Io {
             path: path.to_owned(),
             source,
         })?;

@@ -183,9 +183,11 @@ pub fn bench_accuracy(
         }
     }
     if let Some(path) = svg {
-        std::fs::write(path, error_plot(&points)).map_err(|source| BenchError::Io {
-            path: path.to_path_buf(),
-            source,
+        crate::fsio::write_atomic(path, error_plot(&points).as_bytes()).map_err(|source| {
+            BenchError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
         })?;
     }
     Ok(())

@@ -230,15 +230,17 @@ pub fn bench_sampler(
     }
     print!("{md}");
     if let Some(p) = out {
-        std::fs::write(p, &md).map_err(|source| BenchError::Io {
+        crate::fsio::write_atomic(p, md.as_bytes()).map_err(|source| BenchError::Io {
             path: p.to_owned(),
             source,
         })?;
     }
     if let (Some(p), false) = (svg, o.no_sweep) {
-        std::fs::write(p, plot(&cases, &runs)).map_err(|source| BenchError::Io {
-            path: p.to_owned(),
-            source,
+        crate::fsio::write_atomic(p, plot(&cases, &runs).as_bytes()).map_err(|source| {
+            BenchError::Io {
+                path: p.to_owned(),
+                source,
+            }
         })?;
     }
     Ok(())

@@ -556,6 +556,28 @@ pub fn text(i: &BagInfo) -> String {
             ));
         }
     }
+    match i.recovery.integrity {
+        crate::bag::Integrity::Verified => o.push_str(
+            "Integrity:    verified (every message read lay under a checksum that held)\n",
+        ),
+        crate::bag::Integrity::Unverified => {
+            o.push_str(
+                "Integrity:    not verifiable for every message (damage there would go unseen):\n",
+            );
+            for u in i.recovery.unverified.iter().take(5) {
+                o.push_str(&format!(
+                    "  {}: {} messages: {}\n",
+                    u.file, u.messages, u.reason
+                ));
+            }
+            if i.recovery.unverified.len() > 5 {
+                o.push_str(&format!(
+                    "  and {} more files\n",
+                    i.recovery.unverified.len() - 5
+                ));
+            }
+        }
+    }
     if i.recovery.is_clean() && i.errors.is_empty() {
         o.push_str("Damage:       none\n");
     } else {

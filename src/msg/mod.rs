@@ -5,11 +5,13 @@
 //! Serialisation is CDR (little endian) through serde, as ros2-client does on the wire.
 
 mod cdr;
+mod definition;
 mod schema;
 mod std_types;
 mod suite;
 mod voxel_grid;
 
+pub use definition::Definition;
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, encode_cdr_into, CdrEndianness, CdrError};
 pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
