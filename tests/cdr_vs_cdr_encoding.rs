@@ -162,6 +162,7 @@ proptest! {
             time_origin: Time { sec: 7, nanosec: 9 },
             start_s: v[0], end_s: v[1], start_error_bound_s: v[2], end_error_bound_s: v[3],
             first_contact_s: v[4], overlap_hypervolume_m3s: v[5],
+            unsure_reason: format!("{ev} unsure"),
         })?;
     }
 }

@@ -249,6 +249,13 @@ fn compare_report(live: &Value, r: &InterferenceReport) {
             "{}",
             w("interfering")
         );
+        assert_eq!(u(&l["verdict"]), u64::from(p.verdict), "{}", w("verdict"));
+        eq_fs(
+            &w("unsure_start_s"),
+            &l["unsure_start_s"],
+            &p.unsure_start_s,
+        );
+        eq_fs(&w("unsure_end_s"), &l["unsure_end_s"], &p.unsure_end_s);
         eq_fs(
             &w("interval_start_s"),
             &l["interval_start_s"],

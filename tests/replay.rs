@@ -712,3 +712,117 @@ fn the_markers_period_slices_one_slab_in_so_many_per_body() {
         assert_eq!(answer(&some), answer(&all));
     }
 }
+
+/// A 24³ bag at 1 cm voxels: `/arm/occupancy` is a resting base with a 1-voxel-thin blade that
+/// jumps 6 voxels along x each frame (x = 1, 7, 13, 19, 1, ...: it vanishes between frames
+/// and, from x = 13 to 19, passes through where `/post/occupancy`, a still plate at x = 16,
+/// stands without touching it in any frame); `/far/occupancy` rests far from both. Frames at 10 Hz; with `gap`, `/far` misses
+/// frames 3 to 5.
+fn blade_bag(dir: &Path, gap: bool) -> PathBuf {
+    let path = dir.join(if gap { "blade-gap.mcap" } else { "blade.mcap" });
+    let mut w = BagWriter::create(&path).unwrap();
+    for t in ["/arm/occupancy", "/post/occupancy", "/far/occupancy"] {
+        w.add_topic::<VoxelGrid>(t).unwrap();
+    }
+    for k in 0..8u32 {
+        let t = 1_000_000_000 + i64::from(k) * 100_000_000;
+        let x = 1 + 6 * (k as usize % 4);
+        let arm = common::bits_data([24; 3], |px, py, pz| {
+            let base = px < 3 && py < 3 && pz < 3;
+            let blade = px == x && (10..14).contains(&py) && (10..14).contains(&pz);
+            base || blade
+        });
+        let post = common::bits_data([24; 3], |px, py, pz| {
+            px == 16 && (10..14).contains(&py) && (10..14).contains(&pz)
+        });
+        let far = common::bits_data([24; 3], |px, py, pz| px > 20 && py > 20 && pz < 3);
+        w.write("/arm/occupancy", t as u64, &common::cube_grid(24, t, arm))
+            .unwrap();
+        w.write("/post/occupancy", t as u64, &common::cube_grid(24, t, post))
+            .unwrap();
+        if !(gap && (3..6).contains(&k)) {
+            w.write("/far/occupancy", t as u64, &common::cube_grid(24, t, far))
+                .unwrap();
+        }
+    }
+    w.finish().unwrap();
+    path
+}
+
+#[test]
+fn a_pair_is_called_clear_only_where_both_bodies_are_observed() {
+    use chronotope::checker::report::Verdict;
+    let d = tempfile::tempdir().unwrap();
+    let bag = blade_bag(d.path(), false);
+    let config = LaunchConfig::parse(
+        "launch:\n- node: {pkg: chronotope, exec: mesher}\n- node: {pkg: chronotope, exec: checker}\n- node: {pkg: chronotope, exec: recorder}\n",
+        "test",
+    )
+    .unwrap();
+    let out = d.path().join("out.mcap");
+    let r = replay(&bag, Some(&config), Some(&out), false).unwrap();
+    let pair = |a: &str, b: &str| {
+        r.report
+            .pairs
+            .iter()
+            .find(|p| p.a == a && p.b == b)
+            .unwrap_or_else(|| panic!("{a} x {b}"))
+            .clone()
+    };
+    // The blade passes through the post between frames: no contact is seen, but the pair is
+    // not clear.
+    let ap = pair("/arm/occupancy", "/post/occupancy");
+    assert!(!ap.interfering);
+    assert_eq!(ap.verdict, Verdict::Unsure, "{:?}", ap.unsure_spans_s);
+    let span = &ap.unsure_spans_s[0];
+    assert_eq!(span.body, "/arm/occupancy");
+    assert_eq!(span.code, "vanishes");
+    assert!(span.resolve.contains("Hz"), "{}", span.resolve);
+    assert!(span.span_s[0] <= 0.2 + 1e-9 && span.span_s[1] >= 0.3 - 1e-9, "{span:?}");
+    // The same verdict for every pair with the arm, and clear where both are observed.
+    assert_eq!(pair("/arm/occupancy", "/far/occupancy").verdict, Verdict::Unsure);
+    assert_eq!(pair("/far/occupancy", "/post/occupancy").verdict, Verdict::Clear);
+    // `check` says the same.
+    let c = chronotope::cli::check::check_bag(&bag, Default::default(), None).unwrap();
+    for p in &c.report.pairs {
+        let rp = pair(&p.a, &p.b);
+        assert_eq!(p.verdict, rp.verdict, "{} x {}", p.a, p.b);
+        assert_eq!(p.unsure_spans_s, rp.unsure_spans_s, "{} x {}", p.a, p.b);
+    }
+    // The contact events say when the unsure span begins and ends.
+    let mut events = Vec::new();
+    for m in chronotope::bag::BagReader::open(&out).unwrap() {
+        let m = m.unwrap();
+        if m.topic == "/checker/contacts" {
+            let e: chronotope::msg::ContactEvent = chronotope::msg::decode_cdr(&m.data).unwrap();
+            if e.body_a == "/arm/occupancy" && e.body_b == "/post/occupancy" {
+                events.push((e.event, e.unsure_reason));
+            }
+        }
+    }
+    let kinds: Vec<u8> = events.iter().map(|e| e.0).collect();
+    assert!(
+        kinds.starts_with(&[
+            chronotope::msg::ContactEvent::UNSURE_BEGIN,
+            chronotope::msg::ContactEvent::UNSURE_END
+        ]),
+        "{events:?}"
+    );
+    assert!(events[0].1.contains("/arm/occupancy: vanishes"), "{events:?}");
+    // A summary that never says clear for such a pair.
+    let text = chronotope::cli::replay::summary(&r, &bag);
+    assert!(text.contains("UNSURE   /arm/occupancy x /post/occupancy"), "{text}");
+    assert!(!text.contains("clear    /arm/occupancy"), "{text}");
+
+    // Missing frames of /far: pairs with it are unsure over the gap, even the still post.
+    let bag = blade_bag(d.path(), true);
+    let r = replay(&bag, None, None, false).unwrap();
+    let fp = r
+        .report
+        .pairs
+        .iter()
+        .find(|p| p.a == "/far/occupancy" && p.b == "/post/occupancy")
+        .unwrap();
+    assert_eq!(fp.verdict, Verdict::Unsure, "{:?}", fp.unsure_spans_s);
+    assert!(fp.unsure_spans_s.iter().any(|u| u.code == "frames_filled"), "{:?}", fp.unsure_spans_s);
+}

@@ -370,6 +370,21 @@ pub enum BagError {
         /// SQLite's own words.
         reason: String,
     },
+    /// Messages found compressed (zstd frames: no CDR payload starts so) though nothing said
+    /// so (no `metadata.yaml`, or one whose `compression_mode` says otherwise): they are read
+    /// decompressed. Said once per topic.
+    #[error(
+        "{}: messages on {topic} are zstd-compressed though nothing says so (rosbag2 per-message \
+         compression; metadata.yaml's compression_mode says otherwise, or there is none): read \
+         decompressed",
+        path.display()
+    )]
+    CompressedMessages {
+        /// The storage file.
+        path: PathBuf,
+        /// The topic.
+        topic: String,
+    },
     /// A rosbag2 SQLite file with a write-ahead log left beside it, which is not read (the
     /// database is read as it is, immutable); the rows in the database are read.
     #[error("{}: {reason}", path.display())]
@@ -442,6 +457,7 @@ impl BagError {
                 | BagError::SplitFile { .. }
                 | BagError::BadRow { .. }
                 | BagError::LogNotRead { .. }
+                | BagError::CompressedMessages { .. }
                 | BagError::Decompression { .. }
                 | BagError::InSplitFile { .. }
                 | BagError::MetadataDisagrees { .. }

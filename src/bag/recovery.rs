@@ -166,6 +166,12 @@ pub struct Unverified {
     pub messages: u64,
 }
 
+/// Files listed one by one in [`Recovery::unverified`]; further files are summed per reason.
+pub const MAX_LISTED_UNVERIFIED: usize = 32;
+
+/// The `file` of the entry summing the files beyond [`MAX_LISTED_UNVERIFIED`].
+pub const OTHER_FILES: &str = "(the other files)";
+
 /// Why messages of an SQLite file are not verified.
 pub(crate) const NO_CRC_SQLITE: &str = "rosbag2's SQLite storage keeps no checksum of the messages";
 /// Why messages of an MCAP chunk with CRC 0 are not verified.
@@ -194,17 +200,35 @@ impl Recovery {
         });
     }
 
-    /// Adds the unverified counts of another file's recovery.
+    /// Adds the unverified counts of another file's recovery: listed per file up to
+    /// [`MAX_LISTED_UNVERIFIED`] entries, then summed per reason under
+    /// [`OTHER_FILES`].
     pub(crate) fn add_unverified(&mut self, other: &Recovery) {
         for u in &other.unverified {
             self.integrity = Integrity::Unverified;
-            match self
+            if let Some(v) = self
                 .unverified
                 .iter_mut()
                 .find(|v| v.file == u.file && v.reason == u.reason)
             {
+                v.messages += u.messages;
+                continue;
+            }
+            if self.unverified.len() < MAX_LISTED_UNVERIFIED {
+                self.unverified.push(u.clone());
+                continue;
+            }
+            match self
+                .unverified
+                .iter_mut()
+                .find(|v| v.file == OTHER_FILES && v.reason == u.reason)
+            {
                 Some(v) => v.messages += u.messages,
-                None => self.unverified.push(u.clone()),
+                None => self.unverified.push(Unverified {
+                    file: OTHER_FILES.to_owned(),
+                    reason: u.reason,
+                    messages: u.messages,
+                }),
             }
         }
     }

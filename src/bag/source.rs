@@ -145,10 +145,9 @@ pub struct BagReader {
     refused_topics: HashMap<String, usize>,
     /// Losses of the split files already read (and of the directory itself).
     base: Recovery,
-    /// `base` plus the current file's: what [`Self::recovery`] returns.
-    total: Recovery,
-    /// The current file's loss counters when `total` was last rebuilt.
-    seen: (u64, u64, usize, u64),
+    /// `base` plus the current file's, made when [`Self::recovery`] is asked and dropped at
+    /// every step (so that reading costs no copy of the losses per message or file).
+    total: std::cell::OnceCell<Recovery>,
     /// Messages the current file counted as read that were not delivered (refused channel,
     /// not decompressing).
     undelivered: u64,
@@ -160,6 +159,8 @@ pub struct BagReader {
     read_span: Option<(u64, u64)>,
     /// The directory's `metadata.yaml` has been compared with what was read.
     compared: bool,
+    /// Topics whose messages were found compressed though nothing said so (said once each).
+    compressed_topics: std::collections::HashSet<String>,
 }
 
 impl BagReader {
@@ -284,14 +285,14 @@ impl BagReader {
             part_ids: HashMap::new(),
             refused_topics: HashMap::new(),
             base: Recovery::default(),
-            total,
-            seen: (0, 0, 0, 0),
+            total: std::cell::OnceCell::from(total),
             undelivered: 0,
             pending: VecDeque::new(),
             profile,
             read_by_topic: HashMap::new(),
             read_span: None,
             compared: true,
+            compressed_topics: Default::default(),
         }
     }
 
@@ -313,14 +314,14 @@ impl BagReader {
             part_ids: HashMap::new(),
             refused_topics: HashMap::new(),
             base: Recovery::default(),
-            total: Recovery::default(),
-            seen: (0, 0, 0, 0),
+            total: std::cell::OnceCell::new(),
             undelivered: 0,
             pending: VecDeque::new(),
             profile: "ros2".to_owned(),
             read_by_topic: HashMap::new(),
             read_span: None,
             compared: false,
+            compressed_topics: Default::default(),
         };
         // The channels of every split file that opens cheaply (not compressed as a whole),
         // so that they are known before the first message, as an MCAP summary makes them.
@@ -354,7 +355,7 @@ impl BagReader {
         }
         reader.base.summary_used = all_summaries && !reader.files.is_empty();
         reader.base.statistics_message_count = statistics;
-        reader.total = reader.base.clone();
+        reader.sync_total();
         Ok(reader)
     }
 
@@ -379,7 +380,13 @@ impl BagReader {
     pub fn recovery(&self) -> &Recovery {
         match (&self.current, self.single) {
             (Some(p), true) => p.part.recovery(),
-            _ => &self.total,
+            (None, _) => &self.base,
+            (Some(p), false) => self.total.get_or_init(|| {
+                let mut total = self.base.clone();
+                add_recovery(&mut total, p.part.recovery(), &part_name(p));
+                total.messages_read = total.messages_read.saturating_sub(self.undelivered);
+                total
+            }),
         }
     }
 
@@ -461,7 +468,7 @@ impl BagReader {
                 Ok(p) => {
                     self.current = Some(p.0);
                     self.part_ids.clear();
-                    self.seen = (u64::MAX, 0, 0, 0);
+                    self.total = std::cell::OnceCell::new();
                     return true;
                 }
                 Err(e) => {
@@ -484,7 +491,7 @@ impl BagReader {
                         end_ns: None,
                         topics: Default::default(),
                     });
-                    self.total = self.base.clone();
+                    self.total = std::cell::OnceCell::new();
                     self.pending
                         .push_back(BagError::SplitFile { path: file, reason });
                 }
@@ -501,28 +508,13 @@ impl BagReader {
             add_recovery(&mut self.base, r, &name);
             self.base.messages_read = self.base.messages_read.saturating_sub(self.undelivered);
             self.undelivered = 0;
-            self.total = self.base.clone();
+            self.total = std::cell::OnceCell::new();
         }
     }
 
-    /// Rebuilds `total` if the current file's losses changed; keeps its message count.
+    /// Forgets the combined recovery: the current file's or the directory's changed.
     fn sync_total(&mut self) {
-        let Some(p) = &self.current else { return };
-        let r = p.part.recovery();
-        let seen = (
-            r.messages_lost,
-            r.regions_with_unknown_loss,
-            r.losses.len(),
-            r.losses_not_listed,
-        );
-        if seen != self.seen {
-            self.seen = seen;
-            let mut total = self.base.clone();
-            add_recovery(&mut total, r, &part_name(p));
-            self.total = total;
-        }
-        self.total.messages_read =
-            (self.base.messages_read + r.messages_read).saturating_sub(self.undelivered);
+        self.total = std::cell::OnceCell::new();
     }
 
     /// A message of a directory's split file with its merged channel (and its data
@@ -540,7 +532,7 @@ impl BagReader {
             let first = !self.refused_topics.contains_key(&m.topic);
             *self.refused_topics.entry(m.topic.clone()).or_default() += 1;
             self.undelivered += 1;
-            self.seen = (u64::MAX, 0, 0, 0);
+            self.sync_total();
             let t = m.log_time_ns;
             self.base.push(BagLoss {
                 offset: 0,
@@ -568,7 +560,14 @@ impl BagReader {
         let merged = &self.merged[usize::from(id) - 1];
         m.channel_id = id;
         m.schema = merged.schema.clone();
-        if self.message_compression {
+        if !self.message_compression && self.compressed_unannounced(&m) {
+            let path = self.current.as_ref().map(part_name).unwrap_or_default();
+            self.pending.push_back(BagError::CompressedMessages {
+                path: PathBuf::from(path),
+                topic: m.topic.clone(),
+            });
+        }
+        if self.message_compression || m.data.starts_with(&ZSTD_MAGIC) {
             match decompress_message(&m.data, self.options.max_record_bytes) {
                 Ok(data) => m.data = data,
                 Err(reason) => {
@@ -579,7 +578,7 @@ impl BagReader {
                         .unwrap_or_default();
                     let t = m.log_time_ns;
                     self.undelivered += 1;
-                    self.seen = (u64::MAX, 0, 0, 0);
+                    self.sync_total();
                     self.base.push(BagLoss {
                         offset: 0,
                         bytes: None,
@@ -606,6 +605,13 @@ impl BagReader {
         }
         self.count_read(&m);
         Some(Ok(m))
+    }
+
+    /// True the first time a message of a topic turns out to be a zstd frame while nothing
+    /// says messages are compressed (no CDR payload starts with the zstd magic): it is read
+    /// decompressed, and said once per topic.
+    fn compressed_unannounced(&mut self, m: &BagMessage) -> bool {
+        m.data.starts_with(&ZSTD_MAGIC) && self.compressed_topics.insert(m.topic.clone())
     }
 
     /// Counts a delivered message for the comparison with `metadata.yaml`.
@@ -737,7 +743,7 @@ impl BagReader {
             end_ns: None,
             topics,
         });
-        self.total = self.base.clone();
+        self.sync_total();
     }
 }
 
@@ -746,9 +752,20 @@ impl Iterator for BagReader {
 
     fn next(&mut self) -> Option<Self::Item> {
         if self.single {
+            if let Some(e) = self.pending.pop_front() {
+                return Some(Err(e));
+            }
             let item = self.current.as_mut()?.part.next()?;
+            if let Ok(m) = &item {
+                if !self.message_compression && self.compressed_unannounced(m) {
+                    self.pending.push_back(BagError::CompressedMessages {
+                        path: self.path.clone(),
+                        topic: m.topic.clone(),
+                    });
+                }
+            }
             return Some(match item {
-                Ok(mut m) if self.message_compression => {
+                Ok(mut m) if self.message_compression || m.data.starts_with(&ZSTD_MAGIC) => {
                     match decompress_message(&m.data, self.options.max_record_bytes) {
                         Ok(data) => {
                             m.data = data;

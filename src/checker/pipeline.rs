@@ -6,6 +6,7 @@ use super::bounds;
 use super::prep::BodyPrep;
 use super::report::{
     BodyReport, LostSpan, PairLabels, PairReport, Report, Resolution, Timings, UncheckedPair,
+    UnsureSpanReport, Verdict,
 };
 use super::resolve::{suggest_time_scaling, suggest_translation, Metric, TimeScaling, Translation};
 use super::{
@@ -336,9 +337,24 @@ pub fn check_streamed(
         .collect();
     let mut checked = Vec::new();
     for (&(i, j), (r, hv)) in jobs.iter().zip(results) {
-        report
-            .pairs
-            .push(pair_report(&ids[i], &ids[j], &r, hv, &lat, time_origin_ns));
+        let mut pair = pair_report(&ids[i], &ids[j], &r, hv, &lat, time_origin_ns);
+        // Unsure where either body is, over the time both exist.
+        let (a, b) = (named[i].1, named[j].1);
+        let both_from = a.stamps_ns.first().max(b.stamps_ns.first()).copied();
+        let both_to = a.stamps_ns.last().min(b.stamps_ns.last()).copied();
+        if let (Some(from), Some(to)) = (both_from, both_to) {
+            let (spans, not_listed) = UnsureSpanReport::of_pair(
+                (&ids[i], &a.unsure),
+                (&ids[j], &b.unsure),
+                from,
+                to,
+                time_origin_ns,
+            );
+            pair.verdict = Verdict::of(pair.interfering, !spans.is_empty() || not_listed > 0);
+            pair.unsure_spans_s = spans;
+            pair.unsure_spans_not_listed = not_listed;
+        }
+        report.pairs.push(pair);
         checked.push((i, j, r));
     }
     let t_check = start.elapsed();
@@ -382,6 +398,7 @@ pub fn check_streamed(
     }
     report.timings_ms.check = t_check.as_secs_f64() * 1e3;
     report.timings_ms.resolve = (start.elapsed() - t_check).as_secs_f64() * 1e3;
+    report.note_unsure_resolutions();
     Ok(CheckOutcome {
         report,
         lattice: Some(lat),
@@ -451,6 +468,7 @@ pub fn resolutions(
             direction: t.direction,
             distance_error_bound_m: bounds::translation_bound(lat.resolution, period, c, snap),
             episode_s: episode,
+            unsure_s: Vec::new(),
         });
     } else {
         tracing::warn!(body = %id, "no translation found (no interior point of the body lies inside another)");
@@ -462,6 +480,7 @@ pub fn resolutions(
             scale: ts.scale,
             verified_clear: ts.verified_clear,
             episode_s: episode,
+            unsure_s: Vec::new(),
         });
     }
     out
@@ -567,6 +586,9 @@ fn pair_report(
     PairReport {
         a: a.to_owned(),
         b: b.to_owned(),
+        verdict: Verdict::of(r.interfering(), false),
+        unsure_spans_s: Vec::new(),
+        unsure_spans_not_listed: 0,
         interfering: r.interfering(),
         intervals_s: r
             .intervals

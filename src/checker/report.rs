@@ -6,6 +6,7 @@
 
 use super::labels::LabelCounts;
 use crate::mesh::stream::{LossKind, LossLog, UNKNOWN_STAMP};
+use crate::mesh::unsure::{UnsureLog, UnsureSpan};
 use serde::Serialize;
 
 /// One body in the report.
@@ -98,6 +99,100 @@ pub struct PairLabels {
     pub b: LabelCounts,
 }
 
+/// What can be said of a pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// The bodies interfere somewhere in space-time.
+    Collide,
+    /// No interference, and both bodies are observed well enough everywhere they were
+    /// compared for that to hold.
+    Clear,
+    /// No interference was found, but in some spans a body is not observed well enough for
+    /// the check to hold there (`unsure_spans_s`): a contact there can be missed.
+    Unsure,
+}
+
+impl Verdict {
+    /// The verdict of a pair that interferes or not, with or without unsure spans.
+    pub fn of(interfering: bool, unsure: bool) -> Self {
+        match (interfering, unsure) {
+            (true, _) => Self::Collide,
+            (false, true) => Self::Unsure,
+            (false, false) => Self::Clear,
+        }
+    }
+
+    /// The verdict as the console and messages print it.
+    pub fn as_str(&self) -> &'static str {
+        match self {
+            Self::Collide => "collide",
+            Self::Clear => "clear",
+            Self::Unsure => "unsure",
+        }
+    }
+}
+
+/// A span of a pair's time in which a body is not observed well enough for the check to
+/// hold (see [`crate::mesh::unsure`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct UnsureSpanReport {
+    /// Start and end (s since `time_origin_ns`).
+    pub span_s: [f64; 2],
+    /// The body not observed well enough.
+    pub body: String,
+    /// `vanishes`, `frames_filled` or `gap_spanned`.
+    pub code: &'static str,
+    /// Why, in words.
+    pub reason: &'static str,
+    /// What would resolve it (a frame rate, the missing frames).
+    pub resolve: String,
+}
+
+impl UnsureSpanReport {
+    /// The span in one line, as messages carry it: `body: code: why; resolve: what`.
+    pub fn line(&self) -> String {
+        format!(
+            "{}: {}: {}; resolve: {}",
+            self.body, self.code, self.reason, self.resolve
+        )
+    }
+
+    /// The report of `span` of `body`, in seconds since `origin_ns`.
+    pub fn of(body: &str, span: &UnsureSpan, origin_ns: i64) -> Self {
+        Self {
+            span_s: [
+                (span.from_ns - origin_ns) as f64 * 1e-9,
+                (span.to_ns - origin_ns) as f64 * 1e-9,
+            ],
+            body: body.to_owned(),
+            code: span.why.code(),
+            reason: span.why.reason(),
+            resolve: span.why.remedy(span.period_ns as f64 * 1e-9),
+        }
+    }
+
+    /// The pair's unsure spans from its two bodies' logs over `[from_ns, to_ns]` (the time
+    /// both are checked), in time order, with how many more there were than listed.
+    pub fn of_pair(
+        a: (&str, &UnsureLog),
+        b: (&str, &UnsureLog),
+        from_ns: i64,
+        to_ns: i64,
+        origin_ns: i64,
+    ) -> (Vec<Self>, u64) {
+        let mut spans: Vec<(i64, Self)> = Vec::new();
+        for (body, log) in [a, b] {
+            for s in log.within(from_ns, to_ns) {
+                spans.push((s.from_ns, Self::of(body, &s, origin_ns)));
+            }
+        }
+        spans.sort_by(|x, y| x.0.cmp(&y.0).then_with(|| x.1.body.cmp(&y.1.body)));
+        let dropped = a.1.dropped().0 + b.1.dropped().0;
+        (spans.into_iter().map(|(_, s)| s).collect(), dropped)
+    }
+}
+
 /// One pair in the report.
 #[derive(Debug, Clone, Serialize)]
 pub struct PairReport {
@@ -105,6 +200,15 @@ pub struct PairReport {
     pub a: String,
     /// Second body.
     pub b: String,
+    /// `collide`, `clear` or `unsure` (extra field): `clear` only where both bodies are
+    /// observed well enough for the check to hold.
+    pub verdict: Verdict,
+    /// Where a contact can be missed, and why (extra field; empty unless some span is
+    /// unsure). A pair that collides lists them too.
+    pub unsure_spans_s: Vec<UnsureSpanReport>,
+    /// Unsure spans older than those listed (extra field; absent when none).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unsure_spans_not_listed: u64,
     /// The interiors overlap somewhere in space-time.
     pub interfering: bool,
     /// Time intervals of overlap (s since `time_origin_ns`).
@@ -135,6 +239,32 @@ pub struct PairReport {
     pub candidate_pairs: u64,
     /// Tet pairs whose boundaries cross (extra field).
     pub crossing_pairs: u64,
+}
+
+impl PairReport {
+    /// For a pair that is not clear for want of observation: the unsure spans in one line
+    /// for the console (at most three, then how many more), e.g. `during 0.300-0.500 s:
+    /// /a/occupancy: vanishes: …; resolve: …`.
+    pub fn unsure_line(&self) -> String {
+        let mut parts: Vec<String> = self
+            .unsure_spans_s
+            .iter()
+            .take(3)
+            .map(|u| {
+                format!(
+                    "{:.3}-{:.3} s: {}",
+                    u.span_s[0],
+                    u.span_s[1],
+                    u.line()
+                )
+            })
+            .collect();
+        let more = self.unsure_spans_s.len().saturating_sub(3) as u64 + self.unsure_spans_not_listed;
+        if more > 0 {
+            parts.push(format!("and {more} more span(s)"));
+        }
+        parts.join("; ")
+    }
 }
 
 /// Timings (ms).
@@ -197,6 +327,10 @@ pub enum Resolution {
         /// The contact episode it clears: start and end (s since the time origin; extra
         /// field).
         episode_s: [f64; 2],
+        /// Where the check that verified it cannot hold (a body unsure there): it is verified
+        /// clear everywhere else (extra field; absent when none).
+        #[serde(skip_serializing_if = "Vec::is_empty")]
+        unsure_s: Vec<[f64; 2]>,
     },
     /// Retime the body: t -> t0 + scale·(t − t0).
     TimeScale {
@@ -210,5 +344,79 @@ pub enum Resolution {
         verified_clear: bool,
         /// The contact episode it clears (s since the time origin; extra field).
         episode_s: [f64; 2],
+        /// Where the check that verified it cannot hold (extra field; absent when none).
+        #[serde(skip_serializing_if = "Vec::is_empty")]
+        unsure_s: Vec<[f64; 2]>,
     },
+}
+
+impl Resolution {
+    /// The time the moved body and the bodies it was checked against take part in, from the
+    /// episode and the move (a shift in time moves the episode; a scaling stretches it).
+    fn verified_window(&self) -> (&str, [f64; 2]) {
+        match self {
+            Self::Translate {
+                body,
+                vector,
+                episode_s,
+                ..
+            } => {
+                let [a, b] = *episode_s;
+                (body, [a.min(a + vector[3]), b.max(b + vector[3])])
+            }
+            Self::TimeScale {
+                body,
+                t0_s,
+                scale,
+                episode_s,
+                ..
+            } => {
+                let [a, b] = *episode_s;
+                let map = |t: f64| t0_s + scale * (t - t0_s);
+                let (x, y) = (map(a), map(b));
+                (body, [a.min(x).min(y), b.max(x).max(y)])
+            }
+        }
+    }
+
+    fn unsure_mut(&mut self) -> &mut Vec<[f64; 2]> {
+        match self {
+            Self::Translate { unsure_s, .. } | Self::TimeScale { unsure_s, .. } => unsure_s,
+        }
+    }
+
+    /// Where the check that verified it cannot hold (empty: nowhere).
+    pub fn unsure_s(&self) -> &[[f64; 2]] {
+        match self {
+            Self::Translate { unsure_s, .. } | Self::TimeScale { unsure_s, .. } => unsure_s,
+        }
+    }
+}
+
+impl Report {
+    /// Marks each resolution with the unsure spans (of the pairs of its body) that fall in the
+    /// time its verification covers: it is verified clear where the bodies are observed, and
+    /// says where it could not be.
+    pub fn note_unsure_resolutions(&mut self) {
+        for r in &mut self.resolutions {
+            let (body, [w0, w1]) = r.verified_window();
+            let mut spans: Vec<[f64; 2]> = self
+                .pairs
+                .iter()
+                .filter(|p| p.a == body || p.b == body)
+                .flat_map(|p| p.unsure_spans_s.iter())
+                .filter(|u| u.span_s[1] >= w0 && u.span_s[0] <= w1)
+                .map(|u| [u.span_s[0].max(w0), u.span_s[1].min(w1)])
+                .collect();
+            spans.sort_by(|x, y| x[0].total_cmp(&y[0]));
+            let mut merged: Vec<[f64; 2]> = Vec::new();
+            for s in spans {
+                match merged.last_mut() {
+                    Some(m) if s[0] <= m[1] => m[1] = m[1].max(s[1]),
+                    _ => merged.push(s),
+                }
+            }
+            *r.unsure_mut() = merged;
+        }
+    }
 }

@@ -207,8 +207,21 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
                 spans.join(", "),
                 p.overlap_hypervolume_m3s.unwrap_or(f64::NAN)
             );
+        } else if p.verdict == crate::checker::report::Verdict::Unsure {
+            println!(
+                "UNSURE  {} x {}: no contact found, but cannot be called clear during {}",
+                p.a,
+                p.b,
+                p.unsure_line()
+            );
         } else {
             println!("clear   {} x {}", p.a, p.b);
+        }
+        if p.interfering && !p.unsure_spans_s.is_empty() {
+            println!(
+                "        and where it is not observed well enough: {}",
+                p.unsure_line()
+            );
         }
     }
     for s in &r.resolutions {

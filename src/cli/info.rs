@@ -140,7 +140,25 @@ pub struct BodyInfo {
     pub longest_gap: Option<(f64, f64)>,
     /// Frames whose stamp is not after the previous one's.
     pub out_of_order: u64,
+    /// Frame periods in which a part of the body vanishes between frames (it moves farther
+    /// than its own thickness): no pair with this body can be called clear there.
+    pub vanishing_periods: u64,
+    /// The first of them: start and end (s since the epoch), and what would resolve it.
+    pub vanishing_spans: Vec<VanishingSpan>,
 }
+
+/// A span of frame periods in which a part of a body vanishes between frames.
+#[derive(Debug, Clone, Serialize)]
+pub struct VanishingSpan {
+    /// Start and end, seconds since the epoch.
+    pub span_s: [f64; 2],
+    /// What would resolve it.
+    pub resolve: String,
+}
+
+/// Voxels of a frame above which `info` does not look for vanishing parts (the frames are
+/// decoded for it; a larger body is left to `check`).
+const VANISH_MAX_VOXELS: u64 = 1 << 24;
 
 /// A topic refused.
 #[derive(Debug, Clone, Serialize)]
@@ -179,9 +197,48 @@ struct BodyAcc {
     gaps: u64,
     longest: Option<(i64, i64)>,
     out_of_order: u64,
+    /// The previous frame decoded (to find parts that vanish), with its stamp and lattice.
+    last_grid: Option<(i64, [u32; 3], f64, [f64; 3], crate::mesh::OccupancyGrid)>,
+    vanishing: crate::mesh::unsure::UnsureLog,
+    vanishing_periods: u64,
 }
 
 impl BodyAcc {
+    /// Looks for a part of the body that vanishes between the previous frame and `g` (same
+    /// lattice, increasing stamps), as the mesher does.
+    fn vanishing(&mut self, g: &VoxelGrid, t: i64) {
+        let size = [g.size_x, g.size_y, g.size_z];
+        let origin = [g.origin.x, g.origin.y, g.origin.z];
+        let voxels = size.iter().map(|&n| u64::from(n)).product::<u64>();
+        if voxels > VANISH_MAX_VOXELS {
+            self.last_grid = None;
+            return;
+        }
+        let Ok(grid) = crate::mesh::OccupancyGrid::decode(
+            &g.frame_ref(),
+            &crate::mesh::DecodeOptions::default(),
+        ) else {
+            self.last_grid = None;
+            return;
+        };
+        if let Some((t0, s0, r0, o0, prev)) = &self.last_grid {
+            if *s0 == size && *r0 == g.resolution && *o0 == origin && t > *t0 {
+                if let Some(v) = crate::mesh::vanish::vanishing(prev, &grid) {
+                    self.vanishing_periods += 1;
+                    self.vanishing.push(crate::mesh::unsure::UnsureSpan {
+                        from_ns: *t0,
+                        to_ns: t,
+                        why: crate::mesh::unsure::Unsure::Vanishes {
+                            rate_factor: v.rate_factor,
+                        },
+                        period_ns: t - t0,
+                    });
+                }
+            }
+        }
+        self.last_grid = Some((t, size, g.resolution, origin, grid));
+    }
+
     fn frame(&mut self, g: &VoxelGrid) {
         self.frames += 1;
         push_distinct(&mut self.sizes, [g.size_x, g.size_y, g.size_z]);
@@ -194,6 +251,7 @@ impl BodyAcc {
         };
         *self.encodings.entry(enc).or_default() += 1;
         let t = i64::from(g.header.stamp.sec) * 1_000_000_000 + i64::from(g.header.stamp.nanosec);
+        self.vanishing(g, t);
         self.first.get_or_insert(t);
         if let Some(p) = self.prev {
             let d = t - p;
@@ -404,6 +462,16 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
                 gaps: b.gaps,
                 longest_gap: b.longest.map(|(d, at)| (s(d), s(at))),
                 out_of_order: b.out_of_order,
+                vanishing_periods: b.vanishing_periods,
+                vanishing_spans: b
+                    .vanishing
+                    .spans()
+                    .take(5)
+                    .map(|v| VanishingSpan {
+                        span_s: [s(v.from_ns), s(v.to_ns)],
+                        resolve: v.why.remedy(s(v.period_ns)),
+                    })
+                    .collect(),
             }
         })
         .collect();
@@ -545,6 +613,30 @@ pub fn text(i: &BagInfo) -> String {
             }
             o.push_str(&timing);
             o.push('\n');
+        }
+        if b.vanishing_periods > 0 || b.gaps > 0 {
+            let mut why = Vec::new();
+            if b.vanishing_periods > 0 {
+                let spans: Vec<String> = b
+                    .vanishing_spans
+                    .iter()
+                    .map(|v| format!("{:.3}-{:.3} s", v.span_s[0], v.span_s[1]))
+                    .collect();
+                why.push(format!(
+                    "a part of it vanishes between frames in {} period(s) ({}{}; resolve: {})",
+                    b.vanishing_periods,
+                    spans.join(", "),
+                    if b.vanishing_periods as usize > spans.len() { ", …" } else { "" },
+                    b.vanishing_spans.first().map_or("", |v| v.resolve.as_str())
+                ));
+            }
+            if b.gaps > 0 {
+                why.push(format!("{} gap(s) of missing frames", b.gaps));
+            }
+            o.push_str(&format!(
+                "    unsure: {}: no pair with this body can be called clear there\n",
+                why.join("; ")
+            ));
         }
     }
     if !i.refused.is_empty() {

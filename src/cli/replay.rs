@@ -536,7 +536,20 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
     );
     for p in &rep.pairs {
         if !p.interfering {
-            let _ = writeln!(s, "  clear    {} x {}", p.a, p.b);
+            match p.verdict {
+                crate::checker::report::Verdict::Unsure => {
+                    let _ = writeln!(
+                        s,
+                        "  UNSURE   {} x {}: no contact found, but cannot be called clear during {}",
+                        p.a,
+                        p.b,
+                        p.unsure_line()
+                    );
+                }
+                _ => {
+                    let _ = writeln!(s, "  clear    {} x {}", p.a, p.b);
+                }
+            }
             continue;
         }
         let when: Vec<String> = p
@@ -578,7 +591,7 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
                 vector[2],
                 vector[3],
                 distance * 1e3,
-                if *verified_clear { "verified clear" } else { "NOT clear when checked again" }
+                verdict_words(*verified_clear, res.unsure_s())
             ),
             crate::checker::report::Resolution::TimeScale {
                 body,
@@ -589,7 +602,7 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
             } => writeln!(
                 s,
                 "  FIX      or retime {body}: durations after {t0_s:.3} s ×{scale:.3}, {}",
-                if *verified_clear { "verified clear" } else { "NOT clear when checked again" }
+                verdict_words(*verified_clear, res.unsure_s())
             ),
         };
     }
@@ -607,6 +620,26 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
         let _ = writeln!(s, "  {line}");
     }
     s
+}
+
+/// How a resolution's verification reads on the console.
+fn verdict_words(verified_clear: bool, unsure_s: &[[f64; 2]]) -> String {
+    let base = if verified_clear {
+        "verified clear"
+    } else {
+        "NOT clear when checked again"
+    };
+    if unsure_s.is_empty() {
+        return base.to_owned();
+    }
+    let spans: Vec<String> = unsure_s
+        .iter()
+        .map(|[a, b]| format!("{a:.3}-{b:.3} s"))
+        .collect();
+    format!(
+        "{base} where observed; not verifiable during {} (a body not observed well enough)",
+        spans.join(", ")
+    )
 }
 
 /// Runs `chronotope replay`.

@@ -5,6 +5,7 @@ use super::march::{CapSide, TetMesh, Welder};
 use super::mesher::{GridGeometry, MesherOptions, Slab};
 use super::stats::{BodyStats, LateralRef, StatsAccumulator};
 use super::stream::{BodyStream, LossLog, LossSpan};
+use super::unsure::{UnsureLog, UnsureSpan};
 use super::{FrameRef, MeshError, OccupancyGrid};
 
 /// One body's closed 4D mesh over all its frames.
@@ -27,6 +28,9 @@ pub struct BodyMesh {
     pub losses: LossLog,
     /// Streaming statistics (closedness, hypervolume in m³·s, counts).
     pub stats: BodyStats,
+    /// Where the body is not observed well enough for every contact to show
+    /// ([`super::unsure`]).
+    pub unsure: UnsureLog,
 }
 
 /// Welds the pieces of one body's mesh, as the mesher makes them (the first cap, the lateral
@@ -59,6 +63,14 @@ impl BodyGluer {
     pub fn lateral(&mut self, slab: LateralRef<'_>, meshing_ms: Option<f64>) {
         if let Some(ms) = meshing_ms {
             self.acc.record_time(ms);
+        }
+        if let Some(why) = slab.unsure {
+            self.body.unsure.push(UnsureSpan {
+                from_ns: slab.stamps_ns.0,
+                to_ns: slab.stamps_ns.1,
+                why,
+                period_ns: slab.stamps_ns.1 - slab.stamps_ns.0,
+            });
         }
         self.acc
             .add_lateral(slab, self.first_cap.as_ref().map(|c| &c.0));

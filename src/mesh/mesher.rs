@@ -6,6 +6,7 @@ use super::grid::{DecodeOptions, FrameRef, OccupancyGrid};
 use super::march::{march_cap, CapSide, SlabMarcher, SlabPlacement, TetMesh};
 use super::table::{table, Table};
 use super::MeshError;
+use super::unsure::Unsure;
 
 /// Options of the mesher.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -74,13 +75,19 @@ pub struct Slab {
     pub geometry: GridGeometry,
     /// Lateral tets; vertex t ranges over [scale·k, scale·(k+1)].
     pub mesh: TetMesh,
-    /// Both frames are occupied but share no occupied voxel: the body moved more than its
-    /// own thickness in one frame period, so in 4D it vanishes between the frames and a
-    /// contact in between can be missed (the frame rate is too low for this motion).
-    pub vanishes: bool,
+    /// Why the slab does not show every contact, if it does not: a part of the body
+    /// vanishes between the frames ([`super::vanish`]: it moved more than its own
+    /// thickness in one frame period, the frame rate is too low for it), or the frames were
+    /// filled into a gap or the slab bridges one ([`super::stream`]).
+    pub unsure: Option<Unsure>,
 }
 
 impl Slab {
+    /// A part of the body vanishes between the slab's frames.
+    pub fn vanishes(&self) -> bool {
+        matches!(self.unsure, Some(Unsure::Vanishes { .. }))
+    }
+
     /// Lattice time of the first frame.
     pub fn t_lo(&self) -> i32 {
         self.geometry.scale * self.index as i32
@@ -143,21 +150,16 @@ fn march(
     if !marcher.march(table, &prev.grid, grid, at, limit, &mut mesh) {
         return Err(MeshError::SlabTooComplex { limit });
     }
-    let vanishes = prev.grid.occupied > 0
-        && grid.occupied > 0
-        && prev
-            .grid
-            .bits
-            .iter()
-            .zip(&grid.bits)
-            .all(|(a, b)| a & b == 0);
+    let unsure = super::vanish::vanishing(&prev.grid, grid).map(|v| Unsure::Vanishes {
+        rate_factor: v.rate_factor,
+    });
     Ok(Slab {
         index: prev.index,
         stamp_lo_ns: prev.stamp_ns,
         stamp_hi_ns: stamp_ns,
         geometry,
         mesh,
-        vanishes,
+        unsure,
     })
 }
 
@@ -392,7 +394,7 @@ impl Mesher {
                     stamp_hi_ns: stamp_ns,
                     geometry,
                     mesh,
-                    vanishes: rest.vanishes,
+                    unsure: rest.unsure,
                 })
             });
         let slab = match (&self.prev, moved) {
@@ -593,7 +595,7 @@ mod tests {
                             s.index,
                             s.stamp_lo_ns,
                             s.stamp_hi_ns,
-                            s.vanishes,
+                            s.unsure,
                             s.mesh.clone(),
                         )
                     })

@@ -18,7 +18,9 @@ pub mod stats;
 pub mod stream;
 pub mod table;
 pub mod table_gen;
+pub mod unsure;
 pub mod validate;
+pub mod vanish;
 
 pub use grid::{DecodeOptions, Encoding, FrameRef, OccupancyGrid};
 pub use march::{CapSide, SlabMarcher, SlabPlacement, TetMesh};

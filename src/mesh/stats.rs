@@ -104,8 +104,15 @@ pub struct LateralRef<'a> {
     pub geometry: &'a GridGeometry,
     /// Lateral tets.
     pub mesh: &'a TetMesh,
-    /// See [`Slab::vanishes`].
-    pub vanishes: bool,
+    /// See [`Slab::unsure`].
+    pub unsure: Option<super::unsure::Unsure>,
+}
+
+impl LateralRef<'_> {
+    /// A part of the body vanishes between the slab's frames.
+    pub fn vanishes(&self) -> bool {
+        matches!(self.unsure, Some(super::unsure::Unsure::Vanishes { .. }))
+    }
 }
 
 impl Slab {
@@ -116,7 +123,7 @@ impl Slab {
             stamps_ns: (self.stamp_lo_ns, self.stamp_hi_ns),
             geometry: &self.geometry,
             mesh: &self.mesh,
-            vanishes: self.vanishes,
+            unsure: self.unsure,
         }
     }
 }
@@ -291,7 +298,7 @@ impl StatsAccumulator {
         self.copies[usize::from(moved)] += 1;
         self.shared_vertices += figures.lo_vertices;
         self.lateral_vertices += slab.mesh.vertices.len() as u64;
-        self.stats.vanishing_slabs += u64::from(slab.vanishes);
+        self.stats.vanishing_slabs += u64::from(slab.vanishes());
         self.stats.tets += slab.mesh.tets.len() as u64;
         self.stats.slabs += 1;
         self.add_volume(
@@ -467,7 +474,7 @@ impl StatsAccumulator {
         self.prev_hi_hash = hi_hash;
 
         self.lateral_vertices += m.vertices.len() as u64;
-        self.stats.vanishing_slabs += u64::from(slab.vanishes);
+        self.stats.vanishing_slabs += u64::from(slab.vanishes());
         self.stats.tets += m.tets.len() as u64;
         self.stats.slabs += 1;
         self.add_volume(vol24, slab.geometry, slab.stamps_ns.1 - slab.stamps_ns.0);

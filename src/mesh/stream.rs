@@ -25,6 +25,7 @@ use serde::Serialize;
 use super::grid::{FrameRef, OccupancyGrid};
 use super::mesher::{Mesher, MesherOptions, Slab};
 use super::MeshError;
+use super::unsure::Unsure;
 
 /// A frame period longer than this many times the body's median period is frames missing.
 pub const GAP_FACTOR: f64 = 1.5;
@@ -354,6 +355,16 @@ impl BodyStream {
                 LossKind::Filled => self.losses.filled_frames += g.frames,
                 _ => self.losses.spanned_gaps += 1,
             }
+            // Every slab of the gap shows frames that were not observed.
+            let why = match g.kind {
+                LossKind::Filled => Unsure::Filled,
+                _ => Unsure::Spanned,
+            };
+            for (_, slab) in &mut out.frames {
+                if let Some(slab) = slab {
+                    slab.unsure = Some(slab.unsure.map_or(why, |u| u.max(why)));
+                }
+            }
             self.losses.push(g.clone());
         }
         if clamped > 0 {
@@ -485,7 +496,13 @@ mod tests {
             m.push(&frame654(10, &a)).unwrap();
             for (j, (t, slab)) in got.frames.iter().enumerate().take(periods as usize - 1) {
                 prop_assert_eq!(*t, 10 + 10 * (j as i64 + 1));
-                let marched = m.push_decoded(*t, g, both.clone()).unwrap();
+                let mut marched = m.push_decoded(*t, g, both.clone()).unwrap();
+                // Filled slabs are marked as such (the frames were not observed).
+                let unsure = slab.as_ref().and_then(|s| s.unsure);
+                prop_assert_eq!(unsure, Some(crate::mesh::unsure::Unsure::Filled));
+                if let Some(m) = &mut marched {
+                    m.unsure = unsure;
+                }
                 prop_assert_eq!(slab, &marched);
             }
         }

@@ -50,8 +50,13 @@ pub struct MeshSlab {
     pub scale: i32,
     /// Occupied voxels of the later frame (a cap: of its frame).
     pub occupied_voxels: u64,
-    /// The body moves more than its thickness in this frame period.
+    /// A part of the body moves more than its thickness in this frame period.
     pub vanishes: bool,
+    /// When `vanishes`: the estimated factor on the frame rate that would join every part
+    /// (0: not estimated).
+    pub vanish_rate_factor: f32,
+    /// [`Self::OBSERVED`], [`Self::FILLED`] or [`Self::SPANNED`].
+    pub observed: u8,
     /// The tets (lattice coordinates), shared: a node of the process that keeps the piece
     /// (the checker, for its windows and horizons) takes it without a copy.
     pub mesh: Arc<TetMesh>,
@@ -64,6 +69,47 @@ impl MeshSlab {
     pub const KIND_CAP_START: u8 = 1;
     /// Cap closing the body at its last frame.
     pub const KIND_CAP_END: u8 = 2;
+    /// Both frames were received.
+    pub const OBSERVED: u8 = 0;
+    /// The frames were missing and filled with the union of the frames around the gap.
+    pub const FILLED: u8 = 1;
+    /// Frames were missing and this slab bridges the gap.
+    pub const SPANNED: u8 = 2;
+
+    /// Why the piece does not show every contact, if it does not (see
+    /// [`crate::mesh::unsure`]).
+    pub fn unsure(&self) -> Option<crate::mesh::unsure::Unsure> {
+        use crate::mesh::unsure::Unsure;
+        let gap = match self.observed {
+            Self::FILLED => Some(Unsure::Filled),
+            Self::SPANNED => Some(Unsure::Spanned),
+            _ => None,
+        };
+        let vanish = self.vanishes.then_some(Unsure::Vanishes {
+            rate_factor: self.vanish_rate_factor,
+        });
+        match (gap, vanish) {
+            (Some(g), Some(v)) => Some(g.max(v)),
+            (g, v) => g.or(v),
+        }
+    }
+
+    /// Sets `vanishes`, `vanish_rate_factor` and `observed` from `unsure`.
+    pub fn set_unsure(&mut self, unsure: Option<crate::mesh::unsure::Unsure>) {
+        use crate::mesh::unsure::Unsure;
+        self.vanishes = false;
+        self.vanish_rate_factor = 0.0;
+        self.observed = Self::OBSERVED;
+        match unsure {
+            Some(Unsure::Vanishes { rate_factor }) => {
+                self.vanishes = true;
+                self.vanish_rate_factor = rate_factor;
+            }
+            Some(Unsure::Filled) => self.observed = Self::FILLED,
+            Some(Unsure::Spanned) => self.observed = Self::SPANNED,
+            None => {}
+        }
+    }
 
     /// The lattice of the piece.
     pub fn geometry(&self) -> GridGeometry {
@@ -165,6 +211,8 @@ struct MeshSlabOut<'a> {
     scale: i32,
     occupied_voxels: u64,
     vanishes: bool,
+    vanish_rate_factor: f32,
+    observed: u8,
     vertices: Flat4<'a, i32>,
     tets: Flat4<'a, u32>,
 }
@@ -186,6 +234,8 @@ struct MeshSlabIn {
     scale: i32,
     occupied_voxels: u64,
     vanishes: bool,
+    vanish_rate_factor: f32,
+    observed: u8,
     vertices: Unflat4<i32>,
     tets: Unflat4<u32>,
 }
@@ -208,6 +258,8 @@ impl Serialize for MeshSlab {
             scale: self.scale,
             occupied_voxels: self.occupied_voxels,
             vanishes: self.vanishes,
+            vanish_rate_factor: self.vanish_rate_factor,
+            observed: self.observed,
             vertices: Flat4(&self.mesh.vertices),
             tets: Flat4(&self.mesh.tets),
         }
@@ -234,6 +286,8 @@ impl<'de> Deserialize<'de> for MeshSlab {
             scale: m.scale,
             occupied_voxels: m.occupied_voxels,
             vanishes: m.vanishes,
+            vanish_rate_factor: m.vanish_rate_factor,
+            observed: m.observed,
             mesh: Arc::new(TetMesh {
                 vertices: m.vertices.0,
                 tets: m.tets.0,
@@ -332,6 +386,14 @@ pub struct PairInterference {
     pub body_a: String,
     /// Second body.
     pub body_b: String,
+    /// [`Self::VERDICT_CLEAR`], [`Self::VERDICT_COLLIDE`] or [`Self::VERDICT_UNSURE`].
+    pub verdict: u8,
+    /// Unsure span starts (s since the report's time origin).
+    pub unsure_start_s: Vec<f64>,
+    /// Unsure span ends (s).
+    pub unsure_end_s: Vec<f64>,
+    /// Per unsure span: the body, why, and what would resolve it.
+    pub unsure_reason: Vec<String>,
     /// The interiors overlap somewhere in space-time.
     pub interfering: bool,
     /// Interval starts (s since the report's time origin).
@@ -360,6 +422,15 @@ pub struct PairInterference {
     pub b_inside: u64,
     /// .
     pub b_outside: u64,
+}
+
+impl PairInterference {
+    /// No interference, and both bodies observed well enough wherever compared.
+    pub const VERDICT_CLEAR: u8 = 0;
+    /// The bodies interfere.
+    pub const VERDICT_COLLIDE: u8 = 1;
+    /// No interference found, but in unsure spans a contact can be missed.
+    pub const VERDICT_UNSURE: u8 = 2;
 }
 
 /// `chronotope_msgs/msg/InterferenceReport`.
@@ -417,6 +488,10 @@ pub struct ResolveSuggestion {
     pub episode_start_s: f64,
     /// End of that episode (s).
     pub episode_end_s: f64,
+    /// Spans in which a body is not observed well enough for the check to hold: starts (s).
+    pub unsure_start_s: Vec<f64>,
+    /// Their ends (s).
+    pub unsure_end_s: Vec<f64>,
 }
 
 impl ResolveSuggestion {
@@ -453,6 +528,8 @@ pub struct ContactEvent {
     pub first_contact_s: f64,
     /// The pair's overlap so far (m³·s), NaN if not measurable.
     pub overlap_hypervolume_m3s: f64,
+    /// For unsure spans: the body, why, and what would resolve it; empty otherwise.
+    pub unsure_reason: String,
 }
 
 impl ContactEvent {
@@ -462,6 +539,10 @@ impl ContactEvent {
     pub const ONGOING: u8 = 1;
     /// The contact ended.
     pub const END: u8 = 2;
+    /// A span the pair cannot be called clear in began.
+    pub const UNSURE_BEGIN: u8 = 3;
+    /// That span ended.
+    pub const UNSURE_END: u8 = 4;
 }
 
 impl RosMessage for ContactEvent {

@@ -35,7 +35,7 @@ use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
 use crate::checker::pipeline::CheckPlan;
-use crate::checker::report::{Report, Resolution};
+use crate::checker::report::{Report, Resolution, Verdict};
 use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
@@ -265,7 +265,7 @@ impl CheckerNode {
             stamps_ns: (s.stamp_lo.as_nanos(), s.stamp_hi.as_nanos()),
             geometry: s.geometry(),
             occupied: s.occupied_voxels,
-            vanishes: s.vanishes,
+            unsure: s.unsure(),
             mesh: Arc::clone(&s.mesh),
             frame_id: s.header.frame_id.clone(),
         };
@@ -404,10 +404,42 @@ impl CheckerNode {
                         end_error_bound_s: nan_if_none(c.end_bound_s),
                         first_contact_s,
                         overlap_hypervolume_m3s,
+                        unsure_reason: String::new(),
                     };
                     out.push(Message::new(
                         &self.contacts_topic,
                         c.stamp_ns,
+                        Payload::Contact(Arc::new(m)),
+                    ));
+                }
+                RollOut::Unsure(u) => {
+                    self.dirty = true;
+                    let report = report.get_or_insert_with(|| self.engine.report());
+                    let pair = report.pairs.iter().find(|p| p.a == u.a && p.b == u.b);
+                    let m = ContactEvent {
+                        header: self.header(u.stamp_ns),
+                        body_a: u.a,
+                        body_b: u.b,
+                        event: if u.ended {
+                            ContactEvent::UNSURE_END
+                        } else {
+                            ContactEvent::UNSURE_BEGIN
+                        },
+                        contact_index: u.index,
+                        time_origin: Time::from_nanos(report.time_origin_ns),
+                        start_s: u.span.span_s[0],
+                        end_s: u.span.span_s[1],
+                        start_error_bound_s: f64::NAN,
+                        end_error_bound_s: f64::NAN,
+                        first_contact_s: nan_if_none(pair.and_then(|p| p.first_contact_s)),
+                        overlap_hypervolume_m3s: nan_if_none(
+                            pair.and_then(|p| p.overlap_hypervolume_m3s),
+                        ),
+                        unsure_reason: u.span.line(),
+                    };
+                    out.push(Message::new(
+                        &self.contacts_topic,
+                        u.stamp_ns,
                         Payload::Contact(Arc::new(m)),
                     ));
                 }
@@ -689,6 +721,14 @@ pub fn report_message(r: &Report, voxel_size_m: f64, header: Header) -> Interfer
             .map(|p| PairInterference {
                 body_a: p.a.clone(),
                 body_b: p.b.clone(),
+                verdict: match p.verdict {
+                    Verdict::Clear => PairInterference::VERDICT_CLEAR,
+                    Verdict::Collide => PairInterference::VERDICT_COLLIDE,
+                    Verdict::Unsure => PairInterference::VERDICT_UNSURE,
+                },
+                unsure_start_s: p.unsure_spans_s.iter().map(|u| u.span_s[0]).collect(),
+                unsure_end_s: p.unsure_spans_s.iter().map(|u| u.span_s[1]).collect(),
+                unsure_reason: p.unsure_spans_s.iter().map(|u| u.line()).collect(),
                 interfering: p.interfering,
                 interval_start_s: p.intervals_s.iter().map(|i| i[0]).collect(),
                 interval_end_s: p.intervals_s.iter().map(|i| i[1]).collect(),
@@ -711,6 +751,13 @@ pub fn report_message(r: &Report, voxel_size_m: f64, header: Header) -> Interfer
 }
 
 fn suggestion_message(r: &Resolution) -> ResolveSuggestion {
+    let mut m = suggestion_fields(r);
+    m.unsure_start_s = r.unsure_s().iter().map(|u| u[0]).collect();
+    m.unsure_end_s = r.unsure_s().iter().map(|u| u[1]).collect();
+    m
+}
+
+fn suggestion_fields(r: &Resolution) -> ResolveSuggestion {
     match r {
         Resolution::Translate {
             body,
@@ -732,6 +779,7 @@ fn suggestion_message(r: &Resolution) -> ResolveSuggestion {
             verified_clear: *verified_clear,
             episode_start_s: episode_s[0],
             episode_end_s: episode_s[1],
+            ..ResolveSuggestion::default()
         },
         Resolution::TimeScale {
             body,
@@ -739,6 +787,7 @@ fn suggestion_message(r: &Resolution) -> ResolveSuggestion {
             scale,
             verified_clear,
             episode_s,
+            ..
         } => ResolveSuggestion {
             body_id: body.clone(),
             kind: ResolveSuggestion::KIND_TIME_SCALE,
@@ -751,6 +800,7 @@ fn suggestion_message(r: &Resolution) -> ResolveSuggestion {
             verified_clear: *verified_clear,
             episode_start_s: episode_s[0],
             episode_end_s: episode_s[1],
+            ..ResolveSuggestion::default()
         },
     }
 }

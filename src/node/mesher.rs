@@ -190,7 +190,7 @@ impl Ctx<'_> {
         index: u64,
         stamps: (i64, i64),
         occupied: u64,
-        vanishes: bool,
+        unsure: Option<crate::mesh::unsure::Unsure>,
         mesh: TetMesh,
     ) -> Message {
         let mut m = MeshSlab {
@@ -204,10 +204,10 @@ impl Ctx<'_> {
             stamp_lo: Time::from_nanos(stamps.0),
             stamp_hi: Time::from_nanos(stamps.1),
             occupied_voxels: occupied,
-            vanishes,
             mesh: Arc::new(mesh),
             ..MeshSlab::default()
         };
+        m.set_unsure(unsure);
         m.set_geometry(g);
         Message::new(self.slab_topic, stamps.1, Payload::MeshSlab(Arc::new(m)))
     }
@@ -264,7 +264,7 @@ impl Ctx<'_> {
             k.index,
             (k.stamp_ns, k.stamp_ns),
             k.grid.occupied,
-            false,
+            None,
             cap,
         ))
     }
@@ -442,7 +442,7 @@ impl Ctx<'_> {
             slab.index,
             (slab.stamp_lo_ns, slab.stamp_hi_ns),
             occupied,
-            slab.vanishes,
+            slab.unsure,
             slab.mesh,
         ));
     }

@@ -202,6 +202,10 @@ class BodySummary(IdlStruct, typename="chronotope_msgs::msg::dds_::BodySummary_"
 class PairInterference(IdlStruct, typename="chronotope_msgs::msg::dds_::PairInterference_"):
     body_a: str
     body_b: str
+    verdict: uint8
+    unsure_start_s: sequence[float64]
+    unsure_end_s: sequence[float64]
+    unsure_reason: sequence[str]
     interfering: bool
     interval_start_s: sequence[float64]
     interval_end_s: sequence[float64]
@@ -258,6 +262,7 @@ class ContactEvent(IdlStruct, typename="chronotope_msgs::msg::dds_::ContactEvent
     end_error_bound_s: float64
     first_contact_s: float64
     overlap_hypervolume_m3s: float64
+    unsure_reason: str
 
 
 # ---- helpers ----------------------------------------------------------------------------
@@ -297,6 +302,10 @@ def report_json(r: InterferenceReport) -> dict:
             {
                 "body_a": p.body_a,
                 "body_b": p.body_b,
+                "verdict": int(p.verdict),
+                "unsure_start_s": [fbits(x) for x in p.unsure_start_s],
+                "unsure_end_s": [fbits(x) for x in p.unsure_end_s],
+                "unsure_reason": list(p.unsure_reason),
                 "interfering": bool(p.interfering),
                 "interval_start_s": [fbits(x) for x in p.interval_start_s],
                 "interval_end_s": [fbits(x) for x in p.interval_end_s],

@@ -42,7 +42,10 @@ use super::window::{
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
 use crate::checker::pipeline::CheckPlan;
-use crate::checker::report::{BodyReport, PairLabels, PairReport, Report, Resolution, Timings};
+use crate::checker::report::{
+    BodyReport, PairLabels, PairReport, Report, Resolution, Timings, UnsureSpanReport, Verdict,
+};
+use crate::mesh::unsure::{UnsureLog, UnsureSpan};
 use crate::kernel::float::tet_normal as float_normal;
 use crate::mesh::glue::BodyMesh;
 use crate::mesh::march::{union_bounds, SpatialBounds, Welder};
@@ -142,8 +145,9 @@ pub struct PieceIn {
     pub geometry: GridGeometry,
     /// Occupied voxels of the later frame (a cap: of its frame).
     pub occupied: u64,
-    /// The body vanishes between the slab's frames.
-    pub vanishes: bool,
+    /// Why the slab does not show every contact, if it does not (a part of the body vanishes
+    /// between its frames, or they were filled into a gap).
+    pub unsure: Option<crate::mesh::unsure::Unsure>,
     /// The tets, in the body's lattice.
     pub mesh: Arc<TetMesh>,
     /// The body's `header.frame_id`: bodies in different frames are not compared.
@@ -200,6 +204,24 @@ pub enum ContactPhase {
     End,
 }
 
+/// A span of a pair in which a body is not observed well enough for the check to hold (see
+/// [`crate::mesh::unsure`]), as it begins and when it ends.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnsureUpdate {
+    /// First body (ids in sorted order).
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// True when the span ends (its end is final), false when it begins.
+    pub ended: bool,
+    /// The span's place among the pair's unsure spans (0, 1, ...).
+    pub index: u64,
+    /// The span: its body, times (s since the time origin), why and what would resolve it.
+    pub span: crate::checker::report::UnsureSpanReport,
+    /// Stamp of the later frame of the period that began or ended it (ns).
+    pub stamp_ns: i64,
+}
+
 /// A contact of a pair, as it is found.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactUpdate {
@@ -232,6 +254,8 @@ pub enum RollOut {
     SlabDone(SlabDone),
     /// A contact began, went on or ended.
     Contact(ContactUpdate),
+    /// A span in which a pair cannot be called clear began or ended.
+    Unsure(UnsureUpdate),
     /// A contact episode of a movable body was resolved (the report's resolutions grew).
     Resolved,
     /// Something in the input was wrong or lost (kind, text).
@@ -250,6 +274,8 @@ struct RSlab {
     first_tet: u64,
     /// Strongest label per tet over the pairs so far (if slabs are reported).
     worst: Vec<u8>,
+    /// Why the slab does not show every contact, if it does not.
+    unsure: Option<crate::mesh::unsure::Unsure>,
 }
 
 #[derive(Debug)]
@@ -587,6 +613,23 @@ struct PairRoll {
     undecided: u64,
     /// Said once per absence that the partner is late.
     partner_absent: bool,
+    /// Where each body (a, b) was not observed well enough, over the periods checked.
+    unsure: (UnsureLog, UnsureLog),
+    /// The unsure span going on: its index, the body, start and latest end (ns), and why.
+    unsure_open: Option<OpenUnsure>,
+    /// Unsure spans begun so far.
+    unsure_count: u64,
+}
+
+/// A pair's unsure span that is going on (see [`UnsureUpdate`]).
+#[derive(Debug, Clone)]
+struct OpenUnsure {
+    index: u64,
+    body: String,
+    from_ns: i64,
+    to_ns: i64,
+    why: crate::mesh::unsure::Unsure,
+    period_ns: i64,
 }
 
 /// The rolling checker of a set of pairs.
@@ -724,6 +767,9 @@ impl RollingChecker {
                     checked: false,
                     undecided: 0,
                     partner_absent: false,
+                    unsure: Default::default(),
+                    unsure_open: None,
+                    unsure_count: 0,
                 })
                 .collect(),
             origin_ns: None,
@@ -841,12 +887,12 @@ impl RollingChecker {
                     self.pump(out);
                     return;
                 };
-                let (index, stamps_ns, geometry, mesh, vanishes) = (
+                let (index, stamps_ns, geometry, mesh, unsure) = (
                     u64::from(p.index),
                     p.stamps_ns,
                     p.geometry,
                     p.mesh.clone(),
-                    p.vanishes,
+                    p.unsure,
                 );
                 let add = move || {
                     let lateral = LateralRef {
@@ -854,7 +900,7 @@ impl RollingChecker {
                         stamps_ns,
                         geometry: &geometry,
                         mesh: &mesh,
-                        vanishes,
+                        unsure,
                     };
                     let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
                     StatsDone::Added(acc, at_rest)
@@ -1174,6 +1220,7 @@ impl RollingChecker {
                         bounds: p.mesh.spatial_bounds(),
                         first_tet,
                         worst,
+                        unsure: p.unsure,
                     },
                 );
                 note.map_or(Ok(()), Err)
@@ -1194,6 +1241,7 @@ impl RollingChecker {
         self.pump(out);
         for i in 0..self.pairs.len() {
             self.close_open(i, out);
+            self.close_unsure(i, out);
             self.finish_speeds(i, true);
         }
         self.prune(out);

@@ -39,7 +39,7 @@ impl RollingChecker {
             .pairs
             .iter()
             .filter(|p| p.checked)
-            .map(|p| pair_report(p, tets(&p.a), tets(&p.b), resolution))
+            .map(|p| pair_report(p, tets(&p.a), tets(&p.b), resolution, origin))
             .collect();
         let unchecked_pairs = self
             .pairs
@@ -54,7 +54,7 @@ impl RollingChecker {
                 })
             })
             .collect();
-        Report {
+        let mut report = Report {
             schema: "chronotope.report/1",
             time_origin_ns: origin,
             time_scale_m_per_s: c,
@@ -64,7 +64,9 @@ impl RollingChecker {
             timings_ms: Timings::default(),
             problems,
             unchecked_pairs,
-        }
+        };
+        report.note_unsure_resolutions();
+        report
     }
 }
 
@@ -118,7 +120,13 @@ pub(super) fn body_report(id: &str, b: &BodyStream) -> BodyReport {
     }
 }
 
-pub(super) fn pair_report(p: &PairRoll, tets_a: u64, tets_b: u64, resolution: f64) -> PairReport {
+pub(super) fn pair_report(
+    p: &PairRoll,
+    tets_a: u64,
+    tets_b: u64,
+    resolution: f64,
+    origin: i64,
+) -> PairReport {
     let all: Vec<&Interval> = p.intervals.iter().chain(p.open.iter()).collect();
     let bound = |speed: Option<Option<f64>>, period: f64| {
         bounds::contact_time_bound(period, speed.flatten())
@@ -135,9 +143,22 @@ pub(super) fn pair_report(p: &PairRoll, tets_a: u64, tets_b: u64, resolution: f6
     } else {
         overlap_so_far(&p.overlap)
     };
+    let (unsure_spans_s, unsure_spans_not_listed) = UnsureSpanReport::of_pair(
+        (&p.a, &p.unsure.0),
+        (&p.b, &p.unsure.1),
+        i64::MIN,
+        i64::MAX,
+        origin,
+    );
     PairReport {
         a: p.a.clone(),
         b: p.b.clone(),
+        verdict: Verdict::of(
+            interfering,
+            !unsure_spans_s.is_empty() || unsure_spans_not_listed > 0,
+        ),
+        unsure_spans_s,
+        unsure_spans_not_listed,
         interfering,
         intervals_s: all.iter().map(|o| [o.s.0, o.s.1]).collect(),
         first_contact_s: first.map(|o| o.s.0),

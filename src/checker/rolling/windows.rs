@@ -320,6 +320,7 @@ impl RollingChecker {
             p.stamps.insert(k + 1, hi);
         }
         self.fold(i, s, hi, &r, (wa.first_tet, wb.first_tet), out);
+        self.note_unsure(i, s, hi, out);
         self.advance(i, s, hi, k, out);
         true
     }
@@ -450,6 +451,84 @@ impl RollingChecker {
             self.convert_open(i);
             out.extend(self.update(i, ContactPhase::Begin, hi));
         }
+    }
+
+    /// Records in pair `i` whether either body's slab of the period `s..hi` is unsure, and
+    /// says when an unsure span of the pair begins or ends.
+    pub(super) fn note_unsure(&mut self, i: usize, s: i64, hi: i64, out: &mut Vec<RollOut>) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let why = |id: &str| self.bodies.get(id)?.slabs.get(&s)?.unsure;
+        let (ua, ub) = (why(&a), why(&b));
+        let period_ns = hi - s;
+        let p = &mut self.pairs[i];
+        for (log, u) in [(&mut p.unsure.0, ua), (&mut p.unsure.1, ub)] {
+            if let Some(why) = u {
+                log.push(UnsureSpan {
+                    from_ns: s,
+                    to_ns: hi,
+                    why,
+                    period_ns,
+                });
+            }
+        }
+        let now = match (ua, ub) {
+            (Some(w), _) => Some((a.clone(), w)),
+            (None, Some(w)) => Some((b.clone(), w)),
+            (None, None) => None,
+        };
+        match (&mut p.unsure_open, now) {
+            (Some(o), Some((_, w))) if o.to_ns >= s => {
+                o.to_ns = hi;
+                o.why = o.why.max(w);
+                o.period_ns = o.period_ns.min(period_ns);
+            }
+            (_, now) => {
+                self.close_unsure(i, out);
+                if let Some((body, why)) = now {
+                    let p = &mut self.pairs[i];
+                    let open = OpenUnsure {
+                        index: p.unsure_count,
+                        body,
+                        from_ns: s,
+                        to_ns: hi,
+                        why,
+                        period_ns,
+                    };
+                    p.unsure_count += 1;
+                    p.unsure_open = Some(open.clone());
+                    out.push(self.unsure_update(i, &open, false, hi));
+                }
+            }
+        }
+    }
+
+    /// Ends pair `i`'s unsure span going on, if any.
+    pub(super) fn close_unsure(&mut self, i: usize, out: &mut Vec<RollOut>) {
+        if let Some(o) = self.pairs[i].unsure_open.take() {
+            out.push(self.unsure_update(i, &o, true, o.to_ns));
+        }
+    }
+
+    fn unsure_update(&self, i: usize, o: &OpenUnsure, ended: bool, stamp_ns: i64) -> RollOut {
+        let p = &self.pairs[i];
+        let span = UnsureSpan {
+            from_ns: o.from_ns,
+            to_ns: o.to_ns,
+            why: o.why,
+            period_ns: o.period_ns,
+        };
+        RollOut::Unsure(UnsureUpdate {
+            a: p.a.clone(),
+            b: p.b.clone(),
+            ended,
+            index: o.index,
+            span: crate::checker::report::UnsureSpanReport::of(
+                &o.body,
+                &span,
+                self.origin_ns.unwrap_or(0),
+            ),
+            stamp_ns,
+        })
     }
 
     /// Seconds and periods of the open interval's ends (the start once, when it opens).
@@ -1020,7 +1099,7 @@ mod tests {
             stamps_ns: (0, 0),
             geometry,
             occupied: 1,
-            vanishes: false,
+            unsure: None,
             mesh: Arc::new(mesh),
             frame_id: String::new(),
         };
