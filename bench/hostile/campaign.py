@@ -5,6 +5,7 @@ chronotope binary on each under a timeout and an address-space cap, and classify
     python3 bench/hostile/campaign.py --bin target/release/chronotope --out /tmp/hostile
     python3 bench/hostile/campaign.py --bin target/release/chronotope --quick
     python3 bench/hostile/campaign.py --bin B --only voxelgrid,launch -j 2 --timeout 20
+    python3 bench/hostile/campaign.py --bin B --only outputs,bombs,signals,hangs,silent,errors,wal,links
 
 See bench/hostile/README.md for the categories, the classes and the oracles.
 """
@@ -23,9 +24,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import gen  # noqa: E402
+import recording  # noqa: E402
 
-CLASSES = ["ok", "counted", "clean_error", "unclear", "lost", "wrong", "panic", "hang",
-           "memory"]
+CLASSES = ["ok", "counted", "clean_error", "unclear", "slow", "created", "temp_left", "lost",
+           "silent", "wrong", "disk", "panic", "hang", "memory", "destroyed"]
+BAD = {"unclear", "slow", "created", "temp_left", "lost", "silent", "wrong", "disk", "panic",
+       "hang", "memory", "destroyed"}
 # Worse classes win when a case has several runs or oracles.
 RANK = {c: i for i, c in enumerate(CLASSES)}
 
@@ -271,6 +275,12 @@ def main():
     ap.add_argument("--seed", type=int, default=17)
     ap.add_argument("--limit", type=int, default=0, help="stop after N cases")
     ap.add_argument("--resume", action="store_true", help="skip cases already in results")
+    ap.add_argument("--disk-cap-gb", type=float, default=None,
+                    help="temporary bytes a run may peak at (default: max_decompressed_file_"
+                         "bytes as docs/limits.md documents it, else 4)")
+    ap.add_argument("--disk-budget-gb", type=float, default=4.0,
+                    help="a run is killed (class disk) past min(cap, this) + 64 MiB of "
+                         "temporary bytes, so a bomb never fills the disk")
     args = ap.parse_args()
 
     binary = str(Path(args.bin).resolve())
@@ -280,6 +290,26 @@ def main():
     rng = random.Random(args.seed)
     only = set(filter(None, args.only.split(",")))
     cases = gen.generate(repo, out / "cases", rng, quick=args.quick, only=only)
+    new = recording.generate(out / "cases", args.seed, quick=args.quick, only=only, repo=repo)
+    if new:
+        cases += new
+        (out / "cases" / "cases.json").write_text(json.dumps(
+            [{k: c.get(k) for k in ("id", "category", "kind", "runs", "expect", "what")}
+             for c in cases], indent=1, default=str))
+    documented = recording.documented_cap(repo)
+    cap = int(args.disk_cap_gb * (1 << 30)) if args.disk_cap_gb is not None else \
+        (documented or 4 << 30)
+    budget = int(args.disk_budget_gb * (1 << 30))
+    ctx = {"binary": binary, "repo": str(repo), "shared": str(out / "shared"),
+           "timeout": args.timeout, "mem_gb": args.mem_gb, "cap_bytes": cap,
+           "kill_bytes": min(cap, budget) + (64 << 20), "rank": RANK,
+           "message_problems": message_problems, "counted": counted, "load_json": load_json,
+           "dds": lambda: recording.dds_available(binary, out / "shared")}
+    if new:
+        (out / "disk-cap.json").write_text(json.dumps({
+            "cap_bytes": cap, "kill_bytes": ctx["kill_bytes"], "documented_bytes": documented,
+            "source": "--disk-cap-gb" if args.disk_cap_gb is not None else
+            ("docs/limits.md" if documented else "default 4 GiB")}))
     if args.limit:
         cases = cases[:args.limit]
     results_path = out / "results.jsonl"
@@ -292,6 +322,8 @@ def main():
     print(f"{len(cases)} cases ({len(done)} already done) -> {results_path}", flush=True)
 
     def do(case):
+        if case["category"] in recording.CATEGORIES:
+            return recording.run_case(case, ctx)
         workdir = Path(case["dir"])
         runs = {}
         for name, argv in case["runs"]:
@@ -321,7 +353,8 @@ def main():
         for i, res in enumerate(it, 1):
             f.write(json.dumps(res) + "\n")
             f.flush()
-            if i % 25 == 0 or res["class"] in ("panic", "hang", "memory", "wrong"):
+            if i % 25 == 0 or res["class"] in ("panic", "hang", "memory", "wrong",
+                                               "destroyed", "disk"):
                 print(f"[{i}/{len(todo)} {time.monotonic() - start:.0f}s] {res['id']}: "
                       f"{res['class']} {res['reasons'][:2]}", flush=True)
     summarize(results_path, out / "summary.md")
@@ -345,17 +378,55 @@ def summarize(results_path, md_path):
     tot = {k: sum(table[c][k] for c in cats) for k in CLASSES}
     lines.append(f"| **all** | {len(rows)} | " + " | ".join(str(tot[k]) for k in CLASSES) + " |")
     # Kinds with a bad outcome, for reading.
-    lines += ["", "## Bad outcomes by kind", "", "| kind | class | cases | first reason |",
-              "|---|---|---|---|"]
+    old_rows = [r for r in rows if r["category"] not in recording.CATEGORIES]
+    new_rows = [r for r in rows if r["category"] in recording.CATEGORIES]
+    if old_rows:
+        lines += ["", "## Bad outcomes by kind", "", "| kind | class | cases | first reason |",
+                  "|---|---|---|---|"]
     by_kind = {}
-    for r in rows:
-        if r["class"] in ("unclear", "lost", "wrong", "panic", "hang", "memory"):
+    for r in old_rows:
+        if r["class"] in BAD:
             key = (r["category"] + "/" + r["kind"], r["class"])
             by_kind.setdefault(key, []).append(r)
     for (kind, cls), rs in sorted(by_kind.items()):
         why = next((x for x in rs[0]["reasons"] if x.startswith(cls)), rs[0]["reasons"][:1])
         why = str(why).replace("|", "/")[:160]
         lines.append(f"| {kind} | {cls} | {len(rs)} | {why} |")
+    if new_rows:
+        cap = md_path.parent / "disk-cap.json"
+        if cap.exists():
+            c = json.loads(cap.read_text())
+            doc = c.get("documented_bytes")
+            lines += ["", f"Disk cap: {c['cap_bytes'] / (1 << 30):g} GiB of temporary bytes "
+                      f"per run (from {c['source']}"
+                      + (f"; docs/limits.md documents max_decompressed_file_bytes = "
+                         f"{doc / (1 << 30):g} GiB" if doc and c["source"] != "docs/limits.md"
+                         else "") + "); a run is killed (class `disk`) past "
+                      f"{c['kill_bytes'] / (1 << 30):.2f} GiB"
+                      + (" (the campaign's disk budget, --disk-budget-gb)"
+                         if c["kill_bytes"] < c["cap_bytes"] else "")
+                      + "; a peak up to 16 MiB over the cap passes."]
+        lines += ["", "## Bad outcomes, case by case (outputs, bombs, signals, hangs, silent, "
+                  "errors, wal, links)", "", "| case | class | what | reasons |", "|---|---|---|---|"]
+        for r in new_rows:
+            if r["class"] not in BAD:
+                continue
+            why = "; ".join(x for x in r["reasons"] if x.split(":")[0] in BAD)
+            lines.append(f"| {r['id']} | {r['class']} | {r.get('what', '')[:120]} | "
+                         f"{why[:600]} |".replace("\n", " "))
+        skipped = [r for r in new_rows if r.get("skipped")]
+        if skipped:
+            lines += ["", "Skipped: " + "; ".join(f"{r['id']} ({r['reasons'][0]})"
+                                                  for r in skipped)]
+        watched = [(r, n, x) for r in new_rows for n, x in r["runs"].items()
+                   if x.get("peak_temp_bytes") is not None]
+        if watched:
+            lines += ["", "## Peak temporary bytes (TMPDIR, the output directory and files the "
+                      "process had open for writing, sampled every 20 ms)", "",
+                      "| case | run | exit | seconds | peak MiB | killed |", "|---|---|---|---|---|---|"]
+            for r, n, x in watched:
+                lines.append(f"| {r['id']} | {n} | {x['rc']} | {x['seconds']} | "
+                             f"{x['peak_temp_bytes'] / (1 << 20):.0f} | {x.get('killed_for') or ''} |")
     # Recovery against the Python indexed reader.
     rec = [r for r in rows if r["category"] == "bag-damage"
            and r["recovered"]["python_indexed"] is not None]
