@@ -15,14 +15,14 @@ PointCloud2 messages are built with numpy structured arrays in several layouts
 and serialised to CDR by PyPI `rosbags` (both CDR byte orders); the reference
 voxels are computed with numpy from the points.
 
-The crate's example `rasterize` reads the message (the stream and fields, or the
+The crate's example `occupancy_rasterize` reads the message (the stream and fields, or the
 whole CDR message) and writes VoxelGrid.data; this script compares it byte for
 byte (aligned lattices) or within the stated tolerance (unaligned ones).
 
 Usage (from the repository root, after building the example):
-    cd crates/occupancy && CARGO_TARGET_DIR=../../target/h-occupancy cargo build --release --example rasterize && cd ../..
+    cargo build --release -p chronotope-occupancy --example occupancy_rasterize
     python3 -m venv /tmp/occ-venv && /tmp/occ-venv/bin/pip install -r tests/py/occupancy/requirements.txt
-    /tmp/occ-venv/bin/python tests/py/occupancy/compare.py [--bin target/h-occupancy/release/examples/rasterize]
+    /tmp/occ-venv/bin/python tests/py/occupancy/compare.py [--bin target/release/examples/occupancy_rasterize]
 
 Prints a markdown table (one row per case) and exits non-zero on a mismatch.
 """
@@ -519,11 +519,11 @@ def cloud_cases(args):
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     here = os.path.dirname(os.path.abspath(__file__))
-    ap.add_argument("--bin", default=os.path.join(here, "..", "..", "..", "target", "h-occupancy", "release", "examples", "rasterize"))
+    ap.add_argument("--bin", default=os.path.join(here, "..", "..", "..", "target", "release", "examples", "occupancy_rasterize"))
     ap.add_argument("--only", choices=["octomap", "cloud"], default=None)
     args = ap.parse_args()
     if not os.path.exists(args.bin):
-        sys.exit(f"no bridge binary at {args.bin}: build it with `cargo build --release --example rasterize` in crates/occupancy")
+        sys.exit(f"no bridge binary at {args.bin}: build it with `cargo build --release -p chronotope-occupancy --example occupancy_rasterize`")
     print(f"pyoctomap {getattr(po, '__version__', '?')}, numpy {np.__version__}", file=sys.stderr)
     if args.only in (None, "octomap"):
         octomap_cases(args)

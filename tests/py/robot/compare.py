@@ -4,7 +4,7 @@
 For a robot of example-robot-data (UR5, Panda), random joint configurations and a lattice,
 this script poses the links with Pinocchio (`pin`) and voxelises the collision geometry
 itself (trimesh for the meshes, closed forms for boxes, cylinders and spheres), then runs
-the crate's `rasterize` example on the same request and compares voxel for voxel.
+the crate's `robot_rasterize` example on the same request and compares voxel for voxel.
 
 The reference, independent of the Rust code:
 - link poses: `pin.forwardKinematics` + `updateFramePlacements`, base pose composed on the
@@ -324,9 +324,9 @@ def main():
     ap.add_argument("--subsamples", type=int, default=4, help="the crate's K for percent")
     ap.add_argument("--repeat", type=int, default=20, help="frames the crate times per request")
     ap.add_argument("--bin", default=None,
-                    help="the crate's rasterize example (default: the first built of "
-                         "crates/robot/target/release/examples/rasterize, "
-                         "target/h-robot/release/examples/rasterize)")
+                    help="the crate's robot_rasterize example (default: the first built of "
+                         "target/release/examples/robot_rasterize, "
+                         "target/release/examples/robot_rasterize)")
     ap.add_argument("--share", default=None, help="directory holding example-robot-data/")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -334,11 +334,11 @@ def main():
     if args.bin is None:
         here = os.path.dirname(os.path.abspath(__file__))
         root = os.path.dirname(os.path.dirname(os.path.dirname(here)))
-        candidates = [os.path.join(root, "crates/robot/target/release/examples/rasterize"),
-                      os.path.join(root, "target/h-robot/release/examples/rasterize")]
+        candidates = [os.path.join(root, "target/release/examples/robot_rasterize"),
+                      os.path.join(root, "target/release/examples/robot_rasterize")]
         args.bin = next((c for c in candidates if os.path.exists(c)), None)
         if args.bin is None:
-            raise SystemExit("build the example first: cd crates/robot && cargo build --release --example rasterize")
+            raise SystemExit("build the example first: cargo build --release -p chronotope-robot --example robot_rasterize")
     share = args.share or share_dir()
     urdf = os.path.join(share, "example-robot-data", ROBOTS[args.robot])
     model = pin.buildModelFromUrdf(urdf)
