@@ -985,6 +985,27 @@ fn decompress_file(path: &Path, input: File, limit: u64) -> Result<File, BagErro
         path: path.to_path_buf(),
         reason: format!("cannot decompress it: {reason}"),
     };
+    // A file refused once is refused again at once: a command opens a bag up to three times,
+    // and each refusal of a bomb costs filling the cap.
+    let key = input.metadata().ok().map(|m| {
+        use std::os::unix::fs::MetadataExt;
+        (m.dev(), m.ino(), m.len(), m.mtime(), m.mtime_nsec(), limit)
+    });
+    type Key = (u64, u64, u64, i64, i64, u64);
+    static REFUSED: std::sync::Mutex<Vec<(Key, String)>> = std::sync::Mutex::new(Vec::new());
+    if let (Some(k), Ok(refused)) = (key, REFUSED.lock()) {
+        if let Some((_, why)) = refused.iter().find(|(r, _)| *r == k) {
+            return Err(fail(why.clone()));
+        }
+    }
+    let remember = |why: String| {
+        if let (Some(k), Ok(mut refused)) = (key, REFUSED.lock()) {
+            if refused.len() < 64 {
+                refused.push((k, why.clone()));
+            }
+        }
+        fail(why)
+    };
     let temp_dir = std::env::temp_dir();
     let free = crate::fsio::free_bytes(&temp_dir);
     let cap = free.map_or(limit, |f| limit.min(f / 2));
@@ -1003,7 +1024,7 @@ fn decompress_file(path: &Path, input: File, limit: u64) -> Result<File, BagErro
     if let Ok(Some(declared)) = zstd::zstd_safe::get_frame_content_size(&head[..head.len().min(18)])
     {
         if declared > cap {
-            return Err(fail(format!(
+            return Err(remember(format!(
                 "its first frame declares {declared} bytes once decompressed, more than the \
                  {cap} bytes its temporary copy may take ({}); refused before writing",
                 why_cap()
@@ -1021,7 +1042,7 @@ fn decompress_file(path: &Path, input: File, limit: u64) -> Result<File, BagErro
     let mut limited = decoder.take(cap.saturating_add(1));
     let copied = std::io::copy(&mut limited, &mut temp).map_err(|e| fail(e.to_string()))?;
     if copied > cap {
-        return Err(fail(format!(
+        return Err(remember(format!(
             "it decompresses to more than the {cap} bytes its temporary copy may take ({})",
             why_cap()
         )));
