@@ -66,19 +66,18 @@ struct Tri {
     rgb: [f64; 3],
 }
 
-fn is_red(m: &Marker, k: usize) -> bool {
-    m.colors
-        .get(k)
-        .is_some_and(|c| c.r > 0.8 && c.g < 0.2 && c.b < 0.2)
+/// The colour of point `k` of a marker: its own, or the marker's.
+fn color_at(m: &Marker, k: usize) -> crate::msg::ColorRGBA {
+    m.colors.get(k).copied().unwrap_or(m.color)
 }
 
-/// Reads the markers on `topic`: per stamp, the number of interfering triangles; calls `keep`
-/// for every marker.
-fn scan(
-    a: &RenderArgs,
-    mut keep: impl FnMut(i64, &Marker),
-) -> Result<BTreeMap<i64, u64>, CliError> {
-    let mut red: BTreeMap<i64, u64> = BTreeMap::new();
+fn is_red(m: &Marker, k: usize) -> bool {
+    let c = color_at(m, k);
+    c.r > 0.8 && c.g < 0.2 && c.b < 0.2
+}
+
+/// Calls `each` for every TRIANGLE_LIST marker (ADD or DELETE) on the topic, in bag order.
+fn scan(a: &RenderArgs, mut each: impl FnMut(i64, &Marker)) -> Result<(), CliError> {
     for item in BagReader::open(&a.bag)? {
         let m = match item {
             Ok(m) => m,
@@ -96,21 +95,22 @@ fn scan(
             continue;
         };
         for mk in &arr.markers {
-            if mk.r#type != Marker::TRIANGLE_LIST || mk.action != Marker::ADD {
+            if mk.r#type != Marker::TRIANGLE_LIST
+                || (mk.action != Marker::ADD && mk.action != Marker::DELETE)
+            {
                 continue;
             }
-            let stamp = mk.header.stamp.as_nanos();
-            let n = (0..mk.points.len() / 3)
-                .filter(|&t| is_red(mk, 3 * t))
-                .count() as u64;
-            *red.entry(stamp).or_default() += n;
-            keep(stamp, mk);
+            each(mk.header.stamp.as_nanos(), mk);
         }
     }
-    Ok(red)
+    Ok(())
 }
 
 /// Writes the picture; the stamp drawn and the triangles drawn.
+///
+/// Markers are kept until replaced or deleted (a body at rest is drawn once and stays, as
+/// rviz2 and Foxglove keep it): the picture at a stamp is every marker's latest state at or
+/// before that stamp, by namespace and id.
 ///
 /// # Errors
 /// The bag cannot be read, holds no markers on the topic, the options are out of range, or
@@ -127,7 +127,20 @@ pub fn render(a: &RenderArgs) -> Result<(i64, usize), CliError> {
             "--time {t}: must be a non-negative number of seconds"
         )));
     }
-    let red = scan(a, |_, _| {})?;
+    // Per stamp, the interfering triangles shown once the markers up to it are applied.
+    let mut red_of: BTreeMap<(String, i32), u64> = BTreeMap::new();
+    let mut red: BTreeMap<i64, u64> = BTreeMap::new();
+    scan(a, |stamp, mk| {
+        let n = if mk.action == Marker::ADD {
+            (0..mk.points.len() / 3)
+                .filter(|&t| is_red(mk, 3 * t))
+                .count() as u64
+        } else {
+            0
+        };
+        red_of.insert((mk.ns.clone(), mk.id), n);
+        red.insert(stamp, red_of.values().sum());
+    })?;
     let Some(&first) = red.keys().next() else {
         return Err(CliError::Usage(format!(
             "{}: no TRIANGLE_LIST markers on {} (replay a bag with a checker and --out first)",
@@ -152,28 +165,45 @@ pub fn render(a: &RenderArgs) -> Result<(i64, usize), CliError> {
             .max_by_key(|(s, n)| (**n, std::cmp::Reverse(**s)))
             .map_or(first, |(s, _)| *s),
     };
-    let mut tris: Vec<Tri> = Vec::new();
+    // Each marker's latest state at the stamp drawn.
+    let mut state: BTreeMap<(String, i32), Vec<Tri>> = BTreeMap::new();
     let mut over = false;
     scan(a, |s, mk| {
-        if s != stamp {
+        if s > stamp {
             return;
         }
+        let key = (mk.ns.clone(), mk.id);
+        if mk.action == Marker::DELETE {
+            state.remove(&key);
+            return;
+        }
+        let mut tris = Vec::with_capacity(mk.points.len() / 3);
         for t in 0..mk.points.len() / 3 {
             if tris.len() >= MAX_TRIANGLES {
                 over = true;
-                return;
+                break;
             }
             let p = [0, 1, 2].map(|k| {
                 let q = &mk.points[3 * t + k];
                 [q.x, q.y, q.z]
             });
-            let c = mk.colors.get(3 * t).copied().unwrap_or(mk.color);
+            let c = color_at(mk, 3 * t);
             tris.push(Tri {
                 p,
                 rgb: [f64::from(c.r), f64::from(c.g), f64::from(c.b)],
             });
         }
+        state.insert(key, tris);
     })?;
+    // Drawn in namespace and id order, so the label overlays (ids 1, 2) cover the body.
+    let mut tris: Vec<Tri> = Vec::new();
+    for t in state.into_values().flatten() {
+        if tris.len() >= MAX_TRIANGLES {
+            over = true;
+            break;
+        }
+        tris.push(t);
+    }
     if over {
         tracing::warn!(
             "more than MAX_TRIANGLES = {MAX_TRIANGLES} triangles: the rest is not drawn"
@@ -302,7 +332,8 @@ fn rasterise(tris: &[Tri], size: u32, view: View) -> Vec<u8> {
                 }
                 let z = w0 * v[0][2] + w1 * v[1][2] + w2 * v[2][2];
                 let i = y * n + x;
-                if z > depth[i] {
+                // Ties go to the later triangle: label overlays are drawn over the body they lie on.
+                if z >= depth[i] {
                     depth[i] = z;
                     rgb[3 * i..3 * i + 3].copy_from_slice(&colour);
                 }

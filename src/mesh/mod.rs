@@ -8,6 +8,7 @@
 //!   cuts the 4D mesh by an axis hyperplane into a closed 3D triangle mesh.
 //! - [`stats`] accumulates per-body statistics over a stream with bounded memory.
 
+pub mod flat;
 pub mod glue;
 pub mod grid;
 pub mod hash;

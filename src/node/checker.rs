@@ -30,7 +30,7 @@ use std::sync::{Arc, Mutex};
 use rayon::prelude::*;
 
 use super::launch::{LaunchError, NodeSpec, Params};
-use super::markers::{body_color, mid_slab_plane, triangle_list};
+use super::markers::{body_color, mid_slab_plane, triangle_list_of};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use crate::checker::labels::Label;
@@ -39,7 +39,8 @@ use crate::checker::report::{Report, Resolution, Verdict};
 use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
-use crate::mesh::slice::Slicer;
+use crate::mesh::slice::{Slicer, TriMesh};
+use crate::mesh::TetMesh;
 use crate::mesh::GridGeometry;
 use crate::mesh::{MesherOptions, OccupancyGrid};
 use crate::msg::{
@@ -451,6 +452,11 @@ impl CheckerNode {
             }
         }
         if let Some(stamp) = queued {
+            if let Some(q) = &self.markers_queue {
+                if let Ok(mut q) = q.lock() {
+                    q.end_step();
+                }
+            }
             out.push(Message::new(
                 &self.slabs_done_topic,
                 stamp,
@@ -521,6 +527,7 @@ impl CheckerNode {
         let topic = self.markers_topic.clone()?;
         let queue = self.markers_queue.clone()?;
         Some(CheckerMarkers {
+            shown: Default::default(),
             fqn: format!("{}/markers", self.fqn),
             slabs_done_topic: self.slabs_done_topic.clone(),
             markers_topic: topic,
@@ -536,12 +543,16 @@ pub const MARKER_QUEUE_TETS: usize = 4_000_000;
 /// Slabs waiting for the markers part, oldest first.
 #[derive(Debug, Default)]
 pub struct MarkerQueue {
-    /// Each slab with the checker's `frame_id`.
-    slabs: std::collections::VecDeque<(String, SlabDone)>,
+    /// Each slab with the checker's `frame_id` and the checker step that queued it.
+    slabs: std::collections::VecDeque<(String, SlabDone, u64)>,
     tets: usize,
+    /// The checker's steps that queued slabs so far (one `_slabs_done` message each).
+    step: u64,
     /// Nobody reads the markers now: nothing is queued, and the checker stops reporting
     /// slabs until someone does.
     unread: bool,
+    /// Set when reading starts again: the markers part then draws every body anew.
+    restart: bool,
 }
 
 impl MarkerQueue {
@@ -552,10 +563,10 @@ impl MarkerQueue {
             return 0;
         }
         self.tets += d.mesh.tets.len();
-        self.slabs.push_back((frame_id.to_owned(), d));
+        self.slabs.push_back((frame_id.to_owned(), d, self.step));
         let mut dropped = 0;
         while self.tets > MARKER_QUEUE_TETS && self.slabs.len() > 1 {
-            if let Some((_, old)) = self.slabs.pop_front() {
+            if let Some((_, old, _)) = self.slabs.pop_front() {
                 self.tets -= old.mesh.tets.len();
                 dropped += 1;
             }
@@ -563,14 +574,61 @@ impl MarkerQueue {
         dropped
     }
 
-    fn take(&mut self) -> Vec<(String, SlabDone)> {
-        self.tets = 0;
-        self.slabs.drain(..).collect()
+    /// Ends the checker's step: the slabs queued so far are announced by one message.
+    fn end_step(&mut self) {
+        self.step += 1;
     }
+
+    /// The slabs to draw, in order. When they come from several checker steps the markers
+    /// part has fallen behind: a display wants the latest state, not a queue, so only each
+    /// body's newest slab is kept (with `true`, and how many were passed over). A replay,
+    /// whose parts run in turn, takes one step at a time and draws every slab.
+    fn take(&mut self) -> (Vec<(String, SlabDone)>, u64, bool) {
+        self.tets = 0;
+        let restart = std::mem::take(&mut self.restart);
+        let slabs: Vec<(String, SlabDone, u64)> = self.slabs.drain(..).collect();
+        let one_step = slabs.windows(2).all(|w| w[0].2 == w[1].2);
+        if one_step {
+            return (slabs.into_iter().map(|(f, d, _)| (f, d)).collect(), 0, restart);
+        }
+        let n = slabs.len();
+        let mut newest: Vec<(String, SlabDone)> = Vec::new();
+        for (f, d, _) in slabs.into_iter().rev() {
+            if !newest.iter().any(|(_, x)| x.body == d.body) {
+                newest.push((f, d));
+            }
+        }
+        newest.reverse();
+        let skipped = (n - newest.len()) as u64;
+        (newest, skipped, restart)
+    }
+}
+
+/// A slab's t-slice as the markers draw it: the slice, each triangle's tet, and the whole
+/// slice with its flat faces merged ([`crate::mesh::flat`]).
+#[derive(Debug)]
+struct Drawn {
+    mesh: TriMesh,
+    sources: Vec<u32>,
+    merged: Vec<[u32; 3]>,
+}
+
+/// What the markers part last drew of one body: the slab's slice (kept, so that a body at
+/// rest whose labels change is not sliced again) and what its three markers show.
+#[derive(Debug)]
+struct Shown {
+    /// Hash of the slab's tets in space (a body at rest repeats it, moved in time).
+    geometry: u64,
+    /// The slice, with each triangle's tet.
+    slice: Arc<Drawn>,
+    /// Per label marker (INSIDE, INTERFERENCE): a hash of its triangles (0: none shown).
+    labels: [u64; 2],
 }
 
 /// The checker's markers part (see [`CheckerNode::markers_part`]).
 pub struct CheckerMarkers {
+    /// Per body, what its markers show now.
+    shown: std::collections::BTreeMap<String, Shown>,
     fqn: String,
     slabs_done_topic: String,
     markers_topic: String,
@@ -579,23 +637,47 @@ pub struct CheckerMarkers {
 }
 
 impl CheckerMarkers {
-    /// Slices every queued slab (on rayon's pool when there are several), in queue order.
+    /// Draws the queued slabs, in queue order: each body's markers only where they changed
+    /// (see [`slab_markers`]); the slabs whose geometry changed are sliced on rayon's pool.
     fn publish(&mut self, out: &mut Vec<Message>) {
-        let slabs = self.queue.lock().map(|mut q| q.take()).unwrap_or_default();
+        let (slabs, skipped, restart) = self.queue.lock().map(|mut q| q.take()).unwrap_or_default();
+        if restart {
+            self.shown.clear();
+        }
+        if skipped > 0 {
+            self.status
+                .count_quietly(&self.fqn, "markers_coalesced", skipped, || {
+                    "the markers part fell behind: only each body's newest slab was drawn (a \
+                     display wants the latest state); labels, contacts and the report are \
+                     complete"
+                        .to_owned()
+                });
+        }
+        // Each slab's geometry hash, and its slice where it is new to its body (bodies in
+        // order; a body's later slab compares with its earlier one in this batch).
+        let hashes: Vec<u64> = slabs.par_iter().map(|(_, d)| geometry_hash(&d.mesh)).collect();
+        let mut last: std::collections::BTreeMap<&str, u64> = self
+            .shown
+            .iter()
+            .map(|(b, s)| (b.as_str(), s.geometry))
+            .collect();
+        let new: Vec<bool> = slabs
+            .iter()
+            .zip(&hashes)
+            .map(|((_, d), &h)| last.insert(d.body.as_str(), h) != Some(h))
+            .collect();
+        let slices: Vec<Option<Arc<Drawn>>> = slabs
+            .par_iter()
+            .zip(&new)
+            .map(|((_, d), &is_new)| is_new.then(|| Arc::new(slice_slab(d))))
+            .collect();
         let topic = self.markers_topic.as_str();
-        let made: Vec<Message> = if slabs.len() > 1 {
-            slabs
-                .par_iter()
-                .map(|(f, d)| slab_marker(f, topic, d))
-                .collect()
-        } else {
-            slabs
-                .iter()
-                .map(|(f, d)| slab_marker(f, topic, d))
-                .collect()
-        };
-        self.status.published += made.len() as u64;
-        out.extend(made);
+        for (((f, d), h), slice) in slabs.iter().zip(hashes).zip(slices) {
+            if let Some(m) = slab_markers(&mut self.shown, f, topic, d, h, slice) {
+                self.status.published += 1;
+                out.push(m);
+            }
+        }
     }
 }
 
@@ -633,6 +715,9 @@ impl Node for CheckerMarkers {
             return;
         }
         if let Ok(mut q) = self.queue.lock() {
+            if q.unread && read {
+                q.restart = true;
+            }
             q.unread = !read;
             if !read {
                 q.take();
@@ -659,35 +744,124 @@ impl Node for CheckerMarkers {
     }
 }
 
-/// A MarkerArray with one body's slice a little after the middle of a frame period, its
-/// triangles coloured by the strongest label of their tet over the body's pairs.
-pub fn slab_marker(frame_id: &str, topic: &str, d: &SlabDone) -> Message {
-    let g = d.geometry;
-    // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
-    let mut slicer = Slicer::new(3, mid_slab_plane(u64::from(d.index), g.scale)).with_sources();
+/// A hash of a slab's tets in space (vertices' x, y, z and the tets), which a body at rest
+/// repeats from slab to slab (the mesher moves its rest slab in time).
+fn geometry_hash(mesh: &TetMesh) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    mesh.vertices.len().hash(&mut h);
+    for v in &mesh.vertices {
+        (v[0], v[1], v[2]).hash(&mut h);
+    }
+    mesh.tets.hash(&mut h);
+    h.finish()
+}
+
+/// The slab's t-slice a little after its middle, with each triangle's tet (the tets are cut
+/// on rayon's pool: the same slice), and its flat faces merged for display.
+fn slice_slab(d: &SlabDone) -> Drawn {
+    let mut slicer =
+        Slicer::new(3, mid_slab_plane(u64::from(d.index), d.geometry.scale)).with_sources();
     slicer.add_par(&d.mesh);
-    let (tri, src) = slicer.finish_with_sources();
+    let (mesh, sources) = slicer.finish_with_sources();
+    let (merged, _) = crate::mesh::flat::merge_flat(&mesh, |_| Some(0));
+    Drawn {
+        mesh,
+        sources,
+        merged,
+    }
+}
+
+/// The markers of slab `d` where they changed, as one MarkerArray (`None`: nothing changed).
+/// A body has three markers, kept until replaced (persistent, as rviz2 and Foxglove keep
+/// them): id 0 its whole t-slice in its own colour, translucent; id 1 the triangles INSIDE
+/// another body (orange) and id 2 those that INTERFERE (red), drawn over it. The slice is
+/// published when the body's geometry changes (`slice` is then the new one); the label
+/// markers when their triangles change (a DELETE when they have none left); a body at rest
+/// away from the others publishes nothing after its first slab.
+fn slab_markers(
+    shown: &mut std::collections::BTreeMap<String, Shown>,
+    frame_id: &str,
+    topic: &str,
+    d: &SlabDone,
+    geometry: u64,
+    slice: Option<Arc<Drawn>>,
+) -> Option<Message> {
+    use std::hash::{Hash, Hasher};
+    let g = d.geometry;
     let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
-    let base = body_color(&d.body);
-    let outside = ColorRGBA { a: 0.45, ..base };
     let header = Header {
         stamp: Time::from_nanos(stamp),
         frame_id: frame_id.to_owned(),
     };
-    let marker = triangle_list(header, &d.body, 0, &g, &tri, |t| {
-        match d.worst.get(src[t] as usize).copied() {
-            Some(x) if x == Label::Interference as u8 => INTERFERENCE_COLOR,
-            Some(x) if x == Label::Inside as u8 => INSIDE_COLOR,
-            _ => outside,
+    let base = body_color(&d.body);
+    let (slice, new_geometry) = match (slice, shown.get(&d.body)) {
+        (Some(s), _) => (s, true),
+        (None, Some(prev)) => (prev.slice.clone(), false),
+        // The body's geometry is new to the part after all: slice it now.
+        (None, None) => (Arc::new(slice_slab(d)), true),
+    };
+    let (tri, src) = (&slice.mesh, &slice.sources);
+    let label_of = |t: usize| d.worst.get(src[t] as usize).copied().unwrap_or(0);
+    let wanted = [Label::Inside as u8, Label::Interference as u8];
+    let colors = [INSIDE_COLOR, INTERFERENCE_COLOR];
+    let mut label_hashes = [0u64; 2];
+    for (k, &want) in wanted.iter().enumerate() {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        let mut any = false;
+        for t in (0..tri.triangles.len()).filter(|&t| label_of(t) == want) {
+            t.hash(&mut h);
+            any = true;
         }
-    });
-    Message::new(
-        topic,
-        stamp,
-        Payload::MarkerArray(Arc::new(MarkerArray {
-            markers: vec![marker],
-        })),
-    )
+        label_hashes[k] = if any { h.finish() | 1 } else { 0 };
+    }
+    let before = shown.get(&d.body).map(|s| s.labels);
+    let mut markers = Vec::new();
+    if new_geometry {
+        markers.push(triangle_list_of(
+            header.clone(),
+            &d.body,
+            0,
+            &g,
+            tri,
+            &slice.merged,
+            ColorRGBA { a: 0.45, ..base },
+        ));
+    }
+    for k in 0..2 {
+        let was = before.map_or(0, |b| b[k]);
+        // Redrawn where its triangles changed, and over a new slice (its points moved).
+        let redraw = label_hashes[k] != was || (new_geometry && label_hashes[k] != 0);
+        if !redraw {
+            continue;
+        }
+        let (merged, _) =
+            crate::mesh::flat::merge_flat(tri, |t| (label_of(t) == wanted[k]).then_some(0));
+        markers.push(triangle_list_of(
+            header.clone(),
+            &d.body,
+            k as i32 + 1,
+            &g,
+            tri,
+            &merged,
+            colors[k],
+        ));
+    }
+    shown.insert(
+        d.body.clone(),
+        Shown {
+            geometry,
+            slice: slice.clone(),
+            labels: label_hashes,
+        },
+    );
+    (!markers.is_empty()).then(|| {
+        Message::new(
+            topic,
+            stamp,
+            Payload::MarkerArray(Arc::new(MarkerArray { markers })),
+        )
+    })
 }
 
 fn nan_if_none(v: Option<f64>) -> f64 {
@@ -947,10 +1121,37 @@ mod tests {
         assert_eq!(q.push("w", slab(3, third)), 1);
         // A slab over the limit on its own still waits (the newest is never dropped).
         assert_eq!(q.push("w", slab(4, MARKER_QUEUE_TETS + 1)), 3);
-        let left = q.take();
-        assert_eq!(left.len(), 1);
+        let (left, skipped, _) = q.take();
+        assert_eq!((left.len(), skipped), (1, 0));
         assert_eq!(left[0].1.index, 4);
         assert_eq!(left[0].0, "w");
-        assert!(q.take().is_empty());
+        assert!(q.take().0.is_empty());
+    }
+
+    #[test]
+    fn a_markers_part_behind_draws_each_bodys_newest_slab_only() {
+        let mut q = MarkerQueue::default();
+        let with_body = |i: u32, body: &str| {
+            let mut d = slab(i, 8);
+            d.body = body.to_owned();
+            d
+        };
+        // One checker step: every slab is drawn, in order.
+        q.push("w", with_body(0, "/a"));
+        q.push("w", with_body(1, "/a"));
+        q.end_step();
+        let (all, skipped, _) = q.take();
+        assert_eq!((all.len(), skipped), (2, 0));
+        // Three steps queued before the part takes them: the newest of each body.
+        for (i, b) in [(2, "/a"), (3, "/b")] {
+            q.push("w", with_body(i, b));
+            q.end_step();
+        }
+        q.push("w", with_body(4, "/a"));
+        q.end_step();
+        let (newest, skipped, _) = q.take();
+        let got: Vec<(u32, &str)> = newest.iter().map(|(_, d)| (d.index, d.body.as_str())).collect();
+        assert_eq!(got, [(3, "/b"), (4, "/a")]);
+        assert_eq!(skipped, 1);
     }
 }
