@@ -200,15 +200,6 @@ pub struct PairReport {
     pub a: String,
     /// Second body.
     pub b: String,
-    /// `collide`, `clear` or `unsure` (extra field): `clear` only where both bodies are
-    /// observed well enough for the check to hold.
-    pub verdict: Verdict,
-    /// Where a contact can be missed, and why (extra field; empty unless some span is
-    /// unsure). A pair that collides lists them too.
-    pub unsure_spans_s: Vec<UnsureSpanReport>,
-    /// Unsure spans older than those listed (extra field; absent when none).
-    #[serde(skip_serializing_if = "is_zero")]
-    pub unsure_spans_not_listed: u64,
     /// The interiors overlap somewhere in space-time.
     pub interfering: bool,
     /// Time intervals of overlap (s since `time_origin_ns`).
@@ -219,6 +210,15 @@ pub struct PairReport {
     pub overlap_hypervolume_m3s: Option<f64>,
     /// Label counts.
     pub labels: PairLabels,
+    /// `collide`, `clear` or `unsure` (extra field): `clear` only where both bodies are
+    /// observed well enough for the check to hold.
+    pub verdict: Verdict,
+    /// Where a contact can be missed, and why (extra field; empty unless some span is
+    /// unsure). A pair that collides lists them too.
+    pub unsure_spans_s: Vec<UnsureSpanReport>,
+    /// Unsure spans older than those listed (extra field; absent when none).
+    #[serde(skip_serializing_if = "is_zero")]
+    pub unsure_spans_not_listed: u64,
     /// The frame period at the first contact (s), the time resolution of the input (extra
     /// field).
     pub frame_period_s: Option<f64>,

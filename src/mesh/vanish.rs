@@ -40,23 +40,102 @@ pub struct Vanishing {
     pub rate_factor: f32,
 }
 
+/// Largest displacement measured between two frames (voxels); a larger one is reported as
+/// this.
+pub const MAX_DISPLACEMENT: u16 = 64;
+
+/// How a body moved between two frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Motion {
+    /// How far it moved, in voxels on the grid's axes (Chebyshev): the least `d` such that
+    /// every occupied voxel of each frame has one of the other within `d` voxels (the
+    /// frames' Hausdorff distance). 1 when every voxel has a neighbour in the other frame
+    /// (the 4D mesh then joins them, and no contact between frames is missed); at most
+    /// [`MAX_DISPLACEMENT`].
+    pub displacement: u16,
+    /// A part that vanishes between the frames, if one does.
+    pub vanishing: Option<Vanishing>,
+}
+
+/// How the body moved between frames `a` and `b` (same lattice): its displacement and any
+/// part that vanishes.
+pub fn motion(a: &OccupancyGrid, b: &OccupancyGrid) -> Motion {
+    let at_most_one = Motion {
+        displacement: 1,
+        vanishing: None,
+    };
+    if a.padded != b.padded || a.words != b.words || a.occupied == 0 || b.occupied == 0 {
+        return at_most_one;
+    }
+    if within_one(a, b) && within_one(b, a) {
+        return at_most_one;
+    }
+    let Some(rows) = Rows::of(a, b) else {
+        return at_most_one;
+    };
+    let mut scratch = vec![0u64; a.bits.len()];
+    let mut grown = vec![0u64; a.bits.len()];
+    let displacement = reach(&rows, &a.bits, &b.bits, &mut scratch, &mut grown)
+        .max(reach(&rows, &b.bits, &a.bits, &mut scratch, &mut grown));
+    Motion {
+        displacement,
+        vanishing: vanishing_in(&rows, a, b, &mut scratch, &mut grown),
+    }
+}
+
+/// The least `d` (at most [`MAX_DISPLACEMENT`]) such that every voxel of `this` lies within
+/// `d` voxels of one of `other`: `other` dilated until it holds `this`.
+fn reach(
+    rows: &Rows,
+    this: &[u64],
+    other: &[u64],
+    scratch: &mut [u64],
+    grown: &mut [u64],
+) -> u16 {
+    let mut cur: Vec<u64> = other.to_vec();
+    for d in 1..=MAX_DISPLACEMENT {
+        dilate(rows, &cur, scratch, grown);
+        if this.iter().zip(grown.iter()).all(|(t, g)| t & !g == 0) {
+            return d;
+        }
+        cur.copy_from_slice(grown);
+    }
+    MAX_DISPLACEMENT
+}
+
 /// Whether a part of the body vanishes between frames `a` and `b` (same lattice), and by how
 /// much the frame rate would have to rise; `None` when every part carries on.
 pub fn vanishing(a: &OccupancyGrid, b: &OccupancyGrid) -> Option<Vanishing> {
     if a.padded != b.padded || a.words != b.words || a.occupied == 0 || b.occupied == 0 {
         return None;
     }
+    // The common case, a body moving less than a voxel or so per frame: every voxel of each
+    // frame has one of the other within a voxel. Checked row by row without a buffer.
+    if within_one(a, b) && within_one(b, a) {
+        return None;
+    }
     let rows = Rows::of(a, b)?;
     let mut scratch = vec![0u64; a.bits.len()];
     let mut grown = vec![0u64; a.bits.len()];
-    let ending = ends(&rows, &a.bits, &b.bits, &mut scratch, &mut grown);
+    vanishing_in(&rows, a, b, &mut scratch, &mut grown)
+}
+
+fn vanishing_in(
+    rows: &Rows,
+    a: &OccupancyGrid,
+    b: &OccupancyGrid,
+    scratch: &mut [u64],
+    grown: &mut [u64],
+) -> Option<Vanishing> {
+    let (rows, scratch, grown) = (rows, scratch, grown);
+    let ending = ends(rows, &a.bits, &b.bits, scratch, grown);
     let ending_voxels = count(&ending);
-    let beginning = ends(&rows, &b.bits, &a.bits, &mut scratch, &mut grown);
+    let beginning = ends(rows, &b.bits, &a.bits, scratch, grown);
     let beginning_voxels = count(&beginning);
     if ending_voxels == 0 && beginning_voxels == 0 {
         return None;
     }
-    let rate_factor = match (Extent::of(&rows, &ending), Extent::of(&rows, &beginning)) {
+    let rate_factor = match (Extent::of(rows, &ending), Extent::of(rows, &beginning)) {
         (Some(e), Some(f)) => {
             let d: f64 = (0..3)
                 .map(|k| (f.centre(k) - e.centre(k)).powi(2))
@@ -72,6 +151,41 @@ pub fn vanishing(a: &OccupancyGrid, b: &OccupancyGrid) -> Option<Vanishing> {
         beginning_voxels,
         rate_factor,
     })
+}
+
+/// Whether every occupied voxel of `this` has an occupied voxel of `other` within one voxel
+/// on every axis (stops at the first that has none).
+fn within_one(this: &OccupancyGrid, other: &OccupancyGrid) -> bool {
+    let [_, py, pz] = this.padded;
+    let w = this.words;
+    // `other`'s row (y, z) dilated along x, word i.
+    let xdil = |r: usize, i: usize| {
+        let s = other.bits[r + i];
+        let prev = if i > 0 { other.bits[r + i - 1] >> 63 } else { 0 };
+        let next = if i + 1 < w { other.bits[r + i + 1] << 63 } else { 0 };
+        s | (s << 1) | prev | (s >> 1) | next
+    };
+    for z in 1..pz.saturating_sub(1) {
+        for y in 1..py.saturating_sub(1) {
+            let r = (y + py * z) * w;
+            for i in 0..w {
+                let t = this.bits[r + i];
+                if t == 0 {
+                    continue;
+                }
+                let mut d = 0u64;
+                for dz in [z - 1, z, z + 1] {
+                    for dy in [y - 1, y, y + 1] {
+                        d |= xdil((dy + py * dz) * w, i);
+                    }
+                }
+                if t & !d != 0 {
+                    return false;
+                }
+            }
+        }
+    }
+    true
 }
 
 /// The rows and words the two frames' occupied voxels span, with the grid's shape.
@@ -326,9 +440,19 @@ mod tests {
     #[test]
     fn a_body_moving_less_than_its_thickness_carries_on() {
         let a = frame(70, &[([2, 2, 2], [9, 9, 9])]);
-        // Moved by 5 voxels of its 8: overlaps.
+        // Moved by 5 voxels of its 8: overlaps, but moves 5 voxels.
         let b = frame(70, &[([7, 2, 2], [14, 9, 9])]);
         assert_eq!(vanishing(&a, &b), None);
+        assert_eq!(
+            motion(&a, &b),
+            Motion {
+                displacement: 5,
+                vanishing: None
+            }
+        );
+        // By one voxel: joined everywhere.
+        let one = frame(70, &[([3, 2, 2], [10, 9, 9])]);
+        assert_eq!(motion(&a, &one).displacement, 1);
         // Moved by its thickness (8): the first column of one frame is next to the last of
         // the other, in one hypercube, so joined.
         let c = frame(70, &[([10, 2, 2], [17, 9, 9])]);
@@ -352,6 +476,9 @@ mod tests {
         assert_eq!(v.beginning_voxels, 2 * 6 * 6);
         // 10 voxels over 2 of thickness: five times the frame rate.
         assert_eq!(v.rate_factor, 5.0);
+        let m = motion(&a, &b);
+        assert_eq!(m.displacement, 10);
+        assert_eq!(m.vanishing, Some(v));
         // Whole-body test of before (no voxel in common) would miss this: they share the base.
     }
 

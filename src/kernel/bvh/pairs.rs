@@ -5,7 +5,7 @@
 //! one leaf and every node pair is reached along a single path, each item pair is reported
 //! at most once.
 
-use super::{Bvh, Node, TraverseWorkspace};
+use super::{Aabb4, Bvh, Node, TraverseWorkspace};
 use std::ops::ControlFlow;
 
 /// A pair of nodes (one in each tree) whose sub-walks are independent: from
@@ -180,6 +180,128 @@ pub fn top_pairs(a: &Bvh, b: &Bvh, depth: u32, out: &mut Vec<NodePair>) {
         out.drain(..level);
         if !expanded {
             break;
+        }
+    }
+}
+
+/// Whether box `a`, grown by `margin` on each axis, meets box `b` (closed), and both meet
+/// `window` if one is given.
+#[inline]
+fn near(a: &Aabb4, b: &Aabb4, margin: &[i64; 4], window: Option<&Aabb4>) -> bool {
+    if let Some(w) = window {
+        if !a.overlaps(w) || !b.overlaps(w) {
+            return false;
+        }
+    }
+    (0..4).all(|k| {
+        i64::from(a.min[k]) - margin[k] <= i64::from(b.max[k])
+            && i64::from(b.min[k]) <= i64::from(a.max[k]) + margin[k]
+    })
+}
+
+/// The sum of a box's sides (which node of a pair to split first).
+fn extent(b: &Aabb4) -> i64 {
+    (0..4).map(|k| i64::from(b.max[k]) - i64::from(b.min[k])).sum()
+}
+
+/// Whether some item box of `a` comes within `margin` (per axis, in lattice units) of some
+/// item box of `b`, both meeting `window` if one is given: a conservative test of whether
+/// two meshes come that close (their items' boxes hold them). Stops at the first such pair.
+pub fn any_within(
+    a: &Bvh,
+    b: &Bvh,
+    margin: [i64; 4],
+    window: Option<&Aabb4>,
+    ws: &mut TraverseWorkspace,
+) -> bool {
+    let (Some(ra), Some(rb)) = (a.nodes.first(), b.nodes.first()) else {
+        return false;
+    };
+    if !near(&ra.aabb, &rb.aabb, &margin, window) {
+        return false;
+    }
+    let stack = &mut ws.pairs;
+    stack.clear();
+    stack.push((0, 0));
+    while let Some((ia, ib)) = stack.pop() {
+        let (na, nb) = (&a.nodes[ia as usize], &b.nodes[ib as usize]);
+        match (na.is_leaf(), nb.is_leaf()) {
+            (true, true) => {
+                let (fa, fb) = (na.first as usize, nb.first as usize);
+                let boxes_b = &b.leaf_boxes[fb..fb + nb.count as usize];
+                for box_a in &a.leaf_boxes[fa..fa + na.count as usize] {
+                    if boxes_b
+                        .iter()
+                        .any(|box_b| near(box_a, box_b, &margin, window))
+                    {
+                        return true;
+                    }
+                }
+            }
+            (false, _) if nb.is_leaf() || extent(&na.aabb) >= extent(&nb.aabb) => {
+                for c in [na.first, na.first + 1] {
+                    if near(&a.nodes[c as usize].aabb, &nb.aabb, &margin, window) {
+                        stack.push((c, ib));
+                    }
+                }
+            }
+            _ => {
+                for d in [nb.first, nb.first + 1] {
+                    if near(&na.aabb, &b.nodes[d as usize].aabb, &margin, window) {
+                        stack.push((ia, d));
+                    }
+                }
+            }
+        }
+    }
+    false
+}
+
+#[cfg(test)]
+mod within_tests {
+    use super::*;
+
+    #[test]
+    fn boxes_within_a_margin_are_found_and_farther_ones_are_not() {
+        let a = Bvh::from_boxes(&[
+            Aabb4::new([0, 0, 0, 0], [1, 1, 1, 10]),
+            Aabb4::new([100, 0, 0, 0], [101, 1, 1, 10]),
+        ])
+        .unwrap();
+        let b = Bvh::from_boxes(&[Aabb4::new([5, 0, 0, 4], [6, 1, 1, 5])]).unwrap();
+        let mut ws = TraverseWorkspace::new();
+        assert!(!any_within(&a, &b, [3, 3, 3, 0], None, &mut ws));
+        assert!(any_within(&a, &b, [4, 4, 4, 0], None, &mut ws));
+        // Only the time window from 6 on: b is not there.
+        let w = Aabb4::new([i32::MIN; 4], [i32::MAX, i32::MAX, i32::MAX, i32::MAX])
+            .intersection(&Aabb4::new([i32::MIN, i32::MIN, i32::MIN, 6], [i32::MAX; 4]));
+        assert!(!any_within(&a, &b, [4, 4, 4, 0], Some(&w), &mut ws));
+        // Against brute force on random boxes.
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut r = |m: i32| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (s % m as u64) as i32
+        };
+        for _ in 0..200 {
+            let boxes = |r: &mut dyn FnMut(i32) -> i32, n: usize| -> Vec<Aabb4> {
+                (0..n)
+                    .map(|_| {
+                        let p = [r(60), r(60), r(60), r(60)];
+                        Aabb4::new(p, [p[0] + r(4), p[1] + r(4), p[2] + r(4), p[3] + r(4)])
+                    })
+                    .collect()
+            };
+            let (na, nb) = (1 + r(20) as usize, 1 + r(20) as usize);
+            let xa = boxes(&mut r, na);
+            let xb = boxes(&mut r, nb);
+            let m = [r(8) as i64, r(8) as i64, r(8) as i64, 0];
+            let want = xa
+                .iter()
+                .any(|p| xb.iter().any(|q| near(p, q, &m, None)));
+            let (ta, tb) = (Bvh::from_boxes(&xa).unwrap(), Bvh::from_boxes(&xb).unwrap());
+            assert_eq!(any_within(&ta, &tb, m, None, &mut ws), want);
         }
     }
 }
