@@ -286,17 +286,23 @@ fn a_mesh_over_the_limits_is_refused_naming_the_file_and_the_limit() {
         p.contains("huge.stl") && p.contains("MAX_MESH_FILE_BYTES"),
         "{p}"
     );
-    // A binary STL whose header declares more triangles than MAX_MESH_TRIANGLES.
-    let big = dir.path().join("many.stl");
-    let mut bytes = vec![0u8; 84];
-    bytes[80..84]
-        .copy_from_slice(&(chronotope_robot::limits::MAX_MESH_TRIANGLES as u32 + 1).to_le_bytes());
-    std::fs::write(&big, bytes).unwrap();
+    // An OBJ of more triangles than MAX_MESH_TRIANGLES (8 bytes a face: 17 MB).
+    let big = dir.path().join("many.obj");
+    let faces = chronotope_robot::limits::MAX_MESH_TRIANGLES + 1;
+    let mut text = String::with_capacity(faces * 8 + 64);
+    text.push_str("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    for _ in 0..faces {
+        text.push_str("f 1 2 3\n");
+    }
+    std::fs::write(&big, text).unwrap();
     let p = refused_description(&format!(
         r#"<robot name="x"><link name="a"><collision><geometry><mesh filename="file://{}"/></geometry></collision></link></robot>"#,
         big.display()
     ));
-    assert!(p.contains("many.stl") && p.contains("triangles"), "{p}");
+    assert!(
+        p.contains("many.obj") && p.contains("MAX_MESH_TRIANGLES"),
+        "{p}"
+    );
 }
 
 #[test]
