@@ -1,9 +1,9 @@
 //! The `robot-cell` scene: a six-axis arm with a gripper (the project's own URDF,
 //! `scenes/robot-cell/arm6.urdf`, collision geometry as primitives) beside a machine-tool
-//! table that shuttles in under it, recorded the way `ros2 bag record` records a cell: the
+//! table that shuttles out from under it, recorded the way `ros2 bag record` records a cell: the
 //! robot description, joint states at 200 Hz in two partial messages per instant (the arm's
 //! controller and the wrist-and-gripper controller), `/tf_static`, and the table as VoxelGrid
-//! frames at 10 Hz. The arm dips towards the table while the table arrives: they collide.
+//! frames at 10 Hz. The arm dips towards the table before the table has left: they collide.
 //!
 //! Pure: the URDF text, the joint positions at any run fraction and the table body; the
 //! command line writes the bag (`chronotope scene robot-cell`). Layout and times:
@@ -91,8 +91,8 @@ pub fn robot_cell_velocities(u: f64, duration_s: f64) -> [f64; 7] {
     v
 }
 
-/// The machine-tool table: 0.5 × 0.5 × 0.4 m, beside the robot along x and out of its way
-/// along -y at first, shuttling in under the arm between u = 0.35 and 0.55 and staying.
+/// The machine-tool table: 0.5 × 0.5 × 0.4 m, beside the robot along x, under the arm's
+/// reach at first, shuttling out along -y between u = 0.45 and 0.65 and staying there.
 pub fn robot_cell_table(duration_s: f64) -> BodySpec {
     let key = |u: f64, offset: [f64; 3]| Keyframe {
         t: u * duration_s,
@@ -100,13 +100,13 @@ pub fn robot_cell_table(duration_s: f64) -> BodySpec {
     };
     BodySpec::new(
         "/table/occupancy",
-        "machine-tool table (0.5 x 0.5 x 0.4 m) shuttling in along +y under the arm",
+        "machine-tool table (0.5 x 0.5 x 0.4 m) shuttling out along -y from under the arm",
         vec![Shape::cuboid([0.55, -0.25, 0.0], [1.05, 0.25, 0.4])],
         Motion::keyframes(vec![
-            key(0.0, [0.0, -0.5, 0.0]),
-            key(0.35, [0.0, -0.5, 0.0]),
-            key(0.55, [0.0, 0.0, 0.0]),
-            key(1.0, [0.0, 0.0, 0.0]),
+            key(0.0, [0.0, 0.0, 0.0]),
+            key(0.45, [0.0, 0.0, 0.0]),
+            key(0.65, [0.0, -0.5, 0.0]),
+            key(1.0, [0.0, -0.5, 0.0]),
         ]),
     )
 }
