@@ -161,3 +161,32 @@ fn info_lists_the_robot_and_replay_without_a_config_checks_it() {
         "{out}"
     );
 }
+
+/// The robot sweeping into the table: the checker's first contact and the end of the contact
+/// interval lie within the report's stated bounds of the exact times (from the continuous
+/// geometry, independent of the rasteriser, mesher and checker), in both encodings.
+#[test]
+fn first_contact_and_interval_are_within_the_reported_bounds_of_the_exact_times() {
+    use chronotope::bench::robot::{accuracy_row, exact_contacts};
+    use chronotope::msg::VoxelEncoding;
+    let exact = exact_contacts(&[]);
+    assert_eq!(exact.len(), 1, "{exact:?}");
+    let [e0, e1] = exact[0];
+    assert!(e0 > 1.0 && e1 < 3.0, "{exact:?}");
+    let dir = tempfile::tempdir().unwrap();
+    for encoding in [VoxelEncoding::Bits, VoxelEncoding::Percent] {
+        let row = accuracy_row(32, encoding, dir.path()).unwrap();
+        let (first, bound) = row.first_contact.expect("a contact");
+        assert!(
+            (first - e0).abs() <= bound,
+            "{encoding:?}: first contact {first} ± {bound}, exact {e0}"
+        );
+        let (interval, bounds) = row.interval.expect("an interval");
+        assert!(
+            (interval[1] - e1).abs() <= bounds[1],
+            "{encoding:?}: end {} ± {}, exact {e1}",
+            interval[1],
+            bounds[1]
+        );
+    }
+}

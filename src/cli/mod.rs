@@ -15,7 +15,7 @@ pub mod render;
 pub mod replay;
 pub mod sample;
 pub mod scene;
-mod scene_robot;
+pub mod scene_robot;
 
 use crate::msg::{VoxelEncoding, VoxelGrid};
 use clap::{Parser, Subcommand, ValueEnum};
