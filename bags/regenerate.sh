@@ -12,5 +12,8 @@ for enc in bits percent; do
   $bin scene four-spheres --grid 32 --frames 17 --encoding $enc --out bags/four-spheres-32-$enc.mcap
 done
 $bin scene carving-session --out bags/carving-session.mcap
+# A six-axis arm recorded the ROS way (robot description, joint states, /tf_static) beside a
+# machine-tool table's frames: replayed with launch_configs/robot_cell.yaml.
+$bin scene robot-cell --grid 32 --out bags/robot-cell-32.mcap
 # The golden replay reports and output-bag digests follow the bags:
 #   CHRONOTOPE_BLESS=1 cargo test --test golden

@@ -255,7 +255,7 @@ fn bags() -> &'static [(String, Vec<u8>)] {
             })
             .collect();
         v.sort();
-        assert!(v.len() >= 5, "the five bundled bags");
+        assert!(v.len() >= 6, "the six bundled bags");
         v
     })
 }
@@ -280,6 +280,7 @@ fn messages() -> &'static [(String, Vec<u8>)] {
                 "carving-session.mcap",
                 "launch_configs/carving_session.yaml",
             ),
+            ("robot-cell-32.mcap", "launch_configs/robot_cell.yaml"),
         ] {
             let out = dir.path().join(bag);
             replay_to(&repo("bags").join(bag), &repo(cfg), &out);
@@ -641,7 +642,7 @@ proptest! {
     /// A damaged copy of a bundled bag: read, framed and decoded without panic, in time,
     /// with readable errors.
     #[test]
-    fn bag_reader_survives_damaged_bags(bag in 0..5usize, ms in mutations()) {
+    fn bag_reader_survives_damaged_bags(bag in 0..6usize, ms in mutations()) {
         let (name, bytes) = &bags()[bag % bags().len()];
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join(name);
@@ -847,4 +848,92 @@ fn png_errors_are_sentences() {
     let errors = load_image(&png, dir.path());
     assert_eq!(errors.len(), 1, "a damaged PNG is refused");
     assert_eq!(message_problem(&errors[0]), None, "{}", errors[0]);
+}
+
+// ---------------------------------------------------------------------------------------
+// The robot node: hostile joint states, plans and descriptions.
+// ---------------------------------------------------------------------------------------
+
+/// A robot node on a small lattice with a two-joint robot (one mimic) loaded.
+fn robot_node() -> chronotope::node::robot::RobotNode {
+    use chronotope::msg::RosString;
+    use chronotope::node::{Message, Node};
+    let text = "launch:\n- node: {pkg: chronotope, exec: robot, param: [{name: origin, value: [-0.4, -0.4, 0.0]}, {name: resolution, value: 0.1}, {name: size, value: [8, 8, 8]}, {name: rate_hz, value: 10}, {name: base_pose, value: [0, 0, 0, 0, 0, 0]}, {name: trajectory_topic, value: /plan}]}\n";
+    let c = LaunchConfig::parse(text, "fuzz").unwrap();
+    let spec = c.of_kind(NodeKind::Robot).next().unwrap();
+    let mut n = chronotope::node::robot::RobotNode::from_spec(spec).unwrap();
+    let urdf = r#"<robot name="t"><link name="b"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link><link name="a"><collision><origin xyz="0.15 0 0"/><geometry><cylinder radius="0.03" length="0.3"/></geometry></collision></link><link name="f"/><joint name="j" type="revolute"><parent link="b"/><child link="a"/><axis xyz="0 0 1"/><limit lower="-1" upper="1"/></joint><joint name="k" type="prismatic"><parent link="a"/><child link="f"/><axis xyz="1 0 0"/><limit lower="0" upper="0.1"/><mimic joint="j"/></joint></robot>"#;
+    let mut out = Vec::new();
+    let text = Payload::Text(std::sync::Arc::new(RosString { data: urdf.into() }));
+    n.on_message(&Message::new("/robot_description", 0, text), &mut out);
+    n
+}
+
+fn hostile_f64() -> impl Strategy<Value = f64> {
+    prop_oneof![
+        Just(0.0),
+        Just(f64::NAN),
+        Just(f64::INFINITY),
+        Just(-1e300),
+        Just(0.5),
+        Just(-3.0),
+        any::<f64>(),
+    ]
+}
+
+proptest! {
+    #![proptest_config(config(64))]
+
+    /// Joint states and plans with hostile names, lengths, values and stamps, and hostile
+    /// URDF texts: the robot node never panics, stays within time, and says what was wrong
+    /// in sentences.
+    #[test]
+    fn robot_node_survives_hostile_joint_states_plans_and_descriptions(
+        names in prop::collection::vec(prop_oneof![Just("j".to_owned()), Just("k".to_owned()), Just("x".to_owned()), "[a-z]{0,3}"], 0..4),
+        positions in prop::collection::vec(hostile_f64(), 0..4),
+        velocities in prop::collection::vec(hostile_f64(), 0..3),
+        stamps in prop::collection::vec(prop_oneof![Just(0i64), 0..2_000_000_000i64, any::<i64>()], 1..6),
+        times in prop::collection::vec(hostile_f64(), 0..4),
+        urdf_edit in 0..200usize,
+    ) {
+        use chronotope::msg::{Duration, Header, JointState, JointTrajectory, JointTrajectoryPoint, RosString, Time};
+        use chronotope::node::{Message, Node};
+        use std::sync::Arc;
+        check("robot node", || {
+            let mut n = robot_node();
+            let mut out = Vec::new();
+            for &s in &stamps {
+                let m = JointState {
+                    header: Header { stamp: Time::from_nanos(s), frame_id: String::new() },
+                    name: names.clone(),
+                    position: positions.clone(),
+                    velocity: velocities.clone(),
+                    effort: Vec::new(),
+                };
+                n.on_message(&Message::new("/joint_states", s, Payload::JointState(Arc::new(m))), &mut out);
+            }
+            let points = times
+                .iter()
+                .map(|&t| JointTrajectoryPoint {
+                    positions: positions.clone(),
+                    velocities: velocities.clone(),
+                    time_from_start: Duration::from_nanos(if t.is_finite() { (t.clamp(-1e3, 1e3) * 1e9) as i64 } else { 0 }),
+                    ..JointTrajectoryPoint::default()
+                })
+                .collect();
+            let plan = JointTrajectory { header: Header::default(), joint_names: names.clone(), points };
+            let bytes = chronotope::msg::encode_cdr(&plan).unwrap();
+            let mut errors = decode_message(<JointTrajectory as RosMessage>::TYPE_NAME, &bytes);
+            n.on_message(&Message::new("/plan", stamps[0], Payload::JointTrajectory(Arc::new(plan))), &mut out);
+            n.on_tick(stamps[0].saturating_add(10_000_000_000), &mut out);
+            // A description cut anywhere.
+            let urdf = r#"<robot name="t"><link name="b"/><link name="c"/><joint name="j" type="revolute"><parent link="b"/><child link="c"/><limit lower="0" upper="1"/></joint></robot>"#;
+            let cut = &urdf[..urdf_edit.min(urdf.len())];
+            let text = Payload::Text(Arc::new(RosString { data: cut.into() }));
+            n.on_message(&Message::new("/robot_description", 0, text), &mut out);
+            n.finish(&mut out);
+            errors.extend(n.status().messages.iter().cloned());
+            errors
+        })?;
+    }
 }

@@ -8,9 +8,10 @@ use std::path::Path;
 
 use chronotope::msg::{
     encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage,
-    DiagnosticArray, DiagnosticStatus, Duration, Header, KeyValue, Marker, MarkerArray, MeshFile,
-    MsgField, Point, PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage, Time,
-    UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
+    DiagnosticArray, DiagnosticStatus, Duration, Header, JointState, JointTrajectory,
+    JointTrajectoryPoint, KeyValue, Marker, MarkerArray, MeshFile, MsgField, Point, PointCloud2,
+    PointField, Pose, PoseStamped, Quaternion, RosMessage, RosString, TFMessage, Time, Transform,
+    TransformStamped, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
 };
 use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;
@@ -84,6 +85,13 @@ fn std_messages() -> Vec<MessageInfo> {
         info::<MeshFile>(),
         info::<Marker>(),
         info::<MarkerArray>(),
+        info::<RosString>(),
+        info::<Transform>(),
+        info::<TransformStamped>(),
+        info::<TFMessage>(),
+        info::<JointState>(),
+        info::<JointTrajectoryPoint>(),
+        info::<JointTrajectory>(),
     ]
 }
 
@@ -687,7 +695,62 @@ fn samples(frame_id: &str) -> Vec<Sample> {
                 sample_marker("x"),
             ],
         }),
+        sample(&RosString {
+            data: "<robot name=\"r\"/>".into(),
+        }),
+        sample(&sample_transform("world").transform),
+        sample(&TransformStamped {
+            header: stamped(frame_id),
+            child_frame_id: "base_link".into(),
+            transform: sample_transform("x").transform,
+        }),
+        sample(&TFMessage {
+            transforms: vec![sample_transform(frame_id), sample_transform("tool0")],
+        }),
+        sample(&JointState {
+            header: stamped(frame_id),
+            name: vec!["joint1".into(), "j2".into(), "finger".into()],
+            position: vec![0.5, -1.25, 0.02],
+            velocity: vec![0.1, 0.0, -0.3],
+            effort: Vec::new(),
+        }),
+        sample(&sample_point(0.25)),
+        sample(&JointTrajectory {
+            header: stamped(frame_id),
+            joint_names: vec!["a".into(), "joint_b".into()],
+            points: vec![
+                sample_point(0.0),
+                JointTrajectoryPoint::default(),
+                sample_point(1.5),
+            ],
+        }),
     ]
+}
+
+fn sample_transform(frame_id: &str) -> TransformStamped {
+    TransformStamped {
+        header: stamped(frame_id),
+        child_frame_id: "link".into(),
+        transform: Transform {
+            translation: Vector3::new(0.1, -0.2, 0.3),
+            rotation: Quaternion {
+                x: 0.0,
+                y: 0.6,
+                z: 0.0,
+                w: 0.8,
+            },
+        },
+    }
+}
+
+fn sample_point(t: f64) -> JointTrajectoryPoint {
+    JointTrajectoryPoint {
+        positions: vec![t, -t, 0.5],
+        velocities: vec![1.0, 2.0, 3.0],
+        accelerations: vec![-1.0],
+        effort: vec![7.5],
+        time_from_start: Duration::from_nanos((t * 1e9) as i64),
+    }
 }
 
 #[test]
@@ -900,6 +963,13 @@ fn std_types_have_complete_ros2msg_schemas() {
     check::<CompressedImage>();
     check::<UVCoordinate>();
     check::<MeshFile>();
+    check::<RosString>();
+    check::<Transform>();
+    check::<TransformStamped>();
+    check::<TFMessage>();
+    check::<JointState>();
+    check::<JointTrajectoryPoint>();
+    check::<JointTrajectory>();
     // MarkerArray's schema names each of the 12 types it uses once, after its own text.
     let schema = check::<MarkerArray>();
     let msg_lines: Vec<&str> = schema.lines().filter(|l| l.starts_with("MSG: ")).collect();

@@ -64,6 +64,31 @@ pub enum BenchWhich {
         #[arg(long)]
         svg: Option<std::path::PathBuf>,
     },
+    /// The robot node: with --accuracy, the robot cell's first contact and interval against
+    /// the exact contact times per grid and encoding; else the UR5 of example-robot-data in
+    /// a robot node, joint states at 500 Hz, frames at 30 Hz: frame time and memory.
+    Robot {
+        /// The directory holding `example-robot-data/` (its `share` directory).
+        #[arg(long)]
+        share: Option<std::path::PathBuf>,
+        /// Voxels per edge of the 2 m lattice (speed), or of the cell (accuracy).
+        #[arg(long, value_delimiter = ',', default_value = "128,256")]
+        grids: Vec<u32>,
+        /// Encodings.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            value_enum,
+            default_value = "bits,percent"
+        )]
+        encodings: Vec<EncodingArg>,
+        /// Seconds of joint-state stream (speed).
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        /// The accuracy table instead of the speed.
+        #[arg(long)]
+        accuracy: bool,
+    },
     /// Two spheres at the seed's scale (~1.5M tets each at grid 88): detection plus labels
     /// and resolution timed, next to per-frame 3D checks with parry3d, and what each misses.
     Check {
@@ -184,6 +209,32 @@ fn run_in_pool(a: &BenchArgs) -> Result<(), CliError> {
                 &encodings,
                 svg.as_deref(),
             )?)
+        }
+        BenchWhich::Robot {
+            share,
+            grids,
+            encodings,
+            seconds,
+            accuracy,
+        } => {
+            let encodings: Vec<VoxelEncoding> = encodings.iter().map(|e| (*e).into()).collect();
+            if *accuracy {
+                return Ok(bench::robot::accuracy(grids, &encodings)?);
+            }
+            let Some(share) = share else {
+                return Err(CliError::Usage(
+                    "--share DIR: the directory holding example-robot-data/ (python -c \"import \
+                     example_robot_data, os; print(os.path.dirname(os.path.dirname(\
+                     example_robot_data.getModelPath('ur5_robot.urdf'))))\")"
+                        .into(),
+                ));
+            };
+            for &g in grids {
+                for &e in &encodings {
+                    bench::robot::speed(share, g, e, *seconds)?;
+                }
+            }
+            Ok(())
         }
         BenchWhich::Check {
             grid,

@@ -72,6 +72,9 @@ pub struct BagInfo {
     pub bodies: Vec<BodyInfo>,
     /// VoxelGrid topics the suite refuses, and why.
     pub refused: Vec<RefusedInfo>,
+    /// Robots recorded the ROS way (description and joint states): bodies through a robot
+    /// node.
+    pub robots: Vec<super::info_robot::RobotInfo>,
     /// What reading the bag cost (damage, losses).
     pub recovery: Recovery,
     /// Problems met while reading, in order (at most 100 listed).
@@ -320,6 +323,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         topics: Vec::new(),
         bodies: Vec::new(),
         refused: Vec::new(),
+        robots: Vec::new(),
         recovery: Recovery::default(),
         errors: Vec::new(),
         errors_not_listed: 0,
@@ -358,6 +362,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
     let mut bodies: BTreeMap<String, BodyAcc> = BTreeMap::new();
     let mut refused: BTreeMap<String, RefusedInfo> = BTreeMap::new();
     let mut verdicts: HashMap<u16, Option<Result<(), String>>> = HashMap::new();
+    let mut robots = super::info_robot::RobotAcc::default();
     let note = |info: &mut BagInfo, e: String| {
         if info.errors.len() < MAX_ERRORS {
             info.errors.push(e);
@@ -390,6 +395,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         acc.bytes += m.data.len() as u64;
         acc.first = Some(acc.first.map_or(t, |f| f.min(t)));
         acc.last = Some(acc.last.map_or(t, |l| l.max(t)));
+        robots.message(&m.topic, &m.schema_name, &m.data);
         let verdict = verdicts.entry(m.channel_id).or_insert_with(|| {
             if m.schema_name != VoxelGrid::TYPE_NAME {
                 return None;
@@ -476,6 +482,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         })
         .collect();
     info.refused = refused.into_values().collect();
+    info.robots = robots.finish();
     Ok(info)
 }
 
@@ -566,6 +573,7 @@ pub fn text(i: &BagInfo) -> String {
             human_bytes(t.bytes),
         ));
     }
+    o.push_str(&super::info_robot::text(&i.robots));
     o.push_str(&format!(
         "Bodies (VoxelGrid topics the suite reads): {}\n",
         i.bodies.len()
@@ -626,7 +634,11 @@ pub fn text(i: &BagInfo) -> String {
                     "a part of it vanishes between frames in {} period(s) ({}{}; resolve: {})",
                     b.vanishing_periods,
                     spans.join(", "),
-                    if b.vanishing_periods as usize > spans.len() { ", …" } else { "" },
+                    if b.vanishing_periods as usize > spans.len() {
+                        ", …"
+                    } else {
+                        ""
+                    },
                     b.vanishing_spans.first().map_or("", |v| v.resolve.as_str())
                 ));
             }

@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod check;
 pub mod info;
+pub mod info_robot;
 pub mod live;
 pub mod mesh;
 pub mod param;
@@ -14,6 +15,7 @@ pub mod render;
 pub mod replay;
 pub mod sample;
 pub mod scene;
+pub mod scene_robot;
 
 use crate::msg::{VoxelEncoding, VoxelGrid};
 use clap::{Parser, Subcommand, ValueEnum};

@@ -21,6 +21,7 @@ use crate::node::carving::CarvingNode;
 use crate::node::checker::CheckerNode;
 use crate::node::launch::{LaunchConfig, LaunchError, NodeKind, NodeSpec, Params};
 use crate::node::mesher::MesherNode;
+use crate::node::robot::RobotNode;
 use crate::node::{Message, Node, NodeStatus, Payload};
 
 /// Options of `chronotope replay`.
@@ -107,6 +108,58 @@ pub fn default_config() -> LaunchConfig {
     .expect("the default config parses")
 }
 
+/// A robot recorded the ROS way in a bag: its description and joint-state topics.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct BagRobot {
+    /// The `std_msgs/String` topic `/robot_description`.
+    pub description: String,
+    /// The `sensor_msgs/JointState` topic (`/joint_states` if present, else the first).
+    pub joint_states: String,
+    /// Whether the bag has `/tf_static`.
+    pub tf_static: bool,
+}
+
+/// The robot a bag holds, if any: `/robot_description` as `std_msgs/String` and a
+/// `sensor_msgs/JointState` topic (from the channels the bag lists).
+pub fn bag_robot(bag: &Path) -> Option<BagRobot> {
+    use crate::msg::{JointState, RosMessage, RosString, TFMessage};
+    let channels = BagReader::open(bag).ok()?.channels();
+    let has = |topic: &str, ty: &str| {
+        channels
+            .iter()
+            .any(|c| c.topic == topic && c.schema_name == ty)
+    };
+    if !has("/robot_description", RosString::TYPE_NAME) {
+        return None;
+    }
+    let joint_states = if has("/joint_states", JointState::TYPE_NAME) {
+        "/joint_states".to_owned()
+    } else {
+        channels
+            .iter()
+            .find(|c| c.schema_name == JointState::TYPE_NAME)?
+            .topic
+            .clone()
+    };
+    Some(BagRobot {
+        description: "/robot_description".into(),
+        joint_states,
+        tf_static: has("/tf_static", TFMessage::TYPE_NAME),
+    })
+}
+
+/// The default config for a bag with a robot and VoxelGrid bodies: a robot node on the
+/// lattice and frame times of the first body (sorted by topic), then the default mesher and
+/// checker.
+pub fn default_robot_config(robot: &BagRobot, first_body: &str) -> LaunchConfig {
+    let text = format!(
+        "launch:\n- node: {{pkg: chronotope, exec: robot, param: [{{name: lattice_from, value: {}}}, {{name: joint_states_topic, value: {}}}]}}\n- node: {{pkg: chronotope, exec: mesher}}\n- node: {{pkg: chronotope, exec: checker}}\n",
+        crate::yaml::quote(first_body),
+        crate::yaml::quote(&robot.joint_states)
+    );
+    LaunchConfig::parse(&text, "default config").expect("the default robot config parses")
+}
+
 /// The suite's nodes for `config`, over a bag whose VoxelGrid topics are `bag_bodies`.
 ///
 /// # Errors
@@ -128,6 +181,16 @@ pub(crate) fn build_nodes(
         bodies.push(c.occupancy_topic().to_owned());
         nodes.push(Box::new(c));
         nodes.push(Box::new(display));
+    }
+    // A robot's bodies are bodies of the cell like the bag's.
+    for spec in config.of_kind(NodeKind::Robot) {
+        let r = RobotNode::from_spec(spec)?;
+        for t in r.body_topics() {
+            if !bodies.iter().any(|b| b == t) {
+                bodies.push(t.to_owned());
+            }
+        }
+        nodes.push(Box::new(r));
     }
     let mut meshers: Vec<MesherNode> = config
         .of_kind(NodeKind::Mesher)
@@ -304,7 +367,32 @@ pub fn replay(
         );
         bag_bodies.truncate(super::MAX_BODIES);
     }
-    let default = default_config();
+    // A robot recorded the ROS way becomes a body through a robot node: without a launch
+    // config, one runs on the first body's lattice and frame times.
+    let robot = if config.is_none() {
+        bag_robot(bag)
+    } else {
+        None
+    };
+    let default = match (&robot, bag_bodies.first()) {
+        (Some(r), Some(first)) => {
+            tracing::info!(
+                "the bag holds a robot ({}, {}): a robot node runs on the lattice of {first}; \
+                 a launch config with `exec: robot` sets its base pose, lattice and bodies",
+                r.description,
+                r.joint_states
+            );
+            default_robot_config(r, first)
+        }
+        _ => default_config(),
+    };
+    if let (Some(r), None) = (&robot, bag_bodies.first()) {
+        tracing::warn!(
+            "the bag holds a robot ({}) but no VoxelGrid body to put it on a lattice with; \
+             give a launch config with `exec: robot` and its lattice (origin, resolution, size)",
+            r.description
+        );
+    }
     let (nodes, selection) =
         match build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none()) {
             Ok(built) => built,

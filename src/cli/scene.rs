@@ -12,7 +12,9 @@ use std::path::PathBuf;
 #[derive(Debug, Clone, Args)]
 pub struct SceneArgs {
     /// `machine-tool`, `four-spheres`, `periodic` (two spheres meeting every 2 s, 20 Hz, for
-    /// as long as asked), or `carving-session` (haptic tool poses and a fixture).
+    /// as long as asked), `carving-session` (haptic tool poses and a fixture), or
+    /// `robot-cell` (a six-axis arm's description, joint states and /tf_static beside a
+    /// machine-tool table's frames).
     pub name: String,
     /// Output bag: an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path
     /// ends with `/` or is a directory.
@@ -34,6 +36,10 @@ pub struct SceneArgs {
     /// bag of another program).
     #[arg(long)]
     pub overwrite: bool,
+    /// `robot-cell` only: the arm's dip as a plan (`/arm_controller/joint_trajectory`, sent
+    /// before it starts) instead of joint states, which then stop when the plan is sent.
+    #[arg(long)]
+    pub plan: bool,
 }
 
 /// The cut-out images the carving session writes next to its bag.
@@ -60,6 +66,23 @@ pub fn run(a: &SceneArgs) -> Result<(), CliError> {
         return carving_session(&a.out);
     }
     paths.check()?;
+    if a.name == "robot-cell" {
+        if a.frames.is_some() || a.duration.is_some() {
+            return Err(CliError::Usage(
+                "robot-cell has a fixed length (4 s, the table at 10 Hz): no --frames or --duration"
+                    .into(),
+            ));
+        }
+        return super::scene_robot::robot_cell(
+            &a.out,
+            a.grid.unwrap_or(32),
+            a.encoding.into(),
+            a.plan,
+        );
+    }
+    if a.plan {
+        return Err(CliError::Usage("--plan is for the robot-cell scene".into()));
+    }
     let name: SceneName = a.name.parse()?;
     let mut opts = SceneOptions::for_scene(name).encoding(a.encoding.into());
     if let Some(g) = a.grid {

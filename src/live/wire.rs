@@ -14,8 +14,9 @@ use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{QosPolicies, QosPolicyBuilder, RepresentationIdentifier};
 
 use crate::msg::{
-    Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab,
-    PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
+    Clock, ContactEvent, DiagnosticArray, InterferenceReport, JointState, JointTrajectory, Marker,
+    MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, RosString,
+    TFMessage, TetLabels, VoxelGrid, WrenchStamped,
 };
 
 /// A serialised message: the 4-byte CDR encapsulation header, then the body.
@@ -203,6 +204,14 @@ impl TopicQos {
             }
             t if t == Clock::TYPE_NAME => Self::best_effort(1),
             t if t == DiagnosticArray::TYPE_NAME => Self::reliable(10),
+            // A robot cell's: the robot description (robot_state_publisher) and `/tf_static`
+            // (tf2's static broadcaster) are latched, keep last 1. Joint states are read best
+            // effort as robot_state_publisher reads them (sensor data QoS), which matches
+            // reliable and best-effort publishers alike; 100 deep for 1 kHz bursts. Plans go
+            // reliable and volatile, as joint_trajectory_controller reads them.
+            t if t == RosString::TYPE_NAME || t == TFMessage::TYPE_NAME => Self::latched(1),
+            t if t == JointState::TYPE_NAME => Self::best_effort(100),
+            t if t == JointTrajectory::TYPE_NAME => Self::reliable(10),
             _ => Self::reliable(10),
         }
     }

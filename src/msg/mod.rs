@@ -6,13 +6,18 @@
 
 mod cdr;
 mod definition;
+mod robot_types;
 mod schema;
 mod std_types;
 mod suite;
 mod voxel_grid;
 
-pub use definition::Definition;
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, encode_cdr_into, CdrEndianness, CdrError};
+pub use definition::Definition;
+pub use robot_types::{
+    JointState, JointTrajectory, JointTrajectoryPoint, RosString, TFMessage, Transform,
+    TransformStamped,
+};
 pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,
 };

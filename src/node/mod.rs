@@ -14,15 +14,17 @@ pub mod launch;
 pub mod markers;
 pub mod mesher;
 pub mod names;
+pub mod robot;
 pub mod routes;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use crate::msg::{
-    decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport,
-    Marker, MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
-    TetLabels, VoxelGrid, WrenchStamped,
+    decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray,
+    InterferenceReport, JointState, JointTrajectory, Marker, MarkerArray, MeshSlab, PointCloud2,
+    PoseStamped, ResolveSuggestions, RosMessage, RosString, TFMessage, TetLabels, VoxelGrid,
+    WrenchStamped,
 };
 
 macro_rules! payloads {
@@ -121,6 +123,10 @@ payloads! {
     PointCloud2(PointCloud2),
     Diagnostics(DiagnosticArray),
     Clock(Clock),
+    Text(RosString),
+    JointState(JointState),
+    JointTrajectory(JointTrajectory),
+    Transforms(TFMessage),
 }
 
 /// What a message counts against a queue's byte budget besides its arrays (its header,
@@ -165,6 +171,24 @@ impl Payload {
             Self::Suggestions(m) => m.suggestions.len() * MESSAGE_OVERHEAD_BYTES,
             Self::Diagnostics(m) => m.status.len() * MESSAGE_OVERHEAD_BYTES,
             Self::Contact(_) | Self::PoseStamped(_) | Self::WrenchStamped(_) | Self::Clock(_) => 0,
+            Self::Text(m) => m.data.len(),
+            Self::JointState(m) => {
+                (m.position.len() + m.velocity.len() + m.effort.len()) * 8
+                    + m.name.iter().map(|n| n.len() + 24).sum::<usize>()
+            }
+            Self::JointTrajectory(m) => m
+                .points
+                .iter()
+                .map(|p| {
+                    (p.positions.len()
+                        + p.velocities.len()
+                        + p.accelerations.len()
+                        + p.effort.len())
+                        * 8
+                        + 64
+                })
+                .sum(),
+            Self::Transforms(m) => m.transforms.len() * MESSAGE_OVERHEAD_BYTES,
         };
         arrays + MESSAGE_OVERHEAD_BYTES
     }

@@ -33,6 +33,7 @@ mod machine_tool;
 mod motion;
 mod periodic;
 mod raster;
+mod robot_cell;
 mod shape;
 
 use std::fmt;
@@ -51,6 +52,12 @@ pub use periodic::{
     PERIODIC_RADIUS,
 };
 pub use raster::{rasterize, Rasterizer, PERCENT_SUBSAMPLES};
+pub use robot_cell::{
+    robot_cell_lattice, robot_cell_positions, robot_cell_table, robot_cell_velocities,
+    ROBOT_CELL_BASE, ROBOT_CELL_DOMAIN_EDGE, ROBOT_CELL_DOMAIN_ORIGIN, ROBOT_CELL_DURATION_S,
+    ROBOT_CELL_FIRST_MESSAGE_JOINTS, ROBOT_CELL_FRAME_PERIOD_NS, ROBOT_CELL_JOINTS,
+    ROBOT_CELL_JOINT_PERIOD_NS, ROBOT_CELL_PLAN_SENT_U, ROBOT_CELL_PLAN_U, ROBOT_CELL_URDF,
+};
 pub use shape::{Aabb, Axis, Shape};
 
 use crate::msg::{Header, Point, Time, VoxelEncoding, VoxelGrid};
