@@ -9,8 +9,8 @@ use std::path::Path;
 use chronotope::msg::{
     encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage,
     DiagnosticArray, DiagnosticStatus, Duration, Header, KeyValue, Marker, MarkerArray, MeshFile,
-    MsgField, Point, PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage, Time,
-    UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
+    MsgField, Octomap, Point, PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage,
+    Time, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
 };
 use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;
@@ -84,6 +84,7 @@ fn std_messages() -> Vec<MessageInfo> {
         info::<MeshFile>(),
         info::<Marker>(),
         info::<MarkerArray>(),
+        info::<Octomap>(),
     ]
 }
 
@@ -687,6 +688,14 @@ fn samples(frame_id: &str) -> Vec<Sample> {
                 sample_marker("x"),
             ],
         }),
+        // Bytes above 127 are negative `int8`s: the layout is the same.
+        sample(&Octomap {
+            header: stamped(frame_id),
+            binary: true,
+            id: "ColorOcTree".into(),
+            resolution: 0.05,
+            data: vec![0x00, 0x80, 0xff, 0x7f, 0x03],
+        }),
     ]
 }
 
@@ -885,6 +894,7 @@ fn std_types_have_complete_ros2msg_schemas() {
         check::<Marker>(),
         check::<MarkerArray>(),
         check::<PointCloud2>(),
+        check::<Octomap>(),
         check::<PoseStamped>(),
         check::<WrenchStamped>(),
     ] {

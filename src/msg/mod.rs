@@ -6,12 +6,14 @@
 
 mod cdr;
 mod definition;
+mod octomap;
 mod schema;
 mod std_types;
 mod suite;
 mod voxel_grid;
 
 pub use definition::Definition;
+pub use octomap::Octomap;
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, encode_cdr_into, CdrEndianness, CdrError};
 pub use schema::{
     parse_msg_fields, ros2msg_schema, try_ros2msg_schema, MsgField, SchemaError, SCHEMA_SEPARATOR,

@@ -21,7 +21,7 @@ use std::sync::Arc;
 
 use crate::msg::{
     decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport,
-    Marker, MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
+    Marker, MarkerArray, MeshSlab, Octomap, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
     TetLabels, VoxelGrid, WrenchStamped,
 };
 
@@ -119,6 +119,7 @@ payloads! {
     PoseStamped(PoseStamped),
     WrenchStamped(WrenchStamped),
     PointCloud2(PointCloud2),
+    Octomap(Octomap),
     Diagnostics(DiagnosticArray),
     Clock(Clock),
 }
@@ -153,6 +154,7 @@ impl Payload {
                 .sum(),
             Self::Marker(m) => marker(m),
             Self::PointCloud2(m) => m.data.len(),
+            Self::Octomap(m) => m.data.len(),
             Self::Report(m) => {
                 let intervals: usize = m
                     .pairs
