@@ -10,7 +10,8 @@ use chronotope::msg::{
     encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage,
     DiagnosticArray, DiagnosticStatus, Duration, Header, KeyValue, Marker, MarkerArray, MeshFile,
     MsgField, Octomap, Point, PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage,
-    Time, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
+    TFMessage, Time, Transform, TransformStamped, UVCoordinate, Vector3, VoxelGrid, Wrench,
+    WrenchStamped,
 };
 use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;
@@ -85,6 +86,9 @@ fn std_messages() -> Vec<MessageInfo> {
         info::<Marker>(),
         info::<MarkerArray>(),
         info::<Octomap>(),
+        info::<Transform>(),
+        info::<TransformStamped>(),
+        info::<TFMessage>(),
     ]
 }
 
@@ -696,7 +700,36 @@ fn samples(frame_id: &str) -> Vec<Sample> {
             resolution: 0.05,
             data: vec![0x00, 0x80, 0xff, 0x7f, 0x03],
         }),
+        sample(&sample_transform()),
+        sample(&TransformStamped {
+            header: stamped(frame_id),
+            child_frame_id: "camera_link".into(),
+            transform: sample_transform(),
+        }),
+        sample(&TFMessage {
+            transforms: vec![
+                TransformStamped::default(),
+                TransformStamped {
+                    header: stamped(frame_id),
+                    child_frame_id: "c".into(),
+                    transform: sample_transform(),
+                },
+            ],
+        }),
     ]
+}
+
+/// A transform with a rotation about y.
+fn sample_transform() -> Transform {
+    Transform {
+        translation: Vector3::new(0.5, -1.0, 2.25),
+        rotation: Quaternion {
+            x: 0.0,
+            y: 0.6,
+            z: 0.0,
+            w: 0.8,
+        },
+    }
 }
 
 #[test]
@@ -895,6 +928,7 @@ fn std_types_have_complete_ros2msg_schemas() {
         check::<MarkerArray>(),
         check::<PointCloud2>(),
         check::<Octomap>(),
+        check::<TFMessage>(),
         check::<PoseStamped>(),
         check::<WrenchStamped>(),
     ] {

@@ -15,7 +15,8 @@ use rustdds::{QosPolicies, QosPolicyBuilder, RepresentationIdentifier};
 
 use crate::msg::{
     Clock, ContactEvent, DiagnosticArray, InterferenceReport, Marker, MarkerArray, MeshSlab,
-    PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TetLabels, VoxelGrid, WrenchStamped,
+    PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, TFMessage, TetLabels, VoxelGrid,
+    WrenchStamped,
 };
 
 /// A serialised message: the 4-byte CDR encapsulation header, then the body.
@@ -202,6 +203,8 @@ impl TopicQos {
                 Self::best_effort(16)
             }
             t if t == Clock::TYPE_NAME => Self::best_effort(1),
+            // `/tf_static` as tf2's static broadcaster offers it: a late reader gets it.
+            t if t == TFMessage::TYPE_NAME => Self::latched(1),
             t if t == DiagnosticArray::TYPE_NAME => Self::reliable(10),
             _ => Self::reliable(10),
         }

@@ -10,6 +10,7 @@ mod octomap;
 mod schema;
 mod std_types;
 mod suite;
+mod tf;
 mod voxel_grid;
 
 pub use definition::Definition;
@@ -27,6 +28,7 @@ pub use suite::{
     BodySummary, ContactEvent, InterferenceReport, MeshSlab, PairInterference, ResolveSuggestion,
     ResolveSuggestions, TetLabels,
 };
+pub use tf::{TFMessage, Transform, TransformStamped};
 pub use voxel_grid::{Header, Point, Time, VoxelEncoding, VoxelGrid};
 
 /// A ROS message type with its fully qualified name and `.msg` definition text.

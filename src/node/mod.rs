@@ -22,7 +22,7 @@ use std::sync::Arc;
 use crate::msg::{
     decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray, InterferenceReport,
     Marker, MarkerArray, MeshSlab, Octomap, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
-    TetLabels, VoxelGrid, WrenchStamped,
+    TFMessage, TetLabels, VoxelGrid, WrenchStamped,
 };
 
 macro_rules! payloads {
@@ -120,6 +120,7 @@ payloads! {
     WrenchStamped(WrenchStamped),
     PointCloud2(PointCloud2),
     Octomap(Octomap),
+    TFMessage(TFMessage),
     Diagnostics(DiagnosticArray),
     Clock(Clock),
 }
@@ -165,6 +166,7 @@ impl Payload {
                     + intervals * std::mem::size_of::<f64>()
             }
             Self::Suggestions(m) => m.suggestions.len() * MESSAGE_OVERHEAD_BYTES,
+            Self::TFMessage(m) => m.transforms.len() * MESSAGE_OVERHEAD_BYTES,
             Self::Diagnostics(m) => m.status.len() * MESSAGE_OVERHEAD_BYTES,
             Self::Contact(_) | Self::PoseStamped(_) | Self::WrenchStamped(_) | Self::Clock(_) => 0,
         };
