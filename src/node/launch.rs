@@ -6,7 +6,7 @@
 //! launch:
 //! - node:
 //!     pkg: chronotope
-//!     exec: mesher            # mesher | checker | carving | recorder
+//!     exec: mesher            # mesher | checker | carving | occupancy | recorder
 //!     name: mesher            # default: the exec name
 //!     namespace: /            # default: /
 //!     param:
@@ -132,6 +132,8 @@ pub enum NodeKind {
     Carving,
     /// Which published topics a replay writes to its output bag.
     Recorder,
+    /// A sensor's OctoMap or point cloud to occupancy frames on a lattice.
+    Occupancy,
 }
 
 impl NodeKind {
@@ -142,6 +144,7 @@ impl NodeKind {
             Self::Checker => "checker",
             Self::Carving => "carving",
             Self::Recorder => "recorder",
+            Self::Occupancy => "occupancy",
         }
     }
 }
@@ -498,11 +501,12 @@ impl LaunchConfig {
                 "checker" => NodeKind::Checker,
                 "carving" => NodeKind::Carving,
                 "recorder" => NodeKind::Recorder,
+                "occupancy" => NodeKind::Occupancy,
                 other => {
                     return Err(fmt(
                         where_,
                         format!(
-                            "exec {}: one of mesher, checker, carving, recorder",
+                            "exec {}: one of mesher, checker, carving, occupancy, recorder",
                             yaml::quote(other)
                         ),
                     ))

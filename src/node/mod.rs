@@ -14,6 +14,7 @@ pub mod launch;
 pub mod markers;
 pub mod mesher;
 pub mod names;
+pub mod occupancy;
 pub mod routes;
 
 use std::collections::BTreeMap;
@@ -227,6 +228,10 @@ pub struct NodeStatus {
     pub problems: BTreeMap<String, u64>,
     /// The first problems' texts (at most [`NodeStatus::KEPT`]).
     pub messages: Vec<String>,
+    /// What a node counts besides problems, by kind (e.g. an occupancy node's
+    /// `points_nonfinite`); left out of the JSON when empty.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub counts: BTreeMap<String, u64>,
 }
 
 impl NodeStatus {
