@@ -298,11 +298,14 @@ fn becomes(
     let node = format!("an occupancy node (exec: occupancy, input_topic: {topic})");
     let mut s = if type_name == crate::msg::Octomap::TYPE_NAME {
         format!(
-            "{node} fills every voxel an occupied leaf overlaps (occupied at OctoMap's 0.5, or              occupancy_threshold); space no leaf covers is unknown: free with encoding bits              (occupied with unknown_occupied), 255 with encoding percent"
+            "{node} fills every voxel an occupied leaf overlaps (occupied at OctoMap's 0.5, or \
+             occupancy_threshold); space no leaf covers is unknown: free with encoding bits \
+             (occupied with unknown_occupied), 255 with encoding percent"
         )
     } else {
         format!(
-            "{node} marks the voxel of each finite point: what the sensor sees of a surface, a              shell, not a solid (fill: columns makes solids; docs/sensors.md)"
+            "{node} marks the voxel of each finite point: what the sensor sees of a surface, a \
+             shell, not a solid (fill: columns makes solids; docs/sensors.md)"
         )
     };
     if frame_ids.iter().any(|f| !f.is_empty() && f != "world") {
