@@ -12,5 +12,6 @@ for enc in bits percent; do
   $bin scene four-spheres --grid 32 --frames 17 --encoding $enc --out bags/four-spheres-32-$enc.mcap
 done
 $bin scene carving-session --out bags/carving-session.mcap
+$bin scene person-cell --grid 32 --frames 16 --out bags/person-cell-32.mcap
 # The golden replay reports and output-bag digests follow the bags:
 #   CHRONOTOPE_BLESS=1 cargo test --test golden

@@ -30,6 +30,8 @@ fn config_for(bag: &Path) -> PathBuf {
         "four_spheres"
     } else if stem.starts_with("carving-session") {
         "carving_session"
+    } else if stem.starts_with("person-cell") {
+        "person_cell"
     } else {
         panic!("{stem}: which launch config replays it? add it to config_for")
     };

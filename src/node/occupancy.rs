@@ -96,11 +96,109 @@ enum Raster {
     Octomap(OctomapRasterizer),
     Cloud {
         raster: CloudRasterizer,
+        /// A second rasteriser and frame for the second half of a large cloud.
+        half: Box<(CloudRasterizer, VoxelFrame)>,
         /// The options without the transform (set per frame from `transform` or `/tf_static`).
         options: CloudOptions,
-        /// The transform the rasteriser was built with.
+        /// The transform the rasterisers were built with.
         transform: Option<RigidTransform>,
+        /// Large clouds may be split (no `min_points`).
+        split: bool,
     },
+}
+
+/// A cloud with at least this many points is rasterised in two halves on rayon's pool (the
+/// halves' frames OR-ed), when its options allow it: without `min_points` (a count per voxel
+/// does not split). Marking, dilation and column fills distribute over a union, so the frame
+/// is the one a single pass gives.
+pub const SPLIT_POINTS: u64 = 1 << 18;
+
+/// Rasterises `cloud`, in two halves on rayon's pool when it is large (see [`SPLIT_POINTS`]);
+/// returns `VoxelGrid.data` and the statistics.
+fn rasterise_cloud(
+    split: bool,
+    raster: &mut CloudRasterizer,
+    half: &mut (CloudRasterizer, VoxelFrame),
+    cloud: &PointCloud2Ref<'_>,
+    lattice: &Lattice,
+    encoding: Encoding,
+    out: &mut VoxelFrame,
+) -> Result<(Vec<u8>, chronotope_occupancy::CloudStats), CloudError> {
+    let points = u64::from(cloud.width) * u64::from(cloud.height);
+    let (ps, rs) = (cloud.point_step as usize, cloud.row_step as usize);
+    let whole = cloud.height as usize * rs;
+    // The halves refuse what the whole would, and nothing else, only when the sizes hold:
+    // anything doubtful takes the single pass, which names the fault as always.
+    let splittable = split
+        && points >= SPLIT_POINTS
+        && points <= chronotope_occupancy::Limits::default().max_points
+        && rayon::current_num_threads() > 1
+        && ps > 0
+        && rs >= cloud.width as usize * ps
+        && cloud.data.len() >= whole;
+    if !splittable {
+        let s = raster.rasterize(cloud, lattice, encoding, out)?;
+        return Ok((out.data().to_vec(), s));
+    }
+    let (a, b) = if cloud.height >= 2 {
+        let h1 = cloud.height / 2;
+        let cut = h1 as usize * rs;
+        (
+            PointCloud2Ref {
+                height: h1,
+                data: &cloud.data[..cut],
+                ..*cloud
+            },
+            PointCloud2Ref {
+                height: cloud.height - h1,
+                data: &cloud.data[cut..],
+                ..*cloud
+            },
+        )
+    } else {
+        let w1 = cloud.width / 2;
+        let cut = w1 as usize * ps;
+        (
+            PointCloud2Ref {
+                width: w1,
+                row_step: cut as u32,
+                data: &cloud.data[..cut],
+                ..*cloud
+            },
+            PointCloud2Ref {
+                width: cloud.width - w1,
+                row_step: (rs - cut) as u32,
+                data: &cloud.data[cut..],
+                ..*cloud
+            },
+        )
+    };
+    let (half_raster, half_out) = half;
+    let (ra, rb) = rayon::join(
+        || raster.rasterize(&a, lattice, encoding, out),
+        || half_raster.rasterize(&b, lattice, encoding, half_out),
+    );
+    let (sa, sb) = (ra?, rb?);
+    let mut data = out.data().to_vec();
+    match encoding {
+        Encoding::Bits => data
+            .iter_mut()
+            .zip(half_out.data())
+            .for_each(|(x, y)| *x |= y),
+        Encoding::Percent => data
+            .iter_mut()
+            .zip(half_out.data())
+            .for_each(|(x, y)| *x = (*x).max(*y)),
+    }
+    let stats = chronotope_occupancy::CloudStats {
+        points: sa.points + sb.points,
+        nonfinite: sa.nonfinite + sb.nonfinite,
+        outside: sa.outside + sb.outside,
+        margin_points: sa.margin_points + sb.margin_points,
+        trailing_bytes: sb.trailing_bytes,
+        ..Default::default()
+    };
+    Ok((data, stats))
 }
 
 /// The occupancy node.
@@ -386,8 +484,10 @@ impl OccupancyNode {
                     .fill(fill);
                 Raster::Cloud {
                     raster: CloudRasterizer::new(options),
+                    half: Box::new((CloudRasterizer::new(options), VoxelFrame::new())),
                     options,
                     transform: None,
+                    split: min_points == 1,
                 }
             }
         };
@@ -547,7 +647,8 @@ impl OccupancyNode {
             }
         };
         let encoding = self.encoding;
-        let result: Result<(), (&'static str, String)> = match (&mut self.raster, &msg.payload) {
+        let result: Result<Vec<u8>, (&'static str, String)> = match (&mut self.raster, &msg.payload)
+        {
             (Raster::Octomap(r), Payload::Octomap(m)) => {
                 // An octree moves by a translation only: the lattice moves the other way.
                 let lattice = match placement {
@@ -593,7 +694,7 @@ impl OccupancyNode {
                                     .entry("octree_trailing_bytes".into())
                                     .or_default() += trailing;
                             }
-                            Ok(())
+                            Ok(self.out.data().to_vec())
                         }
                         Err(e) => Err((octomap_kind(&e), e.to_string())),
                     }
@@ -602,13 +703,16 @@ impl OccupancyNode {
             (
                 Raster::Cloud {
                     raster,
+                    half,
                     options,
                     transform,
+                    split,
                 },
                 Payload::PointCloud2(c),
             ) => {
                 if *transform != placement {
                     *raster = CloudRasterizer::new(options.transform(placement));
+                    half.0 = CloudRasterizer::new(options.transform(placement));
                     *transform = placement;
                 }
                 let fields: Vec<CloudField<'_>> = c
@@ -631,8 +735,16 @@ impl OccupancyNode {
                     data: &c.data,
                     is_dense: c.is_dense,
                 };
-                match raster.rasterize(&cloud, &cell.lattice, encoding, &mut self.out) {
-                    Ok(s) => {
+                match rasterise_cloud(
+                    *split,
+                    raster,
+                    half,
+                    &cloud,
+                    &cell.lattice,
+                    encoding,
+                    &mut self.out,
+                ) {
+                    Ok((data, s)) => {
                         for (what, n) in [
                             ("points", s.points),
                             ("points_nonfinite", s.nonfinite),
@@ -644,21 +756,24 @@ impl OccupancyNode {
                                 *self.status.counts.entry(what.into()).or_default() += n;
                             }
                         }
-                        Ok(())
+                        Ok(data)
                     }
                     Err(e) => Err((cloud_kind(&e), e.to_string())),
                 }
             }
             _ => return None,
         };
-        if let Err((kind, why)) = result {
-            self.status.problem(
-                &self.fqn,
-                kind,
-                format!("{at} refused: {why}; nothing published for it"),
-            );
-            return None;
-        }
+        let data = match result {
+            Ok(data) => data,
+            Err((kind, why)) => {
+                self.status.problem(
+                    &self.fqn,
+                    kind,
+                    format!("{at} refused: {why}; nothing published for it"),
+                );
+                return None;
+            }
+        };
         self.last_input_ns = Some(stamp);
         let l = &cell.lattice;
         let o = l.origin();
@@ -678,7 +793,7 @@ impl OccupancyNode {
             size_y: sy,
             size_z: sz,
             encoding: encoding.as_u8(),
-            data: self.out.data().to_vec(),
+            data,
         };
         self.count("frames_rasterised", 1);
         Some(Held {
@@ -1385,6 +1500,88 @@ mod tests {
             );
         }
         assert_eq!(n.status.problems["octomap_resolution"], 2);
+    }
+
+    /// A cloud large enough to be split gives the frame one pass gives, organised or not,
+    /// with a margin and a fill, in both encodings.
+    #[test]
+    fn a_large_cloud_split_in_halves_gives_the_single_pass_frame() {
+        let n = SPLIT_POINTS as usize + 1001;
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f32 / (1u64 << 53) as f32
+        };
+        let points: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                if i % 97 == 0 {
+                    [f32::NAN, 0.0, 0.0]
+                } else {
+                    [next() * 4.4 - 0.2, next() * 4.4 - 0.2, next() * 3.0]
+                }
+            })
+            .collect();
+        for (height, encoding) in [(1u32, "bits"), (7, "percent"), (2, "bits")] {
+            let params = format!(
+                "{CLOUD}, {{name: origin, value: [0.0, 0.0, 0.0]}}, {{name: resolution, value: 0.1}}, \
+                 {{name: size, value: [40, 40, 24]}}, {{name: dilate_m, value: 0.1}}, \
+                 {{name: fill, value: columns}}, {{name: encoding, value: {encoding}}}"
+            );
+            let mut node_ = node(&params).unwrap();
+            let mut m = cloud(1, "world", &points[..n - n % height as usize]);
+            if let Payload::PointCloud2(c) = &mut m.payload {
+                let c = Arc::make_mut(c);
+                c.height = height;
+                c.width /= height;
+                c.row_step = c.width * c.point_step;
+            }
+            let mut out = Vec::new();
+            node_.on_message(&m, &mut out);
+            let got = grids(&out);
+            assert_eq!(got.len(), 1, "{:?}", node_.status.problems);
+            // One pass, with the library alone.
+            let Payload::PointCloud2(c) = &m.payload else {
+                unreachable!()
+            };
+            let fields: Vec<CloudField<'_>> = c
+                .fields
+                .iter()
+                .map(|f| CloudField {
+                    name: &f.name,
+                    offset: f.offset,
+                    datatype: f.datatype,
+                    count: f.count,
+                })
+                .collect();
+            let whole = PointCloud2Ref {
+                height: c.height,
+                width: c.width,
+                fields: &fields,
+                is_bigendian: false,
+                point_step: c.point_step,
+                row_step: c.row_step,
+                data: &c.data,
+                is_dense: false,
+            };
+            let mut raster = CloudRasterizer::new(
+                CloudOptions::new()
+                    .dilate_m(0.1)
+                    .fill(Fill::down_to_floor()),
+            );
+            let mut frame = VoxelFrame::new();
+            let lattice = Lattice::new([0.0; 3], 0.1, [40, 40, 24]).unwrap();
+            let enc = if encoding == "bits" {
+                Encoding::Bits
+            } else {
+                Encoding::Percent
+            };
+            let stats = raster.rasterize(&whole, &lattice, enc, &mut frame).unwrap();
+            assert_eq!(got[0].data, frame.data(), "height {height}, {encoding}");
+            assert_eq!(node_.status.counts["points_nonfinite"], stats.nonfinite);
+            assert_eq!(node_.status.counts["points_outside"], stats.outside);
+        }
     }
 
     #[test]
