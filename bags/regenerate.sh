@@ -15,5 +15,6 @@ $bin scene carving-session --out bags/carving-session.mcap
 # A six-axis arm recorded the ROS way (robot description, joint states, /tf_static) beside a
 # machine-tool table's frames: replayed with launch_configs/robot_cell.yaml.
 $bin scene robot-cell --grid 32 --out bags/robot-cell-32.mcap
+$bin scene person-cell --grid 32 --frames 16 --out bags/person-cell-32.mcap
 # The golden replay reports and output-bag digests follow the bags:
 #   CHRONOTOPE_BLESS=1 cargo test --test golden

@@ -627,6 +627,83 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
     );
 }
 
+/// The person-cell bag's point cloud, OctoMap and static transform, played with the cell's
+/// frames by the Cyclone peer into `chronotope launch launch_configs/person_cell.yaml`: the
+/// occupancy nodes read them from a DDS implementation nobody here wrote, and the checker's
+/// final report over DDS is the offline replay's, field by field.
+#[test]
+fn occupancy_nodes_read_a_cyclone_peers_cloud_and_octomap_as_the_replay_does() {
+    if !pyenv::cyclone_or_skip(
+        "occupancy_nodes_read_a_cyclone_peers_cloud_and_octomap_as_the_replay_does",
+    ) {
+        return;
+    }
+    let root = env!("CARGO_MANIFEST_DIR");
+    let exe = env!("CARGO_BIN_EXE_chronotope");
+    let bag = Path::new(root).join("bags/person-cell-32.mcap");
+    let dir = tempfile::tempdir().unwrap();
+    // A longer idle timeout, as above: a loaded machine must not split a stream.
+    let text = std::fs::read_to_string(Path::new(root).join("launch_configs/person_cell.yaml"))
+        .unwrap();
+    let bodies = "/camera/occupancy, /map/occupancy]}\n";
+    assert!(text.contains(bodies), "person_cell.yaml lists the mesher's bodies");
+    let launch = dir.path().join("person_cell.yaml");
+    std::fs::write(
+        &launch,
+        text.replace(
+            bodies,
+            &format!("{bodies}    - {{name: idle_timeout_s, value: 10.0}}\n"),
+        ),
+    )
+    .unwrap();
+    let offline_bag = dir.path().join("offline.mcap");
+    let out = Command::new(exe)
+        .arg("replay")
+        .arg(&bag)
+        .arg("--launch")
+        .arg(&launch)
+        .arg("--out")
+        .arg(&offline_bag)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "chronotope replay failed\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let off = offline(&offline_bag);
+    let domain = (200 + std::process::id() % 30).to_string();
+    let mut launch_child = launch_on(&launch, &domain, "60");
+    let json = dir.path().join("cyclone.json");
+    let mut peer = peer_command(&bag, &json, &domain);
+    peer.args(["--expect-labels", &off.labels.len().to_string()])
+        .stdout(Stdio::inherit())
+        .stderr(Stdio::inherit());
+    let mut peer = KillOnDrop(Some(peer.spawn().expect("the test Python runs")), "cyclone_peer.py");
+    let deadline = Instant::now() + Duration::from_secs(90);
+    let status = loop {
+        if let Some(st) = peer.0.as_mut().unwrap().try_wait().unwrap() {
+            break st;
+        }
+        assert!(Instant::now() < deadline, "cyclone_peer.py still running after 90 s");
+        if let Some(st) = launch_child.0.as_mut().unwrap().try_wait().unwrap() {
+            panic!("chronotope launch exited early ({st}) while the peer was running");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    };
+    peer.0 = None;
+    launch_child.stop();
+    assert!(status.success(), "cyclone_peer.py failed ({status}); see its message above");
+    let live: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    compare_report(&live["report"], off.reports.last().unwrap());
+    let pairs = live["report"]["pairs"].as_array().unwrap();
+    assert!(
+        pairs.iter().any(|p| s(&p["body_a"]) == "/camera/occupancy"
+            || s(&p["body_b"]) == "/camera/occupancy"),
+        "the camera's person is checked live"
+    );
+}
+
 /// The periodic scene (24³, 20 s at 20 Hz, a contact every 2 s) streamed by the Cyclone
 /// peer with its recorded timing into `chronotope launch`: every contact begins on
 /// `/checker/contacts` while the frames are still being played, and the final report holds

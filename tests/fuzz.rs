@@ -30,7 +30,8 @@ use chronotope::node::carving::CarvingNode;
 use chronotope::node::checker::CheckerNode;
 use chronotope::node::launch::{LaunchConfig, NodeKind};
 use chronotope::node::mesher::MesherNode;
-use chronotope::node::Payload;
+use chronotope::node::occupancy::OccupancyNode;
+use chronotope::node::{Message, Node, Payload};
 use chronotope::sampler::scene_file::SceneFile;
 use proptest::prelude::*;
 use proptest::test_runner::Config;
@@ -105,9 +106,62 @@ fn decode_grid(grid: &VoxelGrid) -> Option<String> {
 fn decode_message(type_name: &str, bytes: &[u8]) -> Vec<String> {
     match Payload::decode(type_name, bytes) {
         Ok(Payload::VoxelGrid(grid)) => decode_grid(&grid).into_iter().collect(),
+        Ok(p @ (Payload::Octomap(_) | Payload::PointCloud2(_))) => rasterise(p),
         Ok(_) => Vec::new(),
         Err(e) => vec![e.to_string()],
     }
+}
+
+/// Rasterises an OctoMap or a cloud with an occupancy node, as `replay` and `launch` do, on
+/// a 24³ lattice of 0.1 m around the origin in the message's own frame, in both encodings
+/// (an octree also with unknown space occupied); returns the node's problem texts.
+fn rasterise(payload: Payload) -> Vec<String> {
+    let (ty, extra) = match &payload {
+        Payload::Octomap(_) => (
+            "octomap_msgs/msg/Octomap",
+            ["{name: unknown_occupied, value: true}", ""],
+        ),
+        _ => (
+            "sensor_msgs/msg/PointCloud2",
+            ["{name: dilate_m, value: 0.15}, {name: min_points, value: 2}, {name: fill, value: columns}", ""],
+        ),
+    };
+    let mut texts = Vec::new();
+    for (encoding, extra) in [
+        ("bits", extra[0]),
+        ("percent", extra[1]),
+        ("bits", extra[1]),
+    ] {
+        let params = [
+            "{name: input_topic, value: /in}".to_owned(),
+            format!("{{name: input_type, value: {ty}}}"),
+            "{name: origin, value: [-1.2, -1.2, -1.2]}".into(),
+            "{name: resolution, value: 0.1}".into(),
+            "{name: size, value: [24, 24, 24]}".into(),
+            format!("{{name: encoding, value: {encoding}}}"),
+            extra.to_owned(),
+        ];
+        let text = format!(
+            "launch:\n- node: {{pkg: chronotope, exec: occupancy, param: [{}]}}\n",
+            params
+                .iter()
+                .filter(|p| !p.is_empty())
+                .cloned()
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        let config = LaunchConfig::parse(&text, "fuzz").expect("the fuzz config");
+        let mut node = OccupancyNode::from_spec(&config.nodes[0]).expect("the fuzz node");
+        let mut out = Vec::new();
+        node.on_message(&Message::new("/in", 0, payload.clone()), &mut out);
+        for m in &out {
+            if let Payload::VoxelGrid(g) = &m.payload {
+                texts.extend(decode_grid(g));
+            }
+        }
+        texts.extend(node.status().messages.iter().cloned());
+    }
+    texts
 }
 
 /// Parses a launch config and builds each of its nodes from its parameters, as `replay` and
@@ -127,6 +181,12 @@ fn parse_launch(text: &str) -> Vec<String> {
     let mut errors = Vec::new();
     for spec in config.of_kind(NodeKind::Carving) {
         match CarvingNode::from_spec(spec) {
+            Ok(node) => bodies.push(node.occupancy_topic().to_owned()),
+            Err(e) => errors.push(e.to_string()),
+        }
+    }
+    for spec in config.of_kind(NodeKind::Occupancy) {
+        match OccupancyNode::from_spec(spec) {
             Ok(node) => bodies.push(node.occupancy_topic().to_owned()),
             Err(e) => errors.push(e.to_string()),
         }
@@ -705,6 +765,62 @@ proptest! {
         grid.origin.z = origin[2];
         let bytes = chronotope::msg::encode_cdr(&grid).unwrap();
         check("VoxelGrid", || decode_message(<VoxelGrid as RosMessage>::TYPE_NAME, &bytes))?;
+    }
+
+    /// A real octree or cloud whose map bytes, layout fields and flags are damaged after
+    /// decoding (what survives CDR: a truncated or inconsistent tree, a child count past the
+    /// data, a wrong tree id or resolution, fields or steps that do not cover a point):
+    /// rasterised without panic, in time, every refusal a sentence.
+    #[test]
+    fn occupancy_node_survives_damaged_octrees_and_clouds(
+        m in 0..1000usize,
+        ms in mutations(),
+        flip in any::<bool>(),
+        id in prop_oneof![Just(None), Just(Some("ColorOcTree")), Just(Some("OcTreeStamped")),
+                          Just(Some("CountingOcTree")), Just(Some(""))],
+        resolution in prop_oneof![Just(None), Just(Some(0.0)), Just(Some(f64::NAN)),
+                                  Just(Some(1e-9)), Just(Some(0.013)), Just(Some(5.0))],
+        steps in prop::array::uniform4(prop_oneof![Just(None), Just(Some(0u32)), Just(Some(1)),
+                                                   Just(Some(7)), Just(Some(u32::MAX)),
+                                                   (0..64u32).prop_map(Some)]),
+    ) {
+        let seeds: Vec<_> = messages()
+            .iter()
+            .filter_map(|(t, b)| match Payload::decode(t, b) {
+                Ok(p @ (Payload::Octomap(_) | Payload::PointCloud2(_))) => Some(p),
+                _ => None,
+            })
+            .collect();
+        prop_assume!(!seeds.is_empty());
+        let payload = match seeds[m % seeds.len()].clone() {
+            Payload::Octomap(o) => {
+                let mut o = (*o).clone();
+                o.data = mutate(o.data, &ms);
+                o.binary ^= flip;
+                if let Some(id) = id {
+                    o.id = id.into();
+                }
+                if let Some(r) = resolution {
+                    o.resolution = r;
+                }
+                Payload::Octomap(std::sync::Arc::new(o))
+            }
+            Payload::PointCloud2(c) => {
+                let mut c = (*c).clone();
+                c.data = mutate(c.data, &ms);
+                c.is_bigendian ^= flip;
+                let [a, b, d, e] = steps;
+                c.point_step = a.unwrap_or(c.point_step);
+                c.row_step = b.unwrap_or(c.row_step);
+                c.width = d.map_or(c.width, |w| w.saturating_mul(c.width.max(1)));
+                if let (Some(off), Some(f)) = (e, c.fields.get_mut(m % 4)) {
+                    f.offset = off;
+                }
+                Payload::PointCloud2(std::sync::Arc::new(c))
+            }
+            _ => unreachable!(),
+        };
+        check("occupancy", || rasterise(payload))?;
     }
 
     /// Bytes that are not a message at all, as every type.

@@ -32,6 +32,8 @@ fn config_for(bag: &Path) -> PathBuf {
         "carving_session"
     } else if stem.starts_with("robot-cell") {
         "robot_cell"
+    } else if stem.starts_with("person-cell") {
+        "person_cell"
     } else {
         panic!("{stem}: which launch config replays it? add it to config_for")
     };

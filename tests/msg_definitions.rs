@@ -9,9 +9,9 @@ use std::path::Path;
 use chronotope::msg::{
     encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage,
     DiagnosticArray, DiagnosticStatus, Duration, Header, JointState, JointTrajectory,
-    JointTrajectoryPoint, KeyValue, Marker, MarkerArray, MeshFile, MsgField, Point, PointCloud2,
-    PointField, Pose, PoseStamped, Quaternion, RosMessage, RosString, TFMessage, Time, Transform,
-    TransformStamped, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
+    JointTrajectoryPoint, KeyValue, Marker, MarkerArray, MeshFile, MsgField, Octomap, Point,
+    PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage, RosString, TFMessage, Time,
+    Transform, TransformStamped, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
 };
 use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;
@@ -92,6 +92,7 @@ fn std_messages() -> Vec<MessageInfo> {
         info::<JointState>(),
         info::<JointTrajectoryPoint>(),
         info::<JointTrajectory>(),
+        info::<Octomap>(),
     ]
 }
 
@@ -695,6 +696,14 @@ fn samples(frame_id: &str) -> Vec<Sample> {
                 sample_marker("x"),
             ],
         }),
+        // Bytes above 127 are negative `int8`s: the layout is the same.
+        sample(&Octomap {
+            header: stamped(frame_id),
+            binary: true,
+            id: "ColorOcTree".into(),
+            resolution: 0.05,
+            data: vec![0x00, 0x80, 0xff, 0x7f, 0x03],
+        }),
         sample(&RosString {
             data: "<robot name=\"r\"/>".into(),
         }),
@@ -948,6 +957,8 @@ fn std_types_have_complete_ros2msg_schemas() {
         check::<Marker>(),
         check::<MarkerArray>(),
         check::<PointCloud2>(),
+        check::<Octomap>(),
+        check::<TFMessage>(),
         check::<PoseStamped>(),
         check::<WrenchStamped>(),
     ] {

@@ -70,6 +70,8 @@ pub struct BagInfo {
     pub topics: Vec<TopicInfo>,
     /// The VoxelGrid topics the suite reads as bodies.
     pub bodies: Vec<BodyInfo>,
+    /// OctoMap and PointCloud2 topics: bodies once an occupancy node rasterises them.
+    pub sensed_bodies: Vec<SensedInfo>,
     /// VoxelGrid topics the suite refuses, and why.
     pub refused: Vec<RefusedInfo>,
     /// Robots recorded the ROS way (description and joint states): bodies through a robot
@@ -162,6 +164,167 @@ pub struct VanishingSpan {
 /// Voxels of a frame above which `info` does not look for vanishing parts (the frames are
 /// decoded for it; a larger body is left to `check`).
 const VANISH_MAX_VOXELS: u64 = 1 << 24;
+
+/// An OctoMap or PointCloud2 topic: a body once an occupancy node rasterises it.
+#[derive(Debug, Clone, Serialize)]
+pub struct SensedInfo {
+    /// The topic.
+    pub topic: String,
+    /// `octomap_msgs/msg/Octomap` or `sensor_msgs/msg/PointCloud2`.
+    #[serde(rename = "type")]
+    pub type_name: String,
+    /// Messages that decode.
+    pub messages: u64,
+    /// Messages that do not decode.
+    pub undecodable: u64,
+    /// Distinct layouts seen: for a cloud `height x width, fields, point_step, byte order`;
+    /// for an octree `id, binary or full, resolution`.
+    pub layouts: Vec<String>,
+    /// Distinct `header.frame_id`s seen.
+    pub frame_ids: Vec<String>,
+    /// First and last stamp, seconds since the epoch.
+    pub stamps_s: Option<[f64; 2]>,
+    /// Mean rate from the stamps, Hz (`None` below two messages).
+    pub rate_hz: Option<f64>,
+    /// Points in all (clouds), and those with a NaN or infinite coordinate.
+    pub points: u64,
+    /// Points with a NaN or infinite x, y or z (clouds whose layout reads).
+    pub points_nonfinite: u64,
+    /// How it becomes occupancy, in words.
+    pub becomes: String,
+}
+
+#[derive(Default)]
+struct SensedAcc {
+    type_name: String,
+    messages: u64,
+    undecodable: u64,
+    layouts: Vec<String>,
+    frame_ids: Vec<String>,
+    first: Option<i64>,
+    last: Option<i64>,
+    points: u64,
+    nonfinite: u64,
+}
+
+impl SensedAcc {
+    fn stamp(&mut self, h: &crate::msg::Header) {
+        let t = h.stamp.as_nanos();
+        self.first = Some(self.first.map_or(t, |f| f.min(t)));
+        self.last = Some(self.last.map_or(t, |l| l.max(t)));
+        push_distinct(&mut self.frame_ids, h.frame_id.clone());
+        self.messages += 1;
+    }
+
+    fn cloud(&mut self, c: &crate::msg::PointCloud2) {
+        self.stamp(&c.header);
+        let fields: Vec<String> = c
+            .fields
+            .iter()
+            .take(8)
+            .map(|f| format!("{}@{}", f.name, f.offset))
+            .collect();
+        push_distinct(
+            &mut self.layouts,
+            format!(
+                "{}x{} points, fields {}, point_step {}, {}",
+                c.height,
+                c.width,
+                fields.join(" "),
+                c.point_step,
+                if c.is_bigendian {
+                    "big-endian"
+                } else {
+                    "little-endian"
+                }
+            ),
+        );
+        self.points += u64::from(c.height) * u64::from(c.width);
+        // NaN points, counted as the occupancy node counts them (on a one-voxel lattice).
+        let fields: Vec<chronotope_occupancy::PointField<'_>> = c
+            .fields
+            .iter()
+            .map(|f| chronotope_occupancy::PointField {
+                name: &f.name,
+                offset: f.offset,
+                datatype: f.datatype,
+                count: f.count,
+            })
+            .collect();
+        let cloud = chronotope_occupancy::PointCloud2Ref {
+            height: c.height,
+            width: c.width,
+            fields: &fields,
+            is_bigendian: c.is_bigendian,
+            point_step: c.point_step,
+            row_step: c.row_step,
+            data: &c.data,
+            is_dense: c.is_dense,
+        };
+        let Ok(lattice) = chronotope_occupancy::Lattice::new([0.0; 3], 1.0, [1, 1, 1]) else {
+            return;
+        };
+        let mut raster =
+            chronotope_occupancy::CloudRasterizer::new(chronotope_occupancy::CloudOptions::new());
+        let mut frame = chronotope_occupancy::VoxelFrame::new();
+        if let Ok(st) = raster.rasterize(
+            &cloud,
+            &lattice,
+            chronotope_occupancy::Encoding::Bits,
+            &mut frame,
+        ) {
+            self.nonfinite += st.nonfinite;
+        }
+    }
+
+    fn octomap(&mut self, m: &crate::msg::Octomap) {
+        self.stamp(&m.header);
+        push_distinct(
+            &mut self.layouts,
+            format!(
+                "{} {}, resolution {} m",
+                m.id,
+                if m.binary { "binary" } else { "full" },
+                m.resolution
+            ),
+        );
+    }
+}
+
+/// What an occupancy node does with a sensor topic, in words.
+fn becomes(
+    type_name: &str,
+    topic: &str,
+    frame_ids: &[String],
+    first_body: Option<&String>,
+) -> String {
+    let node = format!("an occupancy node (exec: occupancy, input_topic: {topic})");
+    let mut s = if type_name == crate::msg::Octomap::TYPE_NAME {
+        format!(
+            "{node} fills every voxel an occupied leaf overlaps (occupied at OctoMap's 0.5, or \
+             occupancy_threshold); space no leaf covers is unknown: free with encoding bits \
+             (occupied with unknown_occupied), 255 with encoding percent"
+        )
+    } else {
+        format!(
+            "{node} marks the voxel of each finite point: what the sensor sees of a surface, a \
+             shell, not a solid (fill: columns makes solids; docs/sensors.md)"
+        )
+    };
+    if frame_ids.iter().any(|f| !f.is_empty() && f != "world") {
+        s.push_str(&format!(
+            "; frame {}: placed in the lattice's frame by /tf_static or `transform`",
+            frame_ids.join(", ")
+        ));
+    }
+    match first_body {
+        Some(b) => s.push_str(&format!(
+            "; replayed without --launch, on the lattice and frame times of {b}"
+        )),
+        None => s.push_str("; give it a lattice (origin, resolution, size) in a launch config"),
+    }
+    s
+}
 
 /// A topic refused.
 #[derive(Debug, Clone, Serialize)]
@@ -322,6 +485,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         metadata_messages: None,
         topics: Vec::new(),
         bodies: Vec::new(),
+        sensed_bodies: Vec::new(),
         refused: Vec::new(),
         robots: Vec::new(),
         recovery: Recovery::default(),
@@ -361,6 +525,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
     let mut topics: BTreeMap<String, TopicAcc> = BTreeMap::new();
     let mut bodies: BTreeMap<String, BodyAcc> = BTreeMap::new();
     let mut refused: BTreeMap<String, RefusedInfo> = BTreeMap::new();
+    let mut sensed: BTreeMap<String, SensedAcc> = BTreeMap::new();
     let mut verdicts: HashMap<u16, Option<Result<(), String>>> = HashMap::new();
     let mut robots = super::info_robot::RobotAcc::default();
     let note = |info: &mut BagInfo, e: String| {
@@ -396,6 +561,20 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         acc.first = Some(acc.first.map_or(t, |f| f.min(t)));
         acc.last = Some(acc.last.map_or(t, |l| l.max(t)));
         robots.message(&m.topic, &m.schema_name, &m.data);
+        if m.schema_name == crate::msg::Octomap::TYPE_NAME
+            || m.schema_name == crate::msg::PointCloud2::TYPE_NAME
+        {
+            let acc = sensed.entry(m.topic.clone()).or_default();
+            acc.type_name = m.schema_name.clone();
+            let ok = if m.schema_name == crate::msg::Octomap::TYPE_NAME {
+                decode_cdr::<crate::msg::Octomap>(&m.data).map(|o| acc.octomap(&o))
+            } else {
+                decode_cdr::<crate::msg::PointCloud2>(&m.data).map(|c| acc.cloud(&c))
+            };
+            if ok.is_err() {
+                acc.undecodable += 1;
+            }
+        }
         let verdict = verdicts.entry(m.channel_id).or_insert_with(|| {
             if m.schema_name != VoxelGrid::TYPE_NAME {
                 return None;
@@ -483,6 +662,31 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         .collect();
     info.refused = refused.into_values().collect();
     info.robots = robots.finish();
+    let first_body = info.bodies.iter().map(|b| &b.topic).min().cloned();
+    info.sensed_bodies = sensed
+        .into_iter()
+        .map(|(topic, a)| {
+            let s = |ns: i64| ns as f64 * 1e-9;
+            SensedInfo {
+                becomes: becomes(&a.type_name, &topic, &a.frame_ids, first_body.as_ref()),
+                topic,
+                type_name: a.type_name,
+                messages: a.messages,
+                undecodable: a.undecodable,
+                layouts: a.layouts,
+                frame_ids: a.frame_ids,
+                stamps_s: a.first.zip(a.last).map(|(f, l)| [s(f), s(l)]),
+                rate_hz: match (a.first, a.last) {
+                    (Some(f), Some(l)) if a.messages > 1 && l > f => {
+                        Some((a.messages - 1) as f64 / s(l - f))
+                    }
+                    _ => None,
+                },
+                points: a.points,
+                points_nonfinite: a.nonfinite,
+            }
+        })
+        .collect();
     Ok(info)
 }
 
@@ -650,6 +854,43 @@ pub fn text(i: &BagInfo) -> String {
                 why.join("; ")
             ));
         }
+    }
+    o.push_str(&format!(
+        "Sensed bodies (OctoMap and PointCloud2 topics an occupancy node turns into bodies): {}\n",
+        i.sensed_bodies.len()
+    ));
+    for b in &i.sensed_bodies {
+        o.push_str(&format!("  {} ({})\n", b.topic, b.type_name));
+        let mut line = format!(
+            "    messages {} ({} undecodable); {}",
+            b.messages,
+            b.undecodable,
+            b.layouts.join("; ")
+        );
+        if b.points > 0 {
+            line.push_str(&format!(
+                "; {} points, {} not finite",
+                b.points, b.points_nonfinite
+            ));
+        }
+        line.push_str(&format!(
+            "; frame_id {}",
+            b.frame_ids
+                .iter()
+                .map(|f| format!("{f:?}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+        o.push_str(&line);
+        o.push('\n');
+        if let Some([a, z]) = b.stamps_s {
+            let rate = b
+                .rate_hz
+                .map(|r| format!("; {r:.2} Hz"))
+                .unwrap_or_default();
+            o.push_str(&format!("    stamps {a:.3}-{z:.3} s{rate}\n"));
+        }
+        o.push_str(&format!("    becomes occupancy: {}\n", b.becomes));
     }
     if !i.refused.is_empty() {
         o.push_str("Refused topics:\n");

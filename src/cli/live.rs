@@ -529,7 +529,7 @@ pub fn record(a: &RecordArgs) -> Result<(), CliError> {
     for (i, (topic, ty)) in names.iter().enumerate() {
         let (_, schema) = Payload::schema_of(ty).expect("only known types are recorded");
         writer.add_topic_with_schema(topic, ty, &schema)?;
-        let reader = participant.reader(topic, ty, TopicQos::for_type(ty))?;
+        let reader = participant.reader(topic, ty, TopicQos::reader_for_type(ty))?;
         let tx = tx.clone();
         runtime.spawn(async move {
             let mut stream = std::pin::pin!(reader.as_async_stream());

@@ -21,6 +21,7 @@ use crate::node::carving::CarvingNode;
 use crate::node::checker::CheckerNode;
 use crate::node::launch::{LaunchConfig, LaunchError, NodeKind, NodeSpec, Params};
 use crate::node::mesher::MesherNode;
+use crate::node::occupancy::{InputKind, OccupancyNode};
 use crate::node::robot::RobotNode;
 use crate::node::{Message, Node, NodeStatus, Payload};
 
@@ -171,6 +172,8 @@ pub(crate) fn build_nodes(
 ) -> Result<(Vec<Box<dyn Node>>, Selection), LaunchError> {
     let mut nodes: Vec<Box<dyn Node>> = Vec::new();
     let mut bodies: Vec<String> = bag_bodies.to_vec();
+    // Bodies seen by a sensor: never the default movable body (no program moves them).
+    let mut sensed: Vec<String> = Vec::new();
     for spec in config.of_kind(NodeKind::Carving) {
         let mut c = CarvingNode::from_spec(spec)?;
         let display = c.display().map_err(|reason| LaunchError::Param {
@@ -192,6 +195,12 @@ pub(crate) fn build_nodes(
         }
         nodes.push(Box::new(r));
     }
+    for spec in config.of_kind(NodeKind::Occupancy) {
+        let n = OccupancyNode::from_spec(spec)?;
+        bodies.push(n.occupancy_topic().to_owned());
+        sensed.push(n.occupancy_topic().to_owned());
+        nodes.push(Box::new(n));
+    }
     let mut meshers: Vec<MesherNode> = config
         .of_kind(NodeKind::Mesher)
         .map(|s| MesherNode::from_spec(s, &bodies))
@@ -205,7 +214,11 @@ pub(crate) fn build_nodes(
         let mut spec = spec.clone();
         // (With one body there is no pair, so no movable body by default.)
         if default_movable_first && meshed.len() >= 2 && !spec.params.contains_key("movable") {
-            let mut sorted = meshed.clone();
+            let mut sorted: Vec<String> = meshed
+                .iter()
+                .filter(|b| !sensed.contains(b))
+                .cloned()
+                .collect();
             sorted.sort();
             if let Some(first) = sorted.first() {
                 spec.params.insert(
@@ -314,6 +327,99 @@ impl Output {
     }
 }
 
+/// The bag's topics an occupancy node can read (`octomap_msgs/Octomap`,
+/// `sensor_msgs/PointCloud2`), with their kinds; from the summary when there is one, else from
+/// the messages. A bag that cannot be read has none (its errors come when it is replayed).
+fn sensor_topics(bag: &Path) -> Vec<(String, InputKind)> {
+    let Ok(mut reader) = BagReader::open(bag) else {
+        return Vec::new();
+    };
+    let mut found = BTreeMap::new();
+    if reader.recovery().summary_used {
+        for c in reader.channels() {
+            if let Some(k) = InputKind::of_type(&c.schema_name) {
+                found.insert(c.topic, k);
+            }
+        }
+    } else {
+        for m in reader.by_ref() {
+            match m {
+                Ok(m) => {
+                    if let Some(k) = InputKind::of_type(&m.schema_name) {
+                        found.entry(m.topic).or_insert(k);
+                    }
+                }
+                Err(e) if e.is_fatal() => break,
+                Err(_) => {}
+            }
+        }
+    }
+    found.into_iter().collect()
+}
+
+/// `config` with what the bag says: an occupancy node without `input_type` reads its
+/// `input_topic` as the bag's type for it; with the default config (`add_nodes`), each
+/// OctoMap and point-cloud topic gets an occupancy node on the lattice and frame times of the
+/// bag's first body (`/occupancy/<topic>`, publishing `/occupancy/<topic>/occupancy`).
+fn with_bag_sensors(
+    config: &LaunchConfig,
+    sensors: &[(String, InputKind)],
+    bag_bodies: &[String],
+    add_nodes: bool,
+) -> LaunchConfig {
+    use crate::node::launch::ParamValue;
+    let mut config = config.clone();
+    for spec in config.nodes.iter_mut() {
+        if spec.kind != NodeKind::Occupancy || spec.params.contains_key("input_type") {
+            continue;
+        }
+        let p = Params::of(spec);
+        let topic = match spec.params.get("input_topic") {
+            Some(ParamValue::String(t)) => p.resolve("input_topic", t).ok(),
+            _ => None,
+        };
+        if let Some((_, kind)) = sensors.iter().find(|(t, _)| Some(t) == topic.as_ref()) {
+            spec.params.insert(
+                "input_type".into(),
+                ParamValue::String(kind.type_name().into()),
+            );
+        }
+    }
+    let Some(first) = bag_bodies.iter().min().filter(|_| add_nodes) else {
+        return config;
+    };
+    for (topic, kind) in sensors {
+        let mut name: String = topic
+            .split('/')
+            .filter(|t| !t.is_empty())
+            .collect::<Vec<_>>()
+            .join("_");
+        if name.is_empty() || name.starts_with(|c: char| c.is_ascii_digit()) {
+            name.insert(0, 'n');
+        }
+        let fqn = format!("/occupancy/{name}");
+        if config.nodes.iter().any(|n| n.fqn == fqn) {
+            continue;
+        }
+        let text = |v: &str| ParamValue::String(v.to_owned());
+        config.nodes.push(NodeSpec {
+            kind: NodeKind::Occupancy,
+            fqn,
+            params: [
+                ("input_topic", text(topic)),
+                ("input_type", text(kind.type_name())),
+                ("lattice_from", text(first)),
+                ("stamps_from", text(first)),
+            ]
+            .into_iter()
+            .map(|(k, v)| (k.to_owned(), v))
+            .collect(),
+            remaps: BTreeMap::new(),
+        });
+    }
+    config
+}
+
 /// How often a replay lets the nodes see the clock (bag log time), as the live transport's
 /// tick.
 const REPLAY_TICK_NS: i64 = 100_000_000;
@@ -393,33 +499,45 @@ pub fn replay(
             r.description
         );
     }
-    let (nodes, selection) =
-        match build_nodes(config.unwrap_or(&default), &bag_bodies, config.is_none()) {
-            Ok(built) => built,
-            // Nothing to mesh because the bag offers no body: say why the bag has none.
-            Err(e) if bag_bodies.is_empty() => {
-                let why = match crate::bag::voxel_frames(bag) {
-                    Err(why) => why.to_string(),
-                    Ok(_) => format!("{}: no VoxelGrid topic can be read", bag.display()),
-                };
-                return Err(CliError::NoBodies {
-                    why,
-                    config: e.to_string(),
-                });
-            }
-            Err(e) => return Err(CliError::Usage(e.to_string())),
-        };
+    // The bag's OctoMap and point-cloud topics: read by the config's occupancy nodes as
+    // their type, and by nodes of their own with the default config.
+    let sensors = sensor_topics(bag);
+    let is_default = config.is_none();
+    let config = with_bag_sensors(
+        config.unwrap_or(&default),
+        &sensors,
+        &bag_bodies,
+        is_default,
+    );
+    let (nodes, selection) = match build_nodes(&config, &bag_bodies, is_default) {
+        Ok(built) => built,
+        // Nothing to mesh because the bag offers no body: say why the bag has none.
+        Err(e) if bag_bodies.is_empty() => {
+            let why = match crate::bag::voxel_frames(bag) {
+                Err(why) => why.to_string(),
+                Ok(_) => format!("{}: no VoxelGrid topic can be read", bag.display()),
+            };
+            return Err(CliError::NoBodies {
+                why,
+                config: e.to_string(),
+            });
+        }
+        Err(e) => return Err(CliError::Usage(e.to_string())),
+    };
     // The bag's bodies are VoxelGrid topics: a node that reads one as anything else is
-    // refused (a carving `pose_topic` set to a body's topic, say).
-    let uses = crate::node::routes::topic_uses(config.unwrap_or(&default), &nodes);
+    // refused (a carving `pose_topic` set to a body's topic, say); so are its sensor topics.
+    let uses = crate::node::routes::topic_uses(&config, &nodes);
     crate::node::routes::check_bag_types(
         &uses,
-        bag_bodies.iter().map(|t| {
-            (
-                t.as_str(),
-                <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME,
-            )
-        }),
+        bag_bodies
+            .iter()
+            .map(|t| {
+                (
+                    t.as_str(),
+                    <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME,
+                )
+            })
+            .chain(sensors.iter().map(|(t, k)| (t.as_str(), k.type_name()))),
     )
     .map_err(|e| CliError::Usage(e.to_string()))?;
     let mut bus = Bus::new(nodes);

@@ -14,7 +14,8 @@ pub struct SceneArgs {
     /// `machine-tool`, `four-spheres`, `periodic` (two spheres meeting every 2 s, 20 Hz, for
     /// as long as asked), `carving-session` (haptic tool poses and a fixture), or
     /// `robot-cell` (a six-axis arm's description, joint states and /tf_static beside a
-    /// machine-tool table's frames).
+    /// machine-tool table's frames), `person-cell` (a person reaching into the machine-tool
+    /// cell, seen by a depth camera as a point cloud and mapped as an OctoMap).
     pub name: String,
     /// Output bag: an MCAP file, or a rosbag2 directory (with metadata.yaml) if the path
     /// ends with `/` or is a directory.
@@ -82,6 +83,9 @@ pub fn run(a: &SceneArgs) -> Result<(), CliError> {
     }
     if a.plan {
         return Err(CliError::Usage("--plan is for the robot-cell scene".into()));
+    }
+    if a.name == "person-cell" {
+        return person_cell(a);
     }
     let name: SceneName = a.name.parse()?;
     let mut opts = SceneOptions::for_scene(name).encoding(a.encoding.into());
@@ -321,5 +325,60 @@ fn carving_session(out: &std::path::Path) -> Result<(), CliError> {
     )?;
     w.finish()?;
     tracing::info!("wrote {}", out.display());
+    Ok(())
+}
+
+/// The `person-cell` scene (`crate::scene::PersonCell`): the machine-tool cell's bodies as
+/// VoxelGrid frames at 10 Hz, the depth camera's cloud of the person (`/camera/points`, 10 Hz,
+/// 33 ms after each cell frame, in `camera_optical`), the map built from it
+/// (`/octomap_binary`, 5 Hz) and `/tf_static` placing the camera; log time = stamp.
+fn person_cell(a: &SceneArgs) -> Result<(), CliError> {
+    use crate::msg::{Octomap, PointCloud2, TFMessage};
+    use crate::scene::{PersonCell, CLOUD_TOPIC, OCTOMAP_TOPIC};
+    if a.duration.is_some() {
+        return Err(CliError::Usage(
+            "--duration is for the periodic scene; person-cell takes --frames".into(),
+        ));
+    }
+    let grid = a.grid.unwrap_or(64);
+    let frames = a.frames.unwrap_or(16);
+    if !(crate::scene::MIN_GRID..=512).contains(&grid) || !(2..=10_000).contains(&frames) {
+        return Err(CliError::Usage(format!(
+            "person-cell takes --grid {}..=512 and --frames 2..=10000",
+            crate::scene::MIN_GRID
+        )));
+    }
+    let scene = PersonCell::new(grid, frames);
+    let mut w = BagWriter::create_with(&a.out, BagWriteOptions::new().derived("scene"))?;
+    w.add_topic::<TFMessage>("/tf_static")?;
+    let topics: Vec<String> = scene
+        .cell_bodies()
+        .iter()
+        .map(|b| b.topic.clone())
+        .collect();
+    for t in &topics {
+        w.add_topic::<VoxelGrid>(t)?;
+    }
+    w.add_topic::<PointCloud2>(CLOUD_TOPIC)?;
+    w.add_topic::<Octomap>(OCTOMAP_TOPIC)?;
+    w.write("/tf_static", scene.stamp_ns(0) as u64, &scene.tf_static())?;
+    let mut raster = Rasterizer::new();
+    for k in 0..scene.frame_count() {
+        for (b, t) in topics.iter().enumerate() {
+            let g = scene.cell_frame(b, k, &mut raster);
+            w.write(t, scene.stamp_ns(k) as u64, &g)?;
+        }
+        let c = scene.cloud(k);
+        w.write(CLOUD_TOPIC, c.header.stamp.as_nanos() as u64, &c)?;
+        if k % 2 == 0 {
+            let m = scene.octomap(k);
+            w.write(OCTOMAP_TOPIC, m.header.stamp.as_nanos() as u64, &m)?;
+        }
+    }
+    w.finish()?;
+    tracing::info!(
+        "wrote {} (3 bodies x {frames} frames on {grid}^3 voxels, a cloud per frame, a map every other frame)",
+        a.out.display()
+    );
     Ok(())
 }

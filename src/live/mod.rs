@@ -576,7 +576,7 @@ fn start_realtime_io(
                 }
                 let mut readers = Vec::new();
                 for t in &inputs {
-                    let qos = TopicQos::for_type(t.type_name);
+                    let qos = TopicQos::reader_for_type(t.type_name);
                     readers.push((t.clone(), participant.reader(&t.topic, t.type_name, qos)?));
                 }
                 Ok((participant, writers, readers))
@@ -1050,7 +1050,8 @@ pub fn run_nodes(
         if targets.is_empty() {
             continue;
         }
-        let reader = participant.reader(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+        let reader =
+            participant.reader(&t.topic, t.type_name, TopicQos::reader_for_type(t.type_name))?;
         tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
         main_readers.push((
             t.topic.clone(),

@@ -15,8 +15,8 @@ use rustdds::{QosPolicies, QosPolicyBuilder, RepresentationIdentifier};
 
 use crate::msg::{
     Clock, ContactEvent, DiagnosticArray, InterferenceReport, JointState, JointTrajectory, Marker,
-    MarkerArray, MeshSlab, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, RosString,
-    TFMessage, TetLabels, VoxelGrid, WrenchStamped,
+    MarkerArray, MeshSlab, Octomap, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
+    RosString, TFMessage, TetLabels, VoxelGrid, WrenchStamped,
 };
 
 /// A serialised message: the 4-byte CDR encapsulation header, then the body.
@@ -216,6 +216,19 @@ impl TopicQos {
         }
     }
 
+    /// The QoS the suite's readers ask for on a topic of type `ros_type`: [`Self::for_type`],
+    /// except for sensor input. Point clouds and OctoMaps come from drivers and mappers that
+    /// offer anything from best effort and volatile (the sensor-data profile of camera and
+    /// lidar drivers) to reliable and transient local (octomap_server): a reader asking for
+    /// best effort and volatile matches them all (DDS matches a reader only to writers
+    /// offering at least what it asks), and takes the newest.
+    pub fn reader_for_type(ros_type: &str) -> Self {
+        match ros_type {
+            t if t == PointCloud2::TYPE_NAME || t == Octomap::TYPE_NAME => Self::best_effort(4),
+            t => Self::for_type(t),
+        }
+    }
+
     /// As RustDDS policies. Reliable writers block at most 100 ms on a full history. The
     /// resource limit of `depth` samples bounds what a reliable writer keeps for readers that
     /// have not acknowledged (RustDDS keeps every unacknowledged sample of a transient-local
@@ -302,5 +315,12 @@ mod tests {
         assert!(TopicQos::for_type(InterferenceReport::TYPE_NAME).transient_local);
         assert!(!TopicQos::for_type(PoseStamped::TYPE_NAME).reliable);
         assert_eq!(TopicQos::for_type("x/msg/Unknown"), TopicQos::reliable(10));
+        // Sensor input is read as best effort, volatile: it matches every writer.
+        let cloud = TopicQos::reader_for_type(PointCloud2::TYPE_NAME);
+        assert!(!cloud.reliable && !cloud.transient_local);
+        assert_eq!(
+            TopicQos::reader_for_type(VoxelGrid::TYPE_NAME),
+            TopicQos::for_type(VoxelGrid::TYPE_NAME)
+        );
     }
 }

@@ -6,6 +6,7 @@
 
 mod cdr;
 mod definition;
+mod octomap;
 mod robot_types;
 mod schema;
 mod std_types;
@@ -14,6 +15,7 @@ mod voxel_grid;
 
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, encode_cdr_into, CdrEndianness, CdrError};
 pub use definition::Definition;
+pub use octomap::Octomap;
 pub use robot_types::{
     JointState, JointTrajectory, JointTrajectoryPoint, RosString, TFMessage, Transform,
     TransformStamped,

@@ -6,7 +6,7 @@
 //! launch:
 //! - node:
 //!     pkg: chronotope
-//!     exec: mesher            # mesher | checker | carving | recorder | robot
+//!     exec: mesher            # mesher | checker | carving | occupancy | recorder | robot
 //!     name: mesher            # default: the exec name
 //!     namespace: /            # default: /
 //!     param:
@@ -134,6 +134,8 @@ pub enum NodeKind {
     Recorder,
     /// A robot's URDF and joint states (or a plan) to occupancy frames.
     Robot,
+    /// A sensor's OctoMap or point cloud to occupancy frames on a lattice.
+    Occupancy,
 }
 
 impl NodeKind {
@@ -145,6 +147,7 @@ impl NodeKind {
             Self::Carving => "carving",
             Self::Recorder => "recorder",
             Self::Robot => "robot",
+            Self::Occupancy => "occupancy",
         }
     }
 }
@@ -502,11 +505,12 @@ impl LaunchConfig {
                 "carving" => NodeKind::Carving,
                 "recorder" => NodeKind::Recorder,
                 "robot" => NodeKind::Robot,
+                "occupancy" => NodeKind::Occupancy,
                 other => {
                     return Err(fmt(
                         where_,
                         format!(
-                            "exec {}: one of mesher, checker, carving, recorder, robot",
+                            "exec {}: one of mesher, checker, carving, occupancy, recorder, robot",
                             yaml::quote(other)
                         ),
                     ))

@@ -15,6 +15,7 @@ pub mod markers;
 pub mod mesher;
 pub mod names;
 pub mod robot;
+pub mod occupancy;
 pub mod routes;
 
 use std::collections::BTreeMap;
@@ -22,9 +23,9 @@ use std::sync::Arc;
 
 use crate::msg::{
     decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray,
-    InterferenceReport, JointState, JointTrajectory, Marker, MarkerArray, MeshSlab, PointCloud2,
-    PoseStamped, ResolveSuggestions, RosMessage, RosString, TFMessage, TetLabels, VoxelGrid,
-    WrenchStamped,
+    InterferenceReport, JointState, JointTrajectory, Marker, MarkerArray, MeshSlab, Octomap,
+    PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, RosString, TFMessage, TetLabels,
+    VoxelGrid, WrenchStamped,
 };
 
 macro_rules! payloads {
@@ -121,6 +122,8 @@ payloads! {
     PoseStamped(PoseStamped),
     WrenchStamped(WrenchStamped),
     PointCloud2(PointCloud2),
+    Octomap(Octomap),
+    TFMessage(TFMessage),
     Diagnostics(DiagnosticArray),
     Clock(Clock),
     Text(RosString),
@@ -159,6 +162,7 @@ impl Payload {
                 .sum(),
             Self::Marker(m) => marker(m),
             Self::PointCloud2(m) => m.data.len(),
+            Self::Octomap(m) => m.data.len(),
             Self::Report(m) => {
                 let intervals: usize = m
                     .pairs
@@ -169,6 +173,7 @@ impl Payload {
                     + intervals * std::mem::size_of::<f64>()
             }
             Self::Suggestions(m) => m.suggestions.len() * MESSAGE_OVERHEAD_BYTES,
+            Self::TFMessage(m) => m.transforms.len() * MESSAGE_OVERHEAD_BYTES,
             Self::Diagnostics(m) => m.status.len() * MESSAGE_OVERHEAD_BYTES,
             Self::Contact(_) | Self::PoseStamped(_) | Self::WrenchStamped(_) | Self::Clock(_) => 0,
             Self::Text(m) => m.data.len(),
@@ -247,6 +252,10 @@ pub struct NodeStatus {
     pub problems: BTreeMap<String, u64>,
     /// The first problems' texts (at most [`NodeStatus::KEPT`]).
     pub messages: Vec<String>,
+    /// What a node counts besides problems, by kind (e.g. an occupancy node's
+    /// `points_nonfinite`); left out of the JSON when empty.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub counts: BTreeMap<String, u64>,
 }
 
 impl NodeStatus {

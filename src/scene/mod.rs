@@ -32,6 +32,7 @@ mod lattice;
 mod machine_tool;
 mod motion;
 mod periodic;
+mod person;
 mod raster;
 mod robot_cell;
 mod shape;
@@ -50,6 +51,10 @@ pub use motion::{Keyframe, Motion};
 pub use periodic::{
     periodic_contacts, PERIODIC_AMPLITUDE, PERIODIC_FRAME_PERIOD_NS, PERIODIC_PERIOD_S,
     PERIODIC_RADIUS,
+};
+pub use person::{
+    PersonCell, CAMERA_FRAME, CLOUD_TOPIC, OCTOMAP_TOPIC, PERSON_CELL_DOMAIN_EDGE,
+    PERSON_CELL_FRAME_PERIOD_NS,
 };
 pub use raster::{rasterize, Rasterizer, PERCENT_SUBSAMPLES};
 pub use robot_cell::{

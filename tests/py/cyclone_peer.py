@@ -2,7 +2,9 @@
 """An independent DDS peer for the live nodes: Cyclone DDS (PyPI `cyclonedds`), no ROS.
 
 Plays the VoxelGrid frames of a rosbag2 MCAP bag onto the wire with their recorded timing
-and collects what the checker publishes (report, labels, optionally markers), then writes
+(and its PointCloud2, octomap_msgs/Octomap and tf2_msgs/TFMessage messages, which occupancy
+nodes read; static transforms and maps latched, as tf2 and octomap_server offer them) and
+collects what the checker publishes (report, labels, optionally markers), then writes
 it as JSON.  Used by tests/cyclone.rs; DESIGN.md §9-§11.
 
     python3 tests/py/cyclone_peer.py --bag BAG --out OUT.json [--domain N] [--rate R]
@@ -57,7 +59,7 @@ try:
     from cyclonedds.domain import DomainParticipant
     from cyclonedds.internal import InvalidSample
     from cyclonedds.idl import IdlStruct
-    from cyclonedds.idl.types import float32, float64, int32, sequence, uint8, uint32, uint64
+    from cyclonedds.idl.types import float32, float64, int8, int32, sequence, uint8, uint32, uint64
     from cyclonedds.pub import DataWriter
     from cyclonedds.sub import DataReader
     from cyclonedds.topic import Topic
@@ -184,6 +186,54 @@ class VoxelGrid(IdlStruct, typename="chronotope_msgs::msg::dds_::VoxelGrid_"):
     size_z: uint32
     encoding: uint8
     data: sequence[uint8]
+
+
+@dataclass
+class PointField(IdlStruct, typename="sensor_msgs::msg::dds_::PointField_"):
+    name: str
+    offset: uint32
+    datatype: uint8
+    count: uint32
+
+
+@dataclass
+class PointCloud2(IdlStruct, typename="sensor_msgs::msg::dds_::PointCloud2_"):
+    header: Header
+    height: uint32
+    width: uint32
+    fields: sequence[PointField]
+    is_bigendian: bool
+    point_step: uint32
+    row_step: uint32
+    data: sequence[uint8]
+    is_dense: bool
+
+
+@dataclass
+class Octomap(IdlStruct, typename="octomap_msgs::msg::dds_::Octomap_"):
+    header: Header
+    binary: bool
+    id: str
+    resolution: float64
+    data: sequence[int8]
+
+
+@dataclass
+class Transform(IdlStruct, typename="geometry_msgs::msg::dds_::Transform_"):
+    translation: Vector3
+    rotation: Quaternion
+
+
+@dataclass
+class TransformStamped(IdlStruct, typename="geometry_msgs::msg::dds_::TransformStamped_"):
+    header: Header
+    child_frame_id: str
+    transform: Transform
+
+
+@dataclass
+class TFMessage(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
+    transforms: sequence[TransformStamped]
 
 
 @dataclass
@@ -377,39 +427,79 @@ def markers_json(m: MarkerArray) -> dict:
     }
 
 
+def header_of(h) -> Header:
+    return Header(stamp=Time(sec=h.stamp.sec, nanosec=h.stamp.nanosec), frame_id=h.frame_id)
+
+
+def voxel_grid(m) -> VoxelGrid:
+    return VoxelGrid(
+        header=header_of(m.header),
+        origin=Point(x=m.origin.x, y=m.origin.y, z=m.origin.z),
+        resolution=m.resolution,
+        size_x=m.size_x,
+        size_y=m.size_y,
+        size_z=m.size_z,
+        encoding=m.encoding,
+        data=list(bytes(m.data)),
+    )
+
+
+def point_cloud(m) -> PointCloud2:
+    return PointCloud2(
+        header=header_of(m.header), height=m.height, width=m.width,
+        fields=[PointField(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count) for f in m.fields],
+        is_bigendian=m.is_bigendian, point_step=m.point_step, row_step=m.row_step,
+        data=list(bytes(m.data)), is_dense=m.is_dense)
+
+
+def octomap(m) -> Octomap:
+    # int8[]: as signed values, whether the decoder gives bytes (0..255) or ints.
+    data = [int(v) - 256 if int(v) > 127 else int(v) for v in m.data]
+    return Octomap(header=header_of(m.header), binary=m.binary, id=m.id, resolution=m.resolution, data=data)
+
+
+def tf_message(m) -> TFMessage:
+    return TFMessage(transforms=[
+        TransformStamped(
+            header=header_of(t.header), child_frame_id=t.child_frame_id,
+            transform=Transform(
+                translation=Vector3(x=t.transform.translation.x, y=t.transform.translation.y,
+                                    z=t.transform.translation.z),
+                rotation=Quaternion(x=t.transform.rotation.x, y=t.transform.rotation.y,
+                                    z=t.transform.rotation.z, w=t.transform.rotation.w)))
+        for t in m.transforms])
+
+
+# What the peer plays: the type's Cyclone class and how a decoded message becomes one.
+PLAYED = {
+    "chronotope_msgs/msg/VoxelGrid": (VoxelGrid, voxel_grid),
+    "sensor_msgs/msg/PointCloud2": (PointCloud2, point_cloud),
+    "octomap_msgs/msg/Octomap": (Octomap, octomap),
+    "tf2_msgs/msg/TFMessage": (TFMessage, tf_message),
+}
+
+
 def iter_frames(bag: str):
-    """(log time ns, ROS topic, frame) of every VoxelGrid message, in log-time order, read as
-    they are played (a recording of any length streams in constant memory)."""
+    """(log time ns, ROS topic, sample) of every message of a played type (VoxelGrid frames,
+    and the point clouds, OctoMaps and static transforms occupancy nodes read), in log-time
+    order, read as they are played (a recording of any length streams in constant memory)."""
     with open(bag, "rb") as f:
         reader = make_reader(f, decoder_factories=[DecoderFactory()])
         for schema, channel, message, m in reader.iter_decoded_messages(log_time_order=True):
-            if schema is None or schema.name != "chronotope_msgs/msg/VoxelGrid":
+            if schema is None or schema.name not in PLAYED:
                 continue
-            yield (
-                message.log_time,
-                channel.topic,
-                VoxelGrid(
-                    header=Header(stamp=Time(sec=m.header.stamp.sec, nanosec=m.header.stamp.nanosec),
-                                  frame_id=m.header.frame_id),
-                    origin=Point(x=m.origin.x, y=m.origin.y, z=m.origin.z),
-                    resolution=m.resolution,
-                    size_x=m.size_x,
-                    size_y=m.size_y,
-                    size_z=m.size_z,
-                    encoding=m.encoding,
-                    data=list(bytes(m.data)),
-                ),
-            )
+            yield message.log_time, channel.topic, PLAYED[schema.name][1](m)
 
 
-def frame_index(bag: str) -> list[tuple[int, str]]:
-    """(log time ns, ROS topic) of every VoxelGrid message, in log-time order (no data)."""
+def frame_index(bag: str) -> list[tuple[int, str, str]]:
+    """(log time ns, ROS topic, type) of every message of a played type, in log-time order
+    (no data)."""
     out = []
     with open(bag, "rb") as f:
         reader = make_reader(f)
         for schema, channel, message in reader.iter_messages(log_time_order=True):
-            if schema is not None and schema.name == "chronotope_msgs/msg/VoxelGrid":
-                out.append((message.log_time, channel.topic))
+            if schema is not None and schema.name in PLAYED:
+                out.append((message.log_time, channel.topic, schema.name))
     return out
 
 
@@ -445,14 +535,21 @@ def main() -> int:
     if not frames:
         log(f"no VoxelGrid messages in {a.bag}")
         return 2
-    in_topics = sorted({t for _, t in frames})
-    log(f"domain {domain}; {len(frames)} frames on {len(in_topics)} topics from {a.bag}")
+    in_topics = sorted({(t, ty) for _, t, ty in frames})
+    log(f"domain {domain}; {len(frames)} messages on {len(in_topics)} topics from {a.bag}")
 
     dp = DomainParticipant(domain)
     frame_qos = Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
                     Policy.Durability.Volatile,
                     Policy.History.KeepLast(16))
-    writers = {t: DataWriter(dp, Topic(dp, dds_topic(t), VoxelGrid), qos=frame_qos) for t in in_topics}
+    # Static transforms and maps as tf2 and octomap_server offer them (latched); the rest as
+    # frames.
+    latched_qos = Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
+                      Policy.Durability.TransientLocal,
+                      Policy.History.KeepLast(1))
+    writers = {t: DataWriter(dp, Topic(dp, dds_topic(t), PLAYED[ty][0]),
+                             qos=latched_qos if ty in ("tf2_msgs/msg/TFMessage", "octomap_msgs/msg/Octomap") else frame_qos)
+               for t, ty in in_topics}
 
     def latched_reader(topic: str, cls, depth: int) -> DataReader:
         # The writers offer reliable + transient local; ask for the same (a late joiner
@@ -536,8 +633,9 @@ def main() -> int:
             time.sleep(min(due - now, 0.005))
             drain()
         writers[topic].write(msg)
-        stamp = (int(msg.header.stamp.sec), int(msg.header.stamp.nanosec))
-        written[stamp] = time.monotonic()
+        if isinstance(msg, VoxelGrid):
+            stamp = (int(msg.header.stamp.sec), int(msg.header.stamp.nanosec))
+            written[stamp] = time.monotonic()
         drain()
     drain()
     playing[0] = False
