@@ -6,6 +6,7 @@
 pub mod carve;
 pub mod check;
 pub mod mesh;
+pub mod rotate;
 pub mod sampler;
 
 use std::path::PathBuf;

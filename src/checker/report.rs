@@ -211,4 +211,30 @@ pub enum Resolution {
         /// The contact episode it clears (s since the time origin; extra field).
         episode_s: [f64; 2],
     },
+    /// Turn the body about an axis by the same angle at every instant (time fixed).
+    Rotate {
+        /// The body.
+        body: String,
+        /// Unit direction of the axis used (an integer direction near the one asked for).
+        axis: [f64; 3],
+        /// A point on the axis (m).
+        point_m: [f64; 3],
+        /// The angle, right-handed about `axis` (rad).
+        angle_rad: f64,
+        /// Checked again against every other body: clear.
+        verified_clear: bool,
+        /// The contact episode it clears (s since the time origin; extra field).
+        episode_s: [f64; 2],
+        /// Angle between `axis` and the axis asked for (rad, extra field).
+        axis_deviation_rad: f64,
+        /// The largest angle of the same sense tried that does not clear (rad, extra
+        /// field): the search's answer lies between the two; null if none was tried below.
+        failing_angle_rad: Option<f64>,
+        /// n of the exact rotation matrix M/n: the lattice it was verified on is n times
+        /// finer (extra field).
+        lattice_refinement: i64,
+        /// Why no angle was found that clears (extra field; absent when one was).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        reason: Option<String>,
+    },
 }

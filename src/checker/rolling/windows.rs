@@ -1011,6 +1011,7 @@ mod tests {
             movable: Vec::new(),
             time_scale: None,
             frame_ids: Default::default(),
+            rotation: Default::default(),
         };
         let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
         let piece = |mesh: TetMesh| PieceIn {
