@@ -612,6 +612,9 @@ pub fn suggest_rotation(
         return None;
     }
     let started = std::time::Instant::now();
+    // CPU time of this thread: the search's own cost when it runs on one thread (the
+    // figure measured on a loaded machine), not its wall time.
+    let started_cpu = crate::live::executor::thread_cpu_s();
     let max_rad = spec.max_rad.min(PI);
     let axis = IntegerAxis::near(spec.axis)?;
     let point = rotation_point(a, results, lat, spec)?;
@@ -656,6 +659,7 @@ pub fn suggest_rotation(
         angles = search.angles,
         full_checks = search.full_checks,
         ms = started.elapsed().as_secs_f64() * 1e3,
+        cpu_ms = (crate::live::executor::thread_cpu_s() - started_cpu) * 1e3,
         clear = found.clear.map(signed),
         "rotation search"
     );
