@@ -195,8 +195,8 @@ impl RationalRotation {
     /// x → M·(x − p) in space, t → n·(t − p_t).
     pub fn about(&self, p: &LatticePoint) -> LinearMap {
         let mut matrix = [[0i64; 4]; 4];
-        for i in 0..3 {
-            matrix[i][..3].copy_from_slice(&self.matrix[i]);
+        for (row, m) in matrix.iter_mut().zip(&self.matrix) {
+            row[..3].copy_from_slice(m);
         }
         matrix[3][3] = self.n;
         let p = p.map(i64::from);
@@ -392,7 +392,7 @@ impl Search<'_> {
         let (n, p) = (rot.n, self.point.map(i64::from));
         let mut others = Vec::with_capacity(self.placed.len());
         for placement in &mut self.placed {
-            others.push(&*placement.place([n; 4], p.map(|c| -c * n))?);
+            others.push(placement.place([n; 4], p.map(|c| -c * n))?);
         }
         let moved = self.moved.place_linear(&rot.about(&self.point))?;
         Some(clears(moved, &others))
@@ -608,7 +608,7 @@ pub fn suggest_rotation(
     lat: &CommonLattice,
     spec: &RotationSpec,
 ) -> Option<Rotation> {
-    if !results.iter().any(|r| r.interfering()) || !(spec.max_rad > 0.0) {
+    if !results.iter().any(|r| r.interfering()) || spec.max_rad.is_nan() || spec.max_rad <= 0.0 {
         return None;
     }
     let started = std::time::Instant::now();
