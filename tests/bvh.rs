@@ -200,6 +200,69 @@ proptest! {
     }
 
     #[test]
+    fn an_affine_image_of_a_tree_answers_for_its_boxes_images(
+        v in boxes(100),
+        matrix in prop::array::uniform4(prop::array::uniform4(-6i64..7)),
+        shift in prop::array::uniform4(-50i64..50),
+        other in boxes(40),
+        (p, q) in (end_point(), end_point()),
+    ) {
+        // Each box replaced by the box of its image: pairs and segments are those of the
+        // items' images (where every image fits i32).
+        let t = Bvh::from_boxes(&v).unwrap();
+        let images: Option<Vec<Aabb4>> = v.iter().map(|b| b.affine_image(&matrix, &shift)).collect();
+        let mut m = Bvh::new();
+        let mapped = m.map_affine_from(&t, matrix, shift);
+        if let (Some(images), true) = (images, mapped) {
+            let to = Bvh::from_boxes(&other).unwrap();
+            let mut ws = TraverseWorkspace::new();
+            prop_assert_eq!(m.len(), t.len());
+            prop_assert!(m.aabb().contains(&images.iter().fold(Aabb4::EMPTY, |a, b| a.union(b))));
+            prop_assert_eq!(tree_pairs(&m, &to, &mut ws), brute_pairs(&images, &other));
+            prop_assert_eq!(tree_segment(&m, p, q, &mut ws), brute_segment(&images, p, q));
+        }
+    }
+
+    #[test]
+    fn mapped_segment_candidates_are_those_of_the_mapped_boxes(
+        v in boxes(60),
+        n in 1i64..40,
+        shift in prop::array::uniform4(-50i64..50),
+        segs in prop::collection::vec((end_point(), end_point()), 1..8),
+    ) {
+        // The boxes mapped by x -> n x + shift as the walk reaches them, against the mapped
+        // boxes themselves (those that do not fit i32 are taken as met).
+        let t = Bvh::from_boxes(&v).unwrap();
+        let map = |c: i32, k: usize| i64::from(c) * n + shift[k];
+        let mapped: Vec<Option<Aabb4>> = v
+            .iter()
+            .map(|b| {
+                if b.is_empty() {
+                    return Some(Aabb4::EMPTY);
+                }
+                let lo = [0, 1, 2, 3].map(|k| i32::try_from(map(b.min[k], k)).ok());
+                let hi = [0, 1, 2, 3].map(|k| i32::try_from(map(b.max[k], k)).ok());
+                if lo.iter().chain(&hi).any(Option::is_none) {
+                    return None;
+                }
+                Some(Aabb4::new(lo.map(Option::unwrap), hi.map(Option::unwrap)))
+            })
+            .collect();
+        let mut ws = TraverseWorkspace::new();
+        for (p, q) in segs {
+            let expect: Vec<u32> = (0..v.len() as u32)
+                .filter(|&i| match &mapped[i as usize] {
+                    Some(b) => !b.is_empty() && oracle_segment(b, p, q),
+                    None => true,
+                })
+                .collect();
+            let mut got = Vec::new();
+            t.segment_candidates_mapped(p, q, [n; 4], shift, &mut ws, |i| got.push(i));
+            prop_assert_eq!(sorted_unique(got), expect);
+        }
+    }
+
+    #[test]
     fn top_pairs_split_the_walk_exactly(a in boxes(100), b in boxes(100), depth in 0u32..8) {
         let (ta, tb) = (Bvh::from_boxes(&a).unwrap(), Bvh::from_boxes(&b).unwrap());
         let mut ws = TraverseWorkspace::new();

@@ -374,6 +374,88 @@ fn check_writes_the_contract_report() {
     }
 }
 
+/// `check --rotation-axis/--rotation-point/--rotation-max-rad` reach the rotation
+/// suggestion in the report (kind `rotate`, with the axis, point, angle, episode and whether
+/// it was verified clear, or why nothing within the limit clears) and its line on stdout;
+/// an axis without a direction and a limit beyond π are refused.
+#[test]
+fn check_takes_the_rotation_asked_for() {
+    let d = tmp();
+    let bag = format!("{}/bags/four-spheres-32-bits.mcap", root().display());
+    let report = p(d.path(), "report.json");
+    let out = run_ok(&[
+        "check",
+        &bag,
+        "--report",
+        &report,
+        "--rotation-axis",
+        "0,-1,0",
+        "--rotation-point",
+        "0.5,0.5,0.0",
+        "--rotation-max-rad",
+        "2",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("or turn /sphere_a/occupancy by"), "{text}");
+    let j = read_json(&report);
+    let turns: Vec<&Value> = j["resolutions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["kind"] == "rotate")
+        .collect();
+    assert_eq!(turns.len(), 1, "{turns:?}");
+    let r = turns[0];
+    assert_eq!(r["body"], "/sphere_a/occupancy");
+    assert_eq!(r["axis"], serde_json::json!([0.0, -1.0, 0.0]));
+    let point: Vec<f64> = r["point_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    // Snapped to the checker lattice: an eighth of a 1/32 m voxel.
+    for (got, want) in point.iter().zip([0.5, 0.5, 0.0]) {
+        assert!((got - want).abs() <= 1.0 / 256.0, "{point:?}");
+    }
+    assert!(r["angle_rad"].as_f64().unwrap().abs() <= 2.0, "{r}");
+    assert_eq!(r["episode_s"].as_array().unwrap().len(), 2);
+    match r["verified_clear"].as_bool() {
+        Some(true) => assert!(r.get("reason").is_none(), "{r}"),
+        Some(false) => assert!(r["reason"].is_string(), "{r}"),
+        None => panic!("verified_clear: {r}"),
+    }
+    // A zero limit asks for none.
+    run_ok(&[
+        "check",
+        &bag,
+        "--report",
+        &report,
+        "--overwrite",
+        "--rotation-max-rad",
+        "0",
+    ]);
+    let j = read_json(&report);
+    assert!(
+        !j["resolutions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|r| r["kind"] == "rotate"),
+        "{j}"
+    );
+    for (flag, value, said) in [
+        ("--rotation-axis", "0,0,0", "needs a direction"),
+        ("--rotation-axis", "1,0", "three"),
+        ("--rotation-max-rad", "4", "[0, π]"),
+    ] {
+        let out = bin().args(["check", &bag, flag, value]).output().unwrap();
+        assert!(!out.status.success(), "{flag} {value} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(said), "{flag} {value}: {err}");
+    }
+}
+
 #[test]
 fn topics_beyond_the_body_limit_are_refused_and_listed() {
     let d = tmp();

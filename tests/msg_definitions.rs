@@ -10,8 +10,9 @@ use chronotope::msg::{
     encode_cdr, parse_msg_fields, try_ros2msg_schema, Clock, ColorRGBA, CompressedImage,
     DiagnosticArray, DiagnosticStatus, Duration, Header, JointState, JointTrajectory,
     JointTrajectoryPoint, KeyValue, Marker, MarkerArray, MeshFile, MsgField, Octomap, Point,
-    PointCloud2, PointField, Pose, PoseStamped, Quaternion, RosMessage, RosString, TFMessage, Time,
-    Transform, TransformStamped, UVCoordinate, Vector3, VoxelGrid, Wrench, WrenchStamped,
+    PointCloud2, PointField, Pose, PoseStamped, Quaternion, ResolveSuggestion, ResolveSuggestions,
+    RosMessage, RosString, TFMessage, Time, Transform, TransformStamped, UVCoordinate, Vector3,
+    VoxelGrid, Wrench, WrenchStamped,
 };
 use serde::de::{Deserialize, Deserializer, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde_json::Value;
@@ -986,4 +987,116 @@ fn std_types_have_complete_ros2msg_schemas() {
     let msg_lines: Vec<&str> = schema.lines().filter(|l| l.starts_with("MSG: ")).collect();
     assert_eq!(msg_lines.len(), 12, "{msg_lines:?}");
     assert!(schema.starts_with(MarkerArray::DEFINITION));
+}
+
+// ---------------------------------------------------------------------------------------------
+// The suite's resolve suggestions (suite.rs)
+
+/// A translation, a time scaling and a rotation, as the checker publishes them (finite
+/// numbers where the checker puts NaN: JSON has no NaN).
+fn sample_suggestions() -> ResolveSuggestions {
+    let base = ResolveSuggestion {
+        body_id: "/fixture/occupancy".into(),
+        kind: ResolveSuggestion::KIND_TRANSLATE,
+        translation: Vector3::new(0.25, -0.5, 0.125),
+        time_shift_s: 0.3,
+        distance: 0.6,
+        distance_error_bound_m: 0.01,
+        t0_s: 1.5,
+        scale: 1.25,
+        axis: Vector3::new(0.0, 0.6, 0.8),
+        point: point(0.82, 0.64, 0.36),
+        angle_rad: -0.125,
+        verified_clear: true,
+        episode_start_s: 2.35,
+        episode_end_s: 3.9,
+        unsure_start_s: vec![2.5, 3.0],
+        unsure_end_s: vec![2.75, 3.25],
+    };
+    ResolveSuggestions {
+        header: stamped("world"),
+        suggestions: vec![
+            base.clone(),
+            ResolveSuggestion {
+                kind: ResolveSuggestion::KIND_TIME_SCALE,
+                verified_clear: false,
+                ..base.clone()
+            },
+            ResolveSuggestion {
+                kind: ResolveSuggestion::KIND_ROTATE,
+                ..base
+            },
+        ],
+    }
+}
+
+/// The definitions, with the suggestions' and what they use.
+fn suite_definitions() -> HashMap<String, Vec<MsgField>> {
+    let mut defs = definitions();
+    defs.insert(
+        short_name(ResolveSuggestions::TYPE_NAME),
+        parse_msg_fields(ResolveSuggestions::DEFINITION),
+    );
+    for (name, text) in ResolveSuggestions::dependencies() {
+        defs.insert(short_name(name), parse_msg_fields(text));
+    }
+    defs
+}
+
+#[test]
+fn resolve_suggestions_are_the_msg_files_field_by_field() {
+    assert_eq!(
+        ResolveSuggestions::TYPE_NAME,
+        "chronotope_msgs/msg/ResolveSuggestions"
+    );
+    assert_eq!(
+        ResolveSuggestions::DEFINITION,
+        read("msgs/msg/ResolveSuggestions.msg")
+    );
+    let mut names = Vec::new();
+    for (name, text) in ResolveSuggestions::dependencies() {
+        let (pkg, ty) = name.split_once("/msg/").expect("pkg/msg/Type");
+        let file = if pkg == "chronotope_msgs" {
+            format!("msgs/msg/{ty}.msg")
+        } else {
+            format!("msgs/deps/{pkg}/msg/{ty}.msg")
+        };
+        assert_eq!(text, read(&file), "{name}");
+        names.push(short_name(name));
+    }
+    names.sort_unstable();
+    let defs = suite_definitions();
+    assert_eq!(
+        names,
+        referenced_closure("chronotope_msgs/ResolveSuggestions", &defs),
+        "dependencies() must be every type it refers to, transitively"
+    );
+    // Fields in order, down to every suggestion's axis and point.
+    let m = sample_suggestions();
+    let value: Ordered = serde_json::from_str(&serde_json::to_string(&m).unwrap()).unwrap();
+    let checked = check_field_order(
+        "chronotope_msgs/ResolveSuggestions",
+        &value,
+        &defs,
+        "suggestions",
+    );
+    // The message, header and stamp; per suggestion itself, translation, axis and point.
+    assert_eq!(checked, 3 + 3 * 4);
+    // The bytes the definitions lay out are the Rust type's.
+    let json = serde_json::to_value(&m).unwrap();
+    let mut body = Vec::new();
+    encode_from_definition(
+        "chronotope_msgs/ResolveSuggestions",
+        &json,
+        &defs,
+        &mut body,
+    );
+    assert_eq!(encode_cdr(&m).unwrap()[4..], body[..]);
+    // The kinds.
+    let kinds = rust_constants!(ResolveSuggestion: KIND_TRANSLATE, KIND_TIME_SCALE, KIND_ROTATE);
+    assert_eq!(
+        msg_constants(&read("msgs/msg/ResolveSuggestion.msg")),
+        kinds
+    );
+    try_ros2msg_schema::<ResolveSuggestions>().expect("a complete schema");
 }

@@ -846,3 +846,82 @@ fn a_pair_is_called_clear_only_where_both_bodies_are_observed() {
     assert_eq!(fp.verdict, Verdict::Unsure, "{:?}", fp.unsure_spans_s);
     assert!(fp.unsure_spans_s.iter().any(|u| u.code == "frames_filled"), "{:?}", fp.unsure_spans_s);
 }
+
+/// The checker's `rotation_axis`, `rotation_point` and `rotation_max_rad` reach its
+/// rotation suggestion: the spindle of the machine-tool cell turned about a horizontal axis
+/// through its head swings its tool clear of the workpiece and the fixture, verified; within
+/// a limit too small nothing clears and the report says so; an axis without a direction is
+/// refused.
+#[test]
+fn the_rotation_parameters_reach_the_rotation_suggestion() {
+    let d = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bag = root.join("bags/machine-tool-32-bits.mcap");
+    let cfg_text = std::fs::read_to_string(root.join("launch_configs/machine_tool.yaml")).unwrap();
+    let line = "    - {name: markers, value: true}\n";
+    assert!(cfg_text.contains(line));
+    let with = |params: &str| {
+        let text = cfg_text.replace(
+            line,
+            &format!("    - {{name: markers, value: false}}\n{params}"),
+        );
+        LaunchConfig::parse(&text, "machine_tool.yaml with a rotation").unwrap()
+    };
+    let axis = "    - {name: rotation_axis, value: [1.0, 0.0, 0.0]}\n    - {name: rotation_point, value: [0.44, 0.64, 1.0]}\n";
+    let rotations = |cfg: &LaunchConfig| {
+        let r = replay(&bag, Some(cfg), None, false).unwrap();
+        let j = serde_json::to_value(&r.report.resolutions).unwrap();
+        j.as_array()
+            .unwrap()
+            .iter()
+            .filter(|x| x["kind"] == "rotate")
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    let found = rotations(&with(axis));
+    assert_eq!(found.len(), 1, "{found:?}");
+    let r = &found[0];
+    assert_eq!(r["body"], "/spindle/occupancy");
+    assert_eq!(r["axis"], serde_json::json!([1.0, 0.0, 0.0]));
+    let point: Vec<f64> = r["point_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    // Snapped to the checker lattice (an eighth of a 0.04 m voxel).
+    for (got, want) in point.iter().zip([0.44, 0.64, 1.0]) {
+        assert!((got - want).abs() <= 0.0025, "{point:?}");
+    }
+    let angle = r["angle_rad"].as_f64().unwrap();
+    assert!((0.1..1.2).contains(&angle.abs()), "{r}");
+    assert_eq!(r["verified_clear"], true, "{r}");
+    assert!(r.get("reason").is_none(), "{r}");
+    assert_eq!(r["episode_s"].as_array().unwrap().len(), 2);
+    // Within a tenth of a radian nothing clears: said, with the largest angle tried.
+    let small = rotations(&with(&format!(
+        "{axis}    - {{name: rotation_max_rad, value: 0.1}}\n"
+    )));
+    assert_eq!(small.len(), 1, "{small:?}");
+    assert_eq!(small[0]["verified_clear"], false);
+    assert!(small[0]["angle_rad"].as_f64().unwrap().abs() <= 0.1);
+    let why = small[0]["reason"].as_str().unwrap();
+    assert!(why.contains("no angle tried up to 5.7°"), "{why}");
+    // A zero limit asks for no rotation.
+    let none = rotations(&with(&format!(
+        "{axis}    - {{name: rotation_max_rad, value: 0.0}}\n"
+    )));
+    assert!(none.is_empty(), "{none:?}");
+    // An axis without a direction is refused, by name.
+    let e = replay(
+        &bag,
+        Some(&with(
+            "    - {name: rotation_axis, value: [0.0, 0.0, 0.0]}\n",
+        )),
+        Some(&d.path().join("never.mcap")),
+        false,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("rotation_axis"), "{e}");
+}

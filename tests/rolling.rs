@@ -121,7 +121,7 @@ fn every_periodic_contact_is_found_within_its_bound() {
             "found {got:?}, true {want:?}"
         );
     }
-    // One resolution pair (translation, time scaling) per contact episode, each naming it.
+    // Resolutions (translation, time scaling, rotation) per contact episode, each naming it.
     assert!(!r.resolutions.is_empty());
     assert!(r.problems.is_empty(), "{:?}", r.problems);
 }

@@ -7,6 +7,7 @@ pub mod carve;
 pub mod check;
 pub mod mesh;
 pub mod robot;
+pub mod rotate;
 pub mod sampler;
 
 use std::path::PathBuf;

@@ -32,6 +32,24 @@ pub struct Inclusion<'a> {
     far: [LatticePoint; FAR_POINTS],
     ws: TraverseWorkspace,
     hits: Vec<u32>,
+    /// The mesh seen scaled (see [`Inclusion::scaled`]), or as it is.
+    scale: Option<Scale>,
+}
+
+/// A uniform scaling x → n·(x − centre) of a mesh, applied as its tets and tree boxes are
+/// read.
+#[derive(Debug, Clone, Copy)]
+struct Scale {
+    n: i64,
+    centre: [i64; 4],
+}
+
+impl Scale {
+    /// `p` scaled; the caller knows it fits (see [`Inclusion::scaled`]).
+    #[inline]
+    fn apply(&self, p: &LatticePoint) -> LatticePoint {
+        [0, 1, 2, 3].map(|k| ((i64::from(p[k]) - self.centre[k]) * self.n) as i32)
+    }
 }
 
 /// How a segment meets a tet.
@@ -167,6 +185,64 @@ impl<'a> Inclusion<'a> {
             far,
             ws: TraverseWorkspace::new(),
             hits: Vec::new(),
+            scale: None,
+        }
+    }
+
+    /// The same queries against the mesh scaled by `n > 0` about `centre`
+    /// (x → n·(x − centre)), with points given in the scaled coordinates, without scaling
+    /// it: its tets and tree boxes are scaled as they are read. A uniform scaling keeps
+    /// every normal's direction, so the normals serve as they are. The far points are
+    /// placed beyond the scaled mesh's box. `None` if a scaled coordinate would leave
+    /// ±2^30 (a far point must fit `i32`).
+    #[must_use]
+    pub fn scaled(mut self, n: i64, centre: LatticePoint) -> Option<Self> {
+        let b = self.bvh.aabb();
+        let centre = centre.map(i64::from);
+        let fits = |k: usize, c: i32| {
+            (i64::from(c) - centre[k])
+                .checked_mul(n)
+                .is_some_and(|v| v.abs() < 1 << 30)
+        };
+        if n <= 0 || (!b.is_empty() && !(0..4).all(|k| fits(k, b.min[k]) && fits(k, b.max[k]))) {
+            return None;
+        }
+        let scale = Scale { n, centre };
+        if !b.is_empty() {
+            let top = scale.apply(&b.max);
+            self.far = FAR_OFFSETS.map(|o| [0, 1, 2, 3].map(|k| top[k] + o[k]));
+        }
+        self.scale = Some(scale);
+        Some(self)
+    }
+
+    /// Tet `i` of the mesh, scaled if the queries are.
+    #[inline]
+    fn tet(&self, i: u32) -> [LatticePoint; 4] {
+        let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
+        match &self.scale {
+            None => t,
+            Some(s) => t.map(|p| s.apply(&p)),
+        }
+    }
+
+    /// Fills `hits` with the tets whose boxes meet the closed segment `pq`.
+    fn candidates(&mut self, p: &LatticePoint, q: &LatticePoint) {
+        let (p, q) = (p.map(i64::from), q.map(i64::from));
+        self.hits.clear();
+        let hits = &mut self.hits;
+        match &self.scale {
+            None => self
+                .bvh
+                .segment_candidates(p, q, &mut self.ws, |i| hits.push(i)),
+            Some(s) => self.bvh.segment_candidates_mapped(
+                p,
+                q,
+                [s.n; 4],
+                s.centre.map(|c| -c * s.n),
+                &mut self.ws,
+                |i| hits.push(i),
+            ),
         }
     }
 
@@ -233,11 +309,7 @@ impl<'a> Inclusion<'a> {
     /// its tets (both meshed on one lattice); this settles them with one point query
     /// rather than one per point tried.
     pub fn lies_in_boundary(&mut self, p: &LatticePoint, t: &[LatticePoint; 4]) -> bool {
-        let wide = p.map(i64::from);
-        self.hits.clear();
-        let hits = &mut self.hits;
-        self.bvh
-            .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
+        self.candidates(p, p);
         // A tet holding `t` holds its point `p` first: most candidates (tets sharing a
         // vertex or an edge with `t`) fail there, at one test rather than after several.
         self.hits
@@ -248,7 +320,7 @@ impl<'a> Inclusion<'a> {
     /// Whether the closed tet `i` of the mesh holds `p` (exact).
     #[inline]
     fn holds(&self, i: u32, p: &LatticePoint) -> bool {
-        let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
+        let t = self.tet(i);
         let side = match self.normals.map(|n| n[i as usize]) {
             Some(n) if n != super::NO_NORMAL => orient_by_normal(&n, &t[0], p),
             _ => orient4_i128([&t[0], &t[1], &t[2], &t[3], p]),
@@ -258,11 +330,7 @@ impl<'a> Inclusion<'a> {
 
     /// Whether `p` lies in a closed tet of the mesh (exact).
     fn on_boundary(&mut self, p: &LatticePoint) -> bool {
-        let wide = p.map(i64::from);
-        self.hits.clear();
-        let hits = &mut self.hits;
-        self.bvh
-            .segment_candidates(wide, wide, &mut self.ws, |i| hits.push(i));
+        self.candidates(p, p);
         self.hits.iter().any(|&i| self.holds(i, p))
     }
 
@@ -281,14 +349,10 @@ impl<'a> Inclusion<'a> {
         q: &LatticePoint,
         q_inside: bool,
     ) -> Option<bool> {
-        let wide = |x: &LatticePoint| x.map(i64::from);
-        self.hits.clear();
-        let hits = &mut self.hits;
-        self.bvh
-            .segment_candidates(wide(p), wide(q), &mut self.ws, |i| hits.push(i));
+        self.candidates(p, q);
         let mut sum = i32::from(q_inside);
         for &i in &self.hits {
-            let t = self.mesh.tets[i as usize].map(|v| self.mesh.vertices[v as usize]);
+            let t = self.tet(i);
             let (sp, sq) = match self.normals.map(|n| n[i as usize]) {
                 Some(n) if n != super::NO_NORMAL => (
                     orient_by_normal(&n, &t[0], p),

@@ -3,6 +3,7 @@
 //! and how a body is placed on it ([`Placement`]).
 
 use super::*;
+use rayon::prelude::*;
 
 /// A prepared body and one copy of it that is placed again and again by axis maps (the
 /// candidate moves of a resolution search): each placement rewrites the copy's
@@ -16,6 +17,18 @@ pub struct Placement<'a> {
     /// without vertices): a map that keeps them within ±2^30 keeps every vertex there.
     bounds: Option<[[i32; 2]; 4]>,
     pub(super) body: Prepared,
+    /// The map the copy holds now (`None` before the first placement or after a failed
+    /// one): placing it again by the same map does nothing.
+    placed: Option<Placed>,
+    /// The copy's normals are the source's (as after any map equal on every axis).
+    normals_as_source: bool,
+}
+
+/// How a [`Placement`]'s copy is placed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Placed {
+    Axes([i64; 4], [i64; 4]),
+    Linear(LinearMap),
 }
 
 impl<'a> Placement<'a> {
@@ -49,6 +62,8 @@ impl<'a> Placement<'a> {
                 geometry: source.geometry,
                 original: source.original.clone(),
             },
+            placed: None,
+            normals_as_source: false,
         }
     }
 
@@ -67,6 +82,9 @@ impl<'a> Placement<'a> {
         if mul.iter().any(|&m| m <= 0) {
             return None;
         }
+        if self.placed == Some(Placed::Axes(mul, add)) {
+            return Some(&self.body);
+        }
         let (src, body) = (self.source, &mut self.body);
         // The map increases on each axis: if the extreme coordinates stay within ±2^30, so
         // does every one (and no product or sum below overflows).
@@ -80,6 +98,7 @@ impl<'a> Placement<'a> {
                 }
             }
         }
+        self.placed = None;
         body.mesh.vertices.clear();
         body.mesh.vertices.extend(
             src.mesh
@@ -90,10 +109,174 @@ impl<'a> Placement<'a> {
         if !body.bvh.map_axes_from(&src.bvh, mul, add) {
             return None;
         }
-        map_normals(&src.normals, mul, &mut body.normals);
+        // A map equal on every axis keeps every normal: the source's, written once.
+        let uniform = mul.iter().all(|&m| m == mul[0]);
+        if !(uniform && self.normals_as_source) {
+            map_normals(&src.normals, mul, &mut body.normals);
+        }
+        self.normals_as_source = uniform;
+        self.placed = Some(Placed::Axes(mul, add));
         Some(&self.body)
     }
 }
+
+/// An affine map x → L·x + b of checker coordinates with an integer matrix L of positive
+/// determinant: a rotation made integer by scaling (see [`rotate`](super::rotate)), and
+/// any axis map. It keeps lattice points lattice points and every tet's orientation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LinearMap {
+    /// L, row by row.
+    pub matrix: [[i64; 4]; 4],
+    /// b.
+    pub shift: [i64; 4],
+}
+
+impl LinearMap {
+    /// L·p + b in `i128` (exact for any `i64` matrix and `i32` point).
+    #[inline]
+    fn apply_wide(&self, p: &[i128; 4]) -> [i128; 4] {
+        [0, 1, 2, 3].map(|k| {
+            let row = &self.matrix[k];
+            i128::from(self.shift[k]) + (0..4).map(|j| i128::from(row[j]) * p[j]).sum::<i128>()
+        })
+    }
+
+    /// `p` mapped, or `None` if a coordinate would leave ±2^30.
+    pub fn apply(&self, p: &LatticePoint) -> Option<LatticePoint> {
+        let q = self.apply_wide(&p.map(i128::from));
+        let mut out = [0; 4];
+        for k in 0..4 {
+            out[k] = i32::try_from(q[k])
+                .ok()
+                .filter(|c| c.unsigned_abs() < 1 << 30)?;
+        }
+        Some(out)
+    }
+
+    /// Whether every point of the box `b` (smallest and largest coordinate per axis) maps
+    /// within ±2^30: an affine map takes its extremes at the box's corners.
+    fn keeps_within(&self, b: &[[i32; 2]; 4]) -> bool {
+        (0..16).all(|corner| {
+            let p: [i128; 4] = [0, 1, 2, 3].map(|k| i128::from(b[k][(corner >> k) & 1]));
+            self.apply_wide(&p).iter().all(|c| c.abs() < 1 << 30)
+        })
+    }
+
+    /// The map of hyperplane normals: the cofactor matrix C = det(L)·L^{−T}, divided by
+    /// the gcd of its entries (a positive factor: only a normal's direction matters). The
+    /// edges of a tet map by L, so its normal maps by C (N'·x = det[L e1, L e2, L e3, x]
+    /// = det(L)·N·L^{−1}x). `None` unless det L > 0.
+    pub(super) fn normal_map(&self) -> Option<[[i128; 4]; 4]> {
+        let l = self.matrix.map(|r| r.map(i128::from));
+        let minor = |i: usize, j: usize| {
+            let rows: Vec<usize> = (0..4).filter(|&r| r != i).collect();
+            let cols: Vec<usize> = (0..4).filter(|&c| c != j).collect();
+            let m = |r: usize, c: usize| l[rows[r]][cols[c]];
+            m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1))
+                - m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0))
+                + m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0))
+        };
+        let mut c = [[0i128; 4]; 4];
+        for (i, row) in c.iter_mut().enumerate() {
+            for (j, x) in row.iter_mut().enumerate() {
+                let sign = if (i + j) % 2 == 0 { 1 } else { -1 };
+                *x = sign * minor(i, j);
+            }
+        }
+        let det: i128 = (0..4).map(|j| l[0][j] * c[0][j]).sum();
+        if det <= 0 {
+            return None;
+        }
+        let g = c
+            .iter()
+            .flatten()
+            .fold(0u128, |g, &x| gcd(g, x.unsigned_abs()))
+            .max(1) as i128;
+        Some(c.map(|r| r.map(|x| x / g)))
+    }
+}
+
+impl Placement<'_> {
+    /// The source mapped by `map` (see [`LinearMap`]): coordinates mapped, each box of the
+    /// tree replaced by the box of its image (its nodes and leaf order kept: valid for any
+    /// map, its boxes a little larger than the mapped tets' under a rotation, see
+    /// [`Bvh::map_affine_from`]), normals mapped by the cofactor matrix. `None` if det L ≤ 0
+    /// or a coordinate would leave ±2^30; the copy is then unusable until the next
+    /// successful placement.
+    pub fn place_linear(&mut self, map: &LinearMap) -> Option<&Prepared> {
+        if self.placed == Some(Placed::Linear(*map)) {
+            return Some(&self.body);
+        }
+        let normal_map = map.normal_map()?;
+        if let Some(b) = &self.bounds {
+            if !map.keeps_within(b) {
+                return None;
+            }
+        }
+        let (src, body) = (self.source, &mut self.body);
+        self.placed = None;
+        self.normals_as_source = false;
+        body.mesh.vertices.clear();
+        // Every vertex lies in the source's box, whose image fits: no conversion fails.
+        // With matrix entries below 2^30 and shifts below 2^61, each term is below 2^60
+        // and every sum fits i64.
+        let small = map.matrix.iter().flatten().all(|c| c.abs() < 1 << 30)
+            && map.shift.iter().all(|c| c.abs() < 1 << 61);
+        let vertex = |p: &LatticePoint| -> LatticePoint {
+            if small {
+                [0, 1, 2, 3].map(|k| {
+                    let row = &map.matrix[k];
+                    (map.shift[k] + (0..4).map(|j| row[j] * i64::from(p[j])).sum::<i64>()) as i32
+                })
+            } else {
+                map.apply_wide(&p.map(i128::from))
+                    .map(|c| i32::try_from(c).unwrap_or_default())
+            }
+        };
+        if src.mesh.vertices.len() >= PARALLEL_MAP {
+            body.mesh
+                .vertices
+                .par_extend(src.mesh.vertices.par_iter().map(vertex));
+        } else {
+            body.mesh
+                .vertices
+                .extend(src.mesh.vertices.iter().map(vertex));
+        }
+        if !body.bvh.map_affine_from(&src.bvh, map.matrix, map.shift) {
+            return None;
+        }
+        let mesh = &body.mesh;
+        // Entries of the normal map below 2^30 keep every term below 2^61: i64 sums.
+        let small = normal_map.iter().flatten().all(|c| c.abs() < 1 << 30);
+        let narrow = normal_map.map(|r| r.map(|c| c as i64));
+        let normal = |(i, n): (usize, &[i32; 4])| {
+            if *n == NO_NORMAL {
+                return tet_normal(tet_of(mesh, i as u32));
+            }
+            if small {
+                let m = narrow.map(|row| (0..4).map(|j| row[j] * i64::from(n[j])).sum::<i64>());
+                if let [Some(a), Some(b), Some(c), Some(d)] = m.map(|v| fit_i32(i128::from(v))) {
+                    return [a, b, c, d];
+                }
+            }
+            let n = n.map(i128::from);
+            normal_in_i32(normal_map.map(|row| (0..4).map(|j| row[j] * n[j]).sum()))
+        };
+        body.normals.clear();
+        if src.normals.len() >= PARALLEL_MAP {
+            body.normals
+                .par_extend(src.normals.par_iter().enumerate().map(normal));
+        } else {
+            body.normals
+                .extend(src.normals.iter().enumerate().map(normal));
+        }
+        self.placed = Some(Placed::Linear(*map));
+        Some(&self.body)
+    }
+}
+
+/// Vertices or normals from which [`Placement::place_linear`] maps them on rayon's pool.
+const PARALLEL_MAP: usize = 1 << 16;
 
 /// `c` mapped by c → mul·c + add, or `None` if it would leave ±2^30.
 fn map_coordinate(c: i32, mul: i64, add: i64) -> Option<i32> {

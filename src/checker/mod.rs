@@ -31,6 +31,7 @@ pub mod prep;
 pub mod report;
 pub mod resolve;
 pub mod rolling;
+pub mod rotate;
 mod walk;
 pub mod window;
 
@@ -39,7 +40,7 @@ pub mod window;
 use {lattice::*, normals::*, walk::*};
 
 pub(crate) use lattice::origin_offset;
-pub use lattice::{mapped_tet_inside, CommonLattice, Placement};
+pub use lattice::{mapped_tet_inside, CommonLattice, LinearMap, Placement};
 pub(crate) use normals::{t_range, tet_normal, tet_of};
 pub use walk::{
     check_pair, check_pair_detailed, check_pair_walked, interferes, merge_ranges, CrossingPair,

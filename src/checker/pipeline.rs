@@ -9,6 +9,7 @@ use super::report::{
     UnsureSpanReport, Verdict,
 };
 use super::resolve::{suggest_time_scaling, suggest_translation, Metric, TimeScaling, Translation};
+use super::rotate::{suggest_rotation, Rotation, RotationSpec};
 use super::{
     check_pair, check_pair_walked, CheckError, CommonLattice, PairResult, Prepared, StreamWalk,
 };
@@ -31,6 +32,8 @@ pub struct CheckPlan {
     /// Each body's `header.frame_id`, where known: bodies in different frames are not
     /// checked against each other (the pair is reported as unchecked).
     pub frame_ids: BTreeMap<String, String>,
+    /// The axis, point and largest angle of the rotation suggested for a movable body.
+    pub rotation: RotationSpec,
 }
 
 impl CheckPlan {
@@ -52,6 +55,7 @@ impl CheckPlan {
             movable: sorted.first().map(|s| s.to_string()).into_iter().collect(),
             time_scale,
             frame_ids: BTreeMap::new(),
+            rotation: RotationSpec::default(),
         }
     }
 }
@@ -197,6 +201,7 @@ pub fn check_streamed(
                         .collect(),
                     time_scale: plan.time_scale,
                     frame_ids: BTreeMap::new(),
+                    rotation: plan.rotation,
                 };
                 let mut sub_preps = BTreeMap::new();
                 let mut sub_walks = BTreeMap::new();
@@ -391,6 +396,7 @@ pub fn check_streamed(
                 &rs,
                 &lat,
                 c,
+                &plan.rotation,
                 time_origin_ns,
                 episode,
             ));
@@ -408,33 +414,61 @@ pub fn check_streamed(
     })
 }
 
-/// Translation and time scaling of body `a` against `others`, each verified; `episode` is
-/// the contact episode they clear (s since `origin`).
+/// Translation, time scaling and rotation (about `rotation`'s axis) of body `a` against
+/// `others`, each verified; `episode` is the contact episode they clear (s since `origin`).
+#[allow(clippy::too_many_arguments)]
 pub fn resolve(
     a: &Prepared,
     others: &[&Prepared],
     rs: &[&PairResult],
     lat: &CommonLattice,
     c: f64,
+    rotation: &RotationSpec,
     origin: i64,
     episode: [f64; 2],
 ) -> Vec<Resolution> {
     let m = Metric::new(lat, c);
-    let found = suggest(a, others, rs, &m);
+    let found = suggest(a, others, rs, &m, lat, rotation);
     resolutions(&a.id, &found, lat, &m, c, origin, episode)
 }
 
 /// What [`suggest`] found, in checker lattice units.
-pub type Suggestions = (Option<Translation>, Option<TimeScaling>);
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Suggestions {
+    /// The translation in space and time.
+    pub translation: Option<Translation>,
+    /// The time scaling.
+    pub time_scaling: Option<TimeScaling>,
+    /// The rotation with time fixed.
+    pub rotation: Option<Rotation>,
+}
 
-/// The translation and the time scaling of body `a` against `others`, each verified, in
-/// checker lattice units: they depend only on the prepared bodies and the metric.
-pub fn suggest(a: &Prepared, others: &[&Prepared], rs: &[&PairResult], m: &Metric) -> Suggestions {
-    // The two searches are independent: both at once.
-    rayon::join(
-        || suggest_translation(a, others, rs, m),
-        || suggest_time_scaling(a, others, rs),
-    )
+/// The translation, the time scaling and the rotation of body `a` against `others`, each
+/// verified, in checker lattice units: they depend only on the prepared bodies, the metric
+/// and the rotation asked for on `lat`.
+pub fn suggest(
+    a: &Prepared,
+    others: &[&Prepared],
+    rs: &[&PairResult],
+    m: &Metric,
+    lat: &CommonLattice,
+    rotation: &RotationSpec,
+) -> Suggestions {
+    // The three searches are independent: all at once.
+    let ((translation, time_scaling), rotation) = rayon::join(
+        || {
+            rayon::join(
+                || suggest_translation(a, others, rs, m),
+                || suggest_time_scaling(a, others, rs),
+            )
+        },
+        || suggest_rotation(a, others, rs, lat, rotation),
+    );
+    Suggestions {
+        translation,
+        time_scaling,
+        rotation,
+    }
 }
 
 /// The report's resolutions of body `id` from what [`suggest`] found on `lat` with metric
@@ -449,8 +483,7 @@ pub fn resolutions(
     episode: [f64; 2],
 ) -> Vec<Resolution> {
     let mut out = Vec::new();
-    let (translation, scaling) = found;
-    if let Some(t) = translation {
+    if let Some(t) = &found.translation {
         let v = [0, 1, 2, 3].map(|k| {
             if k < 3 {
                 t.lattice[k] as f64 * m.sigma[k]
@@ -473,13 +506,33 @@ pub fn resolutions(
     } else {
         tracing::warn!(body = %id, "no translation found (no interior point of the body lies inside another)");
     }
-    if let Some(ts) = scaling {
+    if let Some(ts) = &found.time_scaling {
         out.push(Resolution::TimeScale {
             body: id.to_string(),
             t0_s: lat.time_s(ts.t0 as f64, origin),
             scale: ts.scale,
             verified_clear: ts.verified_clear,
             episode_s: episode,
+            unsure_s: Vec::new(),
+        });
+    }
+    if let Some(r) = &found.rotation {
+        let per_step = lat.per_step() as f64;
+        if let Some(why) = &r.reason {
+            tracing::debug!(body = %id, "no rotation found that clears: {why}");
+        }
+        out.push(Resolution::Rotate {
+            body: id.to_string(),
+            axis: r.axis.unit(),
+            point_m: [0, 1, 2]
+                .map(|k| lat.voxel0_centre[k] + f64::from(r.point[k]) / per_step * lat.resolution),
+            angle_rad: r.angle_rad,
+            verified_clear: r.verified_clear,
+            episode_s: episode,
+            axis_deviation_rad: r.axis.deviation_rad,
+            failing_angle_rad: r.failing_rad,
+            lattice_refinement: r.n,
+            reason: r.reason.clone(),
             unsure_s: Vec::new(),
         });
     }

@@ -348,6 +348,35 @@ pub enum Resolution {
         #[serde(skip_serializing_if = "Vec::is_empty")]
         unsure_s: Vec<[f64; 2]>,
     },
+    /// Turn the body about an axis by the same angle at every instant (time fixed).
+    Rotate {
+        /// The body.
+        body: String,
+        /// Unit direction of the axis used (an integer direction near the one asked for).
+        axis: [f64; 3],
+        /// A point on the axis (m).
+        point_m: [f64; 3],
+        /// The angle, right-handed about `axis` (rad).
+        angle_rad: f64,
+        /// Checked again against every other body: clear.
+        verified_clear: bool,
+        /// The contact episode it clears (s since the time origin; extra field).
+        episode_s: [f64; 2],
+        /// Angle between `axis` and the axis asked for (rad, extra field).
+        axis_deviation_rad: f64,
+        /// The largest angle of the same sense tried that does not clear (rad, extra
+        /// field): the search's answer lies between the two; null if none was tried below.
+        failing_angle_rad: Option<f64>,
+        /// n of the exact rotation matrix M/n: the lattice it was verified on is n times
+        /// finer (extra field).
+        lattice_refinement: i64,
+        /// Why no angle was found that clears (extra field; absent when one was).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        reason: Option<String>,
+        /// Where the check that verified it cannot hold (a body unsure there): it is verified
+        /// only where both bodies are observed (extra field; empty: everywhere).
+        unsure_s: Vec<[f64; 2]>,
+    },
 }
 
 impl Resolution {
@@ -376,19 +405,27 @@ impl Resolution {
                 let (x, y) = (map(a), map(b));
                 (body, [a.min(x).min(y), b.max(x).max(y)])
             }
+            // Turned with time fixed: the episode's own time.
+            Self::Rotate {
+                body, episode_s, ..
+            } => (body, *episode_s),
         }
     }
 
     fn unsure_mut(&mut self) -> &mut Vec<[f64; 2]> {
         match self {
-            Self::Translate { unsure_s, .. } | Self::TimeScale { unsure_s, .. } => unsure_s,
+            Self::Translate { unsure_s, .. }
+            | Self::TimeScale { unsure_s, .. }
+            | Self::Rotate { unsure_s, .. } => unsure_s,
         }
     }
 
     /// Where the check that verified it cannot hold (empty: nowhere).
     pub fn unsure_s(&self) -> &[[f64; 2]] {
         match self {
-            Self::Translate { unsure_s, .. } | Self::TimeScale { unsure_s, .. } => unsure_s,
+            Self::Translate { unsure_s, .. }
+            | Self::TimeScale { unsure_s, .. }
+            | Self::Rotate { unsure_s, .. } => unsure_s,
         }
     }
 }

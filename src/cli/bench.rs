@@ -108,6 +108,22 @@ pub enum BenchWhich {
         #[arg(long)]
         no_sweep: bool,
     },
+    /// The rotation suggestion against the exact smallest angle: a bar turning away from a
+    /// post about its end, at several grids.
+    Rotation {
+        /// Grids (the domain is 1.28 m; multiples of 32 put the bar's faces on voxel
+        /// boundaries).
+        #[arg(long, value_delimiter = ',', default_value = "32,64,128")]
+        grids: Vec<u32>,
+        /// Encodings.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            value_enum,
+            default_value = "bits,percent"
+        )]
+        encodings: Vec<EncodingArg>,
+    },
     /// The stochastic sampler: at default settings, KS of each coordinate and effective
     /// sample size on spheres, a torus, the seed's figures and 4D sets, with the cost per
     /// effective sample; then uniformity error (KS) against run time and evaluations per
@@ -248,6 +264,10 @@ fn run_in_pool(a: &BenchArgs) -> Result<(), CliError> {
             *reps,
             if *no_sweep { &[] } else { sweep },
         )?),
+        BenchWhich::Rotation { grids, encodings } => {
+            let encodings: Vec<VoxelEncoding> = encodings.iter().map(|e| (*e).into()).collect();
+            Ok(bench::rotate::bench_rotation(grids, &encodings)?)
+        }
         BenchWhich::Sampler {
             dts,
             samples,

@@ -1,12 +1,13 @@
 //! `chronotope check BAG [--report FILE.json]`: mesh every body, check every pair, suggest
-//! resolutions for the body whose id sorts first (a translation and a time scaling, each
-//! verified against every other body), and write the CONTRACT.md report
+//! resolutions for the body whose id sorts first (a translation, a time scaling and a
+//! rotation, each verified against every other body), and write the CONTRACT.md report
 //! (`chronotope.report/1`).
 
 use super::mesh::{mesher_options_from, MesherArgs};
 use super::{BagFrames, CliError};
 use crate::checker::pipeline::{check_bodies, CheckPlan};
 use crate::checker::report::Report;
+use crate::checker::rotate::RotationSpec;
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
 use crate::mesh::MesherOptions;
 use clap::Args;
@@ -26,6 +27,16 @@ pub struct CheckArgs {
     /// frame period).
     #[arg(long)]
     pub time_scale: Option<f64>,
+    /// Axis the movable body is turned about, as X,Y,Z (default: vertical, 0,0,1).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub rotation_axis: Option<Vec<f64>>,
+    /// A point on that axis in metres, as X,Y,Z (default: the body's centroid at its first
+    /// contact).
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    pub rotation_point: Option<Vec<f64>>,
+    /// Largest turn tried in either sense (rad, at most π; 0: no rotation suggested).
+    #[arg(long)]
+    pub rotation_max_rad: Option<f64>,
     /// Mesher options.
     #[command(flatten)]
     pub mesher: MesherArgs,
@@ -137,6 +148,19 @@ pub fn check_bag(
     opts: MesherOptions,
     time_scale: Option<f64>,
 ) -> Result<CheckReport, CliError> {
+    check_bag_with(path, opts, time_scale, RotationSpec::default())
+}
+
+/// [`check_bag`] with the rotation asked for.
+///
+/// # Errors
+/// As [`check_bag`].
+pub fn check_bag_with(
+    path: &Path,
+    opts: MesherOptions,
+    time_scale: Option<f64>,
+    rotation: RotationSpec,
+) -> Result<CheckReport, CliError> {
     let start = Instant::now();
     let LoadedBag {
         bodies,
@@ -151,10 +175,44 @@ pub fn check_bag(
         .collect();
     let mut plan = CheckPlan::all_pairs_first_movable(&ids, time_scale);
     plan.frame_ids = frame_ids;
+    plan.rotation = rotation;
     let mut report = check_bodies(&bodies, &plan, opts)?.report;
     report.timings_ms.mesh = t_mesh.as_secs_f64() * 1e3;
     report.timings_ms.total = start.elapsed().as_secs_f64() * 1e3;
     Ok(CheckReport { report, input })
+}
+
+/// The rotation `a` asks for.
+fn rotation_spec(a: &CheckArgs) -> Result<RotationSpec, CliError> {
+    let mut spec = RotationSpec::default();
+    let three = |flag: &str, v: &[f64]| -> Result<[f64; 3], CliError> {
+        match <[f64; 3]>::try_from(v) {
+            Ok(x) if x.iter().all(|c| c.is_finite()) => Ok(x),
+            _ => Err(CliError::Usage(format!(
+                "{flag}: three finite numbers X,Y,Z are needed"
+            ))),
+        }
+    };
+    if let Some(v) = &a.rotation_axis {
+        spec.axis = three("--rotation-axis", v)?;
+        if spec.axis.iter().all(|&c| c == 0.0) {
+            return Err(CliError::Usage(
+                "--rotation-axis 0,0,0: the axis needs a direction".into(),
+            ));
+        }
+    }
+    if let Some(v) = &a.rotation_point {
+        spec.point_m = Some(three("--rotation-point", v)?);
+    }
+    if let Some(r) = a.rotation_max_rad {
+        if !(0.0..=std::f64::consts::PI).contains(&r) {
+            return Err(CliError::Usage(format!(
+                "--rotation-max-rad {r}: must be within [0, π]"
+            )));
+        }
+        spec.max_rad = r;
+    }
+    Ok(spec)
 }
 
 /// Runs `chronotope check`.
@@ -169,6 +227,7 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
             )));
         }
     }
+    let rotation = rotation_spec(a)?;
     super::paths::Paths::new(a.overwrite)
         .bag(&a.bag)
         .output(
@@ -177,7 +236,12 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
             super::paths::OutputKind::File,
         )
         .check()?;
-    let r = check_bag(&a.bag, mesher_options_from(&a.mesher), a.time_scale)?;
+    let r = check_bag_with(
+        &a.bag,
+        mesher_options_from(&a.mesher),
+        a.time_scale,
+        rotation,
+    )?;
     for b in &r.bodies {
         println!(
             "{:<24} {:>4} frames {:>10} tets  closed {}",
@@ -230,6 +294,7 @@ pub fn run(a: &CheckArgs) -> Result<(), CliError> {
             serde_json::to_string(s).expect("plain data serialises")
         );
     }
+    print!("{}", super::replay::fix_lines(&r.resolutions));
     println!(
         "mesh {:.0} ms, check {:.0} ms, resolve {:.0} ms, total {:.0} ms",
         r.timings_ms.mesh, r.timings_ms.check, r.timings_ms.resolve, r.timings_ms.total

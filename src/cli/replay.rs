@@ -726,6 +726,72 @@ pub fn replay(
     })
 }
 
+/// One line per resolution: what to do to clear each contact episode, and whether it was
+/// verified clear.
+pub(crate) fn fix_lines(resolutions: &[crate::checker::report::Resolution]) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    for res in resolutions {
+        let _ = match res {
+            crate::checker::report::Resolution::Translate {
+                body,
+                vector,
+                distance,
+                verified_clear,
+                episode_s,
+                ..
+            } => writeln!(
+                s,
+                "  FIX      {:.3}-{:.3} s: move {body} by ({:+.4}, {:+.4}, {:+.4}) m and {:+.3} s: {:.1} mm deep, {}",
+                episode_s[0],
+                episode_s[1],
+                vector[0],
+                vector[1],
+                vector[2],
+                vector[3],
+                distance * 1e3,
+                verdict_words(*verified_clear, res.unsure_s())
+            ),
+            crate::checker::report::Resolution::TimeScale {
+                body,
+                t0_s,
+                scale,
+                verified_clear,
+                ..
+            } => writeln!(
+                s,
+                "  FIX      or retime {body}: durations after {t0_s:.3} s ×{scale:.3}, {}",
+                verdict_words(*verified_clear, res.unsure_s())
+            ),
+            crate::checker::report::Resolution::Rotate {
+                body,
+                axis,
+                point_m,
+                angle_rad,
+                verified_clear,
+                reason,
+                ..
+            } => writeln!(
+                s,
+                "  FIX      or turn {body} by {:+.2}° about ({:.3}, {:.3}, {:.3}) through ({:.4}, {:.4}, {:.4}) m: {}",
+                angle_rad.to_degrees(),
+                axis[0],
+                axis[1],
+                axis[2],
+                point_m[0],
+                point_m[1],
+                point_m[2],
+                match (verified_clear, reason) {
+                    (true, _) => verdict_words(true, res.unsure_s()),
+                    (false, Some(why)) => format!("NOT clear: {why}"),
+                    (false, None) => "NOT clear when checked again".to_string(),
+                }
+            ),
+        };
+    }
+    s
+}
+
 /// The short human summary: which bodies collide, when, how deep, what to do.
 pub fn summary(r: &ReplayReport, bag: &Path) -> String {
     use std::fmt::Write;
@@ -778,40 +844,7 @@ pub fn summary(r: &ReplayReport, bag: &Path) -> String {
             p.labels.b.interference,
         );
     }
-    for res in &rep.resolutions {
-        let _ = match res {
-            crate::checker::report::Resolution::Translate {
-                body,
-                vector,
-                distance,
-                verified_clear,
-                episode_s,
-                ..
-            } => writeln!(
-                s,
-                "  FIX      {:.3}-{:.3} s: move {body} by ({:+.4}, {:+.4}, {:+.4}) m and {:+.3} s: {:.1} mm deep, {}",
-                episode_s[0],
-                episode_s[1],
-                vector[0],
-                vector[1],
-                vector[2],
-                vector[3],
-                distance * 1e3,
-                verdict_words(*verified_clear, res.unsure_s())
-            ),
-            crate::checker::report::Resolution::TimeScale {
-                body,
-                t0_s,
-                scale,
-                verified_clear,
-                ..
-            } => writeln!(
-                s,
-                "  FIX      or retime {body}: durations after {t0_s:.3} s ×{scale:.3}, {}",
-                verdict_words(*verified_clear, res.unsure_s())
-            ),
-        };
-    }
+    s.push_str(&fix_lines(&rep.resolutions));
     let problems: u64 = r.nodes.values().map(NodeStatus::problem_count).sum::<u64>()
         + r.input.undecodable.values().sum::<u64>()
         + r.input.wrong_type.values().sum::<u64>()

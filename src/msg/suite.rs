@@ -468,7 +468,7 @@ impl RosMessage for InterferenceReport {
 pub struct ResolveSuggestion {
     /// The body to move or retime.
     pub body_id: String,
-    /// [`Self::KIND_TRANSLATE`] or [`Self::KIND_TIME_SCALE`].
+    /// [`Self::KIND_TRANSLATE`], [`Self::KIND_TIME_SCALE`] or [`Self::KIND_ROTATE`].
     pub kind: u8,
     /// Shift in space (m).
     pub translation: Vector3,
@@ -482,6 +482,12 @@ pub struct ResolveSuggestion {
     pub t0_s: f64,
     /// Factor on durations after `t0_s`.
     pub scale: f64,
+    /// Unit direction of the axis turned about.
+    pub axis: Vector3,
+    /// A point on the axis (m).
+    pub point: Point,
+    /// The turn, right-handed about `axis` (rad).
+    pub angle_rad: f64,
     /// Checked again against every other body: clear.
     pub verified_clear: bool,
     /// Start of the contact episode it clears (s since the time origin).
@@ -499,6 +505,8 @@ impl ResolveSuggestion {
     pub const KIND_TRANSLATE: u8 = 0;
     /// Retime the body.
     pub const KIND_TIME_SCALE: u8 = 1;
+    /// Turn the body about an axis, time fixed.
+    pub const KIND_ROTATE: u8 = 2;
 }
 
 /// `chronotope_msgs/msg/ContactEvent`: a contact of two bodies as it begins, goes on and ends.
@@ -573,6 +581,7 @@ impl RosMessage for ResolveSuggestions {
             "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
             "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
             "chronotope_msgs/msg/ResolveSuggestion" => "../../msgs/msg/ResolveSuggestion.msg",
+            "geometry_msgs/msg/Point" => "../../msgs/deps/geometry_msgs/msg/Point.msg",
             "geometry_msgs/msg/Vector3" => "../../msgs/deps/geometry_msgs/msg/Vector3.msg",
         ]
     }

@@ -20,7 +20,10 @@
 //! `resolve_max_tets` (int, default 1 500 000: most tets of slabs kept for resolutions alone,
 //! all bodies together; older ones are dropped first), `resolve_in_flight` (int, default 1:
 //! resolutions computed on their own pool while the windows go on; 0 = on the node's
-//! thread, in turn), and the mesher's
+//! thread, in turn), `rotation_axis` (double[3], default [0, 0, 1]: the axis a movable body
+//! is turned about), `rotation_point` (double[3], metres; default: the body's centroid at
+//! its first contact), `rotation_max_rad` (double, default π: the largest turn tried in
+//! either sense; 0 = no rotation suggested), and the mesher's
 //! decoding parameters (`iso_percent`, `unknown_occupied`, `percent_scale`, `max_slab_tets`),
 //! which must match the mesher's.
 
@@ -39,14 +42,15 @@ use crate::checker::report::{Report, Resolution, Verdict};
 use crate::checker::rolling::{
     ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
 };
+use crate::checker::rotate::RotationSpec;
 use crate::mesh::slice::{Slicer, TriMesh};
 use crate::mesh::TetMesh;
 use crate::mesh::GridGeometry;
 use crate::mesh::{MesherOptions, OccupancyGrid};
 use crate::msg::{
     BodySummary, ColorRGBA, ContactEvent, Header, InterferenceReport, MarkerArray, MeshSlab,
-    PairInterference, ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time, Vector3,
-    VoxelGrid,
+    PairInterference, Point, ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time,
+    Vector3, VoxelGrid,
 };
 
 /// Label colours of the markers.
@@ -139,6 +143,21 @@ impl CheckerNode {
         let max_episode_s = p.double("max_episode_s", 4.0, 0.001..=86_400.0)?;
         let max_horizon_tets = p.int("resolve_max_tets", 1_500_000, 0..=1_000_000_000)?;
         let in_flight = p.int("resolve_in_flight", 1, 0..=16)?;
+        let defaults = RotationSpec::default();
+        let axis = p.doubles("rotation_axis", defaults.axis)?;
+        if axis.iter().all(|&c| c == 0.0) {
+            return Err(bad(
+                "rotation_axis",
+                "[0, 0, 0] is no direction: give the axis as [x, y, z], not all zero".into(),
+            ));
+        }
+        let point_given = spec.params.contains_key("rotation_point");
+        let point = p.doubles("rotation_point", [0.0; 3])?;
+        let rotation = RotationSpec {
+            axis,
+            point_m: point_given.then_some(point),
+            max_rad: p.double("rotation_max_rad", defaults.max_rad, 0.0..=defaults.max_rad)?,
+        };
         let opts = mesher_options(&mut p)?;
         let report_topic = p.resolve("~/report", "~/report")?;
         let contacts_topic = p.resolve("~/contacts", "~/contacts")?;
@@ -181,6 +200,7 @@ impl CheckerNode {
             movable,
             time_scale: (c > 0.0).then_some(c),
             frame_ids: Default::default(),
+            rotation,
         };
         let cfg = RollingConfig {
             max_lead_frames: max_lead as usize,
@@ -950,6 +970,9 @@ fn suggestion_fields(r: &Resolution) -> ResolveSuggestion {
             distance_error_bound_m: *distance_error_bound_m,
             t0_s: f64::NAN,
             scale: f64::NAN,
+            axis: Vector3::default(),
+            point: Point::default(),
+            angle_rad: f64::NAN,
             verified_clear: *verified_clear,
             episode_start_s: episode_s[0],
             episode_end_s: episode_s[1],
@@ -971,6 +994,38 @@ fn suggestion_fields(r: &Resolution) -> ResolveSuggestion {
             distance_error_bound_m: f64::NAN,
             t0_s: *t0_s,
             scale: *scale,
+            axis: Vector3::default(),
+            point: Point::default(),
+            angle_rad: f64::NAN,
+            verified_clear: *verified_clear,
+            episode_start_s: episode_s[0],
+            episode_end_s: episode_s[1],
+            ..ResolveSuggestion::default()
+        },
+        Resolution::Rotate {
+            body,
+            axis,
+            point_m,
+            angle_rad,
+            verified_clear,
+            episode_s,
+            ..
+        } => ResolveSuggestion {
+            body_id: body.clone(),
+            kind: ResolveSuggestion::KIND_ROTATE,
+            translation: Vector3::default(),
+            time_shift_s: f64::NAN,
+            distance: f64::NAN,
+            distance_error_bound_m: f64::NAN,
+            t0_s: f64::NAN,
+            scale: f64::NAN,
+            axis: Vector3::new(axis[0], axis[1], axis[2]),
+            point: Point {
+                x: point_m[0],
+                y: point_m[1],
+                z: point_m[2],
+            },
+            angle_rad: *angle_rad,
             verified_clear: *verified_clear,
             episode_start_s: episode_s[0],
             episode_end_s: episode_s[1],

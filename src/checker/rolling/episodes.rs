@@ -4,6 +4,7 @@
 use super::*;
 use crate::checker::pipeline::{resolutions, suggest, Suggestions};
 use crate::checker::resolve::Metric;
+use crate::checker::rotate::RotationSpec;
 use crate::checker::{CheckError, Prepared};
 
 impl RollingChecker {
@@ -143,6 +144,7 @@ impl RollingChecker {
                 .map(|&i| (self.pairs[i].a.clone(), self.pairs[i].b.clone()))
                 .collect(),
             time_scale: self.plan.time_scale,
+            rotation: self.plan.rotation,
             period_s: self.union.period_s(),
             origin_ns: origin,
             horizons: Arc::clone(&self.horizons),
@@ -526,6 +528,8 @@ pub(super) struct ResolveJob {
     /// The movable body's pairs, in the report's order.
     pairs: Vec<(String, String)>,
     time_scale: Option<f64>,
+    /// The rotation asked for.
+    rotation: RotationSpec,
     period_s: Option<f64>,
     origin_ns: i64,
     /// The bodies' last horizons and the movable bodies' last searches, for horizons and
@@ -566,20 +570,23 @@ struct KeptSearch {
     bodies: Vec<(String, std::sync::Weak<Prepared>)>,
     pairs: Vec<(String, String)>,
     metric: Metric,
+    rotation: RotationSpec,
     /// What it found; `None` if nothing interferes over the horizon.
     found: Option<Suggestions>,
 }
 
 impl KeptSearch {
-    /// Whether it was made on `prepared` (named `ids`), `pairs` and `metric`.
+    /// Whether it was made on `prepared` (named `ids`), `pairs`, `metric` and `rotation`.
     fn made_on(
         &self,
         ids: &[String],
         prepared: &[Arc<Prepared>],
         pairs: &[(String, String)],
         metric: &Metric,
+        rotation: &RotationSpec,
     ) -> bool {
         self.metric == *metric
+            && self.rotation == *rotation
             && self.pairs == pairs
             && self.bodies.len() == prepared.len()
             && self
@@ -656,9 +663,10 @@ impl KeptHorizons {
         Ok(prepared)
     }
 
-    /// Movable body `m`'s search on the horizon bodies `prepared` (named `ids`), `pairs`
-    /// and `metric`: its last one if that was made on them, otherwise `search()`, kept in
-    /// its place.
+    /// Movable body `m`'s search on the horizon bodies `prepared` (named `ids`), `pairs`,
+    /// `metric` and `rotation`: its last one if that was made on them, otherwise
+    /// `search()`, kept in its place.
+    #[allow(clippy::too_many_arguments)]
     fn search_or(
         &self,
         m: &str,
@@ -666,12 +674,13 @@ impl KeptHorizons {
         prepared: &[Arc<Prepared>],
         pairs: &[(String, String)],
         metric: &Metric,
+        rotation: &RotationSpec,
         search: impl FnOnce() -> Option<Suggestions>,
     ) -> Option<Suggestions> {
         let lock = || self.searches.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(k) = lock()
             .get(m)
-            .filter(|k| k.made_on(ids, prepared, pairs, metric))
+            .filter(|k| k.made_on(ids, prepared, pairs, metric, rotation))
         {
             return k.found.clone();
         }
@@ -684,6 +693,7 @@ impl KeptHorizons {
                 .collect(),
             pairs: pairs.to_vec(),
             metric: *metric,
+            rotation: *rotation,
             found: found.clone(),
         };
         lock().insert(m.to_string(), k);
@@ -703,8 +713,8 @@ pub(super) enum ResolveOutcome {
 }
 
 impl ResolveJob {
-    /// Checks the horizon bodies, then suggests and verifies a translation and a time
-    /// scaling of the movable body.
+    /// Checks the horizon bodies, then suggests and verifies a translation, a time scaling
+    /// and a rotation of the movable body.
     fn run(self) -> ResolveOutcome {
         let (m, ep) = (self.movable.as_str(), self.episode);
         let lattice = {
@@ -742,11 +752,25 @@ impl ResolveJob {
             .or_else(|| self.period_s.map(|p| resolution / p))
             .unwrap_or(resolution);
         let metric = Metric::new(&lat, c);
-        let found = self
-            .horizons
-            .search_or(m, &ids, &prepared, &self.pairs, &metric, || {
-                search(im, &index, &prepared, &self.pairs, &metric)
-            });
+        let found = self.horizons.search_or(
+            m,
+            &ids,
+            &prepared,
+            &self.pairs,
+            &metric,
+            &self.rotation,
+            || {
+                search(
+                    im,
+                    &index,
+                    &prepared,
+                    &self.pairs,
+                    &metric,
+                    &lat,
+                    &self.rotation,
+                )
+            },
+        );
         match found {
             None => ResolveOutcome::Clear,
             Some(found) => {
@@ -757,14 +781,16 @@ impl ResolveJob {
 }
 
 /// Checks the movable body (`prepared[im]`) against its partners over the horizon, and
-/// suggests and verifies a translation and a time scaling of it; `None` if nothing
-/// interferes.
+/// suggests and verifies a translation, a time scaling and a rotation of it; `None` if
+/// nothing interferes.
 fn search(
     im: usize,
     index: &dyn Fn(&str) -> Option<usize>,
     prepared: &[Arc<Prepared>],
     pairs: &[(String, String)],
     metric: &Metric,
+    lat: &CommonLattice,
+    rotation: &RotationSpec,
 ) -> Option<Suggestions> {
     let mut others = Vec::new();
     let mut rs: Vec<PairResult> = Vec::new();
@@ -785,7 +811,7 @@ fn search(
         return None;
     }
     let rs: Vec<&PairResult> = rs.iter().collect();
-    Some(suggest(&prepared[im], &others, &rs, metric))
+    Some(suggest(&prepared[im], &others, &rs, metric, lat, rotation))
 }
 
 #[cfg(test)]
@@ -909,6 +935,7 @@ mod tests {
             movable: vec!["/a".into()],
             time_scale: None,
             frame_ids: Default::default(),
+            rotation: Default::default(),
         };
         let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
         let pool = resolver_pool().unwrap();
@@ -965,6 +992,7 @@ mod tests {
                 meshes,
                 pairs: vec![("a".into(), "b".into())],
                 time_scale,
+                rotation: RotationSpec::default(),
                 period_s: Some(0.1),
                 origin_ns: 0,
                 horizons: Arc::clone(&horizons),
@@ -982,7 +1010,16 @@ mod tests {
             let r = check_pair(&a, &b);
             assert!(r.interfering());
             let c = j.time_scale.unwrap_or(0.01 / 0.1);
-            crate::checker::pipeline::resolve(&a, &[&b], &[&r], &lat, c, j.origin_ns, j.episode)
+            crate::checker::pipeline::resolve(
+                &a,
+                &[&b],
+                &[&r],
+                &lat,
+                c,
+                &j.rotation,
+                j.origin_ns,
+                j.episode,
+            )
         };
         let found = |o: ResolveOutcome| match o {
             ResolveOutcome::Found(f) => f,
@@ -990,7 +1027,11 @@ mod tests {
         };
         let first = job(0, 7, None);
         let want = fresh(&first);
-        assert_eq!(want.len(), 2, "a translation and a time scaling: {want:?}");
+        assert_eq!(
+            want.len(),
+            3,
+            "a translation, a time scaling and a rotation: {want:?}"
+        );
         assert_eq!(found(first.run()), want);
         // The same horizon 2 s later: the kept search, on the later stamps.
         let later = job(2_000_000_000, 7, None);
@@ -1000,7 +1041,11 @@ mod tests {
         {
             let mut kept = horizons.searches.lock().expect("not poisoned");
             let k = kept.get_mut("a").expect("kept");
-            let Some((Some(t), _)) = &mut k.found else {
+            let Some(Suggestions {
+                translation: Some(t),
+                ..
+            }) = &mut k.found
+            else {
                 panic!("a translation was kept");
             };
             t.distance_m = 123.0;

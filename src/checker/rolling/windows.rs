@@ -1090,6 +1090,7 @@ mod tests {
             movable: Vec::new(),
             time_scale: None,
             frame_ids: Default::default(),
+            rotation: Default::default(),
         };
         let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
         let piece = |mesh: TetMesh| PieceIn {

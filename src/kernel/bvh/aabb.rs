@@ -145,6 +145,30 @@ impl Aabb4 {
             || (0..4).all(|k| self.min[k] <= other.min[k] && other.max[k] <= self.max[k])
     }
 
+    /// The smallest box holding the image of this one under the affine map x → L·x + b
+    /// (`matrix` L, `shift` b), by interval arithmetic: per axis, b_k plus the sums of the
+    /// smaller and of the larger of L_kj·min_j and L_kj·max_j (exact). The image of a box
+    /// inside another lies inside the other's image. Empty for an empty box; `None` if a
+    /// coordinate leaves the `i32` range.
+    pub fn affine_image(&self, matrix: &[[i64; 4]; 4], shift: &[i64; 4]) -> Option<Aabb4> {
+        if self.is_empty() {
+            return Some(Aabb4::EMPTY);
+        }
+        let mut out = Aabb4::EMPTY;
+        for k in 0..4 {
+            let (mut lo, mut hi) = (i128::from(shift[k]), i128::from(shift[k]));
+            for j in 0..4 {
+                let m = i128::from(matrix[k][j]);
+                let (x, y) = (m * i128::from(self.min[j]), m * i128::from(self.max[j]));
+                lo += x.min(y);
+                hi += x.max(y);
+            }
+            out.min[k] = i32::try_from(lo).ok()?;
+            out.max[k] = i32::try_from(hi).ok()?;
+        }
+        Some(out)
+    }
+
     /// `min + max` per axis (twice the centre, exact).
     #[inline]
     pub(crate) fn doubled_centre(&self) -> [i64; 4] {

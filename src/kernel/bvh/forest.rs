@@ -266,6 +266,53 @@ mod tests {
         }
     }
 
+    /// A joined tree's top nodes come after the pieces they join: its image under an
+    /// affine map holds, at every node, the images of its children and items; under a
+    /// positive diagonal map it is the tree mapped on each axis.
+    #[test]
+    fn a_joined_tree_maps_to_the_images_of_its_boxes() {
+        for seed in 0..20 {
+            let mut f = Forest::new();
+            for p in &pieces(seed) {
+                f.add(p).unwrap();
+            }
+            let tree = f.finish();
+            let (mul, add) = ([3, 1, 2, 5], [-7, 11, 0, 4]);
+            let mut axes = Bvh::new();
+            assert!(axes.map_axes_from(&tree, mul, add));
+            let mut diagonal = [[0; 4]; 4];
+            for k in 0..4 {
+                diagonal[k][k] = mul[k];
+            }
+            let mut affine = Bvh::new();
+            assert!(affine.map_affine_from(&tree, diagonal, add));
+            assert_eq!(affine.nodes, axes.nodes, "seed {seed}");
+            assert_eq!(affine.leaf_boxes, axes.leaf_boxes);
+            assert_eq!(affine.order, axes.order);
+            // A turn by 3-4-5 in x-y with time and z scaled by 5.
+            let turn = [[3, -4, 0, 0], [4, 3, 0, 0], [0, 0, 5, 0], [0, 0, 0, 5]];
+            let mut turned = Bvh::new();
+            assert!(turned.map_affine_from(&tree, turn, [1, 2, 3, 4]));
+            let mut stack = vec![0usize];
+            while let Some(n) = stack.pop() {
+                let node = turned.nodes[n];
+                let first = node.first as usize;
+                if node.is_leaf() {
+                    for slot in first..first + node.count as usize {
+                        assert!(node.aabb.contains(&turned.leaf_boxes[slot]));
+                        let image = tree.leaf_boxes[slot].affine_image(&turn, &[1, 2, 3, 4]);
+                        assert_eq!(Some(turned.leaf_boxes[slot]), image);
+                    }
+                } else {
+                    for c in [first, first + 1] {
+                        assert!(node.aabb.contains(&turned.nodes[c].aabb), "seed {seed}");
+                        stack.push(c);
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn no_pieces_or_only_empty_ones_give_an_empty_tree() {
         let mut f = Forest::new();

@@ -226,6 +226,35 @@ impl Bvh {
         true
     }
 
+    /// Becomes `src`'s tree (the same nodes, leaves and leaf order) with every box replaced
+    /// by the smallest box holding its image under the affine map x → L·x + b, found by
+    /// interval arithmetic (exact: per axis, Σ_j min and max of L_kj·min_j and L_kj·max_j).
+    /// The image of a box inside another lies inside the other's image, so every node
+    /// still holds its children and items and the tree is valid for the mapped items; its
+    /// boxes are a little larger than the items' own (under a rotation, up to √2 across the
+    /// turned axes), never smaller. Reuses this tree's buffers. `false`, with this tree
+    /// unusable until the next map or build, if an image leaves the `i32` range.
+    pub fn map_affine_from(&mut self, src: &Bvh, matrix: [[i64; 4]; 4], shift: [i64; 4]) -> bool {
+        // The root's image bounds every other box's: if it fits, every one does.
+        if src
+            .nodes
+            .first()
+            .is_some_and(|r| r.aabb.affine_image(&matrix, &shift).is_none())
+        {
+            return false;
+        }
+        let image = |b: &Aabb4| b.affine_image(&matrix, &shift).unwrap_or(Aabb4::EMPTY);
+        self.nodes.clear();
+        self.nodes.extend(src.nodes.iter().map(|n| Node {
+            aabb: image(&n.aabb),
+            ..*n
+        }));
+        self.leaf_boxes.clear();
+        self.leaf_boxes.extend(src.leaf_boxes.iter().map(image));
+        self.order.clone_from(&src.order);
+        true
+    }
+
     /// [`map_axes_from`](Self::map_axes_from) this tree itself, in place.
     pub fn map_axes(&mut self, mul: [i64; 4], add: [i64; 4]) -> bool {
         let Some(apply) = axis_map(self, mul, add) else {

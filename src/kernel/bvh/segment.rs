@@ -243,6 +243,69 @@ impl Bvh {
         });
     }
 
+    /// [`segment_candidates`](Self::segment_candidates) for the tree mapped by
+    /// x_k → mul_k·x_k + add_k on each axis (every `mul_k > 0`), without mapping it: each
+    /// box is mapped as the walk reaches it. `p` and `q` are in the mapped coordinates. A
+    /// box whose mapped corners leave the `i32` range is taken as met (the caller's exact
+    /// test of each item decides), so the items given are those a mapped copy of the tree
+    /// gives, and perhaps more.
+    pub fn segment_candidates_mapped(
+        &self,
+        p: [i64; 4],
+        q: [i64; 4],
+        mul: [i64; 4],
+        add: [i64; 4],
+        ws: &mut TraverseWorkspace,
+        mut f: impl FnMut(u32),
+    ) {
+        let query = LineQuery::segment(p, q);
+        let hits = |b: &Aabb4| {
+            if b.is_empty() {
+                return false;
+            }
+            let map = |k: usize, c: i32| {
+                i64::from(c)
+                    .checked_mul(mul[k])
+                    .and_then(|v| v.checked_add(add[k]))
+                    .and_then(|v| i32::try_from(v).ok())
+            };
+            let mut m = *b;
+            for k in 0..4 {
+                match (map(k, b.min[k]), map(k, b.max[k])) {
+                    (Some(lo), Some(hi)) => (m.min[k], m.max[k]) = (lo, hi),
+                    _ => return true,
+                }
+            }
+            query.hits(&m)
+        };
+        let Some(root) = self.nodes.first() else {
+            return;
+        };
+        if !hits(&root.aabb) {
+            return;
+        }
+        let stack = &mut ws.nodes;
+        stack.clear();
+        stack.push(0);
+        while let Some(n) = stack.pop() {
+            let node = &self.nodes[n as usize];
+            let (first, count) = (node.first as usize, node.count as usize);
+            if count > 0 {
+                for i in first..first + count {
+                    if hits(&self.leaf_boxes[i]) {
+                        f(self.order[i]);
+                    }
+                }
+            } else {
+                for c in [first, first + 1] {
+                    if hits(&self.nodes[c].aabb) {
+                        stack.push(c as u32);
+                    }
+                }
+            }
+        }
+    }
+
     fn line_candidates<B>(
         &self,
         query: &LineQuery,
