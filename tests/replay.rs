@@ -925,3 +925,78 @@ fn the_rotation_parameters_reach_the_rotation_suggestion() {
     .to_string();
     assert!(e.contains("rotation_axis"), "{e}");
 }
+
+/// A 24³ bag at 1 cm voxels: `/ball/occupancy`, a 6-voxel cube, moves 4 voxels along x each
+/// frame (no part vanishes: its frames overlap), passing 2 voxels beside `/post/occupancy`;
+/// `/far/occupancy` rests 11 voxels from its path. Frames at 10 Hz.
+fn pass_by_bag(dir: &Path) -> PathBuf {
+    let path = dir.join("pass-by.mcap");
+    let mut w = BagWriter::create(&path).unwrap();
+    for t in ["/ball/occupancy", "/post/occupancy", "/far/occupancy"] {
+        w.add_topic::<VoxelGrid>(t).unwrap();
+    }
+    for k in 0..4u32 {
+        let t = 1_000_000_000 + i64::from(k) * 100_000_000;
+        let x0 = 1 + 4 * k as usize;
+        let ball = common::bits_data([24; 3], |px, py, pz| {
+            (x0..x0 + 6).contains(&px) && (2..8).contains(&py) && (8..14).contains(&pz)
+        });
+        let post = common::bits_data([24; 3], |px, py, pz| {
+            (8..11).contains(&px) && (10..13).contains(&py) && (8..14).contains(&pz)
+        });
+        let far = common::bits_data([24; 3], |px, py, pz| {
+            (8..11).contains(&px) && (18..23).contains(&py) && pz < 2
+        });
+        w.write("/ball/occupancy", t as u64, &common::cube_grid(24, t, ball))
+            .unwrap();
+        w.write("/post/occupancy", t as u64, &common::cube_grid(24, t, post))
+            .unwrap();
+        w.write("/far/occupancy", t as u64, &common::cube_grid(24, t, far))
+            .unwrap();
+    }
+    w.finish().unwrap();
+    path
+}
+
+#[test]
+fn a_body_moving_more_than_a_voxel_a_frame_near_another_makes_the_pair_unsure() {
+    use chronotope::checker::report::Verdict;
+    let d = tempfile::tempdir().unwrap();
+    let bag = pass_by_bag(d.path());
+    let config = LaunchConfig::parse(
+        "launch:\n- node: {pkg: chronotope, exec: mesher}\n- node: {pkg: chronotope, exec: checker}\n",
+        "test",
+    )
+    .unwrap();
+    let r = replay(&bag, Some(&config), None, false).unwrap();
+    let pair = |a: &str, b: &str| {
+        r.report
+            .pairs
+            .iter()
+            .find(|p| p.a == a && p.b == b)
+            .unwrap_or_else(|| panic!("{a} x {b}"))
+            .clone()
+    };
+    // No frame shows the ball touching the post, and none of it vanishes; but it moves 4
+    // voxels a frame 2 voxels from the post: what it passes is not seen.
+    let bp = pair("/ball/occupancy", "/post/occupancy");
+    assert!(!bp.interfering);
+    assert_eq!(bp.verdict, Verdict::Unsure, "{:?}", bp.unsure_spans_s);
+    assert!(bp.unsure_spans_s.iter().all(|u| u.code == "moves_fast" && u.body == "/ball/occupancy"));
+    let span = &bp.unsure_spans_s[0];
+    assert!(
+        span.span_s[0].abs() < 1e-9 && (span.span_s[1] - 0.3).abs() < 1e-9,
+        "{span:?}"
+    );
+    assert!(span.resolve.contains("40 Hz"), "{}", span.resolve);
+    // Far from its path, the same ball leaves the pair clear; so do two bodies at rest.
+    assert_eq!(pair("/ball/occupancy", "/far/occupancy").verdict, Verdict::Clear);
+    assert_eq!(pair("/far/occupancy", "/post/occupancy").verdict, Verdict::Clear);
+    // `check` says the same.
+    let c = chronotope::cli::check::check_bag(&bag, Default::default(), None).unwrap();
+    for p in &c.report.pairs {
+        let rp = pair(&p.a, &p.b);
+        assert_eq!(p.verdict, rp.verdict, "{} x {}", p.a, p.b);
+        assert_eq!(p.unsure_spans_s, rp.unsure_spans_s, "{} x {}", p.a, p.b);
+    }
+}

@@ -14,6 +14,7 @@ use super::{
     check_pair, check_pair_walked, CheckError, CommonLattice, PairResult, Prepared, StreamWalk,
 };
 use crate::mesh::glue::{BodyAssembler, BodyMesh};
+use crate::mesh::unsure::UnsureLog;
 use crate::mesh::stream::LossKind;
 use crate::mesh::MesherOptions;
 use rayon::prelude::*;
@@ -348,9 +349,14 @@ pub fn check_streamed(
         let both_from = a.stamps_ns.first().max(b.stamps_ns.first()).copied();
         let both_to = a.stamps_ns.last().min(b.stamps_ns.last()).copied();
         if let (Some(from), Some(to)) = (both_from, both_to) {
+            let (fast_a, fast_b) = fast_spans(a, b);
             let (spans, not_listed) = UnsureSpanReport::of_pair(
-                (&ids[i], &a.unsure),
-                (&ids[j], &b.unsure),
+                &[
+                    (&ids[i], &a.unsure),
+                    (&ids[j], &b.unsure),
+                    (&ids[i], &fast_a),
+                    (&ids[j], &fast_b),
+                ],
                 from,
                 to,
                 time_origin_ns,
@@ -671,4 +677,44 @@ fn pair_report(
         candidate_pairs: r.candidate_pairs,
         crossing_pairs: r.interfering_pairs,
     }
+}
+
+/// Where a body of the pair moves more than a voxel in a slab near the other body (as the
+/// rolling checker decides it, [`crate::mesh::unsure::moves_fast_near`]): each body's spans
+/// ([`crate::mesh::unsure::Unsure::MovesFast`]).
+fn fast_spans(a: &BodyMesh, b: &BodyMesh) -> (UnsureLog, UnsureLog) {
+    use crate::mesh::unsure::{moves_fast_near, Unsure, UnsureSpan};
+    let mut logs = (UnsureLog::default(), UnsureLog::default());
+    let (Some(ga), Some(gb)) = (a.geometry, b.geometry) else {
+        return logs;
+    };
+    for ma in &a.motions {
+        let Ok(kb) = b
+            .motions
+            .binary_search_by_key(&ma.stamps_ns.0, |m| m.stamps_ns.0)
+        else {
+            continue;
+        };
+        let mb = &b.motions[kb];
+        if mb.stamps_ns.1 != ma.stamps_ns.1 {
+            continue;
+        }
+        let (da, db) = moves_fast_near(
+            (&ga, ma.bounds, ma.displacement),
+            (&gb, mb.bounds, mb.displacement),
+        );
+        let (lo, hi) = ma.stamps_ns;
+        // A slab with a doubt of its own is listed with that one, the stronger.
+        for (log, d, own) in [(&mut logs.0, da, ma.unsure), (&mut logs.1, db, mb.unsure)] {
+            if d > 1 && own.is_none() {
+                log.push(UnsureSpan {
+                    from_ns: lo,
+                    to_ns: hi,
+                    why: Unsure::MovesFast { voxels: d },
+                    period_ns: hi - lo,
+                });
+            }
+        }
+    }
+    logs
 }

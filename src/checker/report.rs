@@ -172,23 +172,23 @@ impl UnsureSpanReport {
         }
     }
 
-    /// The pair's unsure spans from its two bodies' logs over `[from_ns, to_ns]` (the time
-    /// both are checked), in time order, with how many more there were than listed.
+    /// The pair's unsure spans from its bodies' logs (each body's own, and the pair's
+    /// spans of each) over `[from_ns, to_ns]` (the time both are checked), in time order,
+    /// with how many more there were than listed.
     pub fn of_pair(
-        a: (&str, &UnsureLog),
-        b: (&str, &UnsureLog),
+        logs: &[(&str, &UnsureLog)],
         from_ns: i64,
         to_ns: i64,
         origin_ns: i64,
     ) -> (Vec<Self>, u64) {
         let mut spans: Vec<(i64, Self)> = Vec::new();
-        for (body, log) in [a, b] {
+        for (body, log) in logs {
             for s in log.within(from_ns, to_ns) {
                 spans.push((s.from_ns, Self::of(body, &s, origin_ns)));
             }
         }
         spans.sort_by(|x, y| x.0.cmp(&y.0).then_with(|| x.1.body.cmp(&y.1.body)));
-        let dropped = a.1.dropped().0 + b.1.dropped().0;
+        let dropped = logs.iter().map(|(_, l)| l.dropped().0).sum();
         (spans.into_iter().map(|(_, s)| s).collect(), dropped)
     }
 }

@@ -150,6 +150,11 @@ pub struct BodyInfo {
     pub vanishing_periods: u64,
     /// The first of them: start and end (s since the epoch), and what would resolve it.
     pub vanishing_spans: Vec<VanishingSpan>,
+    /// Frame periods in which the body moves more than a voxel: a pair with it is unsure
+    /// where the other body is near it then.
+    pub fast_periods: u64,
+    /// The farthest it moves in one frame period (voxels, at most 64).
+    pub max_displacement_voxels: u16,
 }
 
 /// A span of frame periods in which a part of a body vanishes between frames.
@@ -367,6 +372,8 @@ struct BodyAcc {
     last_grid: Option<(i64, [u32; 3], f64, [f64; 3], crate::mesh::OccupancyGrid)>,
     vanishing: crate::mesh::unsure::UnsureLog,
     vanishing_periods: u64,
+    fast_periods: u64,
+    max_displacement: u16,
 }
 
 impl BodyAcc {
@@ -389,7 +396,12 @@ impl BodyAcc {
         };
         if let Some((t0, s0, r0, o0, prev)) = &self.last_grid {
             if *s0 == size && *r0 == g.resolution && *o0 == origin && t > *t0 {
-                if let Some(v) = crate::mesh::vanish::vanishing(prev, &grid) {
+                let motion = crate::mesh::vanish::motion(prev, &grid);
+                self.max_displacement = self.max_displacement.max(motion.displacement);
+                if motion.displacement > 1 {
+                    self.fast_periods += 1;
+                }
+                if let Some(v) = motion.vanishing {
                     self.vanishing_periods += 1;
                     self.vanishing.push(crate::mesh::unsure::UnsureSpan {
                         from_ns: *t0,
@@ -657,6 +669,8 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
                         resolve: v.why.remedy(s(v.period_ns)),
                     })
                     .collect(),
+                fast_periods: b.fast_periods,
+                max_displacement_voxels: b.max_displacement,
             }
         })
         .collect();
@@ -852,6 +866,13 @@ pub fn text(i: &BagInfo) -> String {
             o.push_str(&format!(
                 "    unsure: {}: no pair with this body can be called clear there\n",
                 why.join("; ")
+            ));
+        }
+        if b.fast_periods > 0 {
+            o.push_str(&format!(
+                "    moves more than a voxel a frame in {} period(s), up to {} voxels: a pair \
+                 with it is unsure where the other body comes that near\n",
+                b.fast_periods, b.max_displacement_voxels
             ));
         }
     }

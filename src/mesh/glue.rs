@@ -1,7 +1,7 @@
 //! Whole-body 4D meshes: every slab of a stream welded into one closed mesh with its two
 //! end caps, for consumers that need the body at once (the interference checker).
 
-use super::march::{CapSide, TetMesh, Welder};
+use super::march::{CapSide, SpatialBounds, TetMesh, Welder};
 use super::mesher::{GridGeometry, MesherOptions, Slab};
 use super::stats::{BodyStats, LateralRef, StatsAccumulator};
 use super::stream::{BodyStream, LossLog, LossSpan};
@@ -31,6 +31,22 @@ pub struct BodyMesh {
     /// Where the body is not observed well enough for every contact to show
     /// ([`super::unsure`]).
     pub unsure: UnsureLog,
+    /// Each lateral slab's stamps, motion and box, in order: where a pair with the body is
+    /// unsure for want of frames ([`super::unsure::Unsure::MovesFast`]).
+    pub motions: Vec<SlabMotion>,
+}
+
+/// How a body moves in one slab, and where the slab lies.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlabMotion {
+    /// Stamps of the slab's frames (ns).
+    pub stamps_ns: (i64, i64),
+    /// How far the body moves between them (voxels; see [`Slab::displacement`]).
+    pub displacement: u16,
+    /// The box of the slab's vertices on the body's lattice, if it has any.
+    pub bounds: Option<SpatialBounds>,
+    /// The slab's own doubt, if it has one ([`Slab::unsure`]): it outweighs a fast motion.
+    pub unsure: Option<super::unsure::Unsure>,
 }
 
 /// Welds the pieces of one body's mesh, as the mesher makes them (the first cap, the lateral
@@ -72,6 +88,12 @@ impl BodyGluer {
                 period_ns: slab.stamps_ns.1 - slab.stamps_ns.0,
             });
         }
+        self.body.motions.push(SlabMotion {
+            stamps_ns: slab.stamps_ns,
+            displacement: slab.displacement,
+            bounds: slab.mesh.spatial_bounds(),
+            unsure: slab.unsure,
+        });
         self.acc
             .add_lateral(slab, self.first_cap.as_ref().map(|c| &c.0));
         self.body.pieces.push(self.body.mesh.tets.len());

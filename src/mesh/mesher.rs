@@ -80,6 +80,12 @@ pub struct Slab {
     /// thickness in one frame period, the frame rate is too low for it), or the frames were
     /// filled into a gap or the slab bridges one ([`super::stream`]).
     pub unsure: Option<Unsure>,
+    /// How far the body moves between the slab's frames, in voxels (the frames' Hausdorff
+    /// distance on the grid's axes, at most [`super::vanish::MAX_DISPLACEMENT`]; 1 when every
+    /// voxel has one of the other frame next to it). Above 1 the slab holds the body at its
+    /// two positions, not the space it passes through, and the checker calls a pair near it
+    /// unsure ([`Unsure::MovesFast`]).
+    pub displacement: u16,
 }
 
 impl Slab {
@@ -150,7 +156,8 @@ fn march(
     if !marcher.march(table, &prev.grid, grid, at, limit, &mut mesh) {
         return Err(MeshError::SlabTooComplex { limit });
     }
-    let unsure = super::vanish::vanishing(&prev.grid, grid).map(|v| Unsure::Vanishes {
+    let motion = super::vanish::motion(&prev.grid, grid);
+    let unsure = motion.vanishing.map(|v| Unsure::Vanishes {
         rate_factor: v.rate_factor,
     });
     Ok(Slab {
@@ -160,6 +167,7 @@ fn march(
         geometry,
         mesh,
         unsure,
+        displacement: motion.displacement,
     })
 }
 
@@ -395,6 +403,7 @@ impl Mesher {
                     geometry,
                     mesh,
                     unsure: rest.unsure,
+                    displacement: rest.displacement,
                 })
             });
         let slab = match (&self.prev, moved) {

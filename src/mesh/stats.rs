@@ -106,6 +106,8 @@ pub struct LateralRef<'a> {
     pub mesh: &'a TetMesh,
     /// See [`Slab::unsure`].
     pub unsure: Option<super::unsure::Unsure>,
+    /// See [`Slab::displacement`].
+    pub displacement: u16,
 }
 
 impl LateralRef<'_> {
@@ -124,6 +126,7 @@ impl Slab {
             geometry: &self.geometry,
             mesh: &self.mesh,
             unsure: self.unsure,
+            displacement: self.displacement,
         }
     }
 }

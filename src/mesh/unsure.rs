@@ -13,6 +13,11 @@
 //! - **one slab spans missing frames**: a gap too long (or too costly) to fill is bridged by
 //!   one slab, with the same consequence.
 //!
+//! And a pair is not observed well enough over a slab when **a body moves more than a voxel
+//! in it near the other** ([`Unsure::MovesFast`]): the 4D solid holds the body as one frame
+//! or the other shows it, not the space it passes through in between, so a contact on the
+//! way can be missed (see `docs/checker.md`).
+//!
 //! [`UnsureLog`] keeps a body's spans, merged where consecutive and alike, the latest
 //! [`MAX_UNSURE_SPANS`] listed and the rest counted, so a stream of any length keeps bounded
 //! memory.
@@ -32,13 +37,21 @@ pub enum Unsure {
     Filled,
     /// Missing frames bridged by one slab.
     Spanned,
+    /// The body moves `voxels` voxels between the frames (more than one) and comes near the
+    /// other body of a pair: what it passes on the way is not seen.
+    MovesFast {
+        /// How far it moves in the frame period (voxels; see
+        /// [`super::vanish::Motion::displacement`]).
+        voxels: u16,
+    },
 }
 
 impl Unsure {
-    /// A short code for reports (`vanishes`, `frames_filled`, `gap_spanned`).
+    /// A short code for reports (`vanishes`, `frames_filled`, `gap_spanned`, `moves_fast`).
     pub fn code(&self) -> &'static str {
         match self {
             Self::Vanishes { .. } => "vanishes",
+            Self::MovesFast { .. } => "moves_fast",
             Self::Filled => "frames_filled",
             Self::Spanned => "gap_spanned",
         }
@@ -58,6 +71,10 @@ impl Unsure {
             Self::Spanned => {
                 "frames were missing and one slab bridges the gap, which does not show how the \
                  body moved in between"
+            }
+            Self::MovesFast { .. } => {
+                "the body moves more than a voxel between two frames close to the other body, \
+                 and what it passes on the way is not seen, so a contact there can be missed"
             }
         }
     }
@@ -79,11 +96,18 @@ impl Unsure {
             Self::Filled | Self::Spanned => {
                 "the missing frames (a stream without gaps)".to_owned()
             }
+            Self::MovesFast { voxels } => format!(
+                "a frame rate of at least {:.0} Hz for this body (now {:.3} s between frames, \
+                 {rate:.1} Hz, and it moves up to {voxels} voxels a frame), or keeping it \
+                 farther from the other body",
+                (rate * f64::from(*voxels)).ceil(),
+                period_s
+            ),
         }
     }
 
-    /// The stronger of two reasons for one span: missing frames over a vanishing part, and
-    /// the larger rate factor.
+    /// The stronger of two reasons for one span: missing frames over a vanishing part over a
+    /// fast motion, and the larger rate factor or motion.
     pub fn max(self, other: Self) -> Self {
         match (self, other) {
             (Self::Spanned, _) | (_, Self::Spanned) => Self::Spanned,
@@ -93,6 +117,11 @@ impl Unsure {
                     rate_factor: a.max(b),
                 }
             }
+            (v @ Self::Vanishes { .. }, Self::MovesFast { .. })
+            | (Self::MovesFast { .. }, v @ Self::Vanishes { .. }) => v,
+            (Self::MovesFast { voxels: a }, Self::MovesFast { voxels: b }) => Self::MovesFast {
+                voxels: a.max(b),
+            },
         }
     }
 }
@@ -179,6 +208,42 @@ impl UnsureLog {
     }
 }
 
+/// How far each of two bodies moves in a common slab (voxels), where one moves more than a
+/// voxel and the slabs' boxes come within both motions of each other; else 0 (a body that
+/// moves at most a voxel gives 0 too). Each body: its lattice, its slab's box on it
+/// ([`super::march::TetMesh::spatial_bounds`]) and its motion ([`super::Slab::displacement`]).
+///
+/// What a body passes between frames is not in its slab; on a straight path it stays within
+/// half its motion of one frame or the other, so a partner farther than both motions cannot
+/// be met on the way. The boxes are compared in metres with half a voxel to spare: they only
+/// decide whether to doubt, never whether bodies touch.
+pub fn moves_fast_near(
+    a: (&super::GridGeometry, Option<super::march::SpatialBounds>, u16),
+    b: (&super::GridGeometry, Option<super::march::SpatialBounds>, u16),
+) -> (u16, u16) {
+    let ((ga, xa, da), (gb, xb, db)) = (a, b);
+    if da.max(db) <= 1 {
+        return (0, 0);
+    }
+    let (Some(xa), Some(xb)) = (xa, xb) else {
+        return (0, 0);
+    };
+    let metres = |g: &super::GridGeometry, (lo, hi): super::march::SpatialBounds| {
+        let (c, step) = (g.voxel0_centre(), g.step_m());
+        (
+            [0, 1, 2].map(|k| c[k] + f64::from(lo[k]) * step),
+            [0, 1, 2].map(|k| c[k] + f64::from(hi[k]) * step),
+        )
+    };
+    let ((alo, ahi), (blo, bhi)) = (metres(ga, xa), metres(gb, xb));
+    let margin = (f64::from(da) + f64::from(db) + 0.5) * ga.resolution.max(gb.resolution);
+    if !(0..3).all(|k| alo[k] - margin <= bhi[k] && blo[k] - margin <= ahi[k]) {
+        return (0, 0);
+    }
+    let fast = |d: u16| if d > 1 { d } else { 0 };
+    (fast(da), fast(db))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -217,5 +282,34 @@ mod tests {
         let r = Unsure::Vanishes { rate_factor: 5.0 }.remedy(0.1);
         assert!(r.contains("50 Hz") && r.contains("10.0 Hz"), "{r}");
         assert!(Unsure::Filled.remedy(0.1).contains("missing frames"));
+    }
+
+    #[test]
+    fn a_fast_body_near_another_is_doubted_and_far_from_it_is_not() {
+        let g = crate::mesh::GridGeometry {
+            origin: [0.0; 3],
+            resolution: 0.01,
+            size: [64; 3],
+            encoding: 0,
+            scale: 2,
+        };
+        // Boxes in lattice steps (2 a voxel): a at x voxels 0..6, b from x voxel 10 on.
+        let a = Some(([0, 0, 0], [12, 12, 12]));
+        let b = |x: i32| Some(([2 * x, 0, 0], [2 * x + 4, 12, 12]));
+        // 4 voxels apart, a moves 3 a frame, b 1: within 3 + 1 (+ half a voxel).
+        assert_eq!(moves_fast_near((&g, a, 3), (&g, b(10), 1)), (3, 0));
+        // 5 voxels apart: not within 4.5.
+        assert_eq!(moves_fast_near((&g, a, 3), (&g, b(11), 1)), (0, 0));
+        // Neither moves more than a voxel: no doubt, however near.
+        assert_eq!(moves_fast_near((&g, a, 1), (&g, b(6), 1)), (0, 0));
+        // Both fast.
+        assert_eq!(moves_fast_near((&g, a, 2), (&g, b(10), 2)), (2, 2));
+        let fast = Unsure::MovesFast { voxels: 4 };
+        assert_eq!(fast.code(), "moves_fast");
+        assert!(fast.remedy(0.1).contains("at least 40 Hz"), "{}", fast.remedy(0.1));
+        let v = Unsure::Vanishes { rate_factor: 2.0 };
+        assert_eq!(fast.max(v), v);
+        assert_eq!(Unsure::Filled.max(fast), Unsure::Filled);
+        assert_eq!(fast.max(Unsure::MovesFast { voxels: 9 }), Unsure::MovesFast { voxels: 9 });
     }
 }

@@ -55,6 +55,9 @@ pub struct MeshSlab {
     /// When `vanishes`: the estimated factor on the frame rate that would join every part
     /// (0: not estimated).
     pub vanish_rate_factor: f32,
+    /// How far the body moves between the frames (voxels; see
+    /// [`crate::mesh::Slab::displacement`]); 0 for a cap.
+    pub displacement_voxels: u16,
     /// [`Self::OBSERVED`], [`Self::FILLED`] or [`Self::SPANNED`].
     pub observed: u8,
     /// The tets (lattice coordinates), shared: a node of the process that keeps the piece
@@ -107,7 +110,8 @@ impl MeshSlab {
             }
             Some(Unsure::Filled) => self.observed = Self::FILLED,
             Some(Unsure::Spanned) => self.observed = Self::SPANNED,
-            None => {}
+            // A pair's doubt, not a slab's: the slab carries `displacement_voxels`.
+            Some(Unsure::MovesFast { .. }) | None => {}
         }
     }
 
@@ -212,6 +216,7 @@ struct MeshSlabOut<'a> {
     occupied_voxels: u64,
     vanishes: bool,
     vanish_rate_factor: f32,
+    displacement_voxels: u16,
     observed: u8,
     vertices: Flat4<'a, i32>,
     tets: Flat4<'a, u32>,
@@ -235,6 +240,7 @@ struct MeshSlabIn {
     occupied_voxels: u64,
     vanishes: bool,
     vanish_rate_factor: f32,
+    displacement_voxels: u16,
     observed: u8,
     vertices: Unflat4<i32>,
     tets: Unflat4<u32>,
@@ -259,6 +265,7 @@ impl Serialize for MeshSlab {
             occupied_voxels: self.occupied_voxels,
             vanishes: self.vanishes,
             vanish_rate_factor: self.vanish_rate_factor,
+            displacement_voxels: self.displacement_voxels,
             observed: self.observed,
             vertices: Flat4(&self.mesh.vertices),
             tets: Flat4(&self.mesh.tets),
@@ -287,6 +294,7 @@ impl<'de> Deserialize<'de> for MeshSlab {
             occupied_voxels: m.occupied_voxels,
             vanishes: m.vanishes,
             vanish_rate_factor: m.vanish_rate_factor,
+            displacement_voxels: m.displacement_voxels,
             observed: m.observed,
             mesh: Arc::new(TetMesh {
                 vertices: m.vertices.0,

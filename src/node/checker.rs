@@ -287,6 +287,7 @@ impl CheckerNode {
             geometry: s.geometry(),
             occupied: s.occupied_voxels,
             unsure: s.unsure(),
+            displacement: s.displacement_voxels,
             mesh: Arc::clone(&s.mesh),
             frame_id: s.header.frame_id.clone(),
         };

@@ -190,7 +190,7 @@ impl Ctx<'_> {
         index: u64,
         stamps: (i64, i64),
         occupied: u64,
-        unsure: Option<crate::mesh::unsure::Unsure>,
+        (unsure, displacement): (Option<crate::mesh::unsure::Unsure>, u16),
         mesh: TetMesh,
     ) -> Message {
         let mut m = MeshSlab {
@@ -204,6 +204,7 @@ impl Ctx<'_> {
             stamp_lo: Time::from_nanos(stamps.0),
             stamp_hi: Time::from_nanos(stamps.1),
             occupied_voxels: occupied,
+            displacement_voxels: displacement,
             mesh: Arc::new(mesh),
             ..MeshSlab::default()
         };
@@ -264,7 +265,7 @@ impl Ctx<'_> {
             k.index,
             (k.stamp_ns, k.stamp_ns),
             k.grid.occupied,
-            None,
+            (None, 0),
             cap,
         ))
     }
@@ -442,7 +443,7 @@ impl Ctx<'_> {
             slab.index,
             (slab.stamp_lo_ns, slab.stamp_hi_ns),
             occupied,
-            slab.unsure,
+            (slab.unsure, slab.displacement),
             slab.mesh,
         ));
     }

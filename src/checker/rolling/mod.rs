@@ -148,6 +148,9 @@ pub struct PieceIn {
     /// Why the slab does not show every contact, if it does not (a part of the body vanishes
     /// between its frames, or they were filled into a gap).
     pub unsure: Option<crate::mesh::unsure::Unsure>,
+    /// How far the body moves between the slab's frames (voxels; 0 for a cap; see
+    /// [`crate::mesh::Slab::displacement`]).
+    pub displacement: u16,
     /// The tets, in the body's lattice.
     pub mesh: Arc<TetMesh>,
     /// The body's `header.frame_id`: bodies in different frames are not compared.
@@ -276,6 +279,8 @@ struct RSlab {
     worst: Vec<u8>,
     /// Why the slab does not show every contact, if it does not.
     unsure: Option<crate::mesh::unsure::Unsure>,
+    /// How far the body moves in the slab (voxels).
+    displacement: u16,
 }
 
 #[derive(Debug)]
@@ -901,6 +906,7 @@ impl RollingChecker {
                         geometry: &geometry,
                         mesh: &mesh,
                         unsure,
+                        displacement: 0,
                     };
                     let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
                     StatsDone::Added(acc, at_rest)
@@ -1221,6 +1227,7 @@ impl RollingChecker {
                         first_tet,
                         worst,
                         unsure: p.unsure,
+                        displacement: p.displacement,
                     },
                 );
                 note.map_or(Ok(()), Err)

@@ -144,8 +144,7 @@ pub(super) fn pair_report(
         overlap_so_far(&p.overlap)
     };
     let (unsure_spans_s, unsure_spans_not_listed) = UnsureSpanReport::of_pair(
-        (&p.a, &p.unsure.0),
-        (&p.b, &p.unsure.1),
+        &[(&p.a, &p.unsure.0), (&p.b, &p.unsure.1)],
         i64::MIN,
         i64::MAX,
         origin,

@@ -279,6 +279,7 @@ impl RollingChecker {
             self.advance(i, s, hi, k, out);
             return true;
         };
+        let fast = self.fast_near(&a, &b, s);
         let r = if apart(&wa, &wb) {
             // Boxes apart in space: no tet meets the other body, every one is outside.
             WindowResult {
@@ -320,9 +321,24 @@ impl RollingChecker {
             p.stamps.insert(k + 1, hi);
         }
         self.fold(i, s, hi, &r, (wa.first_tet, wb.first_tet), out);
-        self.note_unsure(i, s, hi, out);
+        self.note_unsure(i, s, hi, fast, out);
         self.advance(i, s, hi, k, out);
         true
+    }
+
+    /// How far each body of a pair moves in the period from `s` (voxels), where one moves
+    /// more than a voxel near the other ([`crate::mesh::unsure::moves_fast_near`], as `check`
+    /// decides it); else 0.
+    pub(super) fn fast_near(&self, a: &str, b: &str, s: i64) -> (u16, u16) {
+        let slab = |id: &str| {
+            let body = self.bodies.get(id)?;
+            let x = body.slabs.get(&s)?;
+            Some((body.run(x.run)?.geometry, x.bounds, x.displacement))
+        };
+        let (Some((ga, xa, da)), Some((gb, xb, db))) = (slab(a), slab(b)) else {
+            return (0, 0);
+        };
+        crate::mesh::unsure::moves_fast_near((&ga, xa, da), (&gb, xb, db))
     }
 
     /// Moves pair `i`'s checker-time origin to common frame `base` (the crossings and the
@@ -455,10 +471,25 @@ impl RollingChecker {
 
     /// Records in pair `i` whether either body's slab of the period `s..hi` is unsure, and
     /// says when an unsure span of the pair begins or ends.
-    pub(super) fn note_unsure(&mut self, i: usize, s: i64, hi: i64, out: &mut Vec<RollOut>) {
+    pub(super) fn note_unsure(
+        &mut self,
+        i: usize,
+        s: i64,
+        hi: i64,
+        (fast_a, fast_b): (u16, u16),
+        out: &mut Vec<RollOut>,
+    ) {
         let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
-        let why = |id: &str| self.bodies.get(id)?.slabs.get(&s)?.unsure;
-        let (ua, ub) = (why(&a), why(&b));
+        let why = |id: &str, fast: u16| {
+            let slab = self.bodies.get(id)?.slabs.get(&s)?.unsure;
+            let moves =
+                (fast > 1).then_some(crate::mesh::unsure::Unsure::MovesFast { voxels: fast });
+            match (slab, moves) {
+                (Some(x), Some(y)) => Some(x.max(y)),
+                (x, y) => x.or(y),
+            }
+        };
+        let (ua, ub) = (why(&a, fast_a), why(&b, fast_b));
         let period_ns = hi - s;
         let p = &mut self.pairs[i];
         for (log, u) in [(&mut p.unsure.0, ua), (&mut p.unsure.1, ub)] {
@@ -1101,6 +1132,7 @@ mod tests {
             geometry,
             occupied: 1,
             unsure: None,
+            displacement: 0,
             mesh: Arc::new(mesh),
             frame_id: String::new(),
         };
