@@ -4,7 +4,8 @@
 //! - [`kernel`]: exact integer lattice geometry in R^4 (points, predicates). No ROS, MCAP or tokio.
 //! - [`mesh`]: 4D marching hypercubes, rolling slab mesher, caps, slicing, validation.
 //! - [`scene`]: synthetic voxel scenes (machine tool, four spheres).
-//! - [`sampler`]: stochastic sampling of implicit figures and 4D collision sets (seed 001).
+//! - [`sampler`]: stochastic sampling of implicit figures and 4D collision sets
+//!   (docs/methods/sampling.md).
 //! - [`msg`]: ROS 2 message types mirrored from `msgs/`, CDR encoding.
 //! - [`bag`]: rosbag2 MCAP reading and writing.
 //! - [`cli`]: the `chronotope` command line.

@@ -134,7 +134,8 @@ fn a_translation_removes_exactly_the_points_of_the_exact_sweep() {
 
 #[test]
 fn a_diagonal_move_removes_the_sweep_not_the_box_around_both_poses() {
-    // DESIGN.md §8: a cube moving diagonally; the box between the frames would remove far more.
+    // docs/methods/carving.md#box-between-poses: a cube moving diagonally; the box between
+    // the frames would remove far more.
     let mut w = block([48, 48, 16]);
     let tool = Tool::knife(0.004, 0.004, 0.004, H).unwrap();
     // Off the lattice's diagonals, so that no sweep edge runs through grid points.

@@ -1,7 +1,8 @@
-//! The checker cross-checked by the sampler (DESIGN.md §7): two bodies are rasterised,
+//! The checker cross-checked by the sampler
+//! (docs/sampler.md#the-checker-cross-checked-by-the-sampler): two bodies are rasterised,
 //! meshed in 4D and checked; the same bodies, as exact implicit figures, are given to
-//! `chronotope sample`, whose 4D collision set (the points where both surfaces pass at once)
-//! gives times. Every sampled time must lie in one of the checker's contact intervals
+//! `chronotope sample`, whose 4D collision set (the points where both surfaces pass at
+//! once) gives times. Every sampled time must lie in one of the checker's contact intervals
 //! widened by the checker's own stated error bound at each end
 //! (`checker::bounds::contact_time_bound`, the report's `interval_error_bounds_s`:
 //! Δt·(1/2 + 1/v') with v' the closing speed in voxels per frame period), and the samples

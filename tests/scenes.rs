@@ -401,7 +401,8 @@ fn four_spheres_exact_intervals() {
             }
         }
     }
-    // Overlap hypervolumes (DESIGN.md §6), against 200-point Gauss-Legendre in numpy.
+    // Overlap hypervolumes (docs/methods/interference.md#exact-answers-for-moving-spheres),
+    // against 200-point Gauss-Legendre in numpy.
     for (i, j, v) in [
         (0, 1, 4.769062246541e-4),
         (0, 2, 2.062369697711e-4),

@@ -57,7 +57,8 @@ fn uniform_cases_are_empty_and_mixed_cases_are_not() {
 fn table_size_is_what_bhaniramka_gives() {
     let t = table();
     let avg = t.lateral_total() as f64 / 65536.0;
-    // DESIGN.md §3: at most 24 tets per case, 12.94 on average for a pulling triangulation.
+    // docs/methods/marching.md#the-case-table: at most 24 tets per case, 12.94 on average
+    // for a pulling triangulation.
     assert!(
         t.lateral_max() <= 24,
         "max {} tets per case",

@@ -1,12 +1,13 @@
 //! rosbag2-compatible MCAP files: writing ([`BagWriter`]), streaming reading ([`BagReader`]),
 //! and the VoxelGrid bodies of a bag ([`voxel_frames`], [`voxel_topics`]).
 //!
-//! The files follow what `ros2 bag record -s mcap` writes (DESIGN.md section 10): header
-//! profile `ros2`; one schema per message type, encoding `ros2msg`, named `pkg/msg/Type`,
-//! holding the rosbag2 concatenated `.msg` text ([`ros2msg_schema`](crate::msg::ros2msg_schema));
-//! one channel per topic with message encoding `cdr` and the `offered_qos_profiles` metadata;
-//! messages as CDR with the encapsulation header; chunks, indexes and statistics as the `mcap`
-//! crate writes them. The Python readers `rosbags` and `mcap-ros2-support` read them
+//! The files follow what `ros2 bag record -s mcap` writes (docs/formats.md#bag-files):
+//! header profile `ros2`; one schema per message type, encoding `ros2msg`, named
+//! `pkg/msg/Type`, holding the rosbag2 concatenated `.msg` text
+//! ([`ros2msg_schema`](crate::msg::ros2msg_schema)); one channel per topic with message
+//! encoding `cdr` and the `offered_qos_profiles` metadata; messages as CDR with the
+//! encapsulation header; chunks, indexes and statistics as the `mcap` crate writes them.
+//! The Python readers `rosbags` and `mcap-ros2-support` read them
 //! (`tests/py/read_bags.py`).
 //!
 //! Reading frames the records itself with every length checked, and relies on the `mcap`

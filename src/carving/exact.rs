@@ -43,7 +43,8 @@ impl BoxSweep {
         out.sqrt()
     }
 
-    /// Is `p` in the swept solid (the interval test of DESIGN.md §8)?
+    /// Is `p` in the swept solid (the interval test of
+    /// docs/methods/carving.md#what-the-project-does-instead)?
     pub fn contains(&self, p: Vec3) -> bool {
         let ax = self.axes();
         let q = sub(p, self.c0);

@@ -8,7 +8,9 @@ use super::{CarveError, CutStats};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ForceModel {
     /// Seed eq. 8: `F = n · n_avg` times a gain (N per removed point). Depends on the pose
-    /// rate and the grid spacing (DESIGN.md §8: a coefficient of variation of 4.7 at 1 kHz).
+    /// rate and the grid spacing
+    /// (docs/methods/carving.md#force-depends-on-rate-and-spacing: a coefficient of
+    /// variation of 4.7 at 1 kHz).
     Count,
     /// The cut cross-section `A = n h^3 / |Δx|` (m^2: removed volume per distance moved,
     /// the distance being the tool origin's plus rotation angle x tool radius)

@@ -1,4 +1,5 @@
-//! Haptic carving of a workpiece (seed 004, Kishida & Miura; DESIGN.md §8).
+//! Haptic carving of a workpiece (the carving paper, Kishida & Miura:
+//! docs/methods/carving.md).
 //!
 //! The workpiece is an equally spaced point grid whose points are OUTSIDE (air), BOUND
 //! (material on the surface) or INSIDE (material inside) — the force model of seed §5 — and
@@ -9,22 +10,24 @@
 //! and the triangular chisel (an isosceles triangle, seed §4.3), both given a thickness so
 //! that the solid they sweep has volume. [`Workpiece::carve`] removes the solid a tool sweeps
 //! between two poses: exactly for a translation (a point is inside the sweep iff the
-//! intervals of the sweep parameter allowed by each face have a common point — DESIGN.md §8),
-//! and, for a rotation, by substeps small enough that angle × tool radius < spacing / 2. Only
-//! the grid rows crossing the sweep's bounding box are visited, and on each row the range of
-//! removed points is solved for rather than searched. The classification uses the seed's
-//! band `d_s` (eq. 2): material points next to removed ones become BOUND and take the
-//! cutting face's normal (§5.2), their surfel projected onto that face; where a chisel's
-//! slanted face meets the old surface, the old surfel slides onto the edge (eq. 6), and
-//! [`edge`] lines the edges with the seed's eq. 7 polygons at display rate. The seed's tool
-//! surfels classified against the workpiece (eqs. 3-5) are not needed for this; [`toolsurfel`]
-//! computes them as a cross-check of the analytic classification.
+//! intervals of the sweep parameter allowed by each face have a common point —
+//! docs/methods/carving.md#what-the-project-does-instead), and, for a rotation, by substeps
+//! small enough that angle × tool radius < spacing / 2. Only the grid rows crossing the
+//! sweep's bounding box are visited, and on each row the range of removed points is solved
+//! for rather than searched. The classification uses the seed's band `d_s` (eq. 2):
+//! material points next to removed ones become BOUND and take the cutting face's normal
+//! (§5.2), their surfel projected onto that face; where a chisel's slanted face meets the
+//! old surface, the old surfel slides onto the edge (eq. 6), and [`edge`] lines the edges
+//! with the seed's eq. 7 polygons at display rate. The seed's tool surfels classified
+//! against the workpiece (eqs. 3-5) are not needed for this; [`toolsurfel`] computes them
+//! as a cross-check of the analytic classification.
 //!
 //! [`ForceRenderer`] turns what a step removed into a force (seed eq. 8, or the rate- and
-//! resolution-independent cut cross-section of DESIGN.md §8), low-pass filtered and through
-//! a virtual coupling. [`cutout`] cuts the workpiece out along an axis from a binary image
-//! (seed §4.1, eq. 1). [`exact`] holds the exact swept solid of a translating box, the oracle
-//! of the accuracy benchmark and the tests.
+//! resolution-independent cut cross-section of
+//! docs/methods/carving.md#what-the-project-does-instead), low-pass filtered and through a
+//! virtual coupling. [`cutout`] cuts the workpiece out along an axis from a binary image
+//! (seed §4.1, eq. 1). [`exact`] holds the exact swept solid of a translating box, the
+//! oracle of the accuracy benchmark and the tests.
 //!
 //! Nothing here knows of ROS, MCAP or clocks: the carving node (`crate::node::carving`) feeds
 //! poses in and publishes what this module computes.

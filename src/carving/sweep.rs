@@ -1,4 +1,5 @@
-//! Removing the solid a tool sweeps between two poses (seed §4.2-4.3, eqs. 2-7; DESIGN.md §8).
+//! Removing the solid a tool sweeps between two poses (seed §4.2-4.3, eqs. 2-7;
+//! docs/methods/carving.md#what-the-project-does-instead).
 //!
 //! For a translation by `d` from `c0`, the tool's faces `n_k · x <= o_k` become, for a point
 //! `p` and the sweep parameter `s ∈ [0, 1]`, `a_k(p) - s b_k <= 0` with

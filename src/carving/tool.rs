@@ -41,8 +41,9 @@ impl ToolKind {
 /// The seed's tools are flat (a rectangle, a triangle); they are given a thickness along
 /// their face normal so that the solid swept by a move within the blade's plane has volume.
 /// A blade thinner than the grid spacing would remove almost nothing on a point grid
-/// (DESIGN.md §8: at thickness / spacing = 0.2, 81% of cuts remove nothing), so it is cut
-/// as one spacing thick and [`Tool::thickened`] says so: never a silent miss.
+/// (docs/methods/carving.md#thin-blades: at thickness / spacing = 0.2, 81% of cuts remove
+/// nothing), so it is cut as one spacing thick and [`Tool::thickened`] says so: never a
+/// silent miss.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Tool {
     kind: ToolKind,

@@ -1,8 +1,8 @@
 //! Is a point inside a closed, consistently oriented tet mesh? Exact signed crossing count
-//! along a segment to a far point (DESIGN.md §4): each crossed tet adds the sign of
-//! orient4(tet, q), +1 leaving and −1 entering, so the sum is 1 inside and 0 outside. Any
-//! zero predicate on a candidate makes the answer undecided ([`None`]) and the caller tries
-//! another far point or another point.
+//! along a segment to a far point (docs/methods/interference.md#inclusion-test): each
+//! crossed tet adds the sign of orient4(tet, q), +1 leaving and −1 entering, so the sum is
+//! 1 inside and 0 outside. Any zero predicate on a candidate makes the answer undecided
+//! ([`None`]) and the caller tries another far point or another point.
 
 use crate::kernel::bvh::{Bvh, TraverseWorkspace};
 use crate::kernel::{orient4_i128, tets_intersect, LatticePoint};
@@ -92,7 +92,7 @@ fn segment_tet_sides(
         return Cross::No;
     }
     // The segment crosses the hyperplane once: inside the tet iff the four signs below
-    // agree (DESIGN.md §4).
+    // agree (docs/methods/interference.md#exact-predicates).
     let s = [
         orient4_i128([p, q, &t[1], &t[2], &t[3]]).signum(),
         -orient4_i128([p, q, &t[0], &t[2], &t[3]]).signum(),

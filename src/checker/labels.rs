@@ -1,5 +1,6 @@
-//! Per-tet labels (seed 000 §3.2): INTERFERENCE where the two boundaries cross, and every
-//! other tet INSIDE or OUTSIDE the other body.
+//! Per-tet labels (the interference paper's §3.2:
+//! docs/methods/interference.md#labelling-by-propagation): INTERFERENCE where the two
+//! boundaries cross, and every other tet INSIDE or OUTSIDE the other body.
 //!
 //! A tet that meets the other boundary without crossing it (shared vertices or edges, face
 //! to face) is a *contact* tet and is tested on its own: the boundary may pass exactly

@@ -1,5 +1,6 @@
-//! The interference checker (seed 000): two bodies' closed 4D meshes → per-tet labels, the
-//! time intervals of interference, the first contact time and the overlap.
+//! The interference checker (the interference paper: docs/methods/interference.md): two
+//! bodies' closed 4D meshes → per-tet labels, the time intervals of interference, the first
+//! contact time and the overlap.
 //!
 //! Pipeline for a pair: both meshes are put on one integer lattice ([`Prepared`]: common
 //! scale, integer origin offset, a common time lattice, coordinates ×8 so that several

@@ -1,5 +1,6 @@
-//! Exact answers for spheres moving at constant velocity (DESIGN.md §6), the test oracle
-//! of the accuracy report: shortest 4D translations that separate one sphere from others.
+//! Exact answers for spheres moving at constant velocity
+//! (docs/methods/interference.md#exact-answers-for-moving-spheres), the test oracle of the
+//! accuracy report: shortest 4D translations that separate one sphere from others.
 //!
 //! A sphere of radius r with centre c + v·t over t ∈ [t0, t1] is a convex set in
 //! (x, y, z, c·t) (c the time scale of the metric). A moved by s·u meets B iff some time

@@ -47,7 +47,8 @@ impl CheckPlan {
             })
     }
 
-    /// Every pair, resolutions for the body whose id sorts first (CONTRACT.md's default).
+    /// Every pair, resolutions for the body whose id sorts first (the contract's default:
+    /// docs/formats.md#command-line).
     pub fn all_pairs_first_movable(ids: &[&str], time_scale: Option<f64>) -> Self {
         let mut sorted: Vec<&str> = ids.to_vec();
         sorted.sort_unstable();

@@ -1,6 +1,6 @@
-//! The report of a check (CONTRACT.md, schema `chronotope.report/1`): bodies, pairs with
-//! their contact intervals, labels and overlaps, and verified resolutions. Built by the
-//! rolling checker ([`rolling`](super::rolling)) and by the whole-bag check
+//! The report of a check (docs/formats.md#report, schema `chronotope.report/1`): bodies,
+//! pairs with their contact intervals, labels and overlaps, and verified resolutions. Built
+//! by the rolling checker ([`rolling`](super::rolling)) and by the whole-bag check
 //! ([`pipeline`](super::pipeline)); what a command read from its bag is reported beside it
 //! by the command.
 
@@ -280,7 +280,7 @@ pub struct Timings {
     pub total: f64,
 }
 
-/// The report (CONTRACT.md).
+/// The report (docs/formats.md#report).
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
     /// `chronotope.report/1`.

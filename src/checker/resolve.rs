@@ -1,17 +1,20 @@
-//! Resolve suggestions (seed 000 §4): move one body in space-time, or stretch its time
-//! axis, so that it clears every other body; every suggestion is verified by checking the
-//! moved body again, exactly, against every other body.
+//! Resolve suggestions (the interference paper's §4:
+//! docs/methods/interference.md#resolution): move one body in space-time, or stretch its
+//! time axis, so that it clears every other body; every suggestion is verified by checking
+//! the moved body again, exactly, against every other body.
 //!
 //! - **Translation** (seed §4.2): direction u = −∇V/|∇V| where V is the overlap
 //!   hypervolume; by Reynolds transport ∇_v vol((A+v) ∩ B) = ∫_{∂A ∩ B} n̂ dS, i.e. the sum of
 //!   N_τ/6 over A's INSIDE tets (half weight for INTERFERENCE tets, whose inside part is not
-//!   measured), no finite differences (DESIGN.md §5). The gradient is taken in the metric
-//!   space (x, y, z, c·t). If it vanishes (a symmetric setup), the axis direction with the
-//!   shortest exit is used. Distance d: the largest distance, over interior points of A's
-//!   INSIDE and INTERFERENCE tets that lie inside the other body, from the point along u to
-//!   where its ray leaves that body. The vector is snapped to the lattice (rounded up in
-//!   length) and verified; if a body still interferes it is lengthened by 10 % at a time
-//!   (at most [`GROWTH_STEPS`] times) and the final verdict is reported as it is.
+//!   measured), no finite differences
+//!   (docs/methods/interference.md#gradient-of-the-overlap). The gradient is taken in the
+//!   metric space (x, y, z, c·t). If it vanishes (a symmetric setup), the axis direction
+//!   with the shortest exit is used. Distance d: the largest distance, over interior points
+//!   of A's INSIDE and INTERFERENCE tets that lie inside the other body, from the point
+//!   along u to where its ray leaves that body. The vector is snapped to the lattice
+//!   (rounded up in length) and verified; if a body still interferes it is lengthened by
+//!   10 % at a time (at most [`GROWTH_STEPS`] times) and the final verdict is reported as
+//!   it is.
 //! - **Time scaling** (seed §4.3, eqs. 1-2): t_s = t0 + s (t − t0). The same distance along
 //!   the time axis gives t_A (the point) and t_B (where it leaves); t0 is whichever of A's
 //!   t_min / t_max lies farther from [t_A, t_B]; s = (t_B − t0)/(t_A − t0). s is made a

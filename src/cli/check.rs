@@ -1,6 +1,7 @@
 //! `chronotope check BAG [--report FILE.json]`: mesh every body, check every pair, suggest
 //! resolutions for the body whose id sorts first (a translation, a time scaling and a
-//! rotation, each verified against every other body), and write the CONTRACT.md report
+//! rotation, each verified against every other body), and write the report of
+//! docs/formats.md#report
 //! (`chronotope.report/1`).
 
 use super::mesh::{mesher_options_from, MesherArgs};
@@ -20,7 +21,7 @@ use std::time::Instant;
 pub struct CheckArgs {
     /// Input bag: a rosbag2 directory, or an MCAP or SQLite (.db3) file, zstd-compressed or not.
     pub bag: PathBuf,
-    /// Write the report (CONTRACT.md, schema chronotope.report/1).
+    /// Write the report (docs/formats.md#report, schema chronotope.report/1).
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Time scale c (m/s) of the 4D metric |(dx, dy, dz, c·dt)| (default: one voxel per
@@ -121,8 +122,8 @@ pub fn load_bodies_with_frames(path: &Path, opts: MesherOptions) -> Result<Loade
     })
 }
 
-/// The report of `chronotope check`: CONTRACT.md's fields, then what was read from the bag
-/// (extra field `input`).
+/// The report of `chronotope check`: the fields of docs/formats.md#report, then what was
+/// read from the bag (extra field `input`).
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct CheckReport {
     /// The check's report.

@@ -24,7 +24,7 @@ use std::time::Instant;
 pub struct MeshArgs {
     /// Input bag: a rosbag2 directory, or an MCAP or SQLite (.db3) file, zstd-compressed or not.
     pub bag: PathBuf,
-    /// Write statistics as JSON (CONTRACT.md format).
+    /// Write statistics as JSON (format: docs/formats.md#mesh-statistics).
     #[arg(long)]
     pub stats: Option<PathBuf>,
     /// Cut every body's 4D mesh by an axis hyperplane, e.g. `t=1.5` (seconds after the
@@ -375,7 +375,8 @@ fn time_plane(t: f64, g: &GridGeometry, slab: &Slab, first_stamp: i64) -> Option
     })
 }
 
-/// One body in the `--stats` JSON (CONTRACT.md), with extra fields after the contract's.
+/// One body in the `--stats` JSON (docs/formats.md#mesh-statistics), with extra fields
+/// after the contract's.
 #[derive(Debug, Serialize)]
 struct BodyJson<'a> {
     id: &'a str,
@@ -393,7 +394,7 @@ struct BodyJson<'a> {
     vanishing_slabs: u64,
 }
 
-/// The `--stats` JSON (CONTRACT.md).
+/// The `--stats` JSON (docs/formats.md#mesh-statistics).
 #[derive(Debug, Serialize)]
 struct StatsJson<'a> {
     bodies: Vec<BodyJson<'a>>,

@@ -58,7 +58,8 @@ pub enum Command {
     Param(param::ParamArgs),
     /// Benchmarks that print the figures docs/performance.md and docs/accuracy.md quote.
     Bench(bench::BenchArgs),
-    /// Sample points uniformly on an implicit scene (seed 001); write a PointCloud2 bag.
+    /// Sample points uniformly on an implicit scene (docs/methods/sampling.md); write a
+    /// PointCloud2 bag.
     Sample(sample::SampleArgs),
 }
 

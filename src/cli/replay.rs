@@ -1,6 +1,7 @@
 //! `chronotope replay BAG [--launch CFG] [--report FILE.json] [--out FILE.mcap]`: the nodes a
 //! launch config names, in one process on the in-process bus, fed every message of a bag as
-//! fast as they go; the report (CONTRACT.md) and an output bag of everything they published.
+//! fast as they go; the report (docs/formats.md#report) and an output bag of everything
+//! they published.
 //!
 //! Deterministic: the same bag and config give the same output bag, byte for byte, and the
 //! same report (apart from `timings_ms`). Output messages are logged at their own stamps.
@@ -34,7 +35,7 @@ pub struct ReplayArgs {
     /// whose id sorts first).
     #[arg(long)]
     pub launch: Option<PathBuf>,
-    /// Write the report (CONTRACT.md, schema chronotope.report/1).
+    /// Write the report (docs/formats.md#report, schema chronotope.report/1).
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Write every topic the nodes published (or the recorder node's selection) to this bag:
@@ -49,7 +50,8 @@ pub struct ReplayArgs {
 
 pub use crate::cli::InputCounts;
 
-/// The replay's report: CONTRACT.md's fields, then the input counts and node statuses.
+/// The replay's report: the fields of docs/formats.md#report, then the input counts and
+/// node statuses.
 #[derive(Debug, Clone, Serialize)]
 pub struct ReplayReport {
     /// The checker's report (empty bodies and pairs when the config has no checker).

@@ -1,6 +1,7 @@
 //! The rolling mesher: fed one frame at a time, it emits each slab as soon as its second
 //! frame arrives and keeps only the frames it needs (the previous one, and the first one
-//! for the closing cap), so memory does not grow with the sequence (seed 002 §5).
+//! for the closing cap), so memory does not grow with the sequence (the marching paper's
+//! §5: docs/methods/marching.md#slab-by-slab).
 
 use super::grid::{DecodeOptions, FrameRef, OccupancyGrid};
 use super::march::{march_cap, CapSide, SlabMarcher, SlabPlacement, TetMesh};

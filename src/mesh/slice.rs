@@ -1,5 +1,6 @@
 //! Cutting a 4D tet mesh by an axis hyperplane x_k = c into a closed, oriented, welded 3D
-//! triangle mesh (seed 002 §6), and PLY export.
+//! triangle mesh (the marching paper's §6: docs/methods/marching.md#slicing), and PLY
+//! export.
 //!
 //! A vertex on the plane counts as "+" (at or above c). A tet with vertices on both sides
 //! is cut into a triangle (1/3 split) or a quad (2/2 split, two triangles). Each slice point

@@ -1,4 +1,5 @@
-//! `chronotope_msgs/msg/VoxelGrid` (CONTRACT.md) and the standard types it refers to.
+//! `chronotope_msgs/msg/VoxelGrid` (docs/formats.md#input-message) and the standard types
+//! it refers to.
 
 use serde::{Deserialize, Serialize};
 

@@ -1,5 +1,6 @@
 //! Figures whose uniform distribution is known exactly, and the statistics that compare
-//! samples with them (DESIGN.md §7). Used by the tests and by `chronotope bench sampler`.
+//! samples with them (docs/methods/sampling.md#test-cases-with-exact-answers). Used by the
+//! tests and by `chronotope bench sampler`.
 
 use super::field::Q;
 

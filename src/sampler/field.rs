@@ -104,15 +104,17 @@ pub enum Shape {
         /// Half opening angle (rad), in (0, π/2).
         half_angle: f64,
     },
-    /// Seed 001 Fig. 1: the open surface `z - x² - x y + (x y)²/2 + 1/4 = 0` (relative to
-    /// `centre`); bound it with walls (the seed uses two concentric spheres).
+    /// The sampling paper's Fig. 1 (docs/methods/sampling.md#figures-of-the-paper): the
+    /// open surface `z - x² - x y + (x y)²/2 + 1/4 = 0` (relative to `centre`); bound it
+    /// with walls (the seed uses two concentric spheres).
     SeedSaddle {
         /// Origin of the formula (m).
         #[serde(default)]
         centre: [f64; 3],
     },
-    /// Seed 001 Fig. 2: `(9/2) sin²x + 9 cos y cos z + x² + y² + z² - 6 = 0` (relative to
-    /// `centre`), a closed surface with dents and holes.
+    /// The sampling paper's Fig. 2 (docs/methods/sampling.md#figures-of-the-paper):
+    /// `(9/2) sin²x + 9 cos y cos z + x² + y² + z² - 6 = 0` (relative to `centre`), a
+    /// closed surface with dents and holes.
     SeedHoles {
         /// Origin of the formula (m).
         #[serde(default)]

@@ -19,7 +19,8 @@ pub enum Wall {
         /// Upper corner.
         max: Q,
     },
-    /// `inner ≤ |p - centre| ≤ outer` in space (seed 001 Fig. 1: two concentric spheres).
+    /// `inner ≤ |p - centre| ≤ outer` in space (the sampling paper's Fig. 1: two concentric
+    /// spheres; docs/methods/sampling.md#figures-of-the-paper).
     Shell {
         /// Centre (m).
         centre: [f64; 3],

@@ -1,12 +1,14 @@
-//! Stochastic sampling of implicit figures (seed 001, Tanaka et al.): points spread
-//! uniformly over `{q ∈ R^N : F^a(q) = 0, a = 1..M}` inside reflecting walls.
+//! Stochastic sampling of implicit figures (the sampling paper, Tanaka et al.:
+//! docs/methods/sampling.md): points spread uniformly over
+//! `{q ∈ R^N : F^a(q) = 0, a = 1..M}` inside reflecting walls.
 //!
 //! - N = 3, M = 1: an implicit surface; N = 3, M = 2: the curve where two surfaces meet;
 //!   N = 4, M = 2: the *space-time collision set* of two moving implicit bodies, i.e. the
 //!   points `(x, y, z, t)` where the surfaces of both bodies pass at once — at each time t
-//!   the curve where the two moving surfaces cross, swept over t (seed 001 §3.3, Fig. 3,
-//!   shown there projected to YZT). Time is a coordinate like the others: one second
-//!   weighs as one metre in the uniform measure.
+//!   the curve where the two moving surfaces cross, swept over t (the sampling paper's
+//!   §3.3, Fig. 3, shown there projected to YZT;
+//!   docs/methods/sampling.md#the-4d-collision-set). Time is a coordinate like the others:
+//!   one second weighs as one metre in the uniform measure.
 //! - Figures ([`Figure`]) are built from [`Field`]s, usually scene [`Body`]s: a [`Shape`]
 //!   (sphere, rounded box, torus, capsule, cone, the seed's two surfaces) moving at constant
 //!   velocity. Scene files ([`scene_file`]) describe them in YAML.
@@ -16,7 +18,8 @@
 //!     `D^{-1}` the force is a damped Newton step, `F ← (1-λ) F` with `λ = Kα dt`: stable
 //!     only for `0 < λ < 2` whatever `|∇F|` is, so λ ≥ [`LAMBDA_LIMIT`] is refused
 //!     ([`SamplerError::Unstable`]) or clamped to 1 ([`LambdaPolicy`]). Its density has an
-//!     O(dt) bias (DESIGN.md §7; measured in `docs/sampler-error.md`).
+//!     O(dt) bias (docs/methods/sampling.md#time-step-bias; measured in
+//!     `docs/sampler-error.md`).
 //!   - `Projected`: tangent noise then Newton projection along the normals (no Hessian;
 //!     samples exactly on the figure; still an O(dt) bias).
 //!   - `Metropolis`: the manifold MCMC of Zappa, Holmes-Cerfon & Goodman (2018): tangent

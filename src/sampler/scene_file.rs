@@ -17,16 +17,18 @@
 //! ```
 //!
 //! Shapes: `sphere`, `box` (rounded edges, see [`Shape::Box`]), `torus`, `capsule`, `cone`,
-//! `seed_saddle` and `seed_holes` (seed 001 Figs. 1 and 2). Any body may carry
-//! `warp: [kx, ky, kz]`, multiplying its function by `exp(k·p)` (same surface, not a
-//! distance any more). Walls: `box` (on x, y, z; for dim 4 the time window is added) and
-//! `shell` (`inner ≤ |p - centre| ≤ outer`, the seed's Fig. 1).
+//! `seed_saddle` and `seed_holes` (the sampling paper's Figs. 1 and 2:
+//! docs/methods/sampling.md#figures-of-the-paper). Any body may carry `warp: [kx, ky, kz]`,
+//! multiplying its function by `exp(k·p)` (same surface, not a distance any more). Walls:
+//! `box` (on x, y, z; for dim 4 the time window is added) and `shell`
+//! (`inner ≤ |p - centre| ≤ outer`, the seed's Fig. 1).
 //!
 //! What dim 4 samples: the points (x, y, z, t) where the surfaces of the sampled bodies
 //! pass at the same time — for two bodies the 2D surface swept by the curve where they
-//! cross (seed 001 §3.3); its YZT projection is the seed's Fig. 3. It is non-empty exactly
-//! while the bodies' boundaries cross, i.e. while they interfere (a body wholly inside the
-//! other has no crossing and is not seen).
+//! cross (the sampling paper's §3.3: docs/methods/sampling.md#the-4d-collision-set); its
+//! YZT projection is the seed's Fig. 3. It is non-empty exactly while the bodies'
+//! boundaries cross, i.e. while they interfere (a body wholly inside the other has no
+//! crossing and is not seen).
 
 use super::field::{Body, Shape, Q};
 use super::figure::{Figure, Wall};

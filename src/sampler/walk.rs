@@ -651,7 +651,7 @@ impl<'a> Sampler<'a> {
         v
     }
 
-    /// Seed 001 eq. (2) by Euler-Maruyama:
+    /// docs/methods/sampling.md, eq. (2), by Euler-Maruyama:
     /// `dq = P dw - α dt ∇F^a (D^{-1})^{ab} [Tr(∂²F^b P) + K F^b]`.
     /// The trace is `Σ_k u_k·∂²F^b u_k` over an orthonormal tangent frame `u_k`, each term a
     /// central difference of the analytic gradient along `u_k` (2(N-M) gradient calls).

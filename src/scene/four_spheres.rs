@@ -1,10 +1,12 @@
-//! The `four-spheres` scene (seed 000's test scene): four equal spheres at constant velocity.
+//! The `four-spheres` scene (the interference paper's test scene:
+//! docs/methods/interference.md#the-test-scene): four equal spheres at constant velocity.
 //!
 //! A moves along +z, B along -y, C along +x, D along -x. A overlaps C early, B in the middle
 //! and D late in the run (the A–C and A–D intervals are disjoint, A–B overlaps both); B, C and
 //! D stay at least 0.0536 m apart from each other. Every pairwise answer is exact and
 //! available from [`FourSpheresParams`], so the checker and resolver can be tested against
-//! it (DESIGN.md §6). Parameters and intervals: `docs/scenes.md`.
+//! it (docs/methods/interference.md#exact-answers-for-moving-spheres). Parameters and
+//! intervals: `docs/scenes.md`.
 
 use super::{BodySpec, Motion, Shape};
 
@@ -158,7 +160,8 @@ impl FourSpheresParams {
     }
 
     /// Volume of the lens where two balls of this radius with centres `d` apart overlap (m³)
-    /// (DESIGN.md §6 with R = r: `π (2r - d)² (d + 4r) / 12`); 0 when `d >= 2r`.
+    /// (docs/methods/interference.md#exact-answers-for-moving-spheres with R = r:
+    /// `π (2r - d)² (d + 4r) / 12`); 0 when `d >= 2r`.
     pub fn lens_volume(&self, d: f64) -> f64 {
         let r = self.radius;
         if d >= 2.0 * r {

@@ -1,5 +1,6 @@
-//! The `machine-tool` scene (seed 002's workload): a spindle with a tool, a moving table with
-//! a workpiece, and a fixture clamped on the table.
+//! The `machine-tool` scene (the marching paper's workload:
+//! docs/methods/marching.md#figures): a spindle with a tool, a moving table with a
+//! workpiece, and a fixture clamped on the table.
 //!
 //! Sizes are in metres in a 1.28 m cube and do not depend on the grid (every dimension is a
 //! multiple of 0.04 m, one voxel at grid 32, so at grids that are multiples of 32 the

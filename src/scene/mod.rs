@@ -7,13 +7,15 @@
 //! generated on demand, so memory does not depend on the number of frames.
 //!
 //! Two scenes are built in ([`SceneName`]):
-//! - `machine-tool`: the workload of seed 002 (spindle, table with workpiece, fixture);
-//!   see [`TOOL_FIXTURE_CONTACT_U`] for when the tool crashes into the fixture.
-//! - `four-spheres`: the test scene of seed 000, with exact answers in [`FOUR_SPHERES`].
+//! - `machine-tool`: the workload of the marching paper (docs/methods/marching.md#figures)
+//!   (spindle, table with workpiece, fixture); see [`TOOL_FIXTURE_CONTACT_U`] for when the
+//!   tool crashes into the fixture.
+//! - `four-spheres`: the test scene of the interference paper
+//!   (docs/methods/interference.md#the-test-scene), with exact answers in [`FOUR_SPHERES`].
 //!
-//! Both encodings follow CONTRACT.md: BITS marks voxels whose centre is inside a body;
-//! PERCENT gives the occupied volume fraction by 8×8×8 supersampling ([`Rasterizer`]).
-//! Pure library code: no I/O, no ROS or MCAP.
+//! Both encodings follow docs/formats.md#input-message: BITS marks voxels whose centre is
+//! inside a body; PERCENT gives the occupied volume fraction by 8×8×8 supersampling
+//! ([`Rasterizer`]). Pure library code: no I/O, no ROS or MCAP.
 //!
 //! ```
 //! use chronotope::scene::{build_scene, SceneName, SceneOptions};
@@ -122,9 +124,11 @@ pub enum SceneError {
 /// The built-in scenes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum SceneName {
-    /// `machine-tool`: spindle, table with workpiece, fixture (seed 002).
+    /// `machine-tool`: spindle, table with workpiece, fixture (the marching paper's
+    /// workload: docs/methods/marching.md#figures).
     MachineTool,
-    /// `four-spheres`: four spheres at constant velocity (seed 000).
+    /// `four-spheres`: four spheres at constant velocity (the interference paper's test
+    /// scene: docs/methods/interference.md#the-test-scene).
     FourSpheres,
     /// `periodic`: two spheres meeting every two seconds, for as long as asked.
     Periodic,
@@ -178,9 +182,9 @@ pub struct SceneOptions {
 }
 
 impl SceneOptions {
-    /// The defaults of a scene: `machine-tool` 128³ voxels × 64 frames (seed 002's workload),
-    /// `four-spheres` 64³ × 33 frames (one frame every 1/32 s), `periodic` 48³ × 201 frames
-    /// (10 s at 20 Hz), all BITS.
+    /// The defaults of a scene: `machine-tool` 128³ voxels × 64 frames (the marching
+    /// paper's workload: docs/methods/marching.md#figures), `four-spheres` 64³ × 33 frames
+    /// (one frame every 1/32 s), `periodic` 48³ × 201 frames (10 s at 20 Hz), all BITS.
     pub fn for_scene(name: SceneName) -> Self {
         match name {
             SceneName::MachineTool => Self {

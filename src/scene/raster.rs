@@ -7,7 +7,8 @@
 //! allocated once the workspace has grown to the lattice width.
 //!
 //! - **BITS**: the samples are the voxel centres; a voxel is occupied iff its centre is
-//!   strictly inside some shape (CONTRACT.md: "sampled at the cube's centre").
+//!   strictly inside some shape (docs/formats.md#input-message: "sampled at the cube's
+//!   centre").
 //! - **PERCENT**: the samples are the centres of the `S³` sub-cells of each voxel
 //!   (`S` = [`PERCENT_SUBSAMPLES`]); the value is `round(100 · inside / S³)`. This is exact
 //!   midpoint supersampling of the union, computed a whole line of voxels at a time: voxels

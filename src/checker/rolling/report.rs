@@ -3,8 +3,8 @@
 use super::*;
 
 impl RollingChecker {
-    /// The answer so far (CONTRACT.md's report): bodies, pairs, intervals, overlaps. The
-    /// statistics of pieces still being added are waited for.
+    /// The answer so far (the report of docs/formats.md#report): bodies, pairs, intervals,
+    /// overlaps. The statistics of pieces still being added are waited for.
     pub fn report(&mut self) -> Report {
         self.settle_all_stats();
         let origin = self.origin_ns.unwrap_or(0);
