@@ -1,4 +1,5 @@
-//! Rotation with time fixed (seed 000, resolution method 3): the smallest turn of one body
+//! Rotation with time fixed (the interference paper's third resolution,
+//! docs/methods/interference.md#rotation-with-time-fixed): the smallest turn of one body
 //! about a given axis, the same at every instant, that clears it of every other body,
 //! verified exactly like the other suggestions ([`resolve`](super::resolve)).
 //!
