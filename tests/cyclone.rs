@@ -55,7 +55,6 @@ impl Drop for KillOnDrop {
     }
 }
 
-
 /// A float the peer wrote as the hex of its bits.
 /// `chronotope launch CONFIG` on `domain`, stopped when dropped.
 fn launch_on(config: &Path, domain: &str, duration_s: &str) -> KillOnDrop {
@@ -96,7 +95,6 @@ fn peer_command(bag: &Path, json: &Path, domain: &str) -> Command {
         .env("ROS_DOMAIN_ID", domain);
     c
 }
-
 
 fn f(v: &Value) -> f64 {
     let s = v
@@ -514,12 +512,21 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
         text.contains(bodies_line),
         "{LAUNCH} names the mesher's bodies as expected"
     );
+    // And every slab's markers even when the markers part falls behind (by default it then
+    // draws only each body's newest slab, which a loaded machine makes differ from the
+    // offline replay's).
+    let markers_line = "    - {name: markers, value: true}\n";
+    assert!(text.contains(markers_line), "{LAUNCH} draws markers");
     let launch = dir.path().join("four_spheres.yaml");
     std::fs::write(
         &launch,
         text.replace(
             bodies_line,
             &format!("{bodies_line}    - {{name: idle_timeout_s, value: 10.0}}\n"),
+        )
+        .replace(
+            markers_line,
+            &format!("{markers_line}    - {{name: markers_every_slab, value: true}}\n"),
         ),
     )
     .unwrap();
@@ -575,7 +582,10 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
             &off.markers.len().to_string(),
         ]);
     }
-    let mut peer = KillOnDrop(Some(peer.spawn().expect("the test Python runs")), "cyclone_peer.py");
+    let mut peer = KillOnDrop(
+        Some(peer.spawn().expect("the test Python runs")),
+        "cyclone_peer.py",
+    );
     let deadline = Instant::now() + Duration::from_secs(60);
     let status = loop {
         let c = peer.0.as_mut().unwrap();
@@ -643,10 +653,13 @@ fn occupancy_nodes_read_a_cyclone_peers_cloud_and_octomap_as_the_replay_does() {
     let bag = Path::new(root).join("bags/person-cell-32.mcap");
     let dir = tempfile::tempdir().unwrap();
     // A longer idle timeout, as above: a loaded machine must not split a stream.
-    let text = std::fs::read_to_string(Path::new(root).join("launch_configs/person_cell.yaml"))
-        .unwrap();
+    let text =
+        std::fs::read_to_string(Path::new(root).join("launch_configs/person_cell.yaml")).unwrap();
     let bodies = "/camera/occupancy, /map/occupancy]}\n";
-    assert!(text.contains(bodies), "person_cell.yaml lists the mesher's bodies");
+    assert!(
+        text.contains(bodies),
+        "person_cell.yaml lists the mesher's bodies"
+    );
     let launch = dir.path().join("person_cell.yaml");
     std::fs::write(
         &launch,
@@ -679,13 +692,19 @@ fn occupancy_nodes_read_a_cyclone_peers_cloud_and_octomap_as_the_replay_does() {
     peer.args(["--expect-labels", &off.labels.len().to_string()])
         .stdout(Stdio::inherit())
         .stderr(Stdio::inherit());
-    let mut peer = KillOnDrop(Some(peer.spawn().expect("the test Python runs")), "cyclone_peer.py");
+    let mut peer = KillOnDrop(
+        Some(peer.spawn().expect("the test Python runs")),
+        "cyclone_peer.py",
+    );
     let deadline = Instant::now() + Duration::from_secs(90);
     let status = loop {
         if let Some(st) = peer.0.as_mut().unwrap().try_wait().unwrap() {
             break st;
         }
-        assert!(Instant::now() < deadline, "cyclone_peer.py still running after 90 s");
+        assert!(
+            Instant::now() < deadline,
+            "cyclone_peer.py still running after 90 s"
+        );
         if let Some(st) = launch_child.0.as_mut().unwrap().try_wait().unwrap() {
             panic!("chronotope launch exited early ({st}) while the peer was running");
         }
@@ -693,13 +712,18 @@ fn occupancy_nodes_read_a_cyclone_peers_cloud_and_octomap_as_the_replay_does() {
     };
     peer.0 = None;
     launch_child.stop();
-    assert!(status.success(), "cyclone_peer.py failed ({status}); see its message above");
+    assert!(
+        status.success(),
+        "cyclone_peer.py failed ({status}); see its message above"
+    );
     let live: Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     compare_report(&live["report"], off.reports.last().unwrap());
     let pairs = live["report"]["pairs"].as_array().unwrap();
     assert!(
-        pairs.iter().any(|p| s(&p["body_a"]) == "/camera/occupancy"
-            || s(&p["body_b"]) == "/camera/occupancy"),
+        pairs
+            .iter()
+            .any(|p| s(&p["body_a"]) == "/camera/occupancy"
+                || s(&p["body_b"]) == "/camera/occupancy"),
         "the camera's person is checked live"
     );
 }

@@ -202,7 +202,7 @@ fn the_base_pose_comes_from_tf_static_when_not_given() {
     };
     let out = feed(
         &mut n,
-        msg("/tf_static", T0, Payload::Transforms(Arc::new(tf))),
+        msg("/tf_static", T0, Payload::TFMessage(Arc::new(tf))),
     );
     assert_eq!(frames(&out).len(), 1, "{}", problems(&n));
     assert_eq!(frames(&out)[0].data, expected(&[0.0, 0.0]));
@@ -559,4 +559,33 @@ fn the_ur5_and_the_panda_of_example_robot_data_load_and_make_frames() {
         assert!(occupied > 30, "{urdf}: {occupied} voxels");
         assert_eq!(n.status().problem_count(), 0, "{urdf}: {}", problems(&n));
     }
+}
+
+/// A joint state stamped far past the last (a clock jump, a bad stamp) does not make the node
+/// visit every grid time in between: the oldest are skipped, counted, and the node answers at
+/// once.
+#[test]
+fn a_stamp_far_ahead_skips_the_grid_times_between_at_once() {
+    let mut n = grid_node("");
+    feed(&mut n, description(TWO_JOINTS));
+    let names = ["a", "b"];
+    feed(&mut n, joints(T0, &names, &[0.0, 0.0]));
+    let start = std::time::Instant::now();
+    // 4·10^17 ns (12 years) later: 4·10^9 grid times at 10 Hz.
+    feed(
+        &mut n,
+        joints(T0 + 400_000_000_000_000_000, &names, &[0.0, 0.0]),
+    );
+    let mut out = Vec::new();
+    n.on_tick(i64::MAX, &mut out);
+    n.finish(&mut out);
+    // Not a speed test: visiting the 10^10 grid times would take hours.
+    assert!(
+        start.elapsed() < std::time::Duration::from_secs(60),
+        "{:?}",
+        start.elapsed()
+    );
+    assert!(problems(&n).contains("frames_dropped"), "{}", problems(&n));
+    // And at the very end of time, nothing overflows.
+    feed(&mut n, joints(i64::MAX, &names, &[0.0, 0.0]));
 }

@@ -128,7 +128,13 @@ fn a_plan_into_the_table_is_caught_before_it_runs_and_its_retimed_plan_is_clear(
     w.finish().unwrap();
     let (report, _) = replay(&again, dir.path(), "retimed");
     let pair = &report["pairs"][0];
-    assert_eq!(pair["verdict"], "clear", "{pair}");
+    // No contact; where the arm sweeps more than two voxels a frame past the table the pair
+    // is unsure rather than clear (what it passes between frames is not seen).
+    assert_eq!(pair["interfering"], false, "{pair}");
+    assert_ne!(pair["verdict"], "collide", "{pair}");
+    for u in pair["unsure_spans_s"].as_array().unwrap() {
+        assert_eq!(u["code"], "moves_fast", "{pair}");
+    }
 }
 
 /// `info` lists the bundled cell's robot as a body source, and `replay` without a launch

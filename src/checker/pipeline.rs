@@ -680,7 +680,7 @@ fn pair_report(
     }
 }
 
-/// Where a body of the pair moves more than a voxel in a slab near the other body (as the
+/// Where a body of the pair moves fast in a slab near the other body (as the
 /// rolling checker decides it, [`crate::mesh::unsure::moves_fast_near`]): each body's spans
 /// ([`crate::mesh::unsure::Unsure::MovesFast`]).
 fn fast_spans(a: &BodyMesh, b: &BodyMesh) -> (UnsureLog, UnsureLog) {
@@ -707,7 +707,7 @@ fn fast_spans(a: &BodyMesh, b: &BodyMesh) -> (UnsureLog, UnsureLog) {
         let (lo, hi) = ma.stamps_ns;
         // A slab with a doubt of its own is listed with that one, the stronger.
         for (log, d, own) in [(&mut logs.0, da, ma.unsure), (&mut logs.1, db, mb.unsure)] {
-            if d > 1 && own.is_none() {
+            if d > 0 && own.is_none() {
                 log.push(UnsureSpan {
                     from_ns: lo,
                     to_ns: hi,

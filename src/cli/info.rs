@@ -150,7 +150,7 @@ pub struct BodyInfo {
     pub vanishing_periods: u64,
     /// The first of them: start and end (s since the epoch), and what would resolve it.
     pub vanishing_spans: Vec<VanishingSpan>,
-    /// Frame periods in which the body moves more than a voxel: a pair with it is unsure
+    /// Frame periods in which the body moves more than two voxels: a pair with it is unsure
     /// where the other body is near it then.
     pub fast_periods: u64,
     /// The farthest it moves in one frame period (voxels, at most 64).
@@ -398,7 +398,7 @@ impl BodyAcc {
             if *s0 == size && *r0 == g.resolution && *o0 == origin && t > *t0 {
                 let motion = crate::mesh::vanish::motion(prev, &grid);
                 self.max_displacement = self.max_displacement.max(motion.displacement);
-                if motion.displacement > 1 {
+                if motion.displacement > crate::mesh::unsure::FAST_VOXELS {
                     self.fast_periods += 1;
                 }
                 if let Some(v) = motion.vanishing {
@@ -870,7 +870,7 @@ pub fn text(i: &BagInfo) -> String {
         }
         if b.fast_periods > 0 {
             o.push_str(&format!(
-                "    moves more than a voxel a frame in {} period(s), up to {} voxels: a pair \
+                "    moves more than two voxels a frame in {} period(s), up to {} voxels: a pair \
                  with it is unsure where the other body comes that near\n",
                 b.fast_periods, b.max_displacement_voxels
             ));

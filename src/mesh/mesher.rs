@@ -83,9 +83,9 @@ pub struct Slab {
     pub unsure: Option<Unsure>,
     /// How far the body moves between the slab's frames, in voxels (the frames' Hausdorff
     /// distance on the grid's axes, at most [`super::vanish::MAX_DISPLACEMENT`]; 1 when every
-    /// voxel has one of the other frame next to it). Above 1 the slab holds the body at its
-    /// two positions, not the space it passes through, and the checker calls a pair near it
-    /// unsure ([`Unsure::MovesFast`]).
+    /// voxel has one of the other frame next to it). Above 2 what the body passes between
+    /// frames lies more than a voxel from both, which the slab does not hold, and the checker
+    /// calls a pair near it unsure ([`Unsure::MovesFast`]).
     pub displacement: u16,
 }
 

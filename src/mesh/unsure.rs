@@ -13,16 +13,22 @@
 //! - **one slab spans missing frames**: a gap too long (or too costly) to fill is bridged by
 //!   one slab, with the same consequence.
 //!
-//! And a pair is not observed well enough over a slab when **a body moves more than a voxel
-//! in it near the other** ([`Unsure::MovesFast`]): the 4D solid holds the body as one frame
-//! or the other shows it, not the space it passes through in between, so a contact on the
-//! way can be missed (see `docs/checker.md`).
+//! And a pair is not observed well enough over a slab when **a body moves more than
+//! [`FAST_VOXELS`] voxels in it near the other** ([`Unsure::MovesFast`]): the 4D solid holds
+//! the body as one frame or the other shows it, not the space it passes through in between,
+//! so a contact on the way can be missed (see `docs/checker.md`).
+
 //!
 //! [`UnsureLog`] keeps a body's spans, merged where consecutive and alike, the latest
 //! [`MAX_UNSURE_SPANS`] listed and the rest counted, so a stream of any length keeps bounded
 //! memory.
 
 use std::collections::VecDeque;
+
+/// A body that moves more than this many voxels in a frame period passes, between the
+/// frames, through space more than a voxel from both (on a straight path it is within half
+/// its motion of one of them): beyond what the voxels themselves leave uncertain.
+pub const FAST_VOXELS: u16 = 2;
 
 /// Why a span of a body's stream is not observed well enough.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,8 +43,8 @@ pub enum Unsure {
     Filled,
     /// Missing frames bridged by one slab.
     Spanned,
-    /// The body moves `voxels` voxels between the frames (more than one) and comes near the
-    /// other body of a pair: what it passes on the way is not seen.
+    /// The body moves `voxels` voxels between the frames (more than [`FAST_VOXELS`]) and
+    /// comes near the other body of a pair: what it passes on the way is not seen.
     MovesFast {
         /// How far it moves in the frame period (voxels; see
         /// [`super::vanish::Motion::displacement`]).
@@ -73,8 +79,9 @@ impl Unsure {
                  body moved in between"
             }
             Self::MovesFast { .. } => {
-                "the body moves more than a voxel between two frames close to the other body, \
-                 and what it passes on the way is not seen, so a contact there can be missed"
+                "the body moves more than two voxels between two frames close to the other \
+                 body, and what it passes on the way is not seen, so a contact there can be \
+                 missed"
             }
         }
     }
@@ -100,7 +107,7 @@ impl Unsure {
                 "a frame rate of at least {:.0} Hz for this body (now {:.3} s between frames, \
                  {rate:.1} Hz, and it moves up to {voxels} voxels a frame), or keeping it \
                  farther from the other body",
-                (rate * f64::from(*voxels)).ceil(),
+                (rate * f64::from(*voxels) / f64::from(FAST_VOXELS)).ceil(),
                 period_s
             ),
         }
@@ -208,9 +215,9 @@ impl UnsureLog {
     }
 }
 
-/// How far each of two bodies moves in a common slab (voxels), where one moves more than a
-/// voxel and the slabs' boxes come within both motions of each other; else 0 (a body that
-/// moves at most a voxel gives 0 too). Each body: its lattice, its slab's box on it
+/// How far each of two bodies moves in a common slab (voxels), where one moves more than
+/// [`FAST_VOXELS`] and the slabs' boxes come within both motions of each other; else 0 (a
+/// body that moves at most [`FAST_VOXELS`] gives 0 too). Each body: its lattice, its slab's box on it
 /// ([`super::march::TetMesh::spatial_bounds`]) and its motion ([`super::Slab::displacement`]).
 ///
 /// What a body passes between frames is not in its slab; on a straight path it stays within
@@ -222,7 +229,7 @@ pub fn moves_fast_near(
     b: (&super::GridGeometry, Option<super::march::SpatialBounds>, u16),
 ) -> (u16, u16) {
     let ((ga, xa, da), (gb, xb, db)) = (a, b);
-    if da.max(db) <= 1 {
+    if da.max(db) <= FAST_VOXELS {
         return (0, 0);
     }
     let (Some(xa), Some(xb)) = (xa, xb) else {
@@ -240,7 +247,7 @@ pub fn moves_fast_near(
     if !(0..3).all(|k| alo[k] - margin <= bhi[k] && blo[k] - margin <= ahi[k]) {
         return (0, 0);
     }
-    let fast = |d: u16| if d > 1 { d } else { 0 };
+    let fast = |d: u16| if d > FAST_VOXELS { d } else { 0 };
     (fast(da), fast(db))
 }
 
@@ -300,13 +307,13 @@ mod tests {
         assert_eq!(moves_fast_near((&g, a, 3), (&g, b(10), 1)), (3, 0));
         // 5 voxels apart: not within 4.5.
         assert_eq!(moves_fast_near((&g, a, 3), (&g, b(11), 1)), (0, 0));
-        // Neither moves more than a voxel: no doubt, however near.
-        assert_eq!(moves_fast_near((&g, a, 1), (&g, b(6), 1)), (0, 0));
+        // Neither moves more than two voxels: no doubt, however near.
+        assert_eq!(moves_fast_near((&g, a, 2), (&g, b(6), 2)), (0, 0));
         // Both fast.
-        assert_eq!(moves_fast_near((&g, a, 2), (&g, b(10), 2)), (2, 2));
+        assert_eq!(moves_fast_near((&g, a, 3), (&g, b(10), 3)), (3, 3));
         let fast = Unsure::MovesFast { voxels: 4 };
         assert_eq!(fast.code(), "moves_fast");
-        assert!(fast.remedy(0.1).contains("at least 40 Hz"), "{}", fast.remedy(0.1));
+        assert!(fast.remedy(0.1).contains("at least 20 Hz"), "{}", fast.remedy(0.1));
         let v = Unsure::Vanishes { rate_factor: 2.0 };
         assert_eq!(fast.max(v), v);
         assert_eq!(Unsure::Filled.max(fast), Unsure::Filled);

@@ -12,7 +12,9 @@
 //! `time_scale_m_per_s` (double, 0 = one voxel per frame period), `labels` (bool, default
 //! true), `markers` (bool, default false), `markers_period_s` (double, default 0: a body's
 //! slab is sliced for the markers only if it starts this long after the last one sliced;
-//! 0 = every slab), `mesh_topic` (default `/mesher/mesh_slabs`),
+//! 0 = every slab), `markers_every_slab` (bool, default false: a markers part that falls
+//! behind draws each body's newest slab; true: every slab, for a recording meant for review,
+//! within the queue's bound), `mesh_topic` (default `/mesher/mesh_slabs`),
 //! `max_lead_frames` (int, default 64: how many slabs one body may run ahead of a silent
 //! partner before they are checked without it), `resolve_horizon_s` (double, default 1: the
 //! time around a contact episode its resolutions are checked over), `max_episode_s` (double,
@@ -137,6 +139,7 @@ impl CheckerNode {
         let labels = p.bool("labels", true)?;
         let markers = p.bool("markers", false)?;
         let markers_period_s = p.double("markers_period_s", 0.0, 0.0..=3600.0)?;
+        let markers_every_slab = p.bool("markers_every_slab", false)?;
         let mesh_topic = p.topic("mesh_topic", "/mesher/mesh_slabs")?;
         let max_lead = p.int("max_lead_frames", 64, 1..=100_000)?;
         let horizon_s = p.double("resolve_horizon_s", 1.0, 0.0..=3600.0)?;
@@ -234,7 +237,12 @@ impl CheckerNode {
             latest_ns: 0,
             dirty: false,
             resolved: (0, 0),
-            markers_queue: markers.then(|| Arc::new(Mutex::new(MarkerQueue::default()))),
+            markers_queue: markers.then(|| {
+                Arc::new(Mutex::new(MarkerQueue {
+                    every_slab: markers_every_slab,
+                    ..MarkerQueue::default()
+                }))
+            }),
             markers_period_ns: (markers_period_s * 1e9).round() as i64,
             markers_last: Default::default(),
             slabs_done_topic,
@@ -574,6 +582,8 @@ pub struct MarkerQueue {
     unread: bool,
     /// Set when reading starts again: the markers part then draws every body anew.
     restart: bool,
+    /// Draw every slab even when behind (`markers_every_slab`).
+    every_slab: bool,
 }
 
 impl MarkerQueue {
@@ -609,7 +619,7 @@ impl MarkerQueue {
         let restart = std::mem::take(&mut self.restart);
         let slabs: Vec<(String, SlabDone, u64)> = self.slabs.drain(..).collect();
         let one_step = slabs.windows(2).all(|w| w[0].2 == w[1].2);
-        if one_step {
+        if one_step || self.every_slab {
             return (slabs.into_iter().map(|(f, d, _)| (f, d)).collect(), 0, restart);
         }
         let n = slabs.len();

@@ -129,7 +129,6 @@ payloads! {
     Text(RosString),
     JointState(JointState),
     JointTrajectory(JointTrajectory),
-    Transforms(TFMessage),
 }
 
 /// What a message counts against a queue's byte budget besides its arrays (its header,
@@ -193,7 +192,6 @@ impl Payload {
                         + 64
                 })
                 .sum(),
-            Self::Transforms(m) => m.transforms.len() * MESSAGE_OVERHEAD_BYTES,
         };
         arrays + MESSAGE_OVERHEAD_BYTES
     }

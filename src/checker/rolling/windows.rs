@@ -69,8 +69,14 @@ impl RollingChecker {
                 .and_then(|x| body.run(x.run))
                 .is_some_and(|r| r.last_cap_at(hi).is_some())
         };
-        if before_end || ends_here(&a) || ends_here(&b) {
+        let stream_ends = ends_here(&a) || ends_here(&b);
+        if before_end || stream_ends {
             self.close_open(i, out);
+        }
+        // An unsure span goes on no further than a stream: its end is said when the stream
+        // ends, not when the node does.
+        if stream_ends {
+            self.close_unsure(i, out);
         }
         self.finish_speeds(i, false);
     }
@@ -327,7 +333,7 @@ impl RollingChecker {
     }
 
     /// How far each body of a pair moves in the period from `s` (voxels), where one moves
-    /// more than a voxel near the other ([`crate::mesh::unsure::moves_fast_near`], as `check`
+    /// fast near the other ([`crate::mesh::unsure::moves_fast_near`], as `check`
     /// decides it); else 0.
     pub(super) fn fast_near(&self, a: &str, b: &str, s: i64) -> (u16, u16) {
         let slab = |id: &str| {
@@ -483,7 +489,7 @@ impl RollingChecker {
         let why = |id: &str, fast: u16| {
             let slab = self.bodies.get(id)?.slabs.get(&s)?.unsure;
             let moves =
-                (fast > 1).then_some(crate::mesh::unsure::Unsure::MovesFast { voxels: fast });
+                (fast > 0).then_some(crate::mesh::unsure::Unsure::MovesFast { voxels: fast });
             match (slab, moves) {
                 (Some(x), Some(y)) => Some(x.max(y)),
                 (x, y) => x.or(y),

@@ -422,11 +422,34 @@ impl RobotNode {
         let period = self.s.period_ns.max(1);
         let next = *self
             .next_grid
-            .get_or_insert_with(|| until.div_euclid(period) * period + period);
+            .get_or_insert_with(|| (until.div_euclid(period) * period).saturating_add(period));
+        // Only the newest MAX_PENDING_FRAMES grid times can wait: a stamp far ahead of the
+        // last (a clock jump, a bad stamp) skips the older ones, counted, without visiting
+        // them one by one.
         let mut t = next;
+        if until >= next {
+            let n = (i128::from(until) - i128::from(next)) / i128::from(period) + 1;
+            let keep = MAX_PENDING_FRAMES as i128;
+            if n > keep {
+                let skipped = n - keep;
+                let jump = i64::try_from(skipped * i128::from(period)).unwrap_or(i64::MAX);
+                t = t.saturating_add(jump);
+                self.quietly("frames_dropped", u64::try_from(skipped).unwrap_or(u64::MAX), || {
+                    format!(
+                        "the grid times jump by more than MAX_PENDING_FRAMES = \
+                         {MAX_PENDING_FRAMES} frames (to {:.3} s): the {skipped} oldest are not \
+                         made",
+                        until as f64 * 1e-9
+                    )
+                });
+            }
+        }
         while t <= until {
             self.queue(t);
-            t += period;
+            match t.checked_add(period) {
+                Some(x) => t = x,
+                None => break,
+            }
         }
         self.next_grid = Some(t);
     }
@@ -514,10 +537,13 @@ impl RobotNode {
                 );
                 if !self.s.follow_stamps {
                     let period = self.s.period_ns.max(1);
-                    let first = arrival.div_euclid(period) * period + period;
+                    let first = (arrival.div_euclid(period) * period).saturating_add(period);
                     // Grid times from the first after the arrival through the first at or after the end.
-                    let frames =
-                        ((p.end - first).max(0) + period - 1) as usize / period as usize + 1;
+                    let span = (i128::from(p.end) - i128::from(first)).max(0);
+                    let frames = usize::try_from(
+                        (span + i128::from(period) - 1) / i128::from(period) + 1,
+                    )
+                    .unwrap_or(usize::MAX);
                     if frames > MAX_PLAN_FRAMES {
                         self.problem(
                             "plan_cut",
@@ -527,7 +553,8 @@ impl RobotNode {
                             ),
                         );
                     }
-                    let until = first + (frames.min(MAX_PLAN_FRAMES) as i64 - 1) * period;
+                    let until =
+                        first.saturating_add((frames.min(MAX_PLAN_FRAMES) as i64 - 1) * period);
                     self.next_grid = self.next_grid.map(|g| g.min(first)).or(Some(first));
                     self.queue_grid_until(until);
                 }
@@ -839,7 +866,7 @@ impl Node for RobotNode {
             Payload::JointState(m) if topic == self.s.joint_states_topic => {
                 self.on_joint_state(m, msg.stamp_ns)
             }
-            Payload::Transforms(m) if self.s.tf_static_topic.as_deref() == Some(topic) => {
+            Payload::TFMessage(m) if self.s.tf_static_topic.as_deref() == Some(topic) => {
                 let added = self.tf.add(m);
                 for r in added.refused {
                     self.problem("bad_transform", format!("{topic}: {r}; ignored"));
