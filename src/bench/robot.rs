@@ -304,8 +304,8 @@ pub fn speed(
     let config = LaunchConfig::parse(
         &format!(
             "launch:\n- node: {{pkg: chronotope, exec: robot, param: [{{name: urdf_file, value: {}}}, {{name: package_path, value: [{}]}}, {{name: origin, value: [-1.0, -1.0, -1.0]}}, {{name: resolution, value: {}}}, {{name: size, value: [{grid}, {grid}, {grid}]}}, {{name: base_pose, value: [0, 0, 0, 0, 0, 0]}}, {{name: rate_hz, value: 30}}, {{name: encoding, value: {enc}}}]}}\n",
-            crate::yaml::quote(&urdf.display().to_string()),
-            crate::yaml::quote(&share.display().to_string()),
+            yaml_string(&urdf.display().to_string()),
+            yaml_string(&share.display().to_string()),
             2.0 / f64::from(grid)
         ),
         "bench",
@@ -375,4 +375,9 @@ pub fn speed(
         .collect();
     println!("  resident memory: {}", line.join(", "));
     Ok(())
+}
+
+/// `s` as a double-quoted YAML scalar (every byte kept; `yaml::quote` shortens for messages).
+fn yaml_string(s: &str) -> String {
+    format!("\"{}\"", s.replace('\\', "\\\\").replace('"', "\\\""))
 }
