@@ -81,7 +81,9 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
     let dom = domain(0);
     // The bundled config without the rotation suggestion: its exact search takes seconds in
     // a debug build on a loaded machine, and the launch ends after a fixed duration; the
-    // translation and time scaling are compared, and the rotation is tested offline.
+    // translation and time scaling are compared, and the rotation is tested offline. And
+    // every slab's markers even when the markers part falls behind (by default it then draws
+    // only each body's newest slab, which a loaded machine makes differ from the replay's).
     let bundled = std::fs::read_to_string(root().join("launch_configs/four_spheres.yaml")).unwrap();
     let movable = "    - {name: movable, value: [/sphere_a/occupancy]}\n";
     assert!(
@@ -93,7 +95,9 @@ fn a_bag_played_onto_the_wire_and_checked_live_gives_the_offline_results() {
         &cfg_path,
         bundled.replace(
             movable,
-            &format!("{movable}    - {{name: rotation_max_rad, value: 0.0}}\n"),
+            &format!(
+                "{movable}    - {{name: rotation_max_rad, value: 0.0}}\n    - {{name: markers_every_slab, value: true}}\n"
+            ),
         ),
     )
     .unwrap();

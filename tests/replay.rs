@@ -959,7 +959,7 @@ fn pass_by_bag(dir: &Path) -> PathBuf {
 }
 
 #[test]
-fn a_body_moving_more_than_a_voxel_a_frame_near_another_makes_the_pair_unsure() {
+fn a_body_moving_more_than_two_voxels_a_frame_near_another_makes_the_pair_unsure() {
     use chronotope::checker::report::Verdict;
     let d = tempfile::tempdir().unwrap();
     let bag = pass_by_bag(d.path());
