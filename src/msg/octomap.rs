@@ -13,14 +13,7 @@ use serde::{Deserialize, Serialize};
 use super::voxel_grid::Header;
 use super::RosMessage;
 
-const HEADER: (&str, &str) = (
-    "std_msgs/msg/Header",
-    include_str!("../../msgs/deps/std_msgs/msg/Header.msg"),
-);
-const TIME: (&str, &str) = (
-    "builtin_interfaces/msg/Time",
-    include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg"),
-);
+use super::std_types::defs::{HEADER, TIME};
 
 /// `octomap_msgs/msg/Octomap`: a 3D occupancy map as an octree.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]

@@ -16,33 +16,16 @@ use super::std_types::{Duration, Quaternion, Vector3};
 use super::voxel_grid::Header;
 use super::RosMessage;
 
-/// `(pkg/msg/Type, .msg text)` of every definition this module refers to.
+/// `(pkg/msg/Type, .msg text)` of every definition this module refers to (the shared ones
+/// from [`super::std_types`]).
 mod defs {
-    pub(super) type Def = (&'static str, &'static str);
+    pub(super) use super::super::std_types::defs::{
+        Def, DURATION, HEADER, QUATERNION, TIME, VECTOR3,
+    };
 
-    pub(super) const TIME: Def = (
-        "builtin_interfaces/msg/Time",
-        include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg"),
-    );
-    pub(super) const DURATION: Def = (
-        "builtin_interfaces/msg/Duration",
-        include_str!("../../msgs/deps/builtin_interfaces/msg/Duration.msg"),
-    );
-    pub(super) const HEADER: Def = (
-        "std_msgs/msg/Header",
-        include_str!("../../msgs/deps/std_msgs/msg/Header.msg"),
-    );
     pub(super) const STRING: Def = (
         "std_msgs/msg/String",
         include_str!("../../msgs/deps/std_msgs/msg/String.msg"),
-    );
-    pub(super) const VECTOR3: Def = (
-        "geometry_msgs/msg/Vector3",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Vector3.msg"),
-    );
-    pub(super) const QUATERNION: Def = (
-        "geometry_msgs/msg/Quaternion",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Quaternion.msg"),
     );
     pub(super) const TRANSFORM: Def = (
         "geometry_msgs/msg/Transform",

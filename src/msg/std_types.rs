@@ -40,19 +40,20 @@ use serde::{Deserialize, Serialize};
 use super::voxel_grid::{Header, Point, Time};
 use super::RosMessage;
 
-/// `(pkg/msg/Type, .msg text)` of every definition this module refers to.
-mod defs {
-    pub(super) type Def = (&'static str, &'static str);
+/// `(pkg/msg/Type, .msg text)` of every definition this module refers to (the other
+/// message modules take the shared ones from here).
+pub(super) mod defs {
+    pub(in crate::msg) type Def = (&'static str, &'static str);
 
-    pub(super) const TIME: Def = (
+    pub(in crate::msg) const TIME: Def = (
         "builtin_interfaces/msg/Time",
         include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg"),
     );
-    pub(super) const DURATION: Def = (
+    pub(in crate::msg) const DURATION: Def = (
         "builtin_interfaces/msg/Duration",
         include_str!("../../msgs/deps/builtin_interfaces/msg/Duration.msg"),
     );
-    pub(super) const HEADER: Def = (
+    pub(in crate::msg) const HEADER: Def = (
         "std_msgs/msg/Header",
         include_str!("../../msgs/deps/std_msgs/msg/Header.msg"),
     );
@@ -64,7 +65,7 @@ mod defs {
         "geometry_msgs/msg/Point",
         include_str!("../../msgs/deps/geometry_msgs/msg/Point.msg"),
     );
-    pub(super) const QUATERNION: Def = (
+    pub(in crate::msg) const QUATERNION: Def = (
         "geometry_msgs/msg/Quaternion",
         include_str!("../../msgs/deps/geometry_msgs/msg/Quaternion.msg"),
     );
@@ -76,7 +77,7 @@ mod defs {
         "geometry_msgs/msg/PoseStamped",
         include_str!("../../msgs/deps/geometry_msgs/msg/PoseStamped.msg"),
     );
-    pub(super) const VECTOR3: Def = (
+    pub(in crate::msg) const VECTOR3: Def = (
         "geometry_msgs/msg/Vector3",
         include_str!("../../msgs/deps/geometry_msgs/msg/Vector3.msg"),
     );

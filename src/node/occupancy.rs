@@ -201,6 +201,33 @@ fn rasterise_cloud(
     Ok((data, stats))
 }
 
+/// The fields of a PointCloud2 message as the library reads them.
+fn cloud_fields(c: &PointCloud2) -> Vec<CloudField<'_>> {
+    c.fields
+        .iter()
+        .map(|f| CloudField {
+            name: &f.name,
+            offset: f.offset,
+            datatype: f.datatype,
+            count: f.count,
+        })
+        .collect()
+}
+
+/// A PointCloud2 message as the library reads it, with its `fields` from [`cloud_fields`].
+fn cloud_ref<'a>(c: &'a PointCloud2, fields: &'a [CloudField<'a>]) -> PointCloud2Ref<'a> {
+    PointCloud2Ref {
+        height: c.height,
+        width: c.width,
+        fields,
+        is_bigendian: c.is_bigendian,
+        point_step: c.point_step,
+        row_step: c.row_step,
+        data: &c.data,
+        is_dense: c.is_dense,
+    }
+}
+
 /// The occupancy node.
 pub struct OccupancyNode {
     fqn: String,
@@ -715,26 +742,8 @@ impl OccupancyNode {
                     half.0 = CloudRasterizer::new(options.transform(placement));
                     *transform = placement;
                 }
-                let fields: Vec<CloudField<'_>> = c
-                    .fields
-                    .iter()
-                    .map(|f| CloudField {
-                        name: &f.name,
-                        offset: f.offset,
-                        datatype: f.datatype,
-                        count: f.count,
-                    })
-                    .collect();
-                let cloud = PointCloud2Ref {
-                    height: c.height,
-                    width: c.width,
-                    fields: &fields,
-                    is_bigendian: c.is_bigendian,
-                    point_step: c.point_step,
-                    row_step: c.row_step,
-                    data: &c.data,
-                    is_dense: c.is_dense,
-                };
+                let fields = cloud_fields(c);
+                let cloud = cloud_ref(c, &fields);
                 match rasterise_cloud(
                     *split,
                     raster,
@@ -1545,26 +1554,8 @@ mod tests {
             let Payload::PointCloud2(c) = &m.payload else {
                 unreachable!()
             };
-            let fields: Vec<CloudField<'_>> = c
-                .fields
-                .iter()
-                .map(|f| CloudField {
-                    name: &f.name,
-                    offset: f.offset,
-                    datatype: f.datatype,
-                    count: f.count,
-                })
-                .collect();
-            let whole = PointCloud2Ref {
-                height: c.height,
-                width: c.width,
-                fields: &fields,
-                is_bigendian: false,
-                point_step: c.point_step,
-                row_step: c.row_step,
-                data: &c.data,
-                is_dense: false,
-            };
+            let fields = cloud_fields(c);
+            let whole = cloud_ref(c, &fields);
             let mut raster = CloudRasterizer::new(
                 CloudOptions::new()
                     .dilate_m(0.1)
