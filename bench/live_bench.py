@@ -49,6 +49,20 @@
       the frame that completes a contact's slab to taking its event (p50/p99/max, all events and
       BEGIN), and the launch's resident memory every 10 s (a line per minute: min and max).
 
+  python3 bench/live_bench.py robot     [--loops 3] [--grid 128] [--frame-hz 30] [--joint-hz 500]
+      `chronotope scene robot-cell` at those rates (4 s: the arm dips, the table shuttles out)
+      played --loops times by a Cyclone peer (tests/py/cyclone_peer.py --loops: stamps shifted
+      per loop, 3.5 s between loops) into `launch robot_cell.yaml` (robot node at the table's
+      stamps, mesher, checker). Prints per input topic received, dropped and lag (--summary),
+      the contact events' latency (from writing the last input that completes the contact's
+      slab: the table's frame and the first joint state at or after its stamp, to taking the
+      event at the peer) also in frame periods, the launch's CPU and RSS per minute.
+  python3 bench/live_bench.py cloud     [--loops 3] [--cloud-grid 64] [--frames 150]
+                                        [--frame-hz 30] [--camera 640x480]
+      The same for `chronotope scene person-cell` (a depth camera's organised cloud of
+      WxH points, NaN where a ray misses, an OctoMap at half the rate, the machine-tool
+      bodies' frames) into `launch person_cell.yaml`; latency from the cell's frames.
+
 Build first: cargo build --release.  --exe selects another binary.  --json FILE writes the
 figures as JSON too (with the load average: other builds share the cores).
 Domain: --domain, else 120 + pid % 50 (never ROS_DOMAIN_ID's value), loopback discovery.
@@ -1065,6 +1079,119 @@ def bench_periodic(a, exe, domain, tmp):
             "rss_mb": rss, "peak_rss_mb": peak}
 
 
+# ---- robot, cloud -----------------------------------------------------------------------
+
+def bench_sources(a, exe, domain, tmp, kind):
+    """A Cyclone peer plays a robot cell (URDF, joint states, the table's frames) or a person
+    cell (a depth camera's cloud, an OctoMap, the machine-tool bodies) into the launch that
+    turns them into bodies, --loops times; contact latency, the launch's drops and lag, and its
+    resident memory."""
+    frame_hz = a.frame_hz
+    if kind == "robot":
+        grid = a.grid
+        joint_hz = a.joint_hz
+        bag = tmp / f"robot-cell-{grid}.mcap"
+        scene = ["scene", "robot-cell", "--grid", str(grid), "--frame-hz", f"{frame_hz:g}",
+                 "--joint-hz", f"{joint_hz:g}", "--encoding", "bits", "--out", str(bag)]
+        cfg = ROOT / "launch_configs/robot_cell.yaml"
+        latency_from = "/joint_states,/table/occupancy"
+        what = (f"robot cell {grid}^3: joint states at {joint_hz:g} Hz (two partial messages an "
+                f"instant), the table's frames at {frame_hz:g} Hz, the robot node's frames at the "
+                f"table's stamps (percent)")
+    else:
+        grid = a.cloud_grid
+        frames = a.frames or 150
+        bag = tmp / f"person-cell-{grid}.mcap"
+        scene = ["scene", "person-cell", "--grid", str(grid), "--frames", str(frames),
+                 "--frame-hz", f"{frame_hz:g}", "--camera", a.camera, "--out", str(bag)]
+        cfg = ROOT / "launch_configs/person_cell.yaml"
+        latency_from = ""
+        w, h = (int(v) for v in a.camera.split("x"))
+        what = (f"person cell {grid}^3: a {w}x{h} = {w * h}-point organised cloud and the three "
+                f"machine-tool bodies at {frame_hz:g} Hz, an OctoMap at {frame_hz / 2:g} Hz")
+    log(f"generating {' '.join(scene)}")
+    subprocess.run([str(exe), *scene], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    summary = tmp / "summary.json"
+    launch = start_launch(exe, cfg, domain, a.seconds_max, summary, tmp / "launch.log")
+    peer_out = tmp / "peer.json"
+    cmd = [sys.executable, str(ROOT / "tests/py/cyclone_peer.py"), "--bag", str(bag), "--out",
+           str(peer_out), "--domain", str(domain), "--timeout", "120", "--loops", str(a.loops),
+           "--match-timeout", "60"]
+    if latency_from:
+        cmd += ["--latency-from", latency_from]
+    if not a.labels:
+        cmd += ["--no-labels"]
+    peer = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=open(tmp / "peer.log", "w"))
+    t0 = time.monotonic()
+    c0 = proc_cpu_s(launch.pid)
+    rss = []
+    while peer.poll() is None:
+        rss.append((round(time.monotonic() - t0, 1), round(proc_rss_mb(launch.pid), 1)))
+        time.sleep(2.0)
+    wall = time.monotonic() - t0
+    cpu = proc_cpu_s(launch.pid) - c0
+    peak = proc_peak_rss_mb(launch.pid)
+    stop_launch(launch, "chronotope launch", 120)
+    if peer.returncode != 0:
+        raise SystemExit(f"the Cyclone peer exited with {peer.returncode}: see {tmp / 'peer.log'}:\n"
+                         + (tmp / "peer.log").read_text()[-2000:])
+    got = json.loads(peer_out.read_text())
+    full = json.loads(summary.read_text())
+    s = full["transport"]
+    lag = s.get("lag", {})
+    events = got["contacts"]
+    begun = [e for e in events if e["event"] == 0]
+    # Events with a frame (not those that close with a stream, after the idle timeout).
+    lat = [e["latency_s"] * 1e3 for e in events if e["latency_s"] is not None and not e["at_stream_end"]]
+    lat_b = [e["latency_s"] * 1e3 for e in begun if e["latency_s"] is not None and not e["at_stream_end"]]
+    lat_end = [e["latency_s"] * 1e3 for e in events if e["latency_s"] is not None and e["at_stream_end"]]
+    period_ms = 1e3 / frame_hz
+    print(f"\n{kind}: {what}; a Cyclone peer {'taking labels ' if a.labels else ''}plays it {a.loops} time(s) "
+          f"({got['frames_published']} messages, {got['timing_s']['played']:.1f} s) into "
+          f"`launch {cfg.name}`")
+    print("| topic | received | dropped | lag p50 [ms] | p99 [ms] | max [ms] |")
+    print("|---|---|---|---|---|---|")
+    rows = []
+    nan = float("nan")
+    for t in sorted(s["received"]):
+        l = lag.get(t, {})
+        row = {"topic": t, "received": s["received"][t], "dropped": s["dropped"].get(t, 0),
+               "lag_ms_p50": l.get("p50_ms", nan), "lag_ms_p99": l.get("p99_ms", nan),
+               "lag_ms_max": l.get("max_ms", nan)}
+        rows.append(row)
+        print(f"| {t} | {row['received']} | {row['dropped']} | {row['lag_ms_p50']:.1f} | "
+              f"{row['lag_ms_p99']:.1f} | {row['lag_ms_max']:.1f} |")
+    print(f"contacts: {len(begun)} begun, {len(events)} events (BEGIN/ONGOING/END/UNSURE); latency "
+          f"from the input that completes the slab to the event at the peer [ms], the "
+          f"{len(lat)} events that come with a frame: p50 {pct(lat, 0.5):.0f}, p99 "
+          f"{pct(lat, 0.99):.0f} ({pct(lat, 0.99) / period_ms:.2f} frame periods), max "
+          f"{max(lat, default=nan):.0f}; BEGIN p50 {pct(lat_b, 0.5):.0f}, p99 {pct(lat_b, 0.99):.0f}; "
+          f"the {len(lat_end)} that close with a stream (after the mesher's 2 s idle timeout): "
+          f"max {max(lat_end, default=nan):.0f}")
+    minutes = {}
+    for t, r in rss:
+        minutes.setdefault(int(t // 60), []).append(r)
+    print(f"launch CPU {cpu / wall * 100:.0f} % of one core over {wall:.0f} s; RSS [MB] per minute "
+          "(min-max of 2 s samples): " + ", ".join(
+              f"{m}-{m + 1} min {min(v):.0f}-{max(v):.0f}" for m, v in sorted(minutes.items()))
+          + f"; peak {peak:.0f}")
+    problems = summary_extras(full)["problems"]
+    if problems:
+        print(f"counted problems: {problems}")
+    return {"what": what, "config": cfg.name, "scene": scene, "loops": a.loops, "labels": a.labels,
+            "frames_published": got["frames_published"], "played_s": got["timing_s"]["played"],
+            "topics": rows, "contacts_begun": len(begun), "events": len(events),
+            "latency_ms": {"p50": pct(lat, 0.5), "p99": pct(lat, 0.99), "max": max(lat, default=nan),
+                           "p99_frame_periods": pct(lat, 0.99) / period_ms},
+            "latency_begin_ms": {"p50": pct(lat_b, 0.5), "p99": pct(lat_b, 0.99)},
+            "latency_at_stream_end_ms": {"n": len(lat_end), "max": max(lat_end, default=nan)},
+            "cpu_fraction_of_one_core": cpu / wall, "rss_mb": rss, "peak_rss_mb": peak,
+            "problems": problems, "summary": full,
+            "events_detail": [{"stamp": e["header"]["stamp"], "pair": [e["body_a"], e["body_b"]],
+                               "event": e["event"], "latency_s": e["latency_s"],
+                               "at_stream_end": e["at_stream_end"]} for e in events]}
+
+
 def bench_idle(a, exe, domain, tmp):
     cfg = ROOT / "launch_configs/machine_tool.yaml"
     launch = start_launch(exe, cfg, domain, a.seconds + 30, tmp / "summary.json", tmp / "launch.log")
@@ -1085,7 +1212,7 @@ def bench_idle(a, exe, domain, tmp):
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("case", choices=["cyclone", "mesher", "carving", "idle", "stop", "periodic",
-                                     "all"])
+                                     "robot", "cloud", "all"])
     ap.add_argument("--exe", default=str(DEFAULT_EXE))
     ap.add_argument("--loops", type=int, default=3)
     ap.add_argument("--hz", type=float, default=10.0,
@@ -1110,6 +1237,12 @@ def main() -> int:
     ap.add_argument("--frame-hz", type=float, default=30.0,
                     help="carving: display frames per second (occupancy_period_s = 1 / this)")
     ap.add_argument("--pose-hz", type=float, default=1000.0, help="carving: poses per second")
+    ap.add_argument("--joint-hz", type=float, default=500.0, help="robot: joint states per second")
+    ap.add_argument("--camera", default="640x480", help="cloud: the depth camera's pixels, WxH")
+    ap.add_argument("--cloud-grid", type=int, default=64, help="cloud: voxels per edge of the cell")
+    ap.add_argument("--labels", action="store_true",
+                    help="robot, cloud: the peer also takes /checker/labels (every tet's label, "
+                         "each slab; the checker then builds them)")
     ap.add_argument("--speed", type=float, default=0.05, help="carving: knife speed [m/s]")
     ap.add_argument("--queue-depth", type=int, default=0,
                     help="carving: queue_depth of the mesher and checker (builds that have the executor)")
@@ -1155,7 +1288,9 @@ def main() -> int:
                                                          "stop": 12.0, "periodic": 600.0}.get(c)
             out[c] = {"idle": bench_idle, "cyclone": bench_cyclone, "mesher": bench_mesher,
                       "carving": bench_carving, "stop": bench_stop,
-                      "periodic": bench_periodic}[c](a, exe, domain, sub)
+                      "periodic": bench_periodic,
+                      "robot": lambda *x: bench_sources(*x, "robot"),
+                      "cloud": lambda *x: bench_sources(*x, "cloud")}[c](a, exe, domain, sub)
     out["loadavg_end"] = loadavg()
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)

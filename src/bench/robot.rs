@@ -196,8 +196,14 @@ pub fn accuracy_row(
     dir: &Path,
 ) -> Result<AccuracyRow, BenchError> {
     let bag = dir.join(format!("robot-cell-{grid}-{encoding:?}.mcap"));
-    crate::cli::scene_robot::robot_cell(&bag, grid, encoding, false)
-        .map_err(|e| BenchError::Usage(e.to_string()))?;
+    crate::cli::scene_robot::robot_cell(
+        &bag,
+        grid,
+        encoding,
+        false,
+        crate::cli::scene_robot::RobotCellTiming::default(),
+    )
+    .map_err(|e| BenchError::Usage(e.to_string()))?;
     let enc = match encoding {
         VoxelEncoding::Bits => "bits",
         VoxelEncoding::Percent => "percent",

@@ -41,6 +41,32 @@ pub struct SceneArgs {
     /// before it starts) instead of joint states, which then stop when the plan is sent.
     #[arg(long)]
     pub plan: bool,
+    /// `robot-cell` and `person-cell`: the cell's frames per second (default 10). The motion
+    /// keeps its length in frames, so `robot-cell` at 30 Hz is 4 s of 121 frames and
+    /// `person-cell --frames 150 --frame-hz 30` is 5 s.
+    #[arg(long)]
+    pub frame_hz: Option<f64>,
+    /// `robot-cell` only: joint states per second, each instant in two partial messages
+    /// (default 200).
+    #[arg(long)]
+    pub joint_hz: Option<f64>,
+    /// `person-cell` only: the depth camera's pixels, WIDTHxHEIGHT (default 48x36; 640x480 is
+    /// a 307 200-point organised cloud, NaN where a ray misses the person).
+    #[arg(long)]
+    pub camera: Option<String>,
+}
+
+/// A rate option as a period in whole nanoseconds: 0.1 to 10 000 per second.
+fn period_ns(option: &str, hz: Option<f64>, default_ns: i64) -> Result<i64, CliError> {
+    match hz {
+        None => Ok(default_ns),
+        Some(hz) if hz.is_finite() && (0.1..=10_000.0).contains(&hz) => {
+            Ok((1e9 / hz).round() as i64)
+        }
+        Some(hz) => Err(CliError::Usage(format!(
+            "{option} {hz}: use 0.1..=10000 per second"
+        ))),
+    }
 }
 
 /// The cut-out images the carving session writes next to its bag.
@@ -67,22 +93,51 @@ pub fn run(a: &SceneArgs) -> Result<(), CliError> {
         return carving_session(&a.out);
     }
     paths.check()?;
+    if a.camera.is_some() && a.name != "person-cell" {
+        return Err(CliError::Usage(
+            "--camera is for the person-cell scene".into(),
+        ));
+    }
+    if a.frame_hz.is_some() && !matches!(a.name.as_str(), "robot-cell" | "person-cell") {
+        return Err(CliError::Usage(
+            "--frame-hz is for the robot-cell and person-cell scenes".into(),
+        ));
+    }
     if a.name == "robot-cell" {
         if a.frames.is_some() || a.duration.is_some() {
             return Err(CliError::Usage(
-                "robot-cell has a fixed length (4 s, the table at 10 Hz): no --frames or --duration"
+                "robot-cell has a fixed length (4 s): no --frames or --duration (--frame-hz and \
+                 --joint-hz set its rates)"
                     .into(),
             ));
         }
+        let timing = super::scene_robot::RobotCellTiming {
+            frame_period_ns: period_ns(
+                "--frame-hz",
+                a.frame_hz,
+                crate::scene::ROBOT_CELL_FRAME_PERIOD_NS,
+            )?,
+            joint_period_ns: period_ns(
+                "--joint-hz",
+                a.joint_hz,
+                crate::scene::ROBOT_CELL_JOINT_PERIOD_NS,
+            )?,
+        };
         return super::scene_robot::robot_cell(
             &a.out,
             a.grid.unwrap_or(32),
             a.encoding.into(),
             a.plan,
+            timing,
         );
     }
     if a.plan {
         return Err(CliError::Usage("--plan is for the robot-cell scene".into()));
+    }
+    if a.joint_hz.is_some() {
+        return Err(CliError::Usage(
+            "--joint-hz is for the robot-cell scene".into(),
+        ));
     }
     if a.name == "person-cell" {
         return person_cell(a);
@@ -348,7 +403,28 @@ fn person_cell(a: &SceneArgs) -> Result<(), CliError> {
             crate::scene::MIN_GRID
         )));
     }
-    let scene = PersonCell::new(grid, frames);
+    let period = period_ns(
+        "--frame-hz",
+        a.frame_hz,
+        crate::scene::PERSON_CELL_FRAME_PERIOD_NS,
+    )?;
+    let pixels = match &a.camera {
+        None => crate::scene::CAMERA_PIXELS,
+        Some(c) => {
+            let parsed = c
+                .split_once('x')
+                .and_then(|(w, h)| Some([w.parse::<u32>().ok()?, h.parse::<u32>().ok()?]));
+            match parsed {
+                Some([w, h]) if (1..=4096).contains(&w) && (1..=4096).contains(&h) => [w, h],
+                _ => {
+                    return Err(CliError::Usage(format!(
+                        "--camera {c:?}: WIDTHxHEIGHT, each 1..=4096 pixels"
+                    )))
+                }
+            }
+        }
+    };
+    let scene = PersonCell::with_timing(grid, frames, period, pixels);
     let mut w = BagWriter::create_with(&a.out, BagWriteOptions::new().derived("scene"))?;
     w.add_topic::<TFMessage>("/tf_static")?;
     let topics: Vec<String> = scene

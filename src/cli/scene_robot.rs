@@ -79,11 +79,31 @@ pub fn robot_cell_plan() -> JointTrajectory {
     }
 }
 
+/// The robot cell's rates: the table's frames and the joint states.
+#[derive(Debug, Clone, Copy)]
+pub struct RobotCellTiming {
+    /// Time between the table's frames (ns).
+    pub frame_period_ns: i64,
+    /// Time between joint-state instants (ns).
+    pub joint_period_ns: i64,
+}
+
+impl Default for RobotCellTiming {
+    /// The bundled bag's: the table at 10 Hz, joint states at 200 Hz.
+    fn default() -> Self {
+        Self {
+            frame_period_ns: ROBOT_CELL_FRAME_PERIOD_NS,
+            joint_period_ns: ROBOT_CELL_JOINT_PERIOD_NS,
+        }
+    }
+}
+
 /// Writes the robot cell at `grid` voxels per edge: `/robot_description`, `/tf_static`
 /// (world → base_link, as a static broadcaster; link6 → tool0, as robot_state_publisher
-/// publishes the URDF's fixed joints), `/joint_states` at 200 Hz in two partial messages per
-/// instant, and `/table/occupancy` at 10 Hz; with `plan`, the dip as a plan sent at 0.5 s
-/// and joint states only until then.
+/// publishes the URDF's fixed joints), `/joint_states` (200 Hz by default) in two partial
+/// messages per instant, and `/table/occupancy` (10 Hz by default), each table frame written
+/// before the joint states of its instant; with `plan`, the dip as a plan sent at 0.5 s and
+/// joint states only until then.
 ///
 /// # Errors
 /// A grid out of range or a bag that cannot be written.
@@ -92,6 +112,7 @@ pub fn robot_cell(
     grid: u32,
     encoding: VoxelEncoding,
     plan: bool,
+    timing: RobotCellTiming,
 ) -> Result<(), CliError> {
     if !(crate::scene::MIN_GRID..=crate::scene::MAX_GRID).contains(&grid) {
         return Err(crate::scene::SceneError::GridOutOfRange { grid }.into());
@@ -129,9 +150,11 @@ pub fn robot_cell(
             transforms: vec![transform("link6", "tool0", [0.0, 0.0, 0.04])],
         },
     )?;
-    let steps = (d * 1e9) as i64 / ROBOT_CELL_JOINT_PERIOD_NS;
-    let per_frame = ROBOT_CELL_FRAME_PERIOD_NS / ROBOT_CELL_JOINT_PERIOD_NS;
-    let sent = (ROBOT_CELL_PLAN_SENT_U * d * 1e9) as i64;
+    let span_ns = (d * 1e9) as i64;
+    let steps = span_ns / timing.joint_period_ns;
+    // On a joint-state instant (the last at or before the plan's sending time).
+    let sent =
+        (ROBOT_CELL_PLAN_SENT_U * d * 1e9) as i64 / timing.joint_period_ns * timing.joint_period_ns;
     let mut raster = Rasterizer::new();
     let mut g = VoxelGrid {
         origin: Point {
@@ -147,11 +170,11 @@ pub fn robot_cell(
         ..VoxelGrid::default()
     };
     let (arm, wrist) = ROBOT_CELL_JOINTS.split_at(ROBOT_CELL_FIRST_MESSAGE_JOINTS);
-    for k in 0..=steps {
-        let dt = k * ROBOT_CELL_JOINT_PERIOD_NS;
-        let stamp = t0 + dt;
-        let u = dt as f64 * 1e-9 / d;
-        if k % per_frame == 0 {
+    // The table's frames up to `until` (ns after the start), in time order.
+    let mut next_frame = 0i64;
+    let mut table_until = |until: i64, w: &mut BagWriter| -> Result<(), CliError> {
+        while next_frame * timing.frame_period_ns <= until.min(span_ns) {
+            let dt = next_frame * timing.frame_period_ns;
             raster.rasterize(
                 &table.shapes,
                 table.offset_at(dt as f64 * 1e-9),
@@ -160,11 +183,19 @@ pub fn robot_cell(
                 &mut g.data,
             );
             g.header = Header {
-                stamp: Time::from_nanos(stamp),
+                stamp: Time::from_nanos(t0 + dt),
                 frame_id: SCENE_FRAME_ID.into(),
             };
-            w.write("/table/occupancy", stamp as u64, &g)?;
+            w.write("/table/occupancy", (t0 + dt) as u64, &g)?;
+            next_frame += 1;
         }
+        Ok(())
+    };
+    for k in 0..=steps {
+        let dt = k * timing.joint_period_ns;
+        let stamp = t0 + dt;
+        let u = dt as f64 * 1e-9 / d;
+        table_until(dt, &mut w)?;
         if plan && dt > sent {
             continue;
         }
@@ -185,6 +216,7 @@ pub fn robot_cell(
             w.write(PLAN_TOPIC, stamp as u64, p.as_ref())?;
         }
     }
+    table_until(span_ns, &mut w)?;
     w.finish()?;
     tracing::info!(
         "wrote {} (robot cell, {grid}^3 voxels, {encoding:?}{})",

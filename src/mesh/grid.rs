@@ -296,6 +296,38 @@ pub fn intersect_across(
         }
         *o = r as i64;
     }
+    let g = super::mesher::GridGeometry {
+        encoding: 0,
+        scale: 2,
+        ..*ga
+    };
+    // The same lattice in another encoding (a PERCENT robot against a BITS table): the bit
+    // rows line up word for word (padding and spare words are zero in both).
+    if off == [0; 3] && ga.size == gb.size && a.padded == b.padded && a.words == b.words {
+        let bits: Vec<u64> = a.bits.iter().zip(&b.bits).map(|(x, y)| x & y).collect();
+        let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
+        let grid = OccupancyGrid {
+            padded: a.padded,
+            words: a.words,
+            bits,
+            values: None,
+            occupied,
+            clamped: 0,
+        };
+        return Some((grid, g));
+    }
+    intersect_offset(a, ga, b, gb, off, g)
+}
+
+/// [`intersect_across`] voxel by voxel, `b`'s lattice `off` voxels from `a`'s.
+fn intersect_offset(
+    a: &OccupancyGrid,
+    ga: &super::mesher::GridGeometry,
+    b: &OccupancyGrid,
+    gb: &super::mesher::GridGeometry,
+    off: [i64; 3],
+    g: super::mesher::GridGeometry,
+) -> Option<(OccupancyGrid, super::mesher::GridGeometry)> {
     let [sx, sy, sz] = ga.size.map(|v| v as usize);
     let [bx, by, bz] = gb.size.map(|v| v as i64);
     let n = sx.checked_mul(sy)?.checked_mul(sz)?;
@@ -322,11 +354,6 @@ pub fn intersect_across(
             }
         }
     }
-    let g = super::mesher::GridGeometry {
-        encoding: 0,
-        scale: 2,
-        ..*ga
-    };
     let f = FrameRef {
         stamp_ns: 0,
         origin: g.origin,
@@ -421,6 +448,44 @@ mod tests {
                 }
                 assert_eq!(fast, slow, "start {start}, length {len}");
             }
+        }
+    }
+
+    /// A PERCENT frame against a BITS frame on the same lattice: the word-wise intersection
+    /// is the voxel-by-voxel one, on random frames of sizes across word boundaries.
+    #[test]
+    fn the_same_lattice_in_two_encodings_intersects_as_voxel_by_voxel() {
+        let mut rng = crate::kernel::intersect::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        for size in [[1, 1, 1], [5, 3, 2], [63, 2, 3], [64, 4, 1], [130, 3, 2]] {
+            let n = (size[0] * size[1] * size[2]) as usize;
+            let percent: Vec<u8> = (0..n).map(|_| (rng.next() % 101) as u8).collect();
+            let bits: Vec<u8> = (0..n.div_ceil(8)).map(|_| rng.next() as u8).collect();
+            let geometry = |encoding: u8, scale: i32| super::super::mesher::GridGeometry {
+                origin: [0.5, -1.0, 0.0],
+                resolution: 0.01,
+                size,
+                encoding,
+                scale,
+            };
+            let frame = |encoding: u8, data: &[u8]| {
+                let f = FrameRef {
+                    stamp_ns: 0,
+                    origin: [0.5, -1.0, 0.0],
+                    resolution: 0.01,
+                    size,
+                    encoding,
+                    data,
+                };
+                OccupancyGrid::decode(&f, &DecodeOptions::default()).unwrap()
+            };
+            let (a, ga) = (frame(1, &percent), geometry(1, 100));
+            let (b, gb) = (frame(0, &bits), geometry(0, 2));
+            let (fast, g) = intersect_across(&a, &ga, &b, &gb).unwrap();
+            let (slow, g2) = intersect_offset(&a, &ga, &b, &gb, [0; 3], g).unwrap();
+            assert_eq!(g, g2);
+            assert_eq!(fast.bits, slow.bits, "{size:?}");
+            assert_eq!(fast.occupied, slow.occupied, "{size:?}");
+            assert!(fast.values.is_none() && slow.values.is_none());
         }
     }
 }

@@ -55,7 +55,7 @@ pub use periodic::{
     PERIODIC_RADIUS,
 };
 pub use person::{
-    PersonCell, CAMERA_FRAME, CLOUD_TOPIC, OCTOMAP_TOPIC, PERSON_CELL_DOMAIN_EDGE,
+    PersonCell, CAMERA_FRAME, CAMERA_PIXELS, CLOUD_TOPIC, OCTOMAP_TOPIC, PERSON_CELL_DOMAIN_EDGE,
     PERSON_CELL_FRAME_PERIOD_NS,
 };
 pub use raster::{rasterize, Rasterizer, PERCENT_SUBSAMPLES};

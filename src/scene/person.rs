@@ -104,6 +104,8 @@ pub fn person(duration: f64) -> Vec<BodySpec> {
 pub struct PersonCell {
     lattice: VoxelLattice,
     frames: u32,
+    /// Time between the cell's frames (ns).
+    period_ns: i64,
     cell: Vec<BodySpec>,
     person: Vec<BodySpec>,
     camera: Camera,
@@ -117,6 +119,8 @@ struct Camera {
     axes: [[f64; 3]; 3],
     /// Focal length in pixels.
     focal: f64,
+    /// Pixels, columns × rows.
+    pixels: [u32; 2],
 }
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
@@ -141,7 +145,7 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 impl Camera {
-    fn looking_at(position: [f64; 3], target: [f64; 3]) -> Self {
+    fn looking_at(position: [f64; 3], target: [f64; 3], pixels: [u32; 2]) -> Self {
         let z = unit(sub(target, position));
         let x = unit(cross(z, [0.0, 0.0, 1.0]));
         let y = cross(z, x);
@@ -149,13 +153,14 @@ impl Camera {
         Self {
             position,
             axes: [x, y, z],
-            focal: f64::from(CAMERA_PIXELS[0]) / 2.0 / half,
+            focal: f64::from(pixels[0]) / 2.0 / half,
+            pixels,
         }
     }
 
     /// The ray through pixel `(u, v)` (column, row), a unit vector in `world`.
     fn ray(&self, u: u32, v: u32) -> [f64; 3] {
-        let [w, h] = CAMERA_PIXELS.map(f64::from);
+        let [w, h] = self.pixels.map(f64::from);
         let a = (f64::from(u) + 0.5 - w / 2.0) / self.focal;
         let b = (f64::from(v) + 0.5 - h / 2.0) / self.focal;
         let [x, y, z] = self.axes;
@@ -216,16 +221,29 @@ impl Camera {
 const MAX_RANGE: f64 = 6.0;
 
 impl PersonCell {
-    /// The scene with `frames` cell frames (at least 2) on a `grid`³ lattice.
+    /// The scene with `frames` cell frames (at least 2) on a `grid`³ lattice, a frame every
+    /// [`PERSON_CELL_FRAME_PERIOD_NS`], seen by a camera of [`CAMERA_PIXELS`].
     pub fn new(grid: u32, frames: u32) -> Self {
+        Self::with_timing(grid, frames, PERSON_CELL_FRAME_PERIOD_NS, CAMERA_PIXELS)
+    }
+
+    /// The scene with a frame every `period_ns` (at least 1 ms) and a camera of `pixels`
+    /// (columns × rows, each at least 1): the same motion over `frames - 1` periods, so a
+    /// faster cell is a shorter recording. The map is built from the rays of a camera of
+    /// [`CAMERA_PIXELS`] whatever the cloud's resolution, as a mapper integrates a
+    /// downsampled cloud.
+    pub fn with_timing(grid: u32, frames: u32, period_ns: i64, pixels: [u32; 2]) -> Self {
         let frames = frames.max(2);
-        let duration = f64::from(frames - 1) * PERSON_CELL_FRAME_PERIOD_NS as f64 * 1e-9;
+        let period_ns = period_ns.max(1_000_000);
+        let pixels = pixels.map(|p| p.max(1));
+        let duration = f64::from(frames - 1) * period_ns as f64 * 1e-9;
         Self {
             lattice: VoxelLattice::cube([0.0; 3], PERSON_CELL_DOMAIN_EDGE, grid),
             frames,
+            period_ns,
             cell: super::machine_tool::bodies(duration),
             person: person(duration),
-            camera: Camera::looking_at(CAMERA_POSITION, CAMERA_TARGET),
+            camera: Camera::looking_at(CAMERA_POSITION, CAMERA_TARGET, pixels),
         }
     }
 
@@ -251,11 +269,23 @@ impl PersonCell {
 
     /// Stamp of cell frame `k` (ns since the epoch).
     pub fn stamp_ns(&self, k: u32) -> i64 {
-        super::SCENE_START_NS + i64::from(k) * PERSON_CELL_FRAME_PERIOD_NS
+        super::SCENE_START_NS + i64::from(k) * self.period_ns
+    }
+
+    /// How much later than its cell frame a cloud is stamped: [`CAMERA_DELAY_NS`], or a
+    /// third of the frame period if that is shorter.
+    pub fn camera_delay_ns(&self) -> i64 {
+        CAMERA_DELAY_NS.min(self.period_ns / 3)
+    }
+
+    /// How much later than its cell frame a map is stamped: [`MAP_DELAY_NS`], or half the
+    /// frame period if that is shorter.
+    pub fn map_delay_ns(&self) -> i64 {
+        MAP_DELAY_NS.min(self.period_ns / 2)
     }
 
     fn time_s(&self, k: u32) -> f64 {
-        f64::from(k) * PERSON_CELL_FRAME_PERIOD_NS as f64 * 1e-9
+        f64::from(k) * self.period_ns as f64 * 1e-9
     }
 
     /// Cell body `body`'s frame `k`, BITS.
@@ -292,9 +322,9 @@ impl PersonCell {
     /// Where the camera's ray through pixel `(u, v)` first meets the person at time `t`, in
     /// `world` (sphere tracing: each step is the distance to the person, so no surface is
     /// stepped over).
-    fn hit(&self, u: u32, v: u32, t: f64) -> Option<[f64; 3]> {
-        let d = self.camera.ray(u, v);
-        let o = self.camera.position;
+    fn hit(&self, camera: &Camera, u: u32, v: u32, t: f64) -> Option<[f64; 3]> {
+        let d = camera.ray(u, v);
+        let o = camera.position;
         let mut s = 0.0;
         while s < MAX_RANGE {
             let p = [0, 1, 2].map(|i| o[i] + s * d[i]);
@@ -314,11 +344,17 @@ impl PersonCell {
     /// The points the camera sees on the person at the instant of cell frame `k`, row by row
     /// (`None` where a ray misses).
     pub fn camera_points(&self, k: u32) -> Vec<Option<[f64; 3]>> {
+        self.points_seen_by(&self.camera, k)
+    }
+
+    fn points_seen_by(&self, camera: &Camera, k: u32) -> Vec<Option<[f64; 3]>> {
+        use rayon::prelude::*;
         let t = self.time_s(k);
-        let [w, h] = CAMERA_PIXELS;
+        let [w, h] = camera.pixels;
         (0..h)
-            .flat_map(|v| (0..w).map(move |u| (u, v)))
-            .map(|(u, v)| self.hit(u, v, t))
+            .into_par_iter()
+            .flat_map_iter(|v| (0..w).map(move |u| (u, v)))
+            .map(|(u, v)| self.hit(camera, u, v, t))
             .collect()
     }
 
@@ -326,7 +362,7 @@ impl PersonCell {
     /// organised cloud in [`CAMERA_FRAME`], x, y, z as FLOAT32 and a FLOAT32 `intensity`
     /// (the depth), 16 bytes a point, NaN where the ray misses.
     pub fn cloud(&self, k: u32) -> PointCloud2 {
-        let [w, h] = CAMERA_PIXELS;
+        let [w, h] = self.camera.pixels;
         let mut data = Vec::with_capacity((w * h * 16) as usize);
         for p in self.camera_points(k) {
             let q = match p {
@@ -340,7 +376,7 @@ impl PersonCell {
         }
         PointCloud2 {
             header: Header {
-                stamp: Time::from_nanos(self.stamp_ns(k) + CAMERA_DELAY_NS),
+                stamp: Time::from_nanos(self.stamp_ns(k) + self.camera_delay_ns()),
                 frame_id: CAMERA_FRAME.to_owned(),
             },
             height: h,
@@ -393,7 +429,8 @@ impl PersonCell {
         };
         let keys = |p: [f64; 3]| -> Option<[u32; 3]> { Some([key(p[0])?, key(p[1])?, key(p[2])?]) };
         let o = self.camera.position;
-        for p in self.camera_points(k).into_iter().flatten() {
+        let mapper = Camera::looking_at(CAMERA_POSITION, CAMERA_TARGET, CAMERA_PIXELS);
+        for p in self.points_seen_by(&mapper, k).into_iter().flatten() {
             let d = sub(p, o);
             let len = dot(d, d).sqrt();
             let end = keys(p);
@@ -424,7 +461,7 @@ impl PersonCell {
         write_binary(&known, 0, &mut data);
         Octomap {
             header: Header {
-                stamp: Time::from_nanos(self.stamp_ns(k) + MAP_DELAY_NS),
+                stamp: Time::from_nanos(self.stamp_ns(k) + self.map_delay_ns()),
                 frame_id: super::SCENE_FRAME_ID.to_owned(),
             },
             binary: true,

@@ -23,6 +23,7 @@ NaN.  Exit status: 0 when the report, every label (two per reported pair) and, w
 
 
 import argparse
+import bisect
 import hashlib
 import json
 import os
@@ -237,6 +238,20 @@ class TFMessage(IdlStruct, typename="tf2_msgs::msg::dds_::TFMessage_"):
 
 
 @dataclass
+class RosString(IdlStruct, typename="std_msgs::msg::dds_::String_"):
+    data: str
+
+
+@dataclass
+class JointState(IdlStruct, typename="sensor_msgs::msg::dds_::JointState_"):
+    header: Header
+    name: sequence[str]
+    position: sequence[float64]
+    velocity: sequence[float64]
+    effort: sequence[float64]
+
+
+@dataclass
 class BodySummary(IdlStruct, typename="chronotope_msgs::msg::dds_::BodySummary_"):
     body_id: str
     frames: uint64
@@ -440,7 +455,7 @@ def voxel_grid(m) -> VoxelGrid:
         size_y=m.size_y,
         size_z=m.size_z,
         encoding=m.encoding,
-        data=list(bytes(m.data)),
+        data=bytes(m.data),
     )
 
 
@@ -449,7 +464,7 @@ def point_cloud(m) -> PointCloud2:
         header=header_of(m.header), height=m.height, width=m.width,
         fields=[PointField(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count) for f in m.fields],
         is_bigendian=m.is_bigendian, point_step=m.point_step, row_step=m.row_step,
-        data=list(bytes(m.data)), is_dense=m.is_dense)
+        data=bytes(m.data), is_dense=m.is_dense)
 
 
 def octomap(m) -> Octomap:
@@ -470,13 +485,47 @@ def tf_message(m) -> TFMessage:
         for t in m.transforms])
 
 
+def ros_string(m) -> RosString:
+    return RosString(data=m.data)
+
+
+def joint_state(m) -> JointState:
+    return JointState(header=header_of(m.header), name=list(m.name), position=list(m.position),
+                      velocity=list(m.velocity), effort=list(m.effort))
+
+
+def bytes_whole(cls, field: str) -> None:
+    """Writes `cls`'s `sequence[uint8]` field from a `bytes` value, and reads it as `bytes`,
+    in one copy: the same bytes on the wire (a 4-byte length, then the bytes), without
+    Cyclone's element-by-element packing of a 2 MB frame or a 5 MB cloud, or unpacking of a
+    slab's labels (either takes longer than a frame period)."""
+    from cyclonedds.idl._machinery import BytesMachine
+    cls.__idl__.populate()
+    for machine in (cls.__idl__.v1_machine, cls.__idl__.v2_machine):
+        machine.members_machines[field] = BytesMachine()
+
+
+bytes_whole(VoxelGrid, "data")
+bytes_whole(PointCloud2, "data")
+bytes_whole(TetLabels, "labels")
+
+
 # What the peer plays: the type's Cyclone class and how a decoded message becomes one.
 PLAYED = {
     "chronotope_msgs/msg/VoxelGrid": (VoxelGrid, voxel_grid),
     "sensor_msgs/msg/PointCloud2": (PointCloud2, point_cloud),
     "octomap_msgs/msg/Octomap": (Octomap, octomap),
     "tf2_msgs/msg/TFMessage": (TFMessage, tf_message),
+    "std_msgs/msg/String": (RosString, ros_string),
+    "sensor_msgs/msg/JointState": (JointState, joint_state),
 }
+
+# Offered latched (reliable, transient local, depth 1), as tf2's static broadcaster,
+# octomap_server and robot_state_publisher offer them; the rest as a stream of frames.
+LATCHED = ("tf2_msgs/msg/TFMessage", "octomap_msgs/msg/Octomap", "std_msgs/msg/String")
+
+# Sent once, not again when the recording is played in loops.
+ONCE = ("tf2_msgs/msg/TFMessage", "std_msgs/msg/String")
 
 
 def iter_frames(bag: str):
@@ -513,12 +562,28 @@ def main() -> int:
     ap.add_argument("--out", required=True, help="JSON file to write what was received")
     ap.add_argument("--domain", type=int, default=None, help="DDS domain (default ROS_DOMAIN_ID or 0)")
     ap.add_argument("--rate", type=float, default=1.0, help="playback speed factor (default 1)")
+    ap.add_argument("--loops", type=int, default=1,
+                    help="play the recording this many times, header stamps shifted by the "
+                         "recording's span plus --gap each time (static transforms and the "
+                         "robot description sent once)")
+    ap.add_argument("--gap", type=float, default=3.5,
+                    help="seconds between loops (longer than the mesher's idle timeout: each "
+                         "loop is a stream of its own)")
+    ap.add_argument("--latency-from", default=None,
+                    help="comma-separated input topics whose messages complete a contact's slab "
+                         "(default: the VoxelGrid topics); a contact's latency is measured from "
+                         "writing the last of these, each the first at or after the contact's "
+                         "stamp, to taking its event")
     ap.add_argument("--match-timeout", type=float, default=15.0,
                     help="seconds to wait for the nodes' readers and writers to match")
     ap.add_argument("--timeout", type=float, default=30.0,
                     help="seconds to wait, after the last frame, for the report and labels")
     ap.add_argument("--expect-labels", type=int, default=None,
                     help="wait (within --timeout) for this many TetLabels messages")
+    ap.add_argument("--no-labels", action="store_true",
+                    help="do not subscribe to /checker/labels (as a user who watches contacts and "
+                         "reports; the checker then builds no labels): done when the report came "
+                         "and every body closed")
     ap.add_argument("--markers", action="store_true",
                     help="also subscribe to /checker/markers (MarkerArray, ~1 MB each: slow in Python)")
     ap.add_argument("--markers-quiet", type=float, default=3.0,
@@ -528,6 +593,8 @@ def main() -> int:
     a = ap.parse_args()
     if a.rate <= 0:
         ap.error("--rate must be > 0")
+    if not (1 <= a.loops <= 1000 and 0 <= a.gap <= 600):
+        ap.error("--loops in 1..1000, --gap in 0..600 s")
     domain = a.domain if a.domain is not None else int(os.environ.get("ROS_DOMAIN_ID") or 0)
     t_start = time.monotonic()
 
@@ -536,6 +603,14 @@ def main() -> int:
         log(f"no VoxelGrid messages in {a.bag}")
         return 2
     in_topics = sorted({(t, ty) for _, t, ty in frames})
+    if a.latency_from:
+        latency_from = [t for t in a.latency_from.split(",") if t]
+        unknown = [t for t in latency_from if t not in {t for t, _ in in_topics}]
+        if unknown:
+            log(f"--latency-from: {unknown} not in {a.bag}")
+            return 2
+    else:
+        latency_from = sorted({t for t, ty in in_topics if ty == "chronotope_msgs/msg/VoxelGrid"})
     log(f"domain {domain}; {len(frames)} messages on {len(in_topics)} topics from {a.bag}")
 
     dp = DomainParticipant(domain)
@@ -548,8 +623,9 @@ def main() -> int:
                       Policy.Durability.TransientLocal,
                       Policy.History.KeepLast(1))
     writers = {t: DataWriter(dp, Topic(dp, dds_topic(t), PLAYED[ty][0]),
-                             qos=latched_qos if ty in ("tf2_msgs/msg/TFMessage", "octomap_msgs/msg/Octomap") else frame_qos)
+                             qos=latched_qos if ty in LATCHED else frame_qos)
                for t, ty in in_topics}
+    once = {t for t, ty in in_topics if ty in ONCE}
 
     def latched_reader(topic: str, cls, depth: int) -> DataReader:
         # The writers offer reliable + transient local; ask for the same (a late joiner
@@ -561,12 +637,13 @@ def main() -> int:
 
     readers = {
         "report": latched_reader("rt/checker/report", InterferenceReport, 8),
-        "labels": latched_reader("rt/checker/labels", TetLabels, 1024),
         "contacts": DataReader(dp, Topic(dp, "rt/checker/contacts", ContactEvent),
                                qos=Qos(Policy.Reliability.Reliable(max_blocking_time=1_000_000_000),
                                        Policy.Durability.Volatile,
                                        Policy.History.KeepLast(1024))),
     }
+    if not a.no_labels:
+        readers["labels"] = latched_reader("rt/checker/labels", TetLabels, 1024)
     if a.markers:
         readers["markers"] = latched_reader("rt/checker/markers", MarkerArray, 256)
 
@@ -594,8 +671,20 @@ def main() -> int:
     got_labels: list = []
     got_markers: list = []
     got_contacts: list = []
-    written: dict = {}
+    # Per input topic, the header stamps written (ns, increasing) and when each was written.
+    written: dict = {t: ([], []) for t in latency_from}
     playing = [True]
+
+    def slab_complete_at(stamp_ns: int):
+        # When the last of the latency topics had its first message at or after `stamp_ns`
+        # written (None if one has not).
+        last = None
+        for stamps, walls in written.values():
+            i = bisect.bisect_left(stamps, stamp_ns)
+            if i == len(stamps):
+                return None
+            last = walls[i] if last is None else max(last, walls[i])
+        return last
 
     def take(reader, n: int) -> list:
         # Samples only: a writer that goes away (the launch ending first) leaves
@@ -605,49 +694,64 @@ def main() -> int:
     def drain() -> None:
         for r in take(readers["report"], 64):
             got_report.append(r)
-        for l in take(readers["labels"], 256):
-            got_labels.append(l)
+        if "labels" in readers:
+            for l in take(readers["labels"], 256):
+                got_labels.append(l)
         for c in take(readers["contacts"], 256):
             taken = time.monotonic()
             got_contacts.append(contact_json(c))
             # Taken while frames were still being played: published while streaming.
             got_contacts[-1]["while_streaming"] = playing[0]
-            # From writing the last frame of the period that found it (the frame that
+            # From writing the last input of the period that found it (the frame that
             # completes the contact's slab) to taking the event.
-            w = written.get((int(c.header.stamp.sec), int(c.header.stamp.nanosec)))
+            w = slab_complete_at(int(c.header.stamp.sec) * 10**9 + int(c.header.stamp.nanosec))
             got_contacts[-1]["latency_s"] = None if w is None else round(taken - w, 6)
         if "markers" in readers:
             for m in take(readers["markers"], 64):
                 got_markers.append(markers_json(m))
                 got_markers[-1]["taken_s"] = round(time.monotonic() - t0, 3)
 
-    # Play with the recorded timing (log times), scaled by --rate.
+    # Play with the recorded timing (log times), scaled by --rate; each loop later by the
+    # recording's span and the gap, in log time and in header stamps alike.
     t0_log = frames[0][0]
+    shift_ns = frames[-1][0] - t0_log + int(a.gap * 1e9 * a.rate)
     t0 = time.monotonic()
-    for log_ns, topic, msg in iter_frames(a.bag):
-        due = t0 + (log_ns - t0_log) / 1e9 / a.rate
-        while True:
-            now = time.monotonic()
-            if now >= due:
-                break
-            time.sleep(min(due - now, 0.005))
+    published = 0
+    loop_last: dict = {}  # loop -> the last stamp written on the latency topics
+    for loop in range(a.loops):
+        dns = loop * shift_ns
+        for log_ns, topic, msg in iter_frames(a.bag):
+            if loop > 0 and topic in once:
+                continue
+            if dns and hasattr(msg, "header"):
+                ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec + dns
+                msg.header.stamp = Time(sec=ns // 10**9, nanosec=ns % 10**9)
+            due = t0 + (log_ns + dns - t0_log) / 1e9 / a.rate
+            while True:
+                now = time.monotonic()
+                if now >= due:
+                    break
+                time.sleep(min(due - now, 0.005))
+                drain()
+            writers[topic].write(msg)
+            published += 1
+            if topic in written and hasattr(msg, "header"):
+                stamps, walls = written[topic]
+                stamps.append(msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec)
+                walls.append(time.monotonic())
+                loop_last[loop] = max(loop_last.get(loop, 0), stamps[-1])
             drain()
-        writers[topic].write(msg)
-        if isinstance(msg, VoxelGrid):
-            stamp = (int(msg.header.stamp.sec), int(msg.header.stamp.nanosec))
-            written[stamp] = time.monotonic()
-        drain()
     drain()
     playing[0] = False
     t_played = time.monotonic()
-    log(f"published {len(frames)} frames in {t_played - t0:.2f} s")
+    log(f"published {published} messages ({a.loops} loop(s)) in {t_played - t0:.2f} s")
 
     def complete() -> bool:
         if not got_report:
             return False
         want = {(p.body_a, p.body_b) for p in got_report[-1].pairs}
         want |= {(b, a_) for a_, b in want}
-        have = {(l.body_id, l.other_id) for l in got_labels}
+        have = {(l.body_id, l.other_id) for l in got_labels} if "labels" in readers else want
         if a.expect_markers is not None and len(got_markers) < a.expect_markers:
             return False
         if a.expect_labels is not None and len(got_labels) < a.expect_labels:
@@ -690,10 +794,20 @@ def main() -> int:
                 quiet = time.monotonic()
             time.sleep(0.02)
 
+    # A contact event stamped at a loop's last frame closes with the stream: it comes after
+    # the mesher's idle timeout, not with a frame.
+    lasts = sorted(loop_last.values())
+    for c in got_contacts:
+        st = c["header"]["stamp"]
+        ns = st["sec"] * 10**9 + st["nanosec"]
+        i = bisect.bisect_left(lasts, ns)
+        c["at_stream_end"] = i < len(lasts) and ns == lasts[i]
+
     out = {
         "domain": domain,
         "float_encoding": "hex of IEEE-754 binary64 bits, big-endian",
-        "frames_published": len(frames),
+        "frames_published": published,
+        "latency_from": latency_from,
         "timing_s": {
             "matched": round(t_matched - t_start, 3),
             "played": round(t_played - t0, 3),
