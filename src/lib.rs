@@ -15,12 +15,12 @@
 pub mod bag;
 pub mod bench;
 pub mod carving;
-pub mod checker;
+pub use chronotope_checker as checker;
 pub mod cli;
 pub mod fsio;
-pub mod kernel;
+pub use chronotope_kernel as kernel;
 pub mod live;
-pub mod mesh;
+pub use chronotope_mesh as mesh;
 pub mod msg;
 pub mod node;
 pub mod sampler;

@@ -42,7 +42,7 @@ use crate::checker::labels::Label;
 use crate::checker::pipeline::CheckPlan;
 use crate::checker::report::{Report, Resolution, Verdict};
 use crate::checker::rolling::{
-    ContactPhase, PieceIn, PieceKind, RollOut, RollingChecker, RollingConfig, SlabDone,
+    ContactPhase, Piece, PieceKind, RollingOutput, RollingChecker, RollingConfig, SlabDone,
 };
 use crate::checker::rotate::RotationSpec;
 use crate::mesh::slice::{Slicer, TriMesh};
@@ -287,7 +287,7 @@ impl CheckerNode {
             }
         };
         self.latest_ns = self.latest_ns.max(s.stamp_hi.as_nanos());
-        let piece = PieceIn {
+        let piece = Piece {
             body: s.body_id.clone(),
             kind,
             index: s.index,
@@ -351,7 +351,7 @@ impl CheckerNode {
     }
 
     /// Publishes what the rolling checker gave, then the report if an answer changed.
-    fn emit(&mut self, rolled: Vec<RollOut>, out: &mut Vec<Message>) {
+    fn emit(&mut self, rolled: Vec<RollingOutput>, out: &mut Vec<Message>) {
         let before = out.len();
         // The answer after this step, built once for its contact events and its report.
         let mut report: Option<Report> = None;
@@ -359,7 +359,7 @@ impl CheckerNode {
         let mut queued: Option<i64> = None;
         for r in rolled {
             match r {
-                RollOut::Labels(l) => {
+                RollingOutput::Labels(l) => {
                     let Some(topic) = &self.labels_topic else {
                         continue;
                     };
@@ -383,7 +383,7 @@ impl CheckerNode {
                         Payload::TetLabels(Arc::new(m)),
                     ));
                 }
-                RollOut::SlabDone(d) => {
+                RollingOutput::SlabDone(d) => {
                     // A display rate: a body's slab that starts less than `markers_period_s`
                     // after the last one sliced is not (decided on the stamps, so a replay
                     // gives the markers live gives; a stream that starts again earlier is
@@ -409,7 +409,7 @@ impl CheckerNode {
                         }
                     }
                 }
-                RollOut::Contact(c) => {
+                RollingOutput::Contact(c) => {
                     self.dirty = true;
                     let report = report.get_or_insert_with(|| self.engine.report());
                     let pair = report.pairs.iter().find(|p| p.a == c.a && p.b == c.b);
@@ -442,7 +442,7 @@ impl CheckerNode {
                         Payload::Contact(Arc::new(m)),
                     ));
                 }
-                RollOut::Unsure(u) => {
+                RollingOutput::Unsure(u) => {
                     self.dirty = true;
                     let report = report.get_or_insert_with(|| self.engine.report());
                     let pair = report.pairs.iter().find(|p| p.a == u.a && p.b == u.b);
@@ -473,11 +473,11 @@ impl CheckerNode {
                         Payload::Contact(Arc::new(m)),
                     ));
                 }
-                RollOut::Resolved => {
+                RollingOutput::Resolved => {
                     self.resolved.0 += 1;
                     self.dirty = true;
                 }
-                RollOut::Problem(kind, text) => self.status.problem(&self.fqn, kind, text),
+                RollingOutput::Problem(kind, text) => self.status.problem(&self.fqn, kind, text),
             }
         }
         if let Some(stamp) = queued {

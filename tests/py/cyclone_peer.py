@@ -5,7 +5,7 @@ Plays the VoxelGrid frames of a rosbag2 MCAP bag onto the wire with their record
 (and its PointCloud2, octomap_msgs/Octomap and tf2_msgs/TFMessage messages, which occupancy
 nodes read; static transforms and maps latched, as tf2 and octomap_server offer them) and
 collects what the checker publishes (report, labels, optionally markers), then writes
-it as JSON.  Used by tests/cyclone.rs; DESIGN.md §9-§11.
+it as JSON.  Used by tests/cyclone.rs; see docs/live.md.
 
     python3 tests/py/cyclone_peer.py --bag BAG --out OUT.json [--domain N] [--rate R]
                                      [--match-timeout S] [--timeout S]
@@ -36,7 +36,7 @@ from dataclasses import dataclass
 # to the unicast discovery ports of participant indices on 127.0.0.1; Cyclone, with
 # multicast off, listens on the unicast discovery port of its own (auto) participant index
 # and sends its announcements to the ports of indices 0..MaxAutoParticipantIndex on each
-# peer.  Bigger receive buffers: markers arrive as hundreds of fragments (DESIGN.md §9).
+# peer.  Bigger receive buffers: markers arrive as hundreds of fragments (docs/live.md).
 CYCLONE_XML = """<CycloneDDS><Domain id="any">
   <General>
     <Interfaces><NetworkInterface name="lo"/></Interfaces>

@@ -17,7 +17,7 @@ For each bag, every message is decoded by
     with its own code.
 Both must decode every message, agree on every message's topic, log time and fields, and every
 chronotope_msgs/msg/VoxelGrid must have the data length its sizes and encoding call for
-(CONTRACT.md). Exit status 0 if all bags pass, 1 otherwise (2 for bad usage).
+(docs/formats.md#input-message). Exit status 0 if all bags pass, 1 otherwise (2 for bad usage).
 """
 
 from __future__ import annotations

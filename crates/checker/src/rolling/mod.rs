@@ -1,0 +1,1625 @@
+//! The rolling checker: the planned pairs of bodies checked frame period by frame period as
+//! their mesh pieces arrive, with memory bounded by a window instead of the history.
+//!
+//! Each body's stream comes as the mesher's pieces (first cap, one lateral slab per frame
+//! period, last cap) and, for the overlap measure and the windows' artificial caps, its
+//! decoded frames. For each pair, the frame period starting at stamp `s` is checked as soon
+//! as both bodies' slabs for it are in, with what follows each of them (the next slab, or
+//! the last cap): see [`window`](super::window) for why one slab closed by two caps gives
+//! exactly the labels and crossings of the full check. What a period gives (labels of its
+//! tets, ranges of overlap, crossing pairs) is folded into the pair's running answer:
+//! label counts, intervals (merged exactly as the full check merges them), closing speeds
+//! at each interval's ends (from the crossings within one frame period of the end), and
+//! the overlap hypervolume (the intersection of the two bodies' frames, meshed by its own
+//! rolling mesher). Then the period's pieces and frames are dropped, unless a later window
+//! or a resolution horizon still needs them.
+//!
+//! **Streams.** A period is decided once it is known what both bodies have there. A body
+//! that has not started yet, or whose stream stopped, has nothing there: the other body's
+//! slab is labelled OUTSIDE against it. A body that is merely behind is waited for, up to
+//! [`RollingConfig::max_lead_frames`] slabs of the other; then the other's slab is decided
+//! without it, and its late pieces for that time are refused by the pair (counted, with the
+//! time span). Stamps that do not line up between two bodies (frames of one body falling
+//! between the other's) stop that pair with a problem; every other pair goes on.
+//!
+//! **Memory.** Per body: the slabs not yet decided by every pair (at most
+//! `max_lead_frames` ahead of the slowest partner), [`CONTEXT_SLABS`] behind them, the
+//! slabs of the resolution horizon, and the decoded frames at their stamps. Per pair: the
+//! crossings of the last two periods and the intervals found (the report's answer).
+
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::bounds;
+use super::labels::{Label, LabelCounts};
+
+use super::period::{
+    check_window, on_pair_lattice, prepare_window, PreparedWindow, SpatialBox, TakenLabels,
+    WindowBody, WindowResult,
+};
+use super::{check_pair, CommonLattice, PairResult};
+use super::{origin_offset, CHECKER_FACTOR};
+use crate::pipeline::CheckPlan;
+use crate::report::{
+    BodyReport, PairLabels, PairReport, Report, Resolution, Timings, UnsureSpanReport, Verdict,
+};
+use chronotope_kernel::float::tet_normal as float_normal;
+use chronotope_mesh::glue::BodyMesh;
+use chronotope_mesh::march::{union_bounds, SpatialBounds, Welder};
+use chronotope_mesh::stats::{BodyStats, LateralRef, StatsAccumulator};
+use chronotope_mesh::unsure::{UnsureLog, UnsureSpan};
+use chronotope_mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
+
+mod episodes;
+mod periods;
+mod report;
+
+use episodes::ResolveOutcome;
+use periods::{apart, cached, check_specs, pair_lattice, prepare_spec, WindowChecked, WindowSpec};
+
+/// Slabs kept behind the oldest undecided one, for windows that reach one slab further
+/// (another body's real cap in their time plane).
+pub const CONTEXT_SLABS: usize = 1;
+
+/// After this many frame periods the pair's time coordinates start again at the current
+/// period (they must stay within the exact predicates' range).
+const REBASE_FRAMES: i64 = 1 << 16;
+
+/// Limits and switches of the rolling checker.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RollingConfig {
+    /// Slabs one body may run ahead of a pair partner that has nothing there yet before
+    /// they are decided without it.
+    pub max_lead_frames: usize,
+    /// Report each slab's labels ([`RollingOutput::Labels`]).
+    pub labels: bool,
+    /// Report each slab when every pair has labelled it ([`RollingOutput::SlabDone`], for
+    /// markers).
+    pub slabs_done: bool,
+    /// Most intervals kept per pair in the report (older ones are dropped and counted).
+    pub max_intervals: usize,
+    /// Time (s) on each side of a contact episode that its resolutions are checked over;
+    /// contacts closer than twice this are one episode.
+    pub horizon_s: f64,
+    /// A contact episode longer than this (s) is resolved over its first this many
+    /// seconds, and what follows is a new episode.
+    pub max_episode_s: f64,
+    /// Most resolutions kept in the report (older ones are dropped and counted).
+    pub max_resolutions: usize,
+    /// Most tets of lateral slabs kept for resolutions alone (all bodies together): older
+    /// slabs are dropped first, and an episode is then resolved over the horizon that is
+    /// left (said as a problem, `resolution_horizon_cut`).
+    pub max_horizon_tets: usize,
+    /// Most bytes of decoded frames kept per body (for overlaps and resolution caps).
+    pub max_frame_bytes: u64,
+    /// Most resolutions running on the resolver's pool at once, while the checker goes on;
+    /// when one more is handed over, the oldest is waited for. 0: each runs in turn on the
+    /// checker's own thread. Results are taken oldest first, so the answers and their order
+    /// never depend on it; only when they are published does.
+    pub resolve_in_flight: usize,
+}
+
+impl Default for RollingConfig {
+    fn default() -> Self {
+        Self {
+            max_lead_frames: 64,
+            labels: true,
+            slabs_done: false,
+            max_intervals: 4096,
+            horizon_s: 1.0,
+            max_episode_s: 4.0,
+            max_resolutions: 1024,
+            max_horizon_tets: 1_500_000,
+            max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
+            resolve_in_flight: 1,
+        }
+    }
+}
+
+/// Which piece of a body's mesh.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum PieceKind {
+    /// Closes the body at its first frame.
+    CapStart,
+    /// Tets between frames `index` and `index + 1`.
+    Lateral,
+    /// Closes the body at its last frame.
+    CapEnd,
+}
+
+/// One mesh piece of a body, as the mesher sent it.
+#[derive(Debug, Clone)]
+pub struct Piece {
+    /// Body id.
+    pub body: String,
+    /// Which piece.
+    pub kind: PieceKind,
+    /// Frame index (a slab: its earlier frame).
+    pub index: u32,
+    /// Stamps of its frames (a cap: twice its frame's).
+    pub stamps_ns: (i64, i64),
+    /// The body's lattice.
+    pub geometry: GridGeometry,
+    /// Occupied voxels of the later frame (a cap: of its frame).
+    pub occupied: u64,
+    /// Why the slab does not show every contact, if it does not (a part of the body vanishes
+    /// between its frames, or they were filled into a gap).
+    pub unsure: Option<chronotope_mesh::unsure::Unsure>,
+    /// How far the body moves between the slab's frames (voxels; 0 for a cap; see
+    /// [`chronotope_mesh::Slab::displacement`]).
+    pub displacement: u16,
+    /// The tets, in the body's lattice.
+    pub mesh: Arc<TetMesh>,
+    /// The body's `header.frame_id`: bodies in different frames are not compared.
+    pub frame_id: String,
+}
+
+/// A slab's labels against one other body.
+#[derive(Debug, Clone)]
+pub struct SlabLabels {
+    /// The labelled body.
+    pub body: String,
+    /// The body they are labelled against.
+    pub other: String,
+    /// The slab's frame index in the body's stream.
+    pub index: u32,
+    /// Stamps of the slab's frames.
+    pub stamps_ns: (i64, i64),
+    /// The labels start with the body's first cap.
+    pub with_cap_start: bool,
+    /// The labels end with the body's last cap.
+    pub with_cap_end: bool,
+    /// One label per tet (first cap, slab, last cap), [`Label`] as `u8`.
+    pub labels: Vec<u8>,
+    /// Counts of `labels`.
+    pub counts: LabelCounts,
+}
+
+/// A slab that every pair of its body has labelled: its tets with the strongest label of
+/// each over the pairs.
+#[derive(Debug, Clone)]
+pub struct SlabDone {
+    /// The body.
+    pub body: String,
+    /// Frame index of the slab's earlier frame.
+    pub index: u32,
+    /// Stamps of its frames.
+    pub stamps_ns: (i64, i64),
+    /// The body's lattice.
+    pub geometry: GridGeometry,
+    /// The slab's tets (body lattice).
+    pub mesh: Arc<TetMesh>,
+    /// Strongest label of each tet over the pairs ([`Label`] as `u8`).
+    pub worst: Vec<u8>,
+}
+
+/// What happened to a contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ContactPhase {
+    /// A new contact: its interval so far.
+    Begin,
+    /// It went on through another frame period.
+    Ongoing,
+    /// It ended: its interval is final.
+    End,
+}
+
+/// A span of a pair in which a body is not observed well enough for the check to hold (see
+/// [`chronotope_mesh::unsure`]), as it begins and when it ends.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnsureUpdate {
+    /// First body (ids in sorted order).
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// True when the span ends (its end is final), false when it begins.
+    pub ended: bool,
+    /// The span's place among the pair's unsure spans (0, 1, ...).
+    pub index: u64,
+    /// The span: its body, times (s since the time origin), why and what would resolve it.
+    pub span: crate::report::UnsureSpanReport,
+    /// Stamp of the later frame of the period that began or ended it (ns).
+    pub stamp_ns: i64,
+}
+
+/// A contact of a pair, as it is found.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactUpdate {
+    /// First body (ids in sorted order).
+    pub a: String,
+    /// Second body.
+    pub b: String,
+    /// Begin, ongoing or end.
+    pub phase: ContactPhase,
+    /// The contact's place among the pair's contacts (0, 1, ...).
+    pub index: u64,
+    /// Interval start (s since the time origin).
+    pub start_s: f64,
+    /// Interval end so far (s).
+    pub end_s: f64,
+    /// Bound on the start's error (s), once the crossings after the start are in.
+    pub start_bound_s: Option<f64>,
+    /// Bound on the end's error (s), at the end.
+    pub end_bound_s: Option<f64>,
+    /// Stamp of the later frame of the period that found or extended it (ns).
+    pub stamp_ns: i64,
+}
+
+/// What the rolling checker gives as the streams go on.
+#[derive(Debug, Clone)]
+pub enum RollingOutput {
+    /// A slab's labels against one other body.
+    Labels(SlabLabels),
+    /// A slab labelled by every pair.
+    SlabDone(SlabDone),
+    /// A contact began, went on or ended.
+    Contact(ContactUpdate),
+    /// A span in which a pair cannot be called clear began or ended.
+    Unsure(UnsureUpdate),
+    /// A contact episode of a movable body was resolved (the report's resolutions grew).
+    Resolved,
+    /// Something in the input was wrong or lost (kind, text).
+    Problem(&'static str, String),
+}
+
+#[derive(Debug)]
+struct HeldSlab {
+    run: u64,
+    index: u32,
+    hi: i64,
+    mesh: Arc<TetMesh>,
+    /// Its vertices' box (see [`TetMesh::spatial_bounds`]).
+    bounds: Option<SpatialBounds>,
+    /// Number of the slab's first tet in the body's run (first cap, slabs, last cap).
+    first_tet: u64,
+    /// Strongest label per tet over the pairs so far (if slabs are reported).
+    worst: Vec<u8>,
+    /// Why the slab does not show every contact, if it does not.
+    unsure: Option<chronotope_mesh::unsure::Unsure>,
+    /// How far the body moves in the slab (voxels).
+    displacement: u16,
+}
+
+#[derive(Debug)]
+struct Run {
+    id: u64,
+    geometry: GridGeometry,
+    first_stamp: i64,
+    first_cap: Arc<TetMesh>,
+    first_occupied: u64,
+    /// Stamp of the latest frame (the last slab's upper one).
+    frontier: i64,
+    /// Index of the run's first frame: 0, or the first piece after lost ones (the run then
+    /// has no opening cap).
+    first_index: u32,
+    next_index: u32,
+    /// The closing cap came (stamp, cap), or the run was closed without one.
+    end: Option<RunEnd>,
+    tets: u64,
+    acc: StatsAccumulator,
+    /// The run's statistics, once it ended.
+    stats: Option<BodyStats>,
+}
+
+impl Run {
+    /// The run's figures without its meshes (for the report).
+    fn clone_summary(&self) -> Run {
+        Run {
+            id: self.id,
+            geometry: self.geometry,
+            first_stamp: self.first_stamp,
+            first_cap: self.first_cap.clone(),
+            first_occupied: self.first_occupied,
+            frontier: self.frontier,
+            first_index: self.first_index,
+            next_index: self.next_index,
+            end: self.end.clone(),
+            tets: self.tets,
+            acc: StatsAccumulator::new(),
+            stats: self.stats.clone(),
+        }
+    }
+
+    /// Ends the run at its latest frame, with its closing cap if one came.
+    fn close(&mut self, cap: Option<(Arc<TetMesh>, u64)>) {
+        if let Some(closing) = self.end_at_frontier(cap) {
+            self.stats = Some(closing.finish());
+        }
+    }
+
+    /// Ends the run as [`Self::close`] does, leaving its statistics to be finished (by
+    /// whoever sets [`Self::stats`]); `None` if it had ended.
+    fn end_at_frontier(&mut self, cap: Option<(Arc<TetMesh>, u64)>) -> Option<Closing> {
+        if self.end.is_some() {
+            return None;
+        }
+        let closing = Closing {
+            acc: std::mem::take(&mut self.acc),
+            frames: self.frames(),
+            first: (self.first_cap.clone(), self.first_occupied),
+            last: cap.clone(),
+        };
+        self.end = Some((self.frontier, cap));
+        Some(closing)
+    }
+
+    fn ended(&self) -> bool {
+        self.end.is_some()
+    }
+    /// Frames of the run so far.
+    fn frames(&self) -> u64 {
+        u64::from(self.next_index - self.first_index) + 1
+    }
+    fn last_cap_at(&self, stamp: i64) -> Option<&Arc<TetMesh>> {
+        match &self.end {
+            Some((s, Some((cap, _)))) if *s == stamp => Some(cap),
+            _ => None,
+        }
+    }
+}
+
+/// An ended run's statistics, to be finished: its accumulator, frames, and first and last
+/// caps with their occupied voxels.
+#[derive(Debug)]
+struct Closing {
+    acc: StatsAccumulator,
+    frames: u64,
+    first: (Arc<TetMesh>, u64),
+    last: Option<(Arc<TetMesh>, u64)>,
+}
+
+impl Closing {
+    fn finish(self) -> BodyStats {
+        let last = self.last.as_ref().map(|(c, o)| (c.as_ref(), *o));
+        self.acc.finish(
+            self.frames,
+            Some((self.first.0.as_ref(), self.first.1)),
+            last,
+        )
+    }
+}
+
+/// Cumulative figures of a body's finished runs.
+#[derive(Debug, Default, Clone)]
+struct Totals {
+    frames: u64,
+    tets: u64,
+    vertices: u64,
+    hypervolume_m3s: f64,
+    vanishing: u64,
+    closed: bool,
+    runs: u64,
+}
+
+/// How a run ended: the stamp of its last frame, and its last cap with its occupied voxels
+/// (`None`: closed without one).
+type RunEnd = (i64, Option<(Arc<TetMesh>, u64)>);
+
+#[derive(Debug, Default)]
+struct BodyStream {
+    runs: Vec<Run>,
+    next_run: u64,
+    slabs: BTreeMap<i64, HeldSlab>,
+    frames: BTreeMap<i64, KeptGrid>,
+    totals: Totals,
+    /// The lattice of its latest stream.
+    geometry: Option<GridGeometry>,
+    joined_late: bool,
+    /// Pairs it is in.
+    pairs: usize,
+    /// End stamp of the latest slab dropped for `max_horizon_tets` (0: none).
+    horizon_cut_until: i64,
+    /// `header.frame_id` of its latest piece.
+    frame_id: String,
+    /// Slabs since its latest one that was the one before moved one period later (0: the
+    /// body is at rest; counted once its slabs come).
+    moving_for: u32,
+    /// The statistics of its latest piece, being added on rayon's pool (see
+    /// [`RollingChecker::settle_stats`]).
+    stats_job: Option<StatsJob>,
+}
+
+/// A piece's statistics being added on the pool (or an ended run's being finished): its
+/// run, and where the outcome (or the job's panic) comes back.
+#[derive(Debug)]
+struct StatsJob {
+    run: u64,
+    /// (In a mutex only so that the checker can be shared with the pool's windows.)
+    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<StatsDone>>>,
+}
+
+/// A pair's overlap fed on rayon's pool ([`RollingChecker::overlap_push`]).
+#[derive(Debug)]
+struct OverlapJob {
+    /// (In a mutex only so that the checker can be shared with the pool's windows.)
+    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<Overlap>>>,
+}
+
+/// What a [`StatsJob`] gives back.
+enum StatsDone {
+    /// The run's accumulator with a lateral piece added, and whether the piece repeats the
+    /// one before.
+    Added(StatsAccumulator, bool),
+    /// The ended run's statistics.
+    Finished(BodyStats),
+}
+
+/// What [`RollingChecker::accept`] did with a piece.
+#[derive(Debug)]
+enum Accepted {
+    /// Taken into its body's stream.
+    Taken,
+    /// Taken, with something to tell: its stream restarted, pieces before it are missing, or
+    /// the node joined the stream mid-way (counted under `kind`).
+    Noted { kind: &'static str, text: String },
+    /// Refused and ignored: a bad piece, or one out of order (counted under `kind`).
+    Refused { kind: &'static str, text: String },
+}
+
+impl Accepted {
+    fn refused(kind: &'static str, text: String) -> Self {
+        Accepted::Refused { kind, text }
+    }
+}
+
+/// What the piece just accepted leaves to the statistics (see
+/// [`RollingChecker::pending_stats`]).
+#[derive(Debug)]
+enum PendingStats {
+    /// A lateral piece to add to run `run` (with the run's first cap if it is its first
+    /// slab).
+    Add(u64, Option<Arc<TetMesh>>),
+    /// Run `run`, ended by its closing cap, to finish.
+    Finish(u64, Closing),
+}
+
+/// The value a job on rayon's pool sends on `rx` (`None` if it was dropped unsent). On a
+/// thread of the pool, the pool's other work is done meanwhile, the job itself included:
+/// a pool of one thread that only waited would wait for ever.
+fn wait_on_pool<T>(rx: &std::sync::mpsc::Receiver<T>) -> Option<T> {
+    use std::sync::mpsc::TryRecvError;
+    if rayon::current_thread_index().is_none() {
+        return rx.recv().ok();
+    }
+    loop {
+        match rx.try_recv() {
+            Ok(v) => return Some(v),
+            Err(TryRecvError::Disconnected) => return None,
+            Err(TryRecvError::Empty) => {
+                if rayon::yield_now() != Some(rayon::Yield::Executed) {
+                    std::thread::yield_now();
+                }
+            }
+        }
+    }
+}
+
+/// A body's window kept from its last rest ([`RollingChecker::moved`]) is dropped once it
+/// has moved for more slabs than this.
+const REST_KEPT_SLABS: u32 = 32;
+
+/// Default of [`RollingConfig::max_frame_bytes`]: 1 GiB of decoded frames per body.
+pub const DEFAULT_MAX_FRAME_BYTES: u64 = 1 << 30;
+
+/// A decoded frame of a body and the lattice it came on.
+#[derive(Debug, Clone)]
+struct KeptGrid {
+    geometry: GridGeometry,
+    grid: Arc<OccupancyGrid>,
+}
+
+impl BodyStream {
+    /// The body's frame at `stamp` on lattice `g`, as its mesher accepted it: the frame
+    /// received there if it is on `g`; otherwise (a frame the mesher filled in, the received
+    /// one refused) the union of the nearest frames on `g` around it, which is what the mesher
+    /// filled the gap with.
+    fn frame_at(&self, stamp: i64, g: &GridGeometry) -> Option<Arc<OccupancyGrid>> {
+        if let Some(k) = self.frames.get(&stamp) {
+            if k.geometry == *g {
+                return Some(k.grid.clone());
+            }
+        }
+        let below = self
+            .frames
+            .range(..stamp)
+            .rev()
+            .find(|(_, k)| k.geometry == *g)?;
+        let above = self
+            .frames
+            .range(stamp + 1..)
+            .find(|(_, k)| k.geometry == *g)?;
+        below.1.grid.union(&above.1.grid).map(Arc::new)
+    }
+
+    fn current(&self) -> Option<&Run> {
+        self.runs.last()
+    }
+    fn run(&self, id: u64) -> Option<&Run> {
+        self.runs.iter().find(|r| r.id == id)
+    }
+    /// What the body has at stamp `s`: a slab, nothing for sure, or not known yet.
+    fn status(&self, s: i64, finishing: bool) -> Status {
+        if self.slabs.contains_key(&s) {
+            return Status::Has;
+        }
+        for r in self.runs.iter().rev() {
+            if s >= r.first_stamp && s < r.frontier {
+                return Status::Mismatch;
+            }
+        }
+        match self.current() {
+            Some(r) if !r.ended() && s >= r.frontier && !finishing => Status::Maybe,
+            Some(r) if r.ended() && s >= r.frontier && !finishing => Status::Maybe,
+            None if !finishing => Status::Maybe,
+            _ => Status::Never,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Status {
+    Has,
+    Never,
+    Maybe,
+    Mismatch,
+}
+
+/// A crossing kept for the closing speeds: checker times, tets (body run numbers), normals.
+#[derive(Debug, Clone, Copy)]
+struct Record {
+    t: (f64, f64),
+    tets: (u64, u64),
+    normals: ([f64; 4], [f64; 4]),
+}
+
+#[derive(Debug, Clone)]
+struct Interval {
+    /// Checker times (pair base).
+    t: (f64, f64),
+    /// Seconds since the origin.
+    s: (f64, f64),
+    /// Closing speeds at start and end (voxels per frame period), once known.
+    speeds: (Option<Option<f64>>, Option<Option<f64>>),
+    /// Frame periods (s) at start and end.
+    periods: (f64, f64),
+    index: u64,
+}
+
+#[derive(Debug, Default)]
+struct Overlap {
+    /// Overlap and bound of the runs of periods closed by a gap (see `overlap_push`).
+    closed: (f64, f64),
+    mesher: Option<Mesher>,
+    acc: StatsAccumulator,
+    first_cap: Option<TetMesh>,
+    sums: (f64, f64),
+    /// `sums` with the normals of the cap closing the run at its last frame (the bound's
+    /// sums once two frames are in), worked out as the frame is fed when the pair
+    /// interferes (only then is it reported), else when it is reported.
+    closed_sums: Option<(f64, f64)>,
+    last_pushed: Option<i64>,
+    stamps: (i64, i64, u64),
+    unknown: bool,
+    geometry: Option<GridGeometry>,
+}
+
+#[derive(Debug)]
+struct PairRoll {
+    a: String,
+    b: String,
+    /// Stamp of the next period to decide.
+    next: Option<i64>,
+    /// Common frame index of `next`, and of the time origin of the checker coordinates.
+    index: i64,
+    base: i64,
+    /// Stamps of recent common frame indices.
+    stamps: BTreeMap<i64, i64>,
+    counts: (LabelCounts, LabelCounts),
+    candidates: u64,
+    crossings: u64,
+    intervals: VecDeque<Interval>,
+    dropped_intervals: u64,
+    open: Option<Interval>,
+    contacts: u64,
+    records: VecDeque<Record>,
+    overlap: Overlap,
+    /// The overlap being fed on rayon's pool, if it is (then `overlap` is a stand-in).
+    overlap_job: Option<OverlapJob>,
+    stopped: Option<String>,
+    /// Steps per frame period of the pair's lattice (0 until the first window).
+    per: i64,
+    /// Spent any window: the pair is in the report.
+    checked: bool,
+    undecided: u64,
+    /// Said once per absence that the partner is late.
+    partner_absent: bool,
+    /// Where each body (a, b) was not observed well enough, over the periods checked.
+    unsure: (UnsureLog, UnsureLog),
+    /// The unsure span going on: its index, the body, start and latest end (ns), and why.
+    unsure_open: Option<OpenUnsure>,
+    /// Unsure spans begun so far.
+    unsure_count: u64,
+}
+
+/// A pair's unsure span that is going on (see [`UnsureUpdate`]).
+#[derive(Debug, Clone)]
+struct OpenUnsure {
+    index: u64,
+    body: String,
+    from_ns: i64,
+    to_ns: i64,
+    why: chronotope_mesh::unsure::Unsure,
+    period_ns: i64,
+}
+
+/// The rolling checker of a set of pairs.
+#[derive(Debug)]
+pub struct RollingChecker {
+    cfg: RollingConfig,
+    opts: MesherOptions,
+    plan: CheckPlan,
+    bodies: BTreeMap<String, BodyStream>,
+    pairs: Vec<PairRoll>,
+    origin_ns: Option<i64>,
+    union: UnionStamps,
+    finishing: bool,
+    /// Problems for the report.
+    problems: Vec<String>,
+    dropped_problems: u64,
+    /// Per movable body: contacts ending before this (s) are resolved.
+    resolved_until: BTreeMap<String, f64>,
+    resolutions: VecDeque<Resolution>,
+    dropped_resolutions: u64,
+    /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
+    prefetched: Vec<Prefetched>,
+    /// Per body, its latest prepared window (one per body at most) and the stamp of the
+    /// period it was checked for: a body in several pairs has the same window in each,
+    /// prepared once. Dropped once every pair of the body has decided that period.
+    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
+    /// The last prepared window of each body at rest, kept after its pairs have gone past
+    /// it: a later window of the body that is a moved copy of it (at rest, or at rest again
+    /// after a step by whole voxels: [`WindowSpec::moved_copy_of`]) is this one moved, not
+    /// prepared again. One window per body; dropped once the body has moved for
+    /// [`REST_KEPT_SLABS`] slabs.
+    rest: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
+    /// The piece just accepted still has to be added to its run's statistics (or, a
+    /// closing cap, the run's statistics finished): done on the pool while the windows it
+    /// makes ready are checked.
+    pending_stats: Option<PendingStats>,
+    /// The resolver's pool (made when the first resolution is handed over).
+    resolver: Option<rayon::ThreadPool>,
+    /// Resolutions running there, oldest first: which episode, and where its result will
+    /// come.
+    in_flight: VecDeque<(String, crossbeam_channel::Receiver<ResolveOutcome>)>,
+    /// Each body's last horizon (with its preparation once it has repeated) and each
+    /// movable body's last search (shared with the resolutions).
+    horizons: Arc<episodes::KeptHorizons>,
+}
+
+/// A window of a pair checked ahead of its turn: the pairs' windows that are ready when
+/// a pump starts are checked at once on rayon's pool, then taken in pair order by the
+/// sequential steps. A step uses one only if the window it builds is the same (same
+/// pieces, caps and placement); otherwise it checks its own, so the answer never depends
+/// on what was checked ahead, nor on the thread count.
+#[derive(Debug)]
+struct Prefetched {
+    pair: usize,
+    s: i64,
+    specs: (WindowSpec, WindowSpec),
+    result: WindowChecked,
+}
+
+/// Distinct frame stamps over the checked bodies: first, last and how many.
+#[derive(Debug, Default)]
+struct UnionStamps {
+    recent: BTreeSet<i64>,
+    first: Option<i64>,
+    last: Option<i64>,
+    count: u64,
+}
+
+impl UnionStamps {
+    fn add(&mut self, s: i64) {
+        if self.recent.insert(s) {
+            self.count += 1;
+            self.first = Some(self.first.map_or(s, |f| f.min(s)));
+            self.last = Some(self.last.map_or(s, |l| l.max(s)));
+            while self.recent.len() > 4096 {
+                self.recent.pop_first();
+            }
+        }
+    }
+    /// Mean frame period (s), as the full check's common lattice gives it.
+    fn period_s(&self) -> Option<f64> {
+        let (f, l) = (self.first?, self.last?);
+        (self.count >= 2).then(|| (l - f) as f64 * 1e-9 / (self.count - 1) as f64)
+    }
+}
+
+/// Problems kept for the report.
+const KEPT_PROBLEMS: usize = 256;
+
+impl RollingChecker {
+    /// A checker of the plan's pairs (`plan.pairs` must name them).
+    pub fn new(plan: CheckPlan, opts: MesherOptions, cfg: RollingConfig) -> Self {
+        let plan_copy = plan.clone();
+        let mut pairs: Vec<(String, String)> = plan
+            .pairs
+            .clone()
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|(a, b)| a != b)
+            .map(|(a, b)| if a < b { (a, b) } else { (b, a) })
+            .collect();
+        pairs.sort();
+        pairs.dedup();
+        let mut bodies: BTreeMap<String, BodyStream> = BTreeMap::new();
+        for (a, b) in &pairs {
+            bodies.entry(a.clone()).or_default().pairs += 1;
+            bodies.entry(b.clone()).or_default().pairs += 1;
+        }
+        Self {
+            cfg,
+            opts,
+            plan,
+            bodies,
+            pairs: pairs
+                .into_iter()
+                .map(|(a, b)| PairRoll {
+                    a,
+                    b,
+                    next: None,
+                    index: 0,
+                    base: 0,
+                    stamps: BTreeMap::new(),
+                    counts: Default::default(),
+                    candidates: 0,
+                    crossings: 0,
+                    intervals: VecDeque::new(),
+                    dropped_intervals: 0,
+                    open: None,
+                    contacts: 0,
+                    records: VecDeque::new(),
+                    overlap: Overlap::default(),
+                    overlap_job: None,
+                    stopped: None,
+                    per: 0,
+                    checked: false,
+                    undecided: 0,
+                    partner_absent: false,
+                    unsure: Default::default(),
+                    unsure_open: None,
+                    unsure_count: 0,
+                })
+                .collect(),
+            origin_ns: None,
+            union: UnionStamps::default(),
+            finishing: false,
+            problems: Vec::new(),
+            dropped_problems: 0,
+            resolved_until: plan_movable(&plan_copy),
+            resolutions: VecDeque::new(),
+            dropped_resolutions: 0,
+            prefetched: Vec::new(),
+            prepared: BTreeMap::new(),
+            rest: BTreeMap::new(),
+            pending_stats: None,
+            resolver: None,
+            in_flight: VecDeque::new(),
+            horizons: Arc::default(),
+        }
+    }
+
+    /// Turns [`RollingOutput::Labels`] on or off while the streams go on (nobody reads them).
+    pub fn set_labels(&mut self, on: bool) {
+        self.cfg.labels = on;
+    }
+
+    /// Turns [`RollingOutput::SlabDone`] on or off while the streams go on. Turned on, it reports
+    /// the slabs that arrive from then on: a slab kept from before has not been seen by
+    /// every pair's check since, so its worst labels would be partial.
+    pub fn set_slabs_done(&mut self, on: bool) {
+        if self.cfg.slabs_done == on {
+            return;
+        }
+        self.cfg.slabs_done = on;
+        if !on {
+            for b in self.bodies.values_mut() {
+                for s in b.slabs.values_mut() {
+                    s.worst = Vec::new();
+                }
+            }
+        }
+    }
+
+    /// The bodies of the checked pairs.
+    pub fn bodies(&self) -> impl Iterator<Item = &str> {
+        self.bodies.keys().map(String::as_str)
+    }
+
+    fn problem(&mut self, out: &mut Vec<RollingOutput>, kind: &'static str, text: String) {
+        if self.problems.len() < KEPT_PROBLEMS {
+            self.problems.push(text.clone());
+        } else {
+            self.dropped_problems += 1;
+        }
+        out.push(RollingOutput::Problem(kind, text));
+    }
+
+    /// A decoded frame of a body (for the overlap and the windows' caps).
+    pub fn on_frame(
+        &mut self,
+        body: &str,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: OccupancyGrid,
+        out: &mut Vec<RollingOutput>,
+    ) {
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        // The first frame at a stamp is the one a mesher keeps (a repeated stamp is refused).
+        b.frames.entry(stamp_ns).or_insert(KeptGrid {
+            geometry,
+            grid: Arc::new(grid),
+        });
+        self.pump(out);
+    }
+
+    /// Also reports `body`, which is in no pair (a lone body): its pieces are taken for its
+    /// figures and dropped as they come.
+    pub fn track_body(&mut self, body: &str) {
+        self.bodies.entry(body.to_owned()).or_default();
+    }
+
+    /// One mesh piece of a body.
+    pub fn on_piece(&mut self, p: Piece, out: &mut Vec<RollingOutput>) {
+        if !self.bodies.contains_key(&p.body) {
+            return;
+        }
+        self.settle_stats(&p.body);
+        self.pending_stats = None;
+        match self.accept(&p) {
+            Accepted::Taken => {}
+            Accepted::Noted { kind, text } | Accepted::Refused { kind, text } => {
+                self.problem(out, kind, text)
+            }
+        }
+        let Some(pending) = self.pending_stats.take() else {
+            self.pump(out);
+            return;
+        };
+        // The body's statistics of the piece (closedness, hypervolume) do not wait for the
+        // windows it makes ready, nor they for them: the statistics go on the pool and are
+        // taken back when something reads them (its next piece, a report, a closed stream).
+        let Some(b) = self.bodies.get_mut(&p.body) else {
+            self.pump(out);
+            return;
+        };
+        let (run, job): (u64, Box<dyn FnOnce() -> StatsDone + Send>) = match pending {
+            PendingStats::Finish(run, closing) => {
+                (run, Box::new(move || StatsDone::Finished(closing.finish())))
+            }
+            PendingStats::Add(run, first_cap) => {
+                let Some(mut acc) = b
+                    .runs
+                    .iter_mut()
+                    .find(|r| r.id == run)
+                    .map(|r| std::mem::take(&mut r.acc))
+                else {
+                    self.pump(out);
+                    return;
+                };
+                let (index, stamps_ns, geometry, mesh, unsure) = (
+                    u64::from(p.index),
+                    p.stamps_ns,
+                    p.geometry,
+                    p.mesh.clone(),
+                    p.unsure,
+                );
+                let add = move || {
+                    let lateral = LateralRef {
+                        index,
+                        stamps_ns,
+                        geometry: &geometry,
+                        mesh: &mesh,
+                        unsure,
+                        displacement: 0,
+                    };
+                    let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
+                    StatsDone::Added(acc, at_rest)
+                };
+                (run, Box::new(add))
+            }
+        };
+        let (tx, done) = std::sync::mpsc::channel();
+        rayon::spawn(move || {
+            let _ = tx.send(std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)));
+        });
+        b.stats_job = Some(StatsJob {
+            run,
+            done: std::sync::Mutex::new(done),
+        });
+        self.prefetched = self.prefetch(1);
+        self.pump_prefetched(out);
+    }
+
+    /// Takes back body `body`'s statistics being added, if any (waiting for them).
+    pub(super) fn settle_stats(&mut self, body: &str) {
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        let Some(job) = b.stats_job.take() else {
+            return;
+        };
+        let done = job
+            .done
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        let run = b.runs.iter_mut().find(|r| r.id == job.run);
+        let (acc, at_rest) = match wait_on_pool(&done) {
+            Some(Ok(StatsDone::Added(acc, at_rest))) => (acc, at_rest),
+            Some(Ok(StatsDone::Finished(stats))) => {
+                if let Some(r) = run {
+                    r.stats = Some(stats);
+                }
+                return;
+            }
+            Some(Err(panic)) => std::panic::resume_unwind(panic),
+            None => panic!("{body}: the statistics of a piece were lost"),
+        };
+        b.moving_for = if at_rest {
+            0
+        } else {
+            b.moving_for.saturating_add(1)
+        };
+        if let Some(r) = run {
+            r.acc = acc;
+        }
+        // A window kept from its last rest serves it once it rests again, moved or not (a
+        // table that steps by whole voxels now and then); not once it has moved for long.
+        if b.moving_for > REST_KEPT_SLABS {
+            self.rest.remove(body);
+        }
+    }
+
+    /// Takes back pair `i`'s overlap being fed, if it is (waiting for it).
+    pub(super) fn settle_overlap(&mut self, i: usize) {
+        let Some(job) = self.pairs.get_mut(i).and_then(|p| p.overlap_job.take()) else {
+            return;
+        };
+        let done = job
+            .done
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        match wait_on_pool(&done) {
+            Some(Ok(ov)) => self.pairs[i].overlap = ov,
+            Some(Err(panic)) => std::panic::resume_unwind(panic),
+            None => panic!("pair {i}: its overlap was lost"),
+        }
+    }
+
+    /// Takes back every body's statistics being added.
+    pub(super) fn settle_all_stats(&mut self) {
+        for i in 0..self.pairs.len() {
+            self.settle_overlap(i);
+        }
+        let ids: Vec<String> = self
+            .bodies
+            .iter()
+            .filter(|(_, b)| b.stats_job.is_some())
+            .map(|(id, _)| id.clone())
+            .collect();
+        for id in ids {
+            self.settle_stats(&id);
+        }
+    }
+
+    fn accept(&mut self, p: &Piece) -> Accepted {
+        let id = p.body.clone();
+        // What a window relies on: a lattice step that is a power of two (so two bodies'
+        // lattices map onto their common one exactly), and tets that name their vertices.
+        let scale = p.geometry.scale;
+        if scale < 1 || scale.count_ones() != 1 {
+            return Accepted::refused(
+                "bad_piece",
+                format!(
+                    "{id}: a piece with lattice scale {scale} (a power of two is needed); ignored"
+                ),
+            );
+        }
+        let nv = p.mesh.vertices.len();
+        // The largest id first (a reduction over all the ids, which vectorises), the tet
+        // naming it only if it is past the vertices.
+        let past = |t: &[u32; 4]| t.iter().any(|&v| v as usize >= nv);
+        let largest = p
+            .mesh
+            .tets
+            .iter()
+            .fold(0, |m, t| m.max(t[0]).max(t[1]).max(t[2]).max(t[3]));
+        let bad = (!p.mesh.tets.is_empty() && largest as usize >= nv)
+            .then(|| p.mesh.tets.iter().position(past))
+            .flatten();
+        if let Some(t) = bad {
+            return Accepted::refused(
+                "bad_piece",
+                format!("{id}: tet {t} of a piece names a vertex past its {nv}; ignored"),
+            );
+        }
+        let origin = &mut self.origin_ns;
+        let union = &mut self.union;
+        let b = self.bodies.get_mut(&id).expect("checked above");
+        if b.frame_id != p.frame_id {
+            b.frame_id.clone_from(&p.frame_id);
+        }
+        match p.kind {
+            PieceKind::CapStart => {
+                let mut restarted = None;
+                if let Some(r) = b.runs.last_mut() {
+                    if !r.ended() {
+                        r.close(None);
+                        restarted = Some(format!(
+                            "{id}: the mesh starts again at {} ns without a closing cap after \
+                             {} slab(s) (a restarted mesher?); the earlier stream is checked up to \
+                             its last slab",
+                            p.stamps_ns.0, r.next_index
+                        ));
+                    }
+                }
+                if b.runs.last().is_some_and(|r| p.stamps_ns.0 <= r.frontier) {
+                    return Accepted::refused(
+                        "bad_piece",
+                        format!(
+                            "{id}: a stream starting at {} ns, not after the previous one's last \
+                             frame; ignored",
+                            p.stamps_ns.0
+                        ),
+                    );
+                }
+                let run = Run {
+                    id: b.next_run,
+                    geometry: p.geometry,
+                    first_stamp: p.stamps_ns.0,
+                    first_cap: p.mesh.clone(),
+                    first_occupied: p.occupied,
+                    frontier: p.stamps_ns.0,
+                    first_index: 0,
+                    next_index: 0,
+                    end: None,
+                    tets: p.mesh.tets.len() as u64,
+                    acc: StatsAccumulator::new(),
+                    stats: None,
+                };
+                b.next_run += 1;
+                b.joined_late = false;
+                b.geometry = Some(p.geometry);
+                b.runs.push(run);
+                *origin = Some(origin.map_or(p.stamps_ns.0, |o: i64| o.min(p.stamps_ns.0)));
+                union.add(p.stamps_ns.0);
+                if let Some(why) = restarted {
+                    return Accepted::Noted {
+                        kind: "stream_restarted",
+                        text: why,
+                    };
+                }
+                Accepted::Taken
+            }
+            PieceKind::Lateral | PieceKind::CapEnd => {
+                // A slab with no open run before it, or after a run whose last pieces are
+                // gone: checked from here, in a run without an opening cap.
+                let open = b.runs.last().filter(|r| !r.ended());
+                let jumped = open.is_some_and(|r| {
+                    p.index > r.next_index && p.stamps_ns.0 > r.frontier && p.geometry == r.geometry
+                });
+                let mut note = None;
+                if p.kind == PieceKind::Lateral && (open.is_none() || jumped) {
+                    let after = b.runs.last().map(|r| r.frontier);
+                    if after.is_some_and(|f| p.stamps_ns.0 < f) || p.stamps_ns.1 <= p.stamps_ns.0 {
+                        return Accepted::refused(
+                            "piece_out_of_order",
+                            format!(
+                                "{id}: piece index {} ({} ns) before the body's last frame; \
+                                 ignored",
+                                p.index, p.stamps_ns.0
+                            ),
+                        );
+                    }
+                    let resumed = "checked again from this piece; the mesh is open where the \
+                                   pieces are missing";
+                    if let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) {
+                        r.close(None);
+                        note = Some((
+                            "pieces_missing",
+                            format!(
+                                "{id}: pieces {} to {} missing ({} ns to {} ns, lost on the way \
+                                 or dropped by a node that was behind): {resumed}",
+                                r.next_index,
+                                p.index - 1,
+                                r.frontier,
+                                p.stamps_ns.0
+                            ),
+                        ));
+                    } else if let Some(f) = after {
+                        note = Some((
+                            "pieces_missing",
+                            format!(
+                                "{id}: piece index {} at {} ns with no stream open (its first cap \
+                                 is missing, or the stream was taken as ended at {f} ns): \
+                                 {resumed}",
+                                p.index, p.stamps_ns.0
+                            ),
+                        ));
+                    } else if !b.joined_late {
+                        b.joined_late = true;
+                        note = Some((
+                            "joined_mid_stream",
+                            format!(
+                                "{id}: the first piece seen is index {} (this node started after \
+                                 the body's stream did, or missed its start): the pieces before \
+                                 are gone; the stream is checked from this piece, its mesh open \
+                                 there",
+                                p.index
+                            ),
+                        ));
+                    }
+                    b.runs.push(Run {
+                        id: b.next_run,
+                        geometry: p.geometry,
+                        first_stamp: p.stamps_ns.0,
+                        first_cap: Arc::new(TetMesh::default()),
+                        first_occupied: 0,
+                        frontier: p.stamps_ns.0,
+                        first_index: p.index,
+                        next_index: p.index,
+                        end: None,
+                        tets: 0,
+                        acc: StatsAccumulator::new(),
+                        stats: None,
+                    });
+                    b.next_run += 1;
+                    b.geometry = Some(p.geometry);
+                    *origin = Some(origin.map_or(p.stamps_ns.0, |o: i64| o.min(p.stamps_ns.0)));
+                    union.add(p.stamps_ns.0);
+                }
+                let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
+                    // A closing cap with no stream open: nothing to close.
+                    return Accepted::Taken;
+                };
+                if p.geometry != r.geometry {
+                    return Accepted::refused(
+                        "bad_piece",
+                        format!("{id}: a piece on another lattice; ignored"),
+                    );
+                }
+                if p.kind == PieceKind::CapEnd {
+                    if r.next_index == r.first_index || p.index != r.next_index {
+                        return Accepted::refused(
+                            "piece_out_of_order",
+                            format!(
+                                "{id}: closing cap at index {} (expected index {}); ignored",
+                                p.index, r.next_index
+                            ),
+                        );
+                    }
+                    r.tets += p.mesh.tets.len() as u64;
+                    // Its statistics (the cap's faces paired: a cap fills the body's
+                    // volume) are finished by `on_piece`, on the pool.
+                    let cap = Some((p.mesh.clone(), p.occupied));
+                    if let Some(closing) = r.end_at_frontier(cap) {
+                        self.pending_stats = Some(PendingStats::Finish(r.id, closing));
+                    }
+                    return Accepted::Taken;
+                }
+                if p.index != r.next_index
+                    || p.stamps_ns.0 != r.frontier
+                    || p.stamps_ns.1 <= p.stamps_ns.0
+                {
+                    return Accepted::refused(
+                        "piece_out_of_order",
+                        format!(
+                            "{id}: piece index {} out of order (expected index {}); ignored, the \
+                             body's mesh will not be closed",
+                            p.index, r.next_index
+                        ),
+                    );
+                }
+                // Added to the run's statistics by `on_piece`, while windows are checked.
+                // A run that starts after lost pieces has no opening cap to pair with.
+                let first_cap = (r.next_index == 0).then(|| r.first_cap.clone());
+                self.pending_stats = Some(PendingStats::Add(r.id, first_cap));
+                let first_tet = r.tets;
+                r.tets += p.mesh.tets.len() as u64;
+                r.next_index += 1;
+                r.frontier = p.stamps_ns.1;
+                union.add(p.stamps_ns.1);
+                let worst = if self.cfg.slabs_done {
+                    vec![0; p.mesh.tets.len()]
+                } else {
+                    Vec::new()
+                };
+                b.slabs.insert(
+                    p.stamps_ns.0,
+                    HeldSlab {
+                        run: r.id,
+                        index: p.index,
+                        hi: p.stamps_ns.1,
+                        mesh: p.mesh.clone(),
+                        bounds: p.mesh.spatial_bounds(),
+                        first_tet,
+                        worst,
+                        unsure: p.unsure,
+                        displacement: p.displacement,
+                    },
+                );
+                note.map_or(Accepted::Taken, |(kind, text)| Accepted::Noted {
+                    kind,
+                    text,
+                })
+            }
+        }
+    }
+
+    /// The inputs have ended: every open stream is closed at its last slab, every period
+    /// decided with what there is, every open contact closed.
+    pub fn finish(&mut self, out: &mut Vec<RollingOutput>) {
+        self.settle_all_stats();
+        self.finishing = true;
+        for b in self.bodies.values_mut() {
+            if let Some(r) = b.runs.last_mut() {
+                r.close(None);
+            }
+        }
+        self.pump(out);
+        for i in 0..self.pairs.len() {
+            self.close_open(i, out);
+            self.close_unsure(i, out);
+            self.finish_speeds(i, true);
+        }
+        self.prune(out);
+        self.join_resolutions(out);
+    }
+
+    /// Decides every period that can be decided, then drops what nothing needs any more.
+    fn pump(&mut self, out: &mut Vec<RollingOutput>) {
+        self.prefetched = self.prefetch(2);
+        self.pump_prefetched(out);
+    }
+
+    /// [`Self::pump`] with the windows checked ahead already in `self.prefetched`.
+    fn pump_prefetched(&mut self, out: &mut Vec<RollingOutput>) {
+        for i in 0..self.pairs.len() {
+            while self.pairs[i].stopped.is_none() {
+                if !self.step(i, out) {
+                    break;
+                }
+            }
+        }
+        self.prefetched.clear();
+        self.resolve_episodes(out);
+        self.prune(out);
+    }
+
+    /// The window pair `i` would check next, if it is plainly ready: both bodies have their
+    /// slab at the next stamp and what follows it, on one lattice and in one frame. Anything
+    /// less plain is left to [`Self::step`].
+    fn ready_window(&self, i: usize) -> Option<(i64, WindowSpec, WindowSpec)> {
+        let p = &self.pairs[i];
+        if p.stopped.is_some() {
+            return None;
+        }
+        let s = self.next_stamp(i)?;
+        if p.next.is_some_and(|n| s > n) {
+            return None;
+        }
+        let (a, b) = (&self.bodies[&p.a], &self.bodies[&p.b]);
+        if a.status(s, self.finishing) != Status::Has || b.status(s, self.finishing) != Status::Has
+        {
+            return None;
+        }
+        let (sa, sb) = (a.slabs.get(&s)?, b.slabs.get(&s)?);
+        let hi = sa.hi;
+        let known = |body: &BodyStream, run: u64| {
+            body.slabs.contains_key(&hi) || body.run(run).is_some_and(|r| r.ended())
+        };
+        if sb.hi != hi || !known(a, sa.run) || !known(b, sb.run) || a.frame_id != b.frame_id {
+            return None;
+        }
+        let (ga, gb) = (a.run(sa.run)?.geometry, b.run(sb.run)?.geometry);
+        let lattice = pair_lattice(&ga, &gb).ok()?;
+        let k = self.period_index(i, s);
+        let per = i64::from(lattice.scale) * i64::from(CHECKER_FACTOR);
+        let base = if k - p.base > REBASE_FRAMES {
+            k - CONTEXT_SLABS as i64
+        } else {
+            p.base
+        };
+        let wa = self.window_spec(
+            &p.a,
+            &p.b,
+            s,
+            k,
+            (base, per),
+            (lattice.shift_a, lattice.ratio_a),
+        )?;
+        let wb = self.window_spec(
+            &p.b,
+            &p.a,
+            s,
+            k,
+            (base, per),
+            (lattice.shift_b, lattice.ratio_b),
+        )?;
+        (!apart(&wa, &wb)).then_some((s, wa, wb))
+    }
+
+    /// The windows ready for checking at the start of a pump, checked on rayon's pool, if
+    /// there are at least `least` (one window alone splits its own check over the cores).
+    fn prefetch(&self, least: usize) -> Vec<Prefetched> {
+        let ready: Vec<(usize, i64, WindowSpec, WindowSpec)> = (0..self.pairs.len())
+            .filter_map(|i| self.ready_window(i).map(|(s, wa, wb)| (i, s, wa, wb)))
+            .collect();
+        if ready.len() < least.max(1) {
+            return Vec::new();
+        }
+        // Each distinct body window once: a body in several pairs often has the same
+        // window in each (the same pieces and placement). It holds the tets near any of
+        // its partners' windows (the box around them all).
+        let mut distinct: Vec<(&str, &WindowSpec, SpatialBox)> = Vec::new();
+        for (i, _, wa, wb) in &ready {
+            let p = &self.pairs[*i];
+            for (id, w, partner) in [(p.a.as_str(), wa, wb), (p.b.as_str(), wb, wa)] {
+                let Some(near) = partner.spatial_box() else {
+                    continue;
+                };
+                if cached(&self.prepared, id, w, &near).is_some() {
+                    continue;
+                }
+                match distinct
+                    .iter_mut()
+                    .find(|(d, x, _)| *d == id && x.same_as(w))
+                {
+                    Some((_, _, clip)) => {
+                        *clip = (
+                            [0, 1, 2].map(|k| clip.0[k].min(near.0[k])),
+                            [0, 1, 2].map(|k| clip.1[k].max(near.1[k])),
+                        );
+                    }
+                    None => distinct.push((id, w, near)),
+                }
+            }
+        }
+        // A window that fails to prepare is prepared again by its pair, for the error.
+        let shared: Vec<Option<Arc<PreparedWindow>>> = distinct
+            .par_iter()
+            .map(|(id, w, clip)| {
+                self.moved(id, w, clip)
+                    .or_else(|| prepare_spec(id, w, Some(*clip)).ok())
+            })
+            .collect();
+        let ready_for = |id: &str, w: &WindowSpec, partner: &SpatialBox| {
+            cached(&self.prepared, id, w, partner).or_else(|| {
+                let n = distinct
+                    .iter()
+                    .position(|(d, x, _)| *d == id && x.same_as(w))?;
+                shared.get(n)?.clone().filter(|p| p.serves(partner))
+            })
+        };
+        ready
+            .par_iter()
+            .map(|(i, s, wa, wb)| {
+                let p = &self.pairs[*i];
+                let result = check_specs((&p.a, wa), (&p.b, wb), &ready_for);
+                Prefetched {
+                    pair: *i,
+                    s: *s,
+                    specs: (wa.clone(), wb.clone()),
+                    result,
+                }
+            })
+            .collect()
+    }
+
+    /// The next stamp pair `i` has to decide, if any body has a slab at or after it.
+    fn next_stamp(&self, i: usize) -> Option<i64> {
+        let p = &self.pairs[i];
+        let from = p.next.unwrap_or(i64::MIN);
+        let first = |id: &str| self.bodies[id].slabs.range(from..).next().map(|(s, _)| *s);
+        match (first(&p.a), first(&p.b)) {
+            (Some(x), Some(y)) => Some(x.min(y)),
+            (x, y) => x.or(y),
+        }
+    }
+
+    /// Common frame index of the period of pair `i` that starts at `s` (the next one).
+    fn period_index(&self, i: usize, s: i64) -> i64 {
+        let p = &self.pairs[i];
+        match p.next {
+            None => 0,
+            Some(n) if n == s => p.index,
+            Some(_) => p.index + 1,
+        }
+    }
+
+    /// Slabs of `id` at or after `s`.
+    fn lead(&self, id: &str, s: i64) -> usize {
+        self.bodies[id].slabs.range(s..).count()
+    }
+
+    /// Decides one period of pair `i`; `false` if it must wait.
+    fn step(&mut self, i: usize, out: &mut Vec<RollingOutput>) -> bool {
+        let finishing = self.finishing;
+        let Some(s) = self.next_stamp(i) else {
+            return false;
+        };
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let over = |me: &Self, n: i64| me.lead(&a, n).max(me.lead(&b, n)) > me.cfg.max_lead_frames;
+        // Nothing of either body at the expected stamp: the next slab of either starts
+        // later. Wait while a body may still send the expected one.
+        if let Some(n) = self.pairs[i].next {
+            if s > n {
+                let (sa, sb) = (
+                    self.bodies[&a].status(n, finishing),
+                    self.bodies[&b].status(n, finishing),
+                );
+                if [sa, sb].contains(&Status::Maybe) && !over(self, n) {
+                    return false;
+                }
+            }
+        }
+        let (sa, sb) = (
+            self.bodies[&a].status(s, finishing),
+            self.bodies[&b].status(s, finishing),
+        );
+        if sa == Status::Mismatch || sb == Status::Mismatch {
+            let why = format!(
+                "pair {a} x {b}: frames at different times (a frame of one body falls between two \
+                 of the other's at {:.3} s); the pair is not checked from there on (different \
+                 frame rates or phases are not resampled)",
+                self.seconds_of_stamp(s)
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "time_mismatch", why);
+            return false;
+        }
+        match (sa, sb) {
+            (Status::Has, Status::Has) => self.window(i, s, out),
+            (Status::Has, other) | (other, Status::Has) => {
+                let (me, partner) = if sa == Status::Has {
+                    (&a, &b)
+                } else {
+                    (&b, &a)
+                };
+                if other == Status::Maybe && !over(self, s) {
+                    return false;
+                }
+                // A partner that stopped is gone; one that never said anything is late.
+                let stopped = self.bodies[partner]
+                    .runs
+                    .iter()
+                    .any(|r| r.ended() && r.frontier <= s);
+                if stopped && !self.pairs[i].partner_absent {
+                    self.pairs[i].partner_absent = true;
+                    let why = format!(
+                        "{partner}: its frames end before {:.3} s while {me} goes on (the \
+                         stream stopped); pair {a} x {b} has nothing to check from there until \
+                         it comes back",
+                        self.seconds_of_stamp(s)
+                    );
+                    self.problem(out, "partner_stopped", why);
+                } else if other == Status::Maybe && !self.pairs[i].partner_absent {
+                    self.pairs[i].partner_absent = true;
+                    let hi = self.bodies[me].slabs[&s].hi;
+                    let why = format!(
+                        "pair {a} x {b}: {partner} has nothing for {:.3}-{:.3} s while {me} is \
+                         {} slabs ahead; {me} is checked without it from there (pieces of \
+                         {partner} that come later for that time are refused)",
+                        self.seconds_of_stamp(s),
+                        self.seconds_of_stamp(hi),
+                        self.cfg.max_lead_frames
+                    );
+                    self.problem(out, "partner_late", why);
+                }
+                let me = me.clone();
+                self.alone(i, &me, s, out);
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
+impl PairRoll {
+    /// Whether a tet of either body has interfered with the other or lain inside it.
+    fn interfering(&self) -> bool {
+        let (a, b) = &self.counts;
+        a.interference + a.inside + b.interference + b.inside > 0
+    }
+}
+
+fn plan_movable(plan: &CheckPlan) -> BTreeMap<String, f64> {
+    plan.movable
+        .iter()
+        .map(|m| (m.clone(), f64::NEG_INFINITY))
+        .collect()
+}
+
+/// Seconds since `origin` and the frame period (s) at checker time `t` of pair `p`, from
+/// the stamps of the frames around it (as the full check's common lattice gives them).
+fn time_at(p: &PairRoll, t: f64, origin: i64) -> Option<(f64, f64)> {
+    let per = p.per as f64;
+    if per <= 0.0 {
+        return None;
+    }
+    let k_raw = (t / per).floor().max(0.0) as i64 + p.base;
+    // The last known frame: the period before it (as the full check clamps to its last).
+    let last = *p.stamps.keys().next_back()?;
+    let k = k_raw.min(last - 1);
+    let frac = t / per - (k - p.base) as f64;
+    let (a, b) = (*p.stamps.get(&k)?, *p.stamps.get(&(k + 1))?);
+    let s = ((a - origin) as f64 + frac * (b - a) as f64) * 1e-9;
+    // The period: of [k_raw, k_raw + 1] where that is known.
+    let period = match (p.stamps.get(&k_raw), p.stamps.get(&(k_raw + 1))) {
+        (Some(x), Some(y)) => (y - x) as f64 * 1e-9,
+        _ => (b - a) as f64 * 1e-9,
+    };
+    Some((s, period))
+}
+
+/// The closing speed of two boundary patches from the crossings near a contact's end (see
+/// `contact_speeds` in the checker): normals summed once per tet, exact in `f64`.
+fn speed<'a>(records: impl Iterator<Item = &'a Record>) -> Option<f64> {
+    let mut a: BTreeMap<u64, [f64; 4]> = BTreeMap::new();
+    let mut b: BTreeMap<u64, [f64; 4]> = BTreeMap::new();
+    for r in records {
+        a.insert(r.tets.0, r.normals.0);
+        b.insert(r.tets.1, r.normals.1);
+    }
+    if a.is_empty() {
+        return None;
+    }
+    let surface = |m: &BTreeMap<u64, [f64; 4]>| {
+        let mut n = [0.0f64; 4];
+        for v in m.values() {
+            (0..4).for_each(|k| n[k] += v[k]);
+        }
+        let ns = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        (ns > 0.0).then(|| -n[3] / ns)
+    };
+    Some(surface(&a)? + surface(&b)?)
+}
+
+/// Running sums of |N_s| and |N_t| over tets (see [`bounds::hypervolume_bound`]).
+/// The overlap's normal sums with those of the cap that would close its run at its last
+/// frame, if the mesher has one (see `Overlap::closed_sums`).
+fn closing_sums(o: &Overlap) -> Option<(f64, f64)> {
+    let m = o.mesher.as_ref()?;
+    let cap = m.last_frame().and_then(|k| m.cap(k, CapSide::High))?;
+    Some(add_normals(o.sums, &cap))
+}
+
+fn add_normals(mut sums: (f64, f64), m: &TetMesh) -> (f64, f64) {
+    for t in &m.tets {
+        let n = float_normal(&t.map(|v| m.vertices[v as usize]));
+        let ns = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        sums = (sums.0 + ns, sums.1 + n[3].abs());
+    }
+    sums
+}
+
+fn add_run(t: &mut Totals, r: Run) {
+    let Some(stats) = &r.stats else { return };
+    let closed = stats.closed.is_closed() && matches!(r.end, Some((_, Some(_))));
+    t.closed = if t.runs == 0 {
+        closed
+    } else {
+        t.closed && closed
+    };
+    t.runs += 1;
+    t.frames += stats.frames;
+    t.tets += stats.tets;
+    t.vertices += stats.vertices;
+    t.hypervolume_m3s += stats.hypervolume_m3s;
+    t.vanishing += stats.vanishing_slabs;
+}

@@ -1,0 +1,1332 @@
+//! Deciding a pair's frame period: which slabs make its window, checking it, folding what
+//! it gives into the pair's running answer (labels, intervals, contact events, closing
+//! speeds), and the overlap measure.
+
+use std::collections::BTreeMap;
+use std::collections::VecDeque;
+use std::sync::Arc;
+
+use super::{
+    add_normals, bounds, check_window, closing_sums, on_pair_lattice, origin_offset,
+    prepare_window, report::run_overlap, speed, time_at, union_bounds, CapSide, ContactPhase,
+    ContactUpdate, GridGeometry, HeldSlab, Interval, Label, LabelCounts, Mesher, MesherOptions,
+    OccupancyGrid, OpenUnsure, Overlap, OverlapJob, PreparedWindow, Record, RollingChecker,
+    RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator, TakenLabels, TetMesh,
+    UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR, CONTEXT_SLABS,
+    REBASE_FRAMES,
+};
+
+impl RollingChecker {
+    pub(super) fn seconds_of_stamp(&self, s: i64) -> f64 {
+        (s - self.origin_ns.unwrap_or(s)) as f64 * 1e-9
+    }
+
+    /// The slab of `body` at `s` is decided for pair `i` without the other body: OUTSIDE.
+    pub(super) fn alone(&mut self, i: usize, body: &str, s: i64, out: &mut Vec<RollingOutput>) {
+        let (hi, index, run, lateral) = {
+            let sl = &self.bodies[body].slabs[&s];
+            (sl.hi, sl.index, sl.run, sl.mesh.tets.len())
+        };
+        if self.cfg.labels {
+            let b = &self.bodies[body];
+            let r = b.run(run);
+            let cap_start = r
+                .filter(|r| r.first_stamp == s)
+                .map(|r| r.first_cap.tets.len());
+            let cap_end = r.and_then(|r| r.last_cap_at(hi)).map(|c| c.tets.len());
+            let n = cap_start.unwrap_or(0) + lateral + cap_end.unwrap_or(0);
+            let p = &self.pairs[i];
+            let other = if p.a == body { &p.b } else { &p.a };
+            out.push(RollingOutput::Labels(SlabLabels {
+                body: body.to_string(),
+                other: other.clone(),
+                index,
+                stamps_ns: (s, hi),
+                with_cap_start: cap_start.is_some(),
+                with_cap_end: cap_end.is_some(),
+                labels: vec![Label::Outside as u8; n],
+                counts: LabelCounts {
+                    outside: n as u64,
+                    ..LabelCounts::default()
+                },
+            }));
+        }
+        let k = self.period_index(i, s);
+        self.advance(i, s, hi, k, out);
+    }
+
+    /// Moves pair `i` past the period [s, hi] of common index `k`.
+    pub(super) fn advance(
+        &mut self,
+        i: usize,
+        s: i64,
+        hi: i64,
+        k: i64,
+        out: &mut Vec<RollingOutput>,
+    ) {
+        let p = &mut self.pairs[i];
+        p.stamps.insert(k, s);
+        p.stamps.insert(k + 1, hi);
+        p.next = Some(hi);
+        p.index = k + 1;
+        while p
+            .stamps
+            .first_key_value()
+            .is_some_and(|(j, _)| *j < k - CONTEXT_SLABS as i64)
+        {
+            p.stamps.pop_first();
+        }
+        // Nothing later can start before the end of this period, and nothing goes on past
+        // it where either body's stream ends there.
+        let hi_t = ((k + 1 - p.base) * p.per) as f64;
+        let before_end = p.open.as_ref().is_some_and(|o| o.t.1 < hi_t);
+        let (a, b) = (p.a.clone(), p.b.clone());
+        let ends_here = |id: &str| {
+            let body = &self.bodies[id];
+            body.slabs
+                .get(&s)
+                .and_then(|x| body.run(x.run))
+                .is_some_and(|r| r.last_cap_at(hi).is_some())
+        };
+        let stream_ends = ends_here(&a) || ends_here(&b);
+        if before_end || stream_ends {
+            self.close_open(i, out);
+        }
+        // An unsure span goes on no further than a stream: its end is said when the stream
+        // ends, not when the node does.
+        if stream_ends {
+            self.close_unsure(i, out);
+        }
+        self.finish_speeds(i, false);
+    }
+
+    /// What one body's window is made of (owned, so that the pair can be changed while it
+    /// is checked).
+    pub(super) fn window_spec(
+        &self,
+        me: &str,
+        other: &str,
+        s: i64,
+        k: i64,
+        (base, per): (i64, i64),
+        (shift, ratio): ([i64; 3], i64),
+    ) -> Option<WindowSpec> {
+        let body = &self.bodies[me];
+        let centre_slab = body.slabs.get(&s)?;
+        let r = body.run(centre_slab.run)?;
+        let o = self.bodies[other].run(self.bodies[other].slabs.get(&s)?.run)?;
+        let hi = centre_slab.hi;
+        let prev = |stamp: i64| {
+            body.slabs
+                .range(..stamp)
+                .next_back()
+                .filter(|(_, x)| x.hi == stamp && x.run == r.id)
+                .map(|(key, x)| (*key, x))
+        };
+        let mut slabs: VecDeque<(i64, &HeldSlab)> = VecDeque::from([(s, centre_slab)]);
+        let mut centre = 0;
+        let mut lo_stamp = s;
+        let mut hi_stamp = hi;
+        // The other body's real cap in an end plane: reach one slab further.
+        if o.first_stamp == s {
+            if let Some(x) = prev(s) {
+                slabs.push_front(x);
+                centre += 1;
+                lo_stamp = x.0;
+            }
+        }
+        if o.last_cap_at(hi).is_some() {
+            if let Some(x) = body.slabs.get(&hi).filter(|x| x.run == r.id) {
+                slabs.push_back((hi, x));
+                hi_stamp = x.hi;
+            }
+        }
+        let low = (r.first_stamp == lo_stamp).then(|| r.first_cap.clone());
+        let high = r.last_cap_at(hi_stamp).cloned();
+        let lo_common = k - centre as i64;
+        let bounds = slabs
+            .iter()
+            .map(|(_, x)| x.bounds)
+            .chain(
+                [&low, &high]
+                    .into_iter()
+                    .flatten()
+                    .map(|m| m.spatial_bounds()),
+            )
+            .fold(None, union_bounds);
+        Some(WindowSpec {
+            bounds,
+            geometry: r.geometry,
+            lo: slabs[0].1.index,
+            slabs: slabs.iter().map(|(_, x)| x.mesh.clone()).collect(),
+            centre,
+            low,
+            high,
+            mul: ratio,
+            add: [
+                shift[0] * per,
+                shift[1] * per,
+                shift[2] * per,
+                (lo_common - base) * per,
+            ],
+            first_tet: if r.first_stamp == s {
+                0
+            } else {
+                centre_slab.first_tet
+            },
+        })
+    }
+
+    /// Checks the period of pair `i` starting at `s` where both bodies have a slab; `false`
+    /// if it must wait for what follows a slab or for a frame.
+    pub(super) fn window(&mut self, i: usize, s: i64, out: &mut Vec<RollingOutput>) -> bool {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let (hi, hb) = (self.bodies[&a].slabs[&s].hi, self.bodies[&b].slabs[&s].hi);
+        if hi != hb {
+            let why = format!(
+                "pair {a} x {b}: frames at different times (the periods from {:.3} s end at \
+                 {:.3} s and {:.3} s); the pair is not checked from there on",
+                self.seconds_of_stamp(s),
+                self.seconds_of_stamp(hi),
+                self.seconds_of_stamp(hb)
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "time_mismatch", why);
+            return false;
+        }
+        // What follows each slab must be known: the next slab, or the end of its stream.
+        let known = |me: &Self, id: &str| {
+            let body = &me.bodies[id];
+            body.slabs.contains_key(&hi) || body.run(body.slabs[&s].run).is_some_and(|r| r.ended())
+        };
+        if !known(self, &a) || !known(self, &b) {
+            // Nothing follows a slab while the other body runs far ahead: the stream stalled
+            // (a lost piece or cap). Its run is closed there, so that the pair goes on and
+            // the other body's slabs do not pile up.
+            if self.lead(&a, s).max(self.lead(&b, s)) <= self.cfg.max_lead_frames {
+                return false;
+            }
+            for id in [&a, &b] {
+                if known(self, id) {
+                    continue;
+                }
+                let why = format!(
+                    "{id}: nothing follows its slab at {:.3} s while its partner is more than \
+                     {} slabs ahead (a lost piece or cap); its stream is taken as ended there",
+                    self.seconds_of_stamp(s),
+                    self.cfg.max_lead_frames
+                );
+                self.settle_stats(id);
+                let body = self.bodies.get_mut(id.as_str()).expect("a paired body");
+                let run = body.slabs[&s].run;
+                if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
+                    r.close(None);
+                }
+                self.problem(out, "stream_stalled", why);
+            }
+            if !known(self, &a) || !known(self, &b) {
+                return false;
+            }
+        }
+        let geometry = |id: &str| {
+            let body = &self.bodies[id];
+            body.run(body.slabs[&s].run).map(|r| r.geometry)
+        };
+        let (Some(ga), Some(gb)) = (geometry(&a), geometry(&b)) else {
+            return false;
+        };
+        let (fa, fb) = (&self.bodies[&a].frame_id, &self.bodies[&b].frame_id);
+        if fa != fb {
+            let why = format!(
+                "pair {a} x {b}: not checked: {a} is in frame {fa:?} and {b} in frame {fb:?}: \
+                 bodies in different frames are not compared (publish them in one frame)"
+            );
+            self.pairs[i].stopped = Some(why.clone());
+            self.problem(out, "frame_mismatch", why);
+            return false;
+        }
+        let lattice = match pair_lattice(&ga, &gb) {
+            Ok(l) => l,
+            Err(reason) => {
+                let why = format!(
+                    "pair {a} x {b}: not on one lattice ({reason}); the pair is not checked from \
+                     there on"
+                );
+                self.pairs[i].stopped = Some(why.clone());
+                self.problem(out, "lattice_mismatch", why);
+                return false;
+            }
+        };
+        let k = self.period_index(i, s);
+        let per = i64::from(lattice.scale) * i64::from(CHECKER_FACTOR);
+        let base = {
+            let p = &self.pairs[i];
+            if k - p.base > REBASE_FRAMES {
+                k - CONTEXT_SLABS as i64
+            } else {
+                p.base
+            }
+        };
+        let specs = (
+            self.window_spec(
+                &a,
+                &b,
+                s,
+                k,
+                (base, per),
+                (lattice.shift_a, lattice.ratio_a),
+            ),
+            self.window_spec(
+                &b,
+                &a,
+                s,
+                k,
+                (base, per),
+                (lattice.shift_b, lattice.ratio_b),
+            ),
+        );
+        self.rebase(i, base, per);
+        let (Some(wa), Some(wb)) = specs else {
+            // A frame for a cap has not come (yet).
+            let behind = self.lead(&a, s).max(self.lead(&b, s)) > self.cfg.max_lead_frames;
+            if !self.finishing && !behind {
+                return false;
+            }
+            let why = format!(
+                "pair {a} x {b}: no frame to close the period {:.3}-{:.3} s (a frame the mesher \
+                 filled in, or one that never came); that period is not checked",
+                self.seconds_of_stamp(s),
+                self.seconds_of_stamp(hi)
+            );
+            self.problem(out, "period_unchecked", why);
+            self.settle_overlap(i);
+            self.pairs[i].overlap.unknown = true;
+            self.advance(i, s, hi, k, out);
+            return true;
+        };
+        let fast = self.fast_near(&a, &b, s);
+        let r = if apart(&wa, &wb) {
+            // Boxes apart in space: no tet meets the other body, every one is outside.
+            WindowResult {
+                labels: [wa.all_outside(), wb.all_outside()],
+                ..WindowResult::default()
+            }
+        } else {
+            let ahead = self.prefetched.iter().position(|x| {
+                x.pair == i && x.s == s && x.specs.0.same_as(&wa) && x.specs.1.same_as(&wb)
+            });
+            let result = match ahead {
+                Some(n) => self.prefetched.swap_remove(n).result,
+                None => check_specs((&a, &wa), (&b, &wb), |id, w, partner| {
+                    cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
+                }),
+            };
+            match result {
+                Ok((r, [pa, pb])) => {
+                    self.prepared.insert(a.clone(), (wa.clone(), pa, s));
+                    self.prepared.insert(b.clone(), (wb.clone(), pb, s));
+                    r
+                }
+                Err(e) => {
+                    let why = format!(
+                        "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
+                        self.seconds_of_stamp(s),
+                        self.seconds_of_stamp(hi)
+                    );
+                    self.problem(out, "period_unchecked", why);
+                    self.advance(i, s, hi, k, out);
+                    return true;
+                }
+            }
+        };
+        self.overlap_push(i, s, hi);
+        {
+            let p = &mut self.pairs[i];
+            p.stamps.insert(k, s);
+            p.stamps.insert(k + 1, hi);
+        }
+        self.fold(i, s, hi, &r, (wa.first_tet, wb.first_tet), out);
+        self.note_unsure(i, s, hi, fast, out);
+        self.advance(i, s, hi, k, out);
+        true
+    }
+
+    /// How far each body of a pair moves in the period from `s` (voxels), where one moves
+    /// fast near the other ([`chronotope_mesh::unsure::moves_fast_near`], as `check`
+    /// decides it); else 0.
+    pub(super) fn fast_near(&self, a: &str, b: &str, s: i64) -> (u16, u16) {
+        let slab = |id: &str| {
+            let body = self.bodies.get(id)?;
+            let x = body.slabs.get(&s)?;
+            Some((body.run(x.run)?.geometry, x.bounds, x.displacement))
+        };
+        let (Some((ga, xa, da)), Some((gb, xb, db))) = (slab(a), slab(b)) else {
+            return (0, 0);
+        };
+        chronotope_mesh::unsure::moves_fast_near((&ga, xa, da), (&gb, xb, db))
+    }
+
+    /// Moves pair `i`'s checker-time origin to common frame `base` (the crossings and the
+    /// open interval kept shift with it) and sets its lattice step.
+    pub(super) fn rebase(&mut self, i: usize, base: i64, per: i64) {
+        let p = &mut self.pairs[i];
+        if base != p.base {
+            let d = ((base - p.base) * p.per) as f64;
+            for r in &mut p.records {
+                r.t = (r.t.0 - d, r.t.1 - d);
+            }
+            if let Some(o) = &mut p.open {
+                o.t = (o.t.0 - d, o.t.1 - d);
+            }
+            for o in &mut p.intervals {
+                o.t = (o.t.0 - d, o.t.1 - d);
+            }
+            p.base = base;
+        }
+        p.per = per;
+    }
+
+    /// Folds a window's result into pair `i`'s answer.
+    pub(super) fn fold(
+        &mut self,
+        i: usize,
+        s: i64,
+        hi: i64,
+        r: &WindowResult,
+        starts: (u64, u64),
+        out: &mut Vec<RollingOutput>,
+    ) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        {
+            let p = &mut self.pairs[i];
+            p.checked = true;
+            p.partner_absent = false;
+            p.candidates += r.candidate_pairs;
+            p.crossings += r.crossings.len() as u64;
+            p.undecided += u64::from(r.undecided);
+            for (c, l) in [
+                (&mut p.counts.0, &r.labels[0]),
+                (&mut p.counts.1, &r.labels[1]),
+            ] {
+                c.interference += l.counts.interference;
+                c.inside += l.counts.inside;
+            }
+            for c in &r.crossings {
+                p.records.push_back(Record {
+                    t: c.t,
+                    tets: (
+                        starts.0 + u64::from(c.tets.0),
+                        starts.1 + u64::from(c.tets.1),
+                    ),
+                    normals: c.normals,
+                });
+            }
+        }
+        for (k, (me, other)) in [(&a, &b), (&b, &a)].into_iter().enumerate() {
+            let l = &r.labels[k];
+            if self.cfg.labels {
+                let index = self.bodies[me].slabs[&s].index;
+                out.push(RollingOutput::Labels(SlabLabels {
+                    body: me.clone(),
+                    other: other.clone(),
+                    index,
+                    stamps_ns: (s, hi),
+                    with_cap_start: l.pieces[0] > 0,
+                    with_cap_end: l.pieces[2] > 0,
+                    labels: l.labels.clone(),
+                    counts: l.counts,
+                }));
+            }
+            if self.cfg.slabs_done {
+                let lateral = &l.labels[l.pieces[0]..l.pieces[0] + l.pieces[1]];
+                if let Some(sl) = self
+                    .bodies
+                    .get_mut(me.as_str())
+                    .and_then(|b| b.slabs.get_mut(&s))
+                {
+                    for (w, &x) in sl.worst.iter_mut().zip(lateral) {
+                        *w = (*w).max(x);
+                    }
+                }
+            }
+        }
+        // The window's ranges merged (so that a contact begins with all this period gives
+        // it, whatever order the walk found them in), then in order: merged into the open
+        // interval, or closing it and opening another.
+        let mut ranges = r.ranges.clone();
+        ranges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
+        let mut merged: Vec<(f64, f64)> = Vec::new();
+        for (t0, t1) in ranges {
+            match merged.last_mut() {
+                Some(m) if t0 <= m.1 => m.1 = m.1.max(t1),
+                _ => merged.push((t0, t1)),
+            }
+        }
+        for (t0, t1) in merged {
+            let merges = self.pairs[i].open.as_ref().is_some_and(|o| t0 <= o.t.1);
+            if merges {
+                let mut extended = false;
+                if let Some(o) = &mut self.pairs[i].open {
+                    if t1 > o.t.1 {
+                        o.t.1 = t1;
+                        extended = true;
+                    }
+                }
+                if extended {
+                    self.convert_open(i);
+                    out.extend(self.update(i, ContactPhase::Ongoing, hi));
+                }
+                continue;
+            }
+            self.close_open(i, out);
+            let p = &mut self.pairs[i];
+            let index = p.contacts;
+            p.contacts += 1;
+            p.open = Some(Interval {
+                t: (t0, t1),
+                s: (0.0, 0.0),
+                speeds: (None, None),
+                periods: (0.0, 0.0),
+                index,
+            });
+            self.convert_open(i);
+            out.extend(self.update(i, ContactPhase::Begin, hi));
+        }
+    }
+
+    /// Records in pair `i` whether either body's slab of the period `s..hi` is unsure, and
+    /// says when an unsure span of the pair begins or ends.
+    pub(super) fn note_unsure(
+        &mut self,
+        i: usize,
+        s: i64,
+        hi: i64,
+        (fast_a, fast_b): (u16, u16),
+        out: &mut Vec<RollingOutput>,
+    ) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let why = |id: &str, fast: u16| {
+            let slab = self.bodies.get(id)?.slabs.get(&s)?.unsure;
+            let moves =
+                (fast > 0).then_some(chronotope_mesh::unsure::Unsure::MovesFast { voxels: fast });
+            match (slab, moves) {
+                (Some(x), Some(y)) => Some(x.max(y)),
+                (x, y) => x.or(y),
+            }
+        };
+        let (ua, ub) = (why(&a, fast_a), why(&b, fast_b));
+        let period_ns = hi - s;
+        let p = &mut self.pairs[i];
+        for (log, u) in [(&mut p.unsure.0, ua), (&mut p.unsure.1, ub)] {
+            if let Some(why) = u {
+                log.push(UnsureSpan {
+                    from_ns: s,
+                    to_ns: hi,
+                    why,
+                    period_ns,
+                });
+            }
+        }
+        let now = match (ua, ub) {
+            (Some(w), _) => Some((a.clone(), w)),
+            (None, Some(w)) => Some((b.clone(), w)),
+            (None, None) => None,
+        };
+        match (&mut p.unsure_open, now) {
+            (Some(o), Some((_, w))) if o.to_ns >= s => {
+                o.to_ns = hi;
+                o.why = o.why.max(w);
+                o.period_ns = o.period_ns.min(period_ns);
+            }
+            (_, now) => {
+                self.close_unsure(i, out);
+                if let Some((body, why)) = now {
+                    let p = &mut self.pairs[i];
+                    let open = OpenUnsure {
+                        index: p.unsure_count,
+                        body,
+                        from_ns: s,
+                        to_ns: hi,
+                        why,
+                        period_ns,
+                    };
+                    p.unsure_count += 1;
+                    p.unsure_open = Some(open.clone());
+                    out.push(self.unsure_update(i, &open, false, hi));
+                }
+            }
+        }
+    }
+
+    /// Ends pair `i`'s unsure span going on, if any.
+    pub(super) fn close_unsure(&mut self, i: usize, out: &mut Vec<RollingOutput>) {
+        if let Some(o) = self.pairs[i].unsure_open.take() {
+            out.push(self.unsure_update(i, &o, true, o.to_ns));
+        }
+    }
+
+    fn unsure_update(&self, i: usize, o: &OpenUnsure, ended: bool, stamp_ns: i64) -> RollingOutput {
+        let p = &self.pairs[i];
+        let span = UnsureSpan {
+            from_ns: o.from_ns,
+            to_ns: o.to_ns,
+            why: o.why,
+            period_ns: o.period_ns,
+        };
+        RollingOutput::Unsure(UnsureUpdate {
+            a: p.a.clone(),
+            b: p.b.clone(),
+            ended,
+            index: o.index,
+            span: crate::report::UnsureSpanReport::of(&o.body, &span, self.origin_ns.unwrap_or(0)),
+            stamp_ns,
+        })
+    }
+
+    /// Seconds and periods of the open interval's ends (the start once, when it opens).
+    pub(super) fn convert_open(&mut self, i: usize) {
+        let origin = self.origin_ns.unwrap_or(0);
+        let p = &mut self.pairs[i];
+        let Some(mut o) = p.open.take() else { return };
+        if o.periods.0 == 0.0 {
+            if let Some(x) = time_at(p, o.t.0, origin) {
+                o.s.0 = x.0;
+                o.periods.0 = x.1;
+            }
+        }
+        if let Some(y) = time_at(p, o.t.1, origin) {
+            o.s.1 = y.0;
+            o.periods.1 = y.1;
+        }
+        p.open = Some(o);
+    }
+
+    pub(super) fn update(
+        &self,
+        i: usize,
+        phase: ContactPhase,
+        stamp_ns: i64,
+    ) -> Option<RollingOutput> {
+        let p = &self.pairs[i];
+        let o = match phase {
+            ContactPhase::End => p.intervals.back()?,
+            _ => p.open.as_ref()?,
+        };
+        let bound = |speed: Option<Option<f64>>, period: f64| {
+            bounds::contact_time_bound(period, speed.flatten())
+        };
+        Some(RollingOutput::Contact(ContactUpdate {
+            a: p.a.clone(),
+            b: p.b.clone(),
+            phase,
+            index: o.index,
+            start_s: o.s.0,
+            end_s: o.s.1,
+            start_bound_s: bound(o.speeds.0, o.periods.0),
+            end_bound_s: bound(o.speeds.1, o.periods.1),
+            stamp_ns,
+        }))
+    }
+
+    /// Closes pair `i`'s open interval (its end speed from the crossings near its end).
+    pub(super) fn close_open(&mut self, i: usize, out: &mut Vec<RollingOutput>) {
+        let p = &mut self.pairs[i];
+        let Some(mut o) = p.open.take() else { return };
+        let per = p.per as f64;
+        let end = o.t.1;
+        o.speeds.1 = Some(
+            speed(
+                p.records
+                    .iter()
+                    .filter(|r| r.t.1 <= end && r.t.1 >= end - per),
+            )
+            .map(|v| -v),
+        );
+        let stamp = p.next.unwrap_or(0);
+        p.intervals.push_back(o);
+        if p.intervals.len() > self.cfg.max_intervals {
+            p.intervals.pop_front();
+            p.dropped_intervals += 1;
+        }
+        out.extend(self.update(i, ContactPhase::End, stamp));
+    }
+
+    /// Start speeds that can be decided: no crossing can start before the start plus one
+    /// frame period any more (or the pair is done); crossings nothing needs are dropped.
+    pub(super) fn finish_speeds(&mut self, i: usize, all: bool) {
+        let p = &mut self.pairs[i];
+        let per = p.per as f64;
+        let done_t = ((p.index - p.base) * p.per) as f64;
+        let records = &p.records;
+        let decide = |o: &mut Interval| {
+            if o.speeds.0.is_none() && (all || o.t.0 + per < done_t) {
+                o.speeds.0 = Some(speed(
+                    records
+                        .iter()
+                        .filter(|r| r.t.0 >= o.t.0 && r.t.0 <= o.t.0 + per),
+                ));
+            }
+        };
+        for o in p.intervals.iter_mut().rev().take(4) {
+            decide(o);
+        }
+        if let Some(o) = &mut p.open {
+            decide(o);
+        }
+        let keep = done_t - 3.0 * per;
+        let pending = p
+            .intervals
+            .iter()
+            .rev()
+            .take(4)
+            .chain(p.open.iter())
+            .filter(|o| o.speeds.0.is_none())
+            .map(|o| o.t.0)
+            .fold(f64::INFINITY, f64::min);
+        while p
+            .records
+            .front()
+            .is_some_and(|r| r.t.1 < keep && r.t.0 < pending)
+        {
+            p.records.pop_front();
+        }
+    }
+
+    /// Feeds the intersection of the two bodies' frames at `s` and `hi` to the pair's
+    /// overlap mesher. The frames are found here; they are intersected and meshed on
+    /// rayon's pool, while the checker goes on ([`Self::settle_overlap`] takes the overlap
+    /// back, before anything reads it or feeds it again).
+    pub(super) fn overlap_push(&mut self, i: usize, s: i64, hi: i64) {
+        self.settle_overlap(i);
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let opts = self.opts;
+        let geometry = |id: &str| {
+            let body = &self.bodies[id];
+            body.run(body.slabs[&s].run).map(|r| r.geometry)
+        };
+        let (ga, gb) = (geometry(&a), geometry(&b));
+        // Periods left out since the last one (a partner absent or stopped): the intersection
+        // stream has a gap there. Its run so far is closed and counted, and a new one starts.
+        let gap = {
+            let ov = &self.pairs[i].overlap;
+            !ov.unknown && ov.last_pushed.is_some_and(|l| l != s)
+        };
+        if gap {
+            let ov = &mut self.pairs[i].overlap;
+            match run_overlap(ov) {
+                Some((hv, b)) => {
+                    ov.closed.0 += hv;
+                    ov.closed.1 += b;
+                    ov.mesher = None;
+                    ov.acc = StatsAccumulator::default();
+                    ov.first_cap = None;
+                    ov.sums = (0.0, 0.0);
+                    ov.closed_sums = None;
+                    ov.last_pushed = None;
+                    ov.stamps = (0, 0, 0);
+                }
+                None => ov.unknown = true,
+            }
+        }
+        let mut frames = Vec::with_capacity(2);
+        for stamp in [s, hi] {
+            let ov = &self.pairs[i].overlap;
+            if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
+                continue;
+            }
+            let both = ga.zip(gb).and_then(|(ga, gb)| {
+                let fa = self.bodies[&a].frame_at(stamp, &ga)?;
+                let fb = self.bodies[&b].frame_at(stamp, &gb)?;
+                Some(OverlapFrames { fa, ga, fb, gb })
+            });
+            frames.push((stamp, both));
+        }
+        if frames.is_empty() {
+            return;
+        }
+        let closing = self.pairs[i].interfering();
+        let mut ov = std::mem::take(&mut self.pairs[i].overlap);
+        let (tx, done) = std::sync::mpsc::channel();
+        rayon::spawn(move || {
+            let fed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+                feed_overlap(&mut ov, opts, frames, closing);
+                ov
+            }));
+            let _ = tx.send(fed);
+        });
+        self.pairs[i].overlap_job = Some(OverlapJob {
+            done: std::sync::Mutex::new(done),
+        });
+    }
+}
+
+/// Two bodies' frames at one stamp, each with its grid's geometry.
+struct OverlapFrames {
+    fa: Arc<OccupancyGrid>,
+    ga: GridGeometry,
+    fb: Arc<OccupancyGrid>,
+    gb: GridGeometry,
+}
+
+/// Feeds `ov` the intersection of each stamp's frames, in order (`None`: a frame or a
+/// geometry missing, so the overlap is not measurable); with `closing`, works out the
+/// normals of the run closed at its last frame too (see `Overlap::closed_sums`).
+fn feed_overlap(
+    ov: &mut Overlap,
+    opts: MesherOptions,
+    frames: Vec<(i64, Option<OverlapFrames>)>,
+    closing: bool,
+) {
+    for (stamp, both) in frames {
+        if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
+            continue;
+        }
+        let Some(OverlapFrames { fa, ga, fb, gb }) = both else {
+            ov.unknown = true;
+            continue;
+        };
+        let Some((both, ga)) = chronotope_mesh::grid::intersect_across(&fa, &ga, &fb, &gb) else {
+            ov.unknown = true;
+            continue;
+        };
+        if ov.geometry.is_some_and(|g| g != ga) {
+            ov.unknown = true;
+            continue;
+        }
+        if ov.mesher.is_none() {
+            match Mesher::new(opts) {
+                Ok(m) => ov.mesher = Some(m),
+                Err(_) => {
+                    ov.unknown = true;
+                    continue;
+                }
+            }
+        }
+        let m = ov.mesher.as_mut().expect("set above");
+        ov.geometry = Some(ga);
+        match m.push_decoded(stamp, ga, both) {
+            Ok(slab) => {
+                ov.last_pushed = Some(stamp);
+                ov.stamps = if ov.stamps.2 == 0 {
+                    (stamp, stamp, 1)
+                } else {
+                    (ov.stamps.0, stamp, ov.stamps.2 + 1)
+                };
+                if let Some(slab) = slab {
+                    if slab.index == 0 {
+                        let cap = m.first_frame().and_then(|k| m.cap(k, CapSide::Low));
+                        if let Some(cap) = &cap {
+                            ov.sums = add_normals(ov.sums, cap);
+                        }
+                        ov.first_cap = cap;
+                    }
+                    ov.acc
+                        .add_lateral(slab.lateral_ref(), ov.first_cap.as_ref());
+                    ov.sums = add_normals(ov.sums, &slab.mesh);
+                }
+                // The run as it would close now, at this frame.
+                ov.closed_sums = None;
+                if closing && ov.stamps.2 >= 2 {
+                    ov.closed_sums = closing_sums(ov);
+                }
+            }
+            Err(_) => ov.unknown = true,
+        }
+    }
+}
+
+/// What one body's window is made of (see [`WindowBody`]).
+#[derive(Debug, Clone)]
+pub(super) struct WindowSpec {
+    pub(super) geometry: GridGeometry,
+    pub(super) lo: u32,
+    pub(super) slabs: Vec<Arc<TetMesh>>,
+    pub(super) centre: usize,
+    pub(super) low: Option<Arc<TetMesh>>,
+    pub(super) high: Option<Arc<TetMesh>>,
+    pub(super) mul: i64,
+    pub(super) add: [i64; 4],
+    /// Run number of the first taken tet.
+    pub(super) first_tet: u64,
+    /// The box of its parts' vertices on the body's lattice (from each slab's, kept with
+    /// it, and the caps').
+    pub(super) bounds: Option<SpatialBounds>,
+}
+
+/// Whether two windows' boxes are apart (a gap on some spatial axis) on the pair's
+/// lattice: then no tet of one meets the other body, nor lies inside it.
+pub(super) fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
+    let (Some(x), Some(y)) = (a.spatial_box(), b.spatial_box()) else {
+        return true;
+    };
+    (0..3).any(|k| x.1[k] < y.0[k] || y.1[k] < x.0[k])
+}
+
+/// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
+///
+/// A body's window already prepared (for another pair's period: `ready` gives it, when it
+/// is the same window and holds every tet near the partner's box) is not prepared again;
+/// one prepared here holds only the tets near the partner's box. The two prepared windows
+/// are returned with the result, for the cache.
+pub(super) fn check_specs(
+    (a, wa): (&str, &WindowSpec),
+    (b, wb): (&str, &WindowSpec),
+    ready: impl Fn(&str, &WindowSpec, &SpatialBox) -> Option<Arc<PreparedWindow>> + Sync,
+) -> WindowChecked {
+    let prepared = |id: &str, w: &WindowSpec, partner: Option<SpatialBox>| {
+        let Some(partner) = partner else {
+            return prepare_spec(id, w, None);
+        };
+        match ready(id, w, &partner) {
+            Some(p) => Ok(p),
+            None => prepare_spec(id, w, Some(partner)),
+        }
+    };
+    let (ba, bb) = (wa.spatial_box(), wb.spatial_box());
+    let (ra, rb) = rayon::join(|| prepared(a, wa, bb), || prepared(b, wb, ba));
+    let (pa, pb) = (ra?, rb?);
+    Ok((check_window(&pa, &pb), [pa, pb]))
+}
+
+impl RollingChecker {
+    /// Body `id`'s window `w` as a window prepared before (for an earlier period, kept in
+    /// the cache or for a body at rest) moved, if `w` is that window's moved copy
+    /// ([`WindowSpec::moved_copy_of`]) and, moved, it serves a partner in box `partner`.
+    pub(super) fn moved(
+        &self,
+        id: &str,
+        w: &WindowSpec,
+        partner: &SpatialBox,
+    ) -> Option<Arc<PreparedWindow>> {
+        [self.prepared.get(id), self.rest.get(id)]
+            .into_iter()
+            .flatten()
+            .find_map(|(spec, p, _)| {
+                let d = w.moved_copy_of(spec)?;
+                p.serves_moved(d, partner)
+                    .then(|| p.moved_by(d).map(Arc::new))
+                    .flatten()
+            })
+    }
+}
+
+/// Prepares body `id`'s window, only its tets near `clip` if given.
+pub(super) fn prepare_spec(
+    id: &str,
+    w: &WindowSpec,
+    clip: Option<SpatialBox>,
+) -> Result<Arc<PreparedWindow>, crate::period::WindowError> {
+    prepare_window(&w.body(id, clip)).map(Arc::new)
+}
+
+/// The window prepared for body `id` in `cache`, if it is the same window as `w` and
+/// serves a partner in box `partner`.
+pub(super) fn cached(
+    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
+    id: &str,
+    w: &WindowSpec,
+    partner: &SpatialBox,
+) -> Option<Arc<PreparedWindow>> {
+    cache
+        .get(id)
+        .filter(|c| c.0.same_as(w) && c.1.serves(partner))
+        .map(|c| c.1.clone())
+}
+
+/// A window's result, with the two bodies' prepared windows.
+pub(super) type WindowChecked =
+    Result<(WindowResult, [Arc<PreparedWindow>; 2]), crate::period::WindowError>;
+
+impl WindowSpec {
+    /// The same window: the same pieces (by identity), placement and numbering.
+    pub(super) fn same_as(&self, o: &WindowSpec) -> bool {
+        let same = |x: &Arc<TetMesh>, y: &Arc<TetMesh>| Arc::ptr_eq(x, y);
+        let same_opt = |x: &Option<Arc<TetMesh>>, y: &Option<Arc<TetMesh>>| match (x, y) {
+            (Some(x), Some(y)) => same(x, y),
+            (None, None) => true,
+            _ => false,
+        };
+        self.geometry == o.geometry
+            && self.lo == o.lo
+            && self.slabs.len() == o.slabs.len()
+            && self.slabs.iter().zip(&o.slabs).all(|(x, y)| same(x, y))
+            && self.centre == o.centre
+            && same_opt(&self.low, &o.low)
+            && same_opt(&self.high, &o.high)
+            && self.mul == o.mul
+            && self.add == o.add
+            && self.first_tet == o.first_tet
+    }
+
+    /// If this window is `earlier` one or more frame periods on, moved (the same lattice
+    /// and placement, no cap, each slab an exact copy of `earlier`'s moved by one lattice
+    /// vector: a body at rest, or one that stepped by whole voxels), that move in checker
+    /// coordinates: its prepared window is then `earlier`'s moved by it. Compares the
+    /// slabs exactly ([`TetMesh::is_moved_copy_of`]).
+    pub(super) fn moved_copy_of(&self, earlier: &WindowSpec) -> Option<[i64; 4]> {
+        let plain = |w: &WindowSpec| w.low.is_none() && w.high.is_none();
+        if self.geometry != earlier.geometry
+            || self.mul != earlier.mul
+            || self.add[..3] != earlier.add[..3]
+            || self.centre != earlier.centre
+            || self.slabs.len() != earlier.slabs.len()
+            || self.lo <= earlier.lo
+            || !plain(self)
+            || !plain(earlier)
+        {
+            return None;
+        }
+        let frames = i64::from(self.lo - earlier.lo);
+        let dt = i32::try_from(i64::from(self.geometry.scale) * frames).ok()?;
+        // The move of the first vertex of the first slab with vertices (each slab spans one
+        // period, so its move in time is `dt`); every vertex of every slab must make it.
+        let firsts = self
+            .slabs
+            .iter()
+            .zip(&earlier.slabs)
+            .find_map(|(x, y)| Some((x.vertices.first()?, y.vertices.first()?)));
+        let d = match firsts {
+            Some((p, q)) => {
+                let mut d = [0; 4];
+                for k in 0..4 {
+                    d[k] = p[k].checked_sub(q[k])?;
+                }
+                d
+            }
+            None => [0, 0, 0, dt],
+        };
+        if d[3] != dt
+            || !self
+                .slabs
+                .iter()
+                .zip(&earlier.slabs)
+                .all(|(x, y)| x.is_moved_copy_of(y, d))
+        {
+            return None;
+        }
+        // A lattice vector d moves the window's checker coordinates (c·factor·mul + add,
+        // time counted from the window's first frame) by d·factor·mul in space, and by the
+        // change of `add` in time.
+        let f = i64::from(CHECKER_FACTOR) * self.mul;
+        Some([
+            i64::from(d[0]) * f,
+            i64::from(d[1]) * f,
+            i64::from(d[2]) * f,
+            self.add[3] - earlier.add[3],
+        ])
+    }
+
+    /// The box of every vertex of the window on the pair's lattice, spatial axes only
+    /// (`None` for a window without vertices).
+    pub(super) fn spatial_box(&self) -> Option<SpatialBox> {
+        debug_assert_eq!(
+            self.bounds.map(|b| on_pair_lattice(b, self.mul, &self.add)),
+            self.body("", None).spatial_box()
+        );
+        self.bounds.map(|b| on_pair_lattice(b, self.mul, &self.add))
+    }
+
+    /// Every taken tet OUTSIDE.
+    fn all_outside(&self) -> TakenLabels {
+        let n = self.slabs.len();
+        let pieces = [
+            if self.centre == 0 {
+                self.low.as_ref().map_or(0, |m| m.tets.len())
+            } else {
+                0
+            },
+            self.slabs[self.centre].tets.len(),
+            if self.centre + 1 == n {
+                self.high.as_ref().map_or(0, |m| m.tets.len())
+            } else {
+                0
+            },
+        ];
+        let total: usize = pieces.iter().sum();
+        TakenLabels {
+            labels: vec![Label::Outside as u8; total],
+            counts: LabelCounts {
+                outside: total as u64,
+                ..LabelCounts::default()
+            },
+            pieces,
+        }
+    }
+
+    fn body<'a>(&'a self, id: &'a str, clip: Option<SpatialBox>) -> WindowBody<'a> {
+        WindowBody {
+            id,
+            geometry: self.geometry,
+            lo: self.lo,
+            slabs: self.slabs.iter().map(|m| m.as_ref()).collect(),
+            centre: self.centre,
+            low: self.low.as_deref(),
+            high: self.high.as_deref(),
+            mul: self.mul,
+            add: self.add,
+            clip,
+        }
+    }
+}
+
+/// The map of two bodies onto their pair's lattice.
+pub(super) struct PairLattice {
+    pub(super) scale: i32,
+    pub(super) ratio_a: i64,
+    pub(super) ratio_b: i64,
+    pub(super) shift_a: [i64; 3],
+    pub(super) shift_b: [i64; 3],
+}
+
+pub(super) fn pair_lattice(ga: &GridGeometry, gb: &GridGeometry) -> Result<PairLattice, String> {
+    if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
+        return Err(format!(
+            "voxel edges of {} m and {} m",
+            ga.resolution, gb.resolution
+        ));
+    }
+    let off = origin_offset(&ga.origin, &gb.origin, ga.resolution)?;
+    let scale = ga.scale.max(gb.scale).max(2);
+    Ok(PairLattice {
+        scale,
+        ratio_a: i64::from(scale / ga.scale.max(1)).max(1),
+        ratio_b: i64::from(scale / gb.scale.max(1)).max(1),
+        shift_a: [0; 3],
+        shift_b: off,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{CheckPlan, Piece, PieceKind, RollingConfig};
+    use super::*;
+    use chronotope_kernel::LatticePoint;
+
+    /// A body's slabs, frame by frame: a box and a ball at rest (frames 0-2), stepped one
+    /// voxel along +x (frame 3) and at rest there (3-5), on a 10³ lattice.
+    fn slabs() -> (Vec<Arc<TetMesh>>, GridGeometry) {
+        let (_, slabs) = chronotope_mesh::mesher::test_stream([10; 3], 6, |k, x, y, z| {
+            let x = x - i32::from(k >= 3);
+            let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 5).pow(2) <= 5;
+            ball || ((1..3).contains(&x) && (6..9).contains(&y) && (2..4).contains(&z))
+        });
+        let geometry = slabs[0].geometry;
+        (
+            slabs.into_iter().map(|s| Arc::new(s.mesh)).collect(),
+            geometry,
+        )
+    }
+
+    fn spec(
+        (slabs, geometry): &(Vec<Arc<TetMesh>>, GridGeometry),
+        lo: u32,
+        mul: i64,
+        add: [i64; 4],
+    ) -> WindowSpec {
+        let geometry = *geometry;
+        WindowSpec {
+            geometry,
+            lo,
+            slabs: vec![slabs[lo as usize].clone()],
+            centre: 0,
+            low: None,
+            high: None,
+            mul,
+            add,
+            first_tet: 0,
+            bounds: slabs[lo as usize].spatial_bounds(),
+        }
+    }
+
+    /// A piece whose tet names a vertex past its vertex table is refused by name (the tet
+    /// said), and nothing of it is kept; the same piece with its tets in range is taken.
+    #[test]
+    fn a_piece_naming_a_vertex_past_its_table_is_refused() {
+        let (slabs, geometry) = slabs();
+        let plan = CheckPlan {
+            pairs: Some(vec![("/a".into(), "/b".into())]),
+            movable: Vec::new(),
+            time_scale: None,
+            frame_ids: Default::default(),
+            rotation: Default::default(),
+        };
+        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let piece = |mesh: TetMesh| Piece {
+            body: "/a".into(),
+            kind: PieceKind::CapStart,
+            index: 0,
+            stamps_ns: (0, 0),
+            geometry,
+            occupied: 1,
+            unsure: None,
+            displacement: 0,
+            mesh: Arc::new(mesh),
+            frame_id: String::new(),
+        };
+        let mut bad = (*slabs[0]).clone();
+        let past = bad.vertices.len() as u32;
+        let at = bad.tets.len() / 2;
+        bad.tets[at][2] = past;
+        let mut out = Vec::new();
+        c.on_piece(piece(bad), &mut out);
+        let problems: Vec<String> = out
+            .iter()
+            .filter_map(|o| match o {
+                RollingOutput::Problem(kind, text) => Some(format!("{kind}: {text}")),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            problems,
+            [format!(
+                "bad_piece: /a: tet {at} of a piece names a vertex past its {past}; ignored"
+            )]
+        );
+        assert!(c.bodies["/a"].runs.is_empty());
+        let mut out = Vec::new();
+        c.on_piece(piece((*slabs[0]).clone()), &mut out);
+        assert!(!out.iter().any(|o| matches!(o, RollingOutput::Problem(..))));
+        assert_eq!(c.bodies["/a"].runs.len(), 1);
+    }
+
+    /// Two windows checked with each prepared only near the other (and inclusion tests
+    /// towards far points on the side its clip chose) give every label, count, crossing
+    /// and range the full windows give: a small body moved all around and through a
+    /// bigger one (apart, touching, crossing, nested, and at the bigger one's hollow).
+    #[test]
+    fn windows_prepared_near_their_partner_answer_as_whole_ones() {
+        let big = chronotope_mesh::mesher::test_stream([12; 3], 3, |k, x, y, z| {
+            let x = x - i32::from(k >= 2);
+            let shell = (2..10).contains(&x) && (2..9).contains(&y) && (3..8).contains(&z);
+            let hollow = (4..7).contains(&x) && (4..7).contains(&y) && (5..7).contains(&z);
+            shell && !hollow
+        })
+        .1;
+        let small = chronotope_mesh::mesher::test_stream([12; 3], 3, |k, x, y, z| {
+            (x - 3 - i32::from(k >= 1)).pow(2) + (y - 3).pow(2) + (z - 3).pow(2) <= 2
+        })
+        .1;
+        let geometry = big[0].geometry;
+        let (big, small): (Vec<Arc<TetMesh>>, Vec<Arc<TetMesh>>) = (
+            big.into_iter().map(|s| Arc::new(s.mesh)).collect(),
+            small.into_iter().map(|s| Arc::new(s.mesh)).collect(),
+        );
+        let f = i64::from(CHECKER_FACTOR) * i64::from(geometry.scale);
+        let (mut clipped, mut inside, mut crossing) = (0, 0, 0);
+        for lo in 0..2u32 {
+            let t = i64::from(lo) * f;
+            let wa = spec(&(big.clone(), geometry), lo, 1, [0, 0, 0, t]);
+            for d in 0..5i64.pow(3) {
+                let d = [d % 5, d / 5 % 5, d / 25].map(|v| (2 * v - 2) * f);
+                let wb = spec(&(small.clone(), geometry), lo, 1, [d[0], d[1], d[2], t]);
+                if apart(&wa, &wb) {
+                    continue;
+                }
+                let whole = |id: &str, w: &WindowSpec| prepare_spec(id, w, None).unwrap();
+                let near = |id: &str, w: &WindowSpec, o: &WindowSpec| {
+                    prepare_spec(id, w, o.spatial_box()).unwrap()
+                };
+                let full = check_window(&whole("/a", &wa), &whole("/b", &wb));
+                let (pa, pb) = (near("/a", &wa, &wb), near("/b", &wb, &wa));
+                clipped +=
+                    usize::from(pa.body.mesh.tets.len() < whole("/a", &wa).body.mesh.tets.len());
+                let part = check_window(&pa, &pb);
+                for k in 0..2 {
+                    assert_eq!(
+                        part.labels[k].labels, full.labels[k].labels,
+                        "{lo} {d:?} body {k}"
+                    );
+                    assert_eq!(part.labels[k].counts, full.labels[k].counts);
+                    inside += full.labels[k].counts.inside as usize;
+                }
+                assert_eq!(part.crossings, full.crossings, "{lo} {d:?}");
+                crossing += usize::from(!full.crossings.is_empty());
+                let sorted = |mut r: Vec<(f64, f64)>| {
+                    r.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
+                    r
+                };
+                assert_eq!(sorted(part.ranges), sorted(full.ranges), "{lo} {d:?}");
+                assert_eq!(part.undecided, full.undecided, "{lo} {d:?}");
+            }
+        }
+        assert!(
+            clipped > 20 && inside > 0 && crossing > 20,
+            "{clipped} {inside} {crossing}"
+        );
+    }
+
+    /// Each tet of a prepared window by its four corners (sorted): the window as a set,
+    /// whatever its leaf order.
+    fn corners(p: &PreparedWindow) -> Vec<[LatticePoint; 4]> {
+        let m = &p.body.mesh;
+        let mut all: Vec<[LatticePoint; 4]> = m
+            .tets
+            .iter()
+            .map(|t| {
+                let mut c = t.map(|v| m.vertices[v as usize]);
+                c.sort_unstable();
+                c
+            })
+            .collect();
+        all.sort_unstable();
+        all
+    }
+
+    /// A window whose slab is an earlier one moved (in time only, or one voxel in space
+    /// too) is found to be that window moved, and the moved prepared window has exactly the
+    /// tets, normals' hyperplanes and band a fresh preparation gives; any other is not.
+    #[test]
+    fn a_window_of_a_moved_copy_is_the_earlier_one_moved() {
+        let slabs = slabs();
+        assert_eq!(slabs.0.len(), 5);
+        let scale = i64::from(slabs.1.scale);
+        let f = i64::from(CHECKER_FACTOR);
+        for mul in [1i64, 2] {
+            let per = scale * f * mul;
+            let at = |lo: u32| spec(&slabs, lo, mul, [3 * f, 0, 0, i64::from(lo) * per + 5]);
+            // Rest (0 -> 1), a step (2 is the moving slab; 3 is 1 moved one voxel), rest
+            // again (3 -> 4), and two windows apart (0 -> 4).
+            let cases = [
+                (0, 1, Some([0, 0, 0, per])),
+                (1, 2, None),
+                (2, 3, None),
+                (1, 3, Some([scale * f * mul, 0, 0, 2 * per])),
+                (3, 4, Some([0, 0, 0, per])),
+                (0, 4, Some([scale * f * mul, 0, 0, 4 * per])),
+                (1, 0, None),
+            ];
+            for (a, b, want) in cases {
+                let (wa, wb) = (at(a), at(b));
+                assert_eq!(wb.moved_copy_of(&wa), want, "mul {mul}: {a} -> {b}");
+                let Some(d) = want else { continue };
+                let moved = prepare_spec("/x", &wa, None).unwrap().moved_by(d).unwrap();
+                let fresh = prepare_spec("/x", &wb, None).unwrap();
+                assert_eq!(corners(&moved), corners(&fresh), "mul {mul}: {a} -> {b}");
+                assert_eq!(moved.band, fresh.band);
+                assert_eq!(moved.taken, fresh.taken);
+                // The normals are those of the same hyperplanes, tet by tet.
+                let normal_of = |p: &PreparedWindow| {
+                    let mut n: Vec<([LatticePoint; 4], [i32; 4])> = p
+                        .body
+                        .mesh
+                        .tets
+                        .iter()
+                        .zip(&p.body.normals)
+                        .map(|(t, n)| {
+                            let mut c = t.map(|v| p.body.mesh.vertices[v as usize]);
+                            c.sort_unstable();
+                            (c, *n)
+                        })
+                        .collect();
+                    n.sort_unstable();
+                    n.into_iter().map(|x| x.1).collect::<Vec<_>>()
+                };
+                assert_eq!(normal_of(&moved), normal_of(&fresh));
+            }
+            // A placement that differs in space is no copy.
+            let mut other = at(1);
+            other.add[1] += 1;
+            assert_eq!(other.moved_copy_of(&at(0)), None);
+        }
+    }
+}

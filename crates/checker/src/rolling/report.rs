@@ -1,0 +1,228 @@
+//! The cumulative report of the rolling checker, from its bodies' and pairs' running answers.
+
+use super::{
+    add_run, bounds, closing_sums, BodyReport, BodyStream, Interval, LabelCounts, Overlap,
+    PairLabels, PairReport, PairRoll, Report, RollingChecker, Run, Timings, Totals,
+    UnsureSpanReport, Verdict,
+};
+
+impl RollingChecker {
+    /// The answer so far (the report of docs/formats.md#report): bodies, pairs, intervals,
+    /// overlaps. The statistics of pieces still being added are waited for.
+    pub fn report(&mut self) -> Report {
+        self.settle_all_stats();
+        let origin = self.origin_ns.unwrap_or(0);
+        let mut problems = self.problems.clone();
+        for p in &self.pairs {
+            if p.undecided > 0 {
+                problems.push(format!(
+                    "pair {} x {}: {} region(s) or contact tet(s) stayed undecided (labelled OUTSIDE)",
+                    p.a, p.b, p.undecided
+                ));
+            }
+        }
+        let bodies: Vec<BodyReport> = self
+            .bodies
+            .iter()
+            .map(|(id, b)| body_report(id, b))
+            .collect();
+        let tets = |id: &str| bodies.iter().find(|b| b.id == id).map_or(0, |b| b.tets);
+        // The first body's voxel edge, as the full check's common lattice takes it.
+        let resolution = self
+            .bodies
+            .values()
+            .find_map(|b| b.geometry.map(|g| g.resolution))
+            .unwrap_or(0.0);
+        let period = self.union.period_s();
+        let c = self
+            .plan
+            .time_scale
+            .or_else(|| period.map(|p| resolution / p))
+            .unwrap_or(0.0);
+        let pairs = self
+            .pairs
+            .iter()
+            .filter(|p| p.checked)
+            .map(|p| pair_report(p, tets(&p.a), tets(&p.b), resolution, origin))
+            .collect();
+        let unchecked_pairs = self
+            .pairs
+            .iter()
+            .filter(|p| !p.checked)
+            .filter_map(|p| {
+                let why = p.stopped.as_ref()?;
+                Some(crate::report::UncheckedPair {
+                    a: p.a.clone(),
+                    b: p.b.clone(),
+                    reason: why.clone(),
+                })
+            })
+            .collect();
+        let mut report = Report {
+            schema: "chronotope.report/1",
+            time_origin_ns: origin,
+            time_scale_m_per_s: c,
+            bodies,
+            pairs,
+            resolutions: self.resolutions.iter().cloned().collect(),
+            timings_ms: Timings::default(),
+            problems,
+            unchecked_pairs,
+        };
+        report.note_unsure_resolutions();
+        report
+    }
+}
+
+pub(super) fn body_report(id: &str, b: &BodyStream) -> BodyReport {
+    let mut t = b.totals.clone();
+    let mut tets = t.tets;
+    for r in &b.runs {
+        match &r.stats {
+            Some(_) => {
+                let mut one = Totals::default();
+                add_run(
+                    &mut one,
+                    Run {
+                        ..r.clone_summary()
+                    },
+                );
+                t.closed = if t.runs == 0 {
+                    one.closed
+                } else {
+                    t.closed && one.closed
+                };
+                t.runs += 1;
+                t.frames += one.frames;
+                tets += one.tets;
+                t.vertices += one.vertices;
+                t.hypervolume_m3s += one.hypervolume_m3s;
+                t.vanishing += one.vanishing;
+            }
+            None => {
+                let so_far = r.acc.so_far();
+                tets += r.tets;
+                t.frames += r.frames();
+                t.hypervolume_m3s += so_far.hypervolume_m3s;
+                t.vanishing += so_far.vanishing_slabs;
+                t.closed = false;
+                t.runs += 1;
+            }
+        }
+    }
+    BodyReport {
+        id: id.to_string(),
+        frames: t.frames,
+        tets,
+        vertices: t.vertices,
+        closed: t.closed && t.runs > 0,
+        hypervolume_m3s: t.hypervolume_m3s,
+        skipped_frames: 0,
+        vanishing_slabs: t.vanishing,
+        filled_frames: 0,
+        lost_spans: Vec::new(),
+    }
+}
+
+pub(super) fn pair_report(
+    p: &PairRoll,
+    tets_a: u64,
+    tets_b: u64,
+    resolution: f64,
+    origin: i64,
+) -> PairReport {
+    let all: Vec<&Interval> = p.intervals.iter().chain(p.open.iter()).collect();
+    let bound = |speed: Option<Option<f64>>, period: f64| {
+        bounds::contact_time_bound(period, speed.flatten())
+    };
+    let first = all.first();
+    let counts = |c: &LabelCounts, n: u64| LabelCounts {
+        interference: c.interference,
+        inside: c.inside,
+        outside: n.saturating_sub(c.interference + c.inside),
+    };
+    let interfering = p.interfering();
+    let overlap = if !interfering {
+        Some((0.0, 0.0))
+    } else {
+        overlap_so_far(&p.overlap)
+    };
+    let (unsure_spans_s, unsure_spans_not_listed) = UnsureSpanReport::of_pair(
+        &[(&p.a, &p.unsure.0), (&p.b, &p.unsure.1)],
+        i64::MIN,
+        i64::MAX,
+        origin,
+    );
+    PairReport {
+        a: p.a.clone(),
+        b: p.b.clone(),
+        verdict: Verdict::of(
+            interfering,
+            !unsure_spans_s.is_empty() || unsure_spans_not_listed > 0,
+        ),
+        unsure_spans_s,
+        unsure_spans_not_listed,
+        interfering,
+        intervals_s: all.iter().map(|o| [o.s.0, o.s.1]).collect(),
+        first_contact_s: first.map(|o| o.s.0),
+        overlap_hypervolume_m3s: overlap.map(|o| o.0),
+        labels: PairLabels {
+            a: counts(&p.counts.0, tets_a),
+            b: counts(&p.counts.1, tets_b),
+        },
+        frame_period_s: first.map(|o| o.periods.0),
+        voxel_size_m: resolution,
+        first_contact_error_bound_s: first.and_then(|o| bound(o.speeds.0, o.periods.0)),
+        closing_speed_mps: first
+            .and_then(|o| o.speeds.0.flatten().map(|v| v * resolution / o.periods.0)),
+        interval_error_bounds_s: all
+            .iter()
+            .map(|o| {
+                [
+                    bound(o.speeds.0, o.periods.0),
+                    bound(o.speeds.1, o.periods.1),
+                ]
+            })
+            .collect(),
+        overlap_hypervolume_error_bound_m3s: overlap.map(|o| o.1),
+        candidate_pairs: p.candidates,
+        crossing_pairs: p.crossings,
+    }
+}
+
+/// The overlap hypervolume so far and its error bound (`None`: not measurable).
+pub(super) fn overlap_so_far(o: &Overlap) -> Option<(f64, f64)> {
+    run_overlap(o).map(|(hv, b)| (hv + o.closed.0, b + o.closed.1))
+}
+
+/// The overlap of the current run of consecutive periods, and its bound.
+pub(super) fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
+    if o.unknown {
+        return None;
+    }
+    let Some(g) = o.geometry else {
+        return Some((0.0, 0.0));
+    };
+    let (first, last, n) = o.stamps;
+    let period = if n >= 2 {
+        (last - first) as f64 * 1e-9 / (n - 1) as f64
+    } else {
+        0.0
+    };
+    // Worked out as the last frame was fed for a pair interfering by then, else here.
+    let sums = if n >= 2 {
+        o.closed_sums.or_else(|| closing_sums(o)).unwrap_or(o.sums)
+    } else {
+        o.sums
+    };
+    let hv = if n >= 2 {
+        o.acc.so_far().hypervolume_m3s
+    } else {
+        0.0
+    };
+    let s = f64::from(g.scale);
+    let (hx, ht) = (g.resolution / s, period / s);
+    let (ns_phys, nt_phys) = (sums.0 * hx * hx * ht, sums.1 * hx * hx * hx);
+    let b = (0.5 * g.resolution * ns_phys + 0.5 * period * nt_phys) / 6.0;
+    Some((hv, b))
+}

@@ -1,0 +1,798 @@
+//! The check of one pair ([`check_pair`]): the tree-against-tree walk on all cores with the
+//! exact predicate, then both bodies' labels, intervals and contact speeds; and the same walk
+//! done piece by piece as the streams arrive ([`StreamWalk`]).
+
+use super::normals::*;
+use super::*;
+
+/// The result of checking one pair.
+#[derive(Debug, Clone, Default)]
+pub struct PairResult {
+    /// Labels of the first body's tets.
+    pub labels_a: Labeling,
+    /// Labels of the second body's tets.
+    pub labels_b: Labeling,
+    /// Candidate tet pairs whose boxes overlap.
+    pub candidate_pairs: u64,
+    /// Pairs whose boundaries cross (or overlap coplanar with the same orientation).
+    pub interfering_pairs: u64,
+    /// Checker-time ranges where the bodies overlap, merged and sorted.
+    pub intervals: Vec<(f64, f64)>,
+    /// For each interval, how fast the boundaries approach at its start and recede at its
+    /// end (voxels per frame period; see [`contact_speeds`]).
+    pub interval_speeds: Vec<(Option<f64>, Option<f64>)>,
+    /// Where the time went.
+    pub timing: PairTiming,
+}
+
+/// Wall-clock seconds of the phases of [`check_pair`].
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PairTiming {
+    /// Tree traversal and exact tet-pair classification.
+    pub detect_s: f64,
+    /// Labels of both bodies (inclusion tests and propagation) and the intervals.
+    pub label_s: f64,
+}
+
+impl PairResult {
+    /// True if the bodies' interiors overlap somewhere in space-time.
+    pub fn interfering(&self) -> bool {
+        let (a, b) = (self.labels_a.counts(), self.labels_b.counts());
+        a.interference + a.inside + b.interference + b.inside > 0
+    }
+    /// The same result with the two bodies' roles exchanged.
+    pub fn swapped(mut self) -> Self {
+        std::mem::swap(&mut self.labels_a, &mut self.labels_b);
+        self
+    }
+    /// Label counts of both bodies.
+    pub fn counts(&self) -> (LabelCounts, LabelCounts) {
+        (self.labels_a.counts(), self.labels_b.counts())
+    }
+    /// The earliest checker time of overlap.
+    pub fn first_contact(&self) -> Option<f64> {
+        self.intervals.first().map(|r| r.0)
+    }
+}
+
+/// One worker's share of a pair check.
+#[derive(Debug, Default)]
+pub(super) struct Part {
+    pub(super) hit_a: Vec<Touch>,
+    pub(super) hit_b: Vec<Touch>,
+    /// Time ranges of the interfering pairs, with the pair.
+    pub(super) ranges: Vec<(f64, f64, u32, u32)>,
+    pub(super) candidate_pairs: u64,
+    pub(super) interfering_pairs: u64,
+    /// Coplanar pairs facing each other, held back (see [`visit`]).
+    pub(super) facing: Vec<(u32, u32)>,
+}
+
+/// How many node-pair levels the tree-against-tree walk is split at for the workers
+/// (at most 4^6 independent sub-walks).
+pub(super) const SPLIT_DEPTH: u32 = 6;
+
+/// Checks two prepared bodies: the tree walk and exact predicate on all cores, then the
+/// two bodies' labels side by side. The result does not depend on the number of threads.
+pub fn check_pair(a: &Prepared, b: &Prepared) -> PairResult {
+    let start = std::time::Instant::now();
+    let all = walk(a, b, false);
+    finish_pair(a, b, all, start)
+}
+
+/// One tet pair whose boundaries cross: the checker-time range of their section, and the
+/// two tets (indices in the leaf order of the bodies' meshes).
+pub type CrossingPair = (f64, f64, u32, u32);
+
+/// [`check_pair`], with every crossing tet pair it found (in no particular order).
+pub fn check_pair_detailed(a: &Prepared, b: &Prepared) -> (PairResult, Vec<CrossingPair>) {
+    let start = std::time::Instant::now();
+    let all = walk(a, b, false);
+    let crossings = all.ranges.clone();
+    (finish_pair(a, b, all, start), crossings)
+}
+
+/// [`check_pair`] with the walk done as the bodies' pieces arrived (`walked`, over `a`
+/// and `b` prepared from those same pieces and placed as they are): only the labels are
+/// left. If `walked` did not see every tet of both bodies, the walk is done here.
+pub fn check_pair_walked(a: &Prepared, b: &Prepared, walked: StreamWalk) -> PairResult {
+    if walked.tets() != (a.mesh.tets.len(), b.mesh.tets.len()) {
+        return check_pair(a, b);
+    }
+    finish_pair(a, b, walked.part, std::time::Instant::now())
+}
+
+/// The labels and the rest of a [`PairResult`] after the walk (`all`, started at `start`).
+pub(super) fn finish_pair(
+    a: &Prepared,
+    b: &Prepared,
+    all: Part,
+    start: std::time::Instant,
+) -> PairResult {
+    let mut r = PairResult {
+        candidate_pairs: all.candidate_pairs,
+        interfering_pairs: all.interfering_pairs,
+        ..PairResult::default()
+    };
+    let mut ranges: Vec<(f64, f64)> = all.ranges.iter().map(|r| (r.0, r.1)).collect();
+    r.timing.detect_s = start.elapsed().as_secs_f64();
+    let start = std::time::Instant::now();
+    let (la, lb) = rayon::join(
+        || label_against(a, b, &all.hit_a),
+        || label_against(b, a, &all.hit_b),
+    );
+    r.labels_a = la;
+    r.labels_b = lb;
+    for (p, labels) in [(a, &r.labels_a), (b, &r.labels_b)] {
+        for (i, l) in labels.labels.iter().enumerate() {
+            if *l == labels::Label::Inside {
+                ranges.push(t_range(&tet_of(&p.mesh, i as u32)));
+            }
+        }
+    }
+    r.intervals = merge_ranges(ranges);
+    r.interval_speeds = r
+        .intervals
+        .iter()
+        .map(|&(s, e)| contact_speeds(a, b, &all.ranges, s, e))
+        .collect();
+    r.timing.label_s = start.elapsed().as_secs_f64();
+    r
+}
+
+/// How fast the two boundaries approach at `start` and recede at `end` (voxels per frame
+/// period), from the interfering pairs within one frame period of each end: each body's
+/// boundary patch there moves along its spatial normal at −N_t/|N_s| (outward normals N
+/// summed over the patch's tets, which smooths voxel staircases); the closing speed is
+/// the sum for the two bodies, positive while they approach. `None` where no pair lies
+/// near that end (an end made by a body starting or ending inside the other).
+pub(super) fn contact_speeds(
+    a: &Prepared,
+    b: &Prepared,
+    pairs: &[(f64, f64, u32, u32)],
+    start: f64,
+    end: f64,
+) -> (Option<f64>, Option<f64>) {
+    let frame = (a.factor as f64) * f64::from(a.geometry.scale);
+    let speed = |near: &dyn Fn(&(f64, f64, u32, u32)) -> bool| -> Option<f64> {
+        let (mut ta, mut tb): (Vec<u32>, Vec<u32>) =
+            pairs.iter().filter(|p| near(p)).map(|p| (p.2, p.3)).unzip();
+        if ta.is_empty() {
+            return None;
+        }
+        let surface = |tets: &mut Vec<u32>, m: &TetMesh| {
+            tets.sort_unstable();
+            tets.dedup();
+            let mut n = [0.0f64; 4];
+            for &t in tets.iter() {
+                let v = chronotope_kernel::float::tet_normal(&tet_of(m, t));
+                (0..4).for_each(|k| n[k] += v[k]);
+            }
+            let ns = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+            (ns > 0.0).then(|| -n[3] / ns)
+        };
+        Some(surface(&mut ta, &a.mesh)? + surface(&mut tb, &b.mesh)?)
+    };
+    (
+        speed(&|p| p.0 >= start && p.0 <= start + frame),
+        speed(&|p| p.1 <= end && p.1 >= end - frame).map(|v| -v),
+    )
+}
+
+/// Whether two bodies interfere, exactly as [`check_pair`] decides it, but stopping at
+/// the first interfering tet pair; the labels are computed only when no pair crosses
+/// (then only containment can make them interfere).
+pub fn interferes(a: &Prepared, b: &Prepared) -> bool {
+    let all = walk(a, b, true);
+    if all.interfering_pairs > 0 {
+        return true;
+    }
+    let inside = |p: &Prepared, other: &Prepared, hit: &[Touch]| {
+        labels::any_inside(
+            &p.adjacency,
+            hit,
+            p.components(),
+            &mut TetInside::of(p, other),
+        )
+    };
+    let (a_inside, b_inside) =
+        rayon::join(|| inside(a, b, &all.hit_a), || inside(b, a, &all.hit_b));
+    a_inside || b_inside
+}
+
+/// The tree-against-tree walk with the exact predicate, split over all cores; with
+/// `stop_at_interference` every worker stops once any finds an interfering pair.
+pub(super) fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Part {
+    let mut tops = Vec::new();
+    top_pairs(&a.bvh, &b.bvh, SPLIT_DEPTH, &mut tops);
+    let threads = rayon::current_num_threads()
+        .clamp(1, 8)
+        .min(tops.len().max(1));
+    let next = AtomicUsize::new(0);
+    let stop = AtomicBool::new(false);
+    let work = || {
+        let mut part = Part {
+            hit_a: vec![Touch::Clear; a.mesh.tets.len()],
+            hit_b: vec![Touch::Clear; b.mesh.tets.len()],
+            ranges: Vec::new(),
+            candidate_pairs: 0,
+            interfering_pairs: 0,
+            facing: Vec::new(),
+        };
+        let mut ws = TraverseWorkspace::new();
+        while !stop.load(Ordering::Relaxed) {
+            let k = next.fetch_add(1, Ordering::Relaxed);
+            let Some(&top) = tops.get(k) else { break };
+            let _ = overlapping_pairs_under(&a.bvh, &b.bvh, top, &mut ws, |i, j| {
+                visit(Side::of(a), Side::of(b), i, j, &mut part);
+                if stop_at_interference && part.interfering_pairs > 0 {
+                    stop.store(true, Ordering::Relaxed);
+                    return ControlFlow::Break(());
+                }
+                ControlFlow::Continue(())
+            });
+        }
+        part
+    };
+    let parts: Vec<Part> = if threads == 1 {
+        vec![work()]
+    } else {
+        // One part per worker (each holds a flag per tet of both bodies), the top pairs
+        // taken in turn; the parts are merged with commutative operations.
+        let done = std::sync::Mutex::new(Vec::with_capacity(threads));
+        rayon::scope(|s| {
+            for _ in 0..threads {
+                s.spawn(|_| {
+                    let part = work();
+                    done.lock().unwrap_or_else(|e| e.into_inner()).push(part);
+                });
+            }
+        });
+        done.into_inner().unwrap_or_else(|e| e.into_inner())
+    };
+    let mut parts = parts.into_iter();
+    let mut all = parts.next().expect("at least one worker");
+    for p in parts {
+        for (x, y) in all.hit_a.iter_mut().zip(&p.hit_a) {
+            *x = (*x).max(*y);
+        }
+        for (x, y) in all.hit_b.iter_mut().zip(&p.hit_b) {
+            *x = (*x).max(*y);
+        }
+        all.ranges.extend(p.ranges);
+        all.candidate_pairs += p.candidate_pairs;
+        all.interfering_pairs += p.interfering_pairs;
+        all.facing.extend(p.facing);
+    }
+    settle_facing(Side::of(a), Side::of(b), &mut all);
+    all
+}
+
+/// The instant k if the tets' time ranges meet only there, with at most one of the tets
+/// lying in the time plane t = k (a cap tet). Then the pair can neither cross nor overlap
+/// in a hyperplane, only touch, and A ∩ B = F_A ∩ F_B for the faces F of A and B spanned
+/// by their vertices at t = k: A ∩ B lies in t = k, where each tet is that face (a linear
+/// function is extreme on a convex set only on a face); the relative interior of a tet
+/// that is not flat in time misses t = k, and a tet in t = k shares no hyperplane with one
+/// that is not.
+#[inline]
+pub(super) fn one_instant(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4]) -> Option<i32> {
+    let range = |t: &[LatticePoint; 4]| {
+        let lo = t[0][3].min(t[1][3]).min(t[2][3].min(t[3][3]));
+        let hi = t[0][3].max(t[1][3]).max(t[2][3].max(t[3][3]));
+        (lo, hi)
+    };
+    let ((alo, ahi), (blo, bhi)) = (range(ta), range(tb));
+    if alo == ahi && blo == bhi {
+        None
+    } else if ahi == blo {
+        Some(ahi)
+    } else if bhi == alo {
+        Some(alo)
+    } else {
+        None
+    }
+}
+
+/// Whether the faces at t = `instant` of two tets (see [`one_instant`]) have disjoint
+/// spatial boxes, so that the tets do not meet (exact).
+#[inline]
+pub(super) fn faces_apart(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4], instant: i32) -> bool {
+    let face_box = |t: &[LatticePoint; 4]| {
+        let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
+        for v in t.iter().filter(|v| v[3] == instant) {
+            for k in 0..3 {
+                lo[k] = lo[k].min(v[k]);
+                hi[k] = hi[k].max(v[k]);
+            }
+        }
+        (lo, hi)
+    };
+    let ((alo, ahi), (blo, bhi)) = (face_box(ta), face_box(tb));
+    (0..3).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k])
+}
+
+/// What the walk reads of a body: its tets and their normals.
+#[derive(Clone, Copy)]
+pub(super) struct Side<'a> {
+    mesh: &'a TetMesh,
+    normals: &'a [[i32; 4]],
+}
+
+impl<'a> Side<'a> {
+    fn of(p: &'a Prepared) -> Self {
+        Self {
+            mesh: &p.mesh,
+            normals: &p.normals,
+        }
+    }
+}
+
+/// The tree walk of one pair of bodies done as their pieces arrive (see [`prep`]): each
+/// new piece of either body is walked against the pieces of the other that came before
+/// it, so that every pair of pieces is walked once and, at the end of the stream, only
+/// the labels are left ([`check_pair_walked`]).
+///
+/// Valid only if both bodies are already on the common lattice as prepared (same
+/// lattice, same first frame: [`CommonLattice::places_as_is`]); otherwise the walk is
+/// done again at the end.
+#[derive(Debug, Default)]
+pub struct StreamWalk {
+    part: Part,
+    /// Pieces of each body walked so far.
+    seen: (usize, usize),
+}
+
+impl StreamWalk {
+    /// Nothing walked yet.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Walks the pieces of `a` and `b` that came since the last call.
+    pub fn advance(&mut self, a: &BodyPrep, b: &BodyPrep) {
+        let (fa, fb) = (a.forest(), b.forest());
+        let (na, nb) = (fa.pieces(), fb.pieces());
+        let (sa, sb) = self.seen;
+        if (na, nb) == (sa, sb) {
+            return;
+        }
+        let part = &mut self.part;
+        part.hit_a.resize(a.len(), Touch::Clear);
+        part.hit_b.resize(b.len(), Touch::Clear);
+        let (side_a, side_b) = (
+            Side {
+                mesh: a.mesh(),
+                normals: a.normals(),
+            },
+            Side {
+                mesh: b.mesh(),
+                normals: b.normals(),
+            },
+        );
+        let (ta, tb) = (fa.tree_so_far(), fb.tree_so_far());
+        let mut ws = TraverseWorkspace::new();
+        // New pieces of `a` against every piece of `b`, then old pieces of `a` against
+        // the new ones of `b`.
+        let pairs = (sa..na)
+            .flat_map(|i| (0..nb).map(move |j| (i, j)))
+            .chain((0..sa).flat_map(|i| (sb..nb).map(move |j| (i, j))));
+        for (i, j) in pairs {
+            let (Some((ra, ba)), Some((rb, bb))) = (fa.piece_root(i), fb.piece_root(j)) else {
+                continue;
+            };
+            if !ba.overlaps(&bb) {
+                continue;
+            }
+            let _ = overlapping_pairs_under(ta, tb, NodePair::new(ra, rb), &mut ws, |i, j| {
+                visit(side_a, side_b, i, j, part);
+                ControlFlow::<()>::Continue(())
+            });
+        }
+        settle_facing(side_a, side_b, part);
+        self.seen = (na, nb);
+    }
+
+    /// Tets of each body walked so far.
+    pub fn tets(&self) -> (usize, usize) {
+        (self.part.hit_a.len(), self.part.hit_b.len())
+    }
+}
+
+/// One candidate pair: the exact relation, recorded in the worker's share.
+#[inline]
+pub(super) fn visit(a: Side<'_>, b: Side<'_>, i: u32, j: u32, part: &mut Part) {
+    part.candidate_pairs += 1;
+    let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
+    let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
+    // Whether the pair merely touches matters only to a tet not yet known to touch.
+    let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
+    // Most candidates (about 60 % at the seed's scale) are tets of consecutive slabs whose
+    // boxes meet only at the frame time between them: such a pair can only touch, and
+    // only where their faces at that time meet (most of those are apart in space).
+    if let Some(instant) = one_instant(&ta, &tb) {
+        if !touching_matters || faces_apart(&ta, &tb, instant) {
+            return;
+        }
+    }
+    // Most other candidates lie strictly on one side of the other's hyperplane.
+    let sides_of_b = sides(&a.normals[i as usize], &ta, &tb);
+    if sides_of_b.is_some_and(|s| strictly_one_side(&s)) {
+        return;
+    }
+    // Face to face (two bodies resting on each other, meshed on one lattice), most
+    // candidates are coplanar pairs of tets facing each other. Such a pair never
+    // interferes: it can only make its tets touch, or face each other. A tet's twin (the
+    // same four points) settles that at once; any other facing pair waits for the end of
+    // the walk, when most are moot (both tets face to face by then).
+    if sides_of_b == Some([0; 4]) && facing(&a.normals[i as usize], &b.normals[j as usize]) {
+        if same_points(&ta, &tb) {
+            part.hit_a[i as usize] = ha.max(Touch::Twin);
+            part.hit_b[j as usize] = hb.max(Touch::Twin);
+        } else if ha < Touch::FaceToFace || hb < Touch::FaceToFace {
+            part.facing.push((i, j));
+            if part.facing.len() >= FACING_HELD {
+                settle_facing(a, b, part);
+            }
+        }
+        return;
+    }
+    let sides_of_a = sides(&b.normals[j as usize], &tb, &ta);
+    if sides_of_a.is_some_and(|s| strictly_one_side(&s)) {
+        return;
+    }
+    // Unless both straddle the other's hyperplane (they may cross) or B lies in A's
+    // hyperplane (coplanar, or A flat), the pair can at most touch: what classify_if
+    // would call Disjoint when touching does not matter.
+    if let (false, Some(sb), Some(sa)) = (touching_matters, sides_of_b, sides_of_a) {
+        if sb != [0; 4] && !(straddles(&sb) && straddles(&sa)) {
+            return;
+        }
+    }
+    relate(&ta, &tb, i, j, touching_matters, part);
+}
+
+/// Facing pairs a worker holds before it settles them.
+const FACING_HELD: usize = 1 << 16;
+
+/// Settles the facing pairs `part` holds back (see [`visit`]): each one whose tets are not
+/// both face to face already, as [`visit`] would have. The touches only grow, so the
+/// order does not change what they end as.
+pub(super) fn settle_facing(a: Side<'_>, b: Side<'_>, part: &mut Part) {
+    let facing = std::mem::take(&mut part.facing);
+    for &(i, j) in &facing {
+        let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
+        if ha >= Touch::FaceToFace && hb >= Touch::FaceToFace {
+            continue;
+        }
+        let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
+        relate(
+            &tet_of(a.mesh, i),
+            &tet_of(b.mesh, j),
+            i,
+            j,
+            touching_matters,
+            part,
+        );
+    }
+    part.facing = facing;
+    part.facing.clear();
+}
+
+/// The same four points (in any order).
+#[inline]
+fn same_points(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4]) -> bool {
+    ta.iter().all(|p| tb.contains(p))
+}
+
+/// The exact relation of tets `i` of A and `j` of B, recorded in `part`.
+fn relate(
+    ta: &[LatticePoint; 4],
+    tb: &[LatticePoint; 4],
+    i: u32,
+    j: u32,
+    touching_matters: bool,
+    part: &mut Part,
+) {
+    let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
+    // Where the two tets meet in time: their section polygon for a crossing; for a
+    // coplanar overlap, within both time ranges.
+    let (range, touch) = match classify_if(ta, tb, touching_matters) {
+        TetPairRelation::Crossing => (
+            Some(contact::crossing_t_range(ta, tb).unwrap_or_else(|| overlap_t(ta, tb))),
+            Touch::Interference,
+        ),
+        TetPairRelation::Coplanar {
+            overlap_volume_positive: true,
+            same_orientation: true,
+        } => (Some(overlap_t(ta, tb)), Touch::Interference),
+        TetPairRelation::Coplanar {
+            overlap_volume_positive: true,
+            same_orientation: false,
+        } => (None, Touch::FaceToFace),
+        TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => (None, Touch::Contact),
+        TetPairRelation::Disjoint => return,
+    };
+    if let Some(range) = range {
+        part.interfering_pairs += 1;
+        part.ranges.push((range.0, range.1, i, j));
+    }
+    part.hit_a[i as usize] = ha.max(touch);
+    part.hit_b[j as usize] = hb.max(touch);
+}
+
+/// The common time range of two tets.
+pub(super) fn overlap_t(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4]) -> (f64, f64) {
+    let (ra, rb) = (t_range(ta), t_range(tb));
+    (ra.0.max(rb.0), ra.1.min(rb.1))
+}
+
+pub(super) fn label_against(p: &Prepared, other: &Prepared, hit: &[Touch]) -> Labeling {
+    label_regions(&p.adjacency, hit, &mut TetInside::of(p, other))
+}
+
+/// Interior point (w·tet)/8 of a tet for weights `w` of [`INTERIOR_WEIGHTS`]: checker
+/// coordinates are ×8 (and stay so under positive axis maps), so it is a lattice point.
+pub(super) fn interior_point(tet: &[LatticePoint; 4], w: &[i64; 4]) -> LatticePoint {
+    [0, 1, 2, 3].map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32)
+}
+
+/// Inclusion tests of one body's tets against the other body.
+pub(super) struct TetInside<'a> {
+    pub(super) mesh: &'a TetMesh,
+    pub(super) inc: Inclusion<'a>,
+}
+
+impl<'a> TetInside<'a> {
+    /// Tests of `p`'s tets against the whole of `other`.
+    fn of(p: &'a Prepared, other: &'a Prepared) -> Self {
+        Self {
+            mesh: &p.mesh,
+            inc: Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals),
+        }
+    }
+
+    fn interior(&self, t: u32, w: &[i64; 4]) -> LatticePoint {
+        interior_point(&tet_of(self.mesh, t), w)
+    }
+}
+
+impl labels::InsideTest for TetInside<'_> {
+    fn far(&mut self, t: u32, tries: usize) -> Option<(bool, LatticePoint)> {
+        // A tet lying in one tet of the other boundary has every point on it: each try
+        // would be undecided.
+        let tet = tet_of(self.mesh, t);
+        if tries > 1
+            && self
+                .inc
+                .lies_in_boundary(&interior_point(&tet, &INTERIOR_WEIGHTS[0]), &tet)
+        {
+            return None;
+        }
+        INTERIOR_WEIGHTS.iter().take(tries).find_map(|w| {
+            let c = interior_point(&tet, w);
+            self.inc.contains(&c).map(|inside| (inside, c))
+        })
+    }
+    fn from_known(
+        &mut self,
+        t: u32,
+        q: &LatticePoint,
+        q_inside: bool,
+    ) -> Option<(bool, LatticePoint)> {
+        let c = self.interior(t, &INTERIOR_WEIGHTS[0]);
+        self.inc
+            .contains_from(&c, q, q_inside)
+            .map(|inside| (inside, c))
+    }
+    fn point(&self, t: u32) -> LatticePoint {
+        self.interior(t, &INTERIOR_WEIGHTS[0])
+    }
+    fn lies_in_boundary(&mut self, t: u32) -> bool {
+        let tet = tet_of(self.mesh, t);
+        self.inc
+            .lies_in_boundary(&interior_point(&tet, &INTERIOR_WEIGHTS[0]), &tet)
+    }
+}
+
+/// Sorts closed ranges and merges those that overlap or touch.
+pub fn merge_ranges(mut v: Vec<(f64, f64)>) -> Vec<(f64, f64)> {
+    v.sort_unstable_by(|a, b| a.0.total_cmp(&b.0));
+    let mut out: Vec<(f64, f64)> = Vec::new();
+    for (s, e) in v {
+        match out.last_mut() {
+            Some(last) if s <= last.1 => last.1 = last.1.max(e),
+            _ => out.push((s, e)),
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use chronotope_kernel::intersect::test_rng::Rng;
+    use chronotope_kernel::tets_intersect;
+
+    fn prepared(mesh: &TetMesh) -> Prepared {
+        let local = prep::BodyPrep::of(mesh, &[0]).expect("a preparation");
+        Prepared {
+            id: "body".into(),
+            mesh: local.mesh,
+            bvh: local.bvh,
+            adjacency: local.adjacency.into(),
+            components: Default::default(),
+            normals: local.normals,
+            factor: CHECKER_FACTOR,
+            geometry: GridGeometry {
+                origin: [0.0; 3],
+                resolution: 1.0,
+                size: [1, 1, 1],
+                encoding: 0,
+                scale: 1,
+            },
+            original: local.original.into(),
+        }
+    }
+
+    /// The walk's touches and interfering pairs against every pair classified on its own,
+    /// for two bodies made to face each other: many tets of B are twins of A's (the same
+    /// points, either orientation), others overlap them in part or touch them in the same
+    /// hyperplanes, others cross them. Held-back facing pairs must change nothing.
+    #[test]
+    fn facing_pairs_held_back_give_what_each_pair_gives() {
+        let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+        let (mut faces, mut twins) = (0, 0);
+        for round in 0..6 {
+            let (mut a, mut b) = (TetMesh::default(), TetMesh::default());
+            let push = |m: &mut TetMesh, t: [LatticePoint; 4]| {
+                let base = m.vertices.len() as u32;
+                m.vertices.extend(t);
+                m.tets.push([base, base + 1, base + 2, base + 3]);
+            };
+            for _ in 0..160 {
+                // A tet in a plane z = c (c in 0..3), coordinates ×8 on a small lattice.
+                let z = (rng.next() % 3) as i32 * 8;
+                let p = |rng: &mut Rng| {
+                    [
+                        (rng.next() % 4) as i32 * 8,
+                        (rng.next() % 4) as i32 * 8,
+                        z,
+                        (rng.next() % 3) as i32 * 8,
+                    ]
+                };
+                let t = [0; 4].map(|_| p(&mut rng));
+                if tet_normal(t) == [0; 4] {
+                    continue;
+                }
+                push(&mut a, t);
+                match rng.next() % 5 {
+                    // Its twin, facing it or not.
+                    0 => push(&mut b, [t[1], t[0], t[2], t[3]]),
+                    1 => push(&mut b, t),
+                    // A tet in the same plane sharing a face or an edge, often overlapping.
+                    2 => push(&mut b, [t[0], t[1], t[2], p(&mut rng)]),
+                    3 => push(&mut b, [t[0], t[1], p(&mut rng), p(&mut rng)]),
+                    // One across the plane.
+                    _ => {
+                        let mut q = t;
+                        q[0][2] -= 8;
+                        q[3][2] += 8;
+                        push(&mut b, q);
+                    }
+                }
+            }
+            let (pa, pb) = (prepared(&a), prepared(&b));
+            let all = walk(&pa, &pb, false);
+            let (mut hit_a, mut hit_b) = (
+                vec![Touch::Clear; pa.mesh.tets.len()],
+                vec![Touch::Clear; pb.mesh.tets.len()],
+            );
+            let mut interfering = Vec::new();
+            for i in 0..pa.mesh.tets.len() as u32 {
+                for j in 0..pb.mesh.tets.len() as u32 {
+                    let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
+                    let touch = match chronotope_kernel::classify(&ta, &tb) {
+                        TetPairRelation::Crossing
+                        | TetPairRelation::Coplanar {
+                            overlap_volume_positive: true,
+                            same_orientation: true,
+                        } => Touch::Interference,
+                        TetPairRelation::Coplanar {
+                            overlap_volume_positive: true,
+                            same_orientation: false,
+                        } if same_points(&ta, &tb) => Touch::Twin,
+                        TetPairRelation::Coplanar {
+                            overlap_volume_positive: true,
+                            same_orientation: false,
+                        } => Touch::FaceToFace,
+                        TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => {
+                            Touch::Contact
+                        }
+                        TetPairRelation::Disjoint => Touch::Clear,
+                    };
+                    if touch == Touch::Interference {
+                        interfering.push((i, j));
+                    }
+                    faces += usize::from(matches!(touch, Touch::FaceToFace | Touch::Twin));
+                    twins += usize::from(same_points(&ta, &tb));
+                    hit_a[i as usize] = hit_a[i as usize].max(touch);
+                    hit_b[j as usize] = hit_b[j as usize].max(touch);
+                }
+            }
+            assert_eq!(all.hit_a, hit_a, "round {round}: A's touches");
+            assert_eq!(all.hit_b, hit_b, "round {round}: B's touches");
+            let mut walked: Vec<(u32, u32)> = all.ranges.iter().map(|r| (r.2, r.3)).collect();
+            walked.sort_unstable();
+            walked.dedup();
+            interfering.sort_unstable();
+            assert_eq!(walked, interfering, "round {round}: interfering pairs");
+            assert!(all.facing.is_empty());
+        }
+        assert!(
+            faces > 300 && twins > 200,
+            "{faces} facing overlaps, {twins} twins"
+        );
+    }
+
+    /// The shortcut of the walk against the exact classifier: a pair whose time ranges
+    /// meet in one instant never crosses or overlaps in a hyperplane, and faces apart at
+    /// that instant mean the closed tets are disjoint. Vertices at t ∈ {0, 1, 2} (a third
+    /// of the tets caps at one instant) on a small spatial lattice make such pairs common
+    /// and touching ones too.
+    #[test]
+    fn pairs_meeting_in_one_instant_only_touch_where_their_faces_meet() {
+        let mut rng = Rng(0x2545_F491_4F6C_DD1D);
+        let (mut instants, mut touching, mut apart) = (0, 0, 0);
+        let tet = |rng: &mut Rng, t: [i32; 4]| -> [LatticePoint; 4] {
+            t.map(|t| {
+                [0, 0, 0]
+                    .map(|_| rng.range(0, 3) as i32)
+                    .into_iter()
+                    .chain([t])
+                    .collect::<Vec<_>>()
+                    .try_into()
+                    .expect("4")
+            })
+        };
+        let times = [
+            [0, 0, 1, 1],
+            [0, 1, 1, 1],
+            [1, 1, 1, 2],
+            [1, 2, 2, 2],
+            [1, 1, 1, 1],
+            [0, 0, 0, 1],
+        ];
+        for _ in 0..20_000 {
+            let ka = rng.range(0, 5) as usize;
+            let ta = tet(&mut rng, times[ka]);
+            let kb = rng.range(0, 5) as usize;
+            let tb = tet(&mut rng, times[kb]);
+            let Some(k) = one_instant(&ta, &tb) else {
+                continue;
+            };
+            instants += 1;
+            let relation = chronotope_kernel::classify(&ta, &tb);
+            assert!(
+                matches!(
+                    relation,
+                    TetPairRelation::Touching | TetPairRelation::Disjoint
+                ),
+                "{ta:?} {tb:?} at {k}: {relation:?}"
+            );
+            let meet = tets_intersect(&ta, &tb);
+            touching += usize::from(meet);
+            if faces_apart(&ta, &tb, k) {
+                apart += 1;
+                assert!(
+                    !meet,
+                    "{ta:?} {tb:?} meet though their faces at {k} are apart"
+                );
+            }
+        }
+        assert!(
+            instants > 5000 && touching > 500 && apart > 500,
+            "{instants} {touching} {apart}"
+        );
+    }
+}

@@ -1,0 +1,501 @@
+//! One occupancy frame, decoded into padded bit rows (and values for graded input).
+//!
+//! The grid is padded by one free voxel on every side (everything outside the grid is free),
+//! so the hypercubes that close the surface at the border exist like any other.
+
+use super::MeshError;
+
+/// How the voxel data of a frame is encoded (mirrors the VoxelGrid `encoding` field).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Encoding {
+    /// 1 bit per voxel, LSB first, x fastest, then y, then z.
+    Bits,
+    /// 1 byte per voxel: 0..=100 percent occupied, 255 unknown.
+    Percent,
+}
+
+impl Encoding {
+    /// The raw `encoding` field's value: 0 for BITS, 1 for PERCENT.
+    pub const fn code(self) -> u8 {
+        match self {
+            Encoding::Bits => 0,
+            Encoding::Percent => 1,
+        }
+    }
+}
+
+/// A borrowed view of one frame of one body, as the mesher needs it (no ROS types).
+#[derive(Debug, Clone, Copy)]
+pub struct FrameRef<'a> {
+    /// Stamp (ns).
+    pub stamp_ns: i64,
+    /// Min corner of voxel (0, 0, 0) (m).
+    pub origin: [f64; 3],
+    /// Voxel edge (m).
+    pub resolution: f64,
+    /// Voxels along x, y, z.
+    pub size: [u32; 3],
+    /// Raw `encoding` field.
+    pub encoding: u8,
+    /// Voxel data.
+    pub data: &'a [u8],
+}
+
+/// Default of [`DecodeOptions::max_decoded_bytes`]: 512 MiB per decoded frame. A body keeps
+/// at most four decoded frames at once in the mesher (first, previous, the new one, and the
+/// union filling a gap), so 2 GiB per body at worst.
+pub const DEFAULT_MAX_DECODED_BYTES: u64 = 512 << 20;
+
+/// Options for decoding frames.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodeOptions {
+    /// Largest accepted voxel count per frame (refused before allocating).
+    pub max_voxels: u64,
+    /// Percent value at and above which a voxel counts as occupied (the iso level).
+    pub iso_percent: u8,
+    /// Whether unknown (255) counts as occupied (the safe side for collision).
+    pub unknown_occupied: bool,
+    /// Largest accepted decoded size of one frame in bytes (padded bit rows, percent
+    /// values, and the marcher's edge cache): thin grids cost more per voxel than their data.
+    pub max_decoded_bytes: u64,
+}
+
+impl Default for DecodeOptions {
+    fn default() -> Self {
+        Self {
+            max_voxels: 1 << 30,
+            iso_percent: 50,
+            unknown_occupied: true,
+            max_decoded_bytes: DEFAULT_MAX_DECODED_BYTES,
+        }
+    }
+}
+
+/// A decoded frame: bit rows over padded x for every padded (y, z), plus padded percent
+/// values for graded input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OccupancyGrid {
+    /// Padded sizes (original + 2).
+    pub padded: [usize; 3],
+    /// u64 words per bit row (with at least one spare zero word at the end).
+    pub words: usize,
+    /// Bit rows, row index `y + py·z` (padded), bit x (padded).
+    pub bits: Vec<u64>,
+    /// Percent values in padded layout `x + px·(y + py·z)`, for graded frames; unknown is
+    /// already mapped to 100 or 0.
+    pub values: Option<Vec<u8>>,
+    /// Number of occupied voxels.
+    pub occupied: u64,
+    /// PERCENT voxels whose value was outside the domain (101..=254) and was read as 100
+    /// (occupied, the safe side); the stream counts and names them.
+    pub clamped: u64,
+}
+
+impl OccupancyGrid {
+    /// Heap bytes the decoded frame takes.
+    pub fn heap_bytes(&self) -> u64 {
+        (self.bits.len() * 8 + self.values.as_ref().map_or(0, Vec::len)) as u64
+    }
+
+    /// Decodes a frame after checking its fields.
+    ///
+    /// # Errors
+    /// [`MeshError`] naming the field: bad resolution or origin, unknown encoding, sizes
+    /// whose product exceeds `opts.max_voxels` (checked before allocating), data length not
+    /// matching the sizes and encoding.
+    pub fn decode(f: &FrameRef<'_>, opts: &DecodeOptions) -> Result<Self, MeshError> {
+        if !(super::MIN_RESOLUTION_M..=super::MAX_RESOLUTION_M).contains(&f.resolution) {
+            return Err(MeshError::BadResolution {
+                resolution: f.resolution,
+            });
+        }
+        if f.origin
+            .iter()
+            .any(|v| !(v.is_finite() && v.abs() <= super::MAX_ORIGIN_M))
+        {
+            return Err(MeshError::BadOrigin { origin: f.origin });
+        }
+        let encoding = match f.encoding {
+            0 => Encoding::Bits,
+            1 => Encoding::Percent,
+            other => return Err(MeshError::UnknownEncoding { encoding: other }),
+        };
+        let [sx, sy, sz] = f.size.map(u64::from);
+        // u32^3 can exceed u64: saturate, the limit check below refuses it anyway.
+        let n = sx
+            .checked_mul(sy)
+            .and_then(|v| v.checked_mul(sz))
+            .unwrap_or(u64::MAX);
+        if sx == 0 || sy == 0 || sz == 0 {
+            return Err(MeshError::EmptySize { size: f.size });
+        }
+        if n > opts.max_voxels {
+            return Err(MeshError::TooLarge {
+                size: f.size,
+                voxels: n,
+                limit: opts.max_voxels,
+            });
+        }
+        let bytes = decoded_bytes(f.size, encoding);
+        if bytes > opts.max_decoded_bytes {
+            return Err(MeshError::TooMuchMemory {
+                size: f.size,
+                bytes,
+                limit: opts.max_decoded_bytes,
+            });
+        }
+        let expected = match encoding {
+            Encoding::Bits => n.div_ceil(8),
+            Encoding::Percent => n,
+        };
+        if f.data.len() as u64 != expected {
+            return Err(MeshError::DataLength {
+                expected,
+                got: f.data.len() as u64,
+                encoding,
+            });
+        }
+        let (sx, sy, sz) = (sx as usize, sy as usize, sz as usize);
+        let padded = [sx + 2, sy + 2, sz + 2];
+        let words = (sx + 2) / 64 + 2;
+        let mut bits = vec![0u64; words * padded[1] * padded[2]];
+        let mut occupied = 0u64;
+        let mut clamped = 0u64;
+        let mut values = None;
+        match encoding {
+            Encoding::Bits => {
+                for z in 0..sz {
+                    for y in 0..sy {
+                        let row = &mut bits[words * ((y + 1) + padded[1] * (z + 1))..][..words];
+                        let start = sx * (y + sy * z);
+                        copy_bits(f.data, start, sx, row);
+                        occupied += row.iter().map(|w| u64::from(w.count_ones())).sum::<u64>();
+                    }
+                }
+            }
+            Encoding::Percent => {
+                let mut v = vec![0u8; padded[0] * padded[1] * padded[2]];
+                let unknown = if opts.unknown_occupied { 100 } else { 0 };
+                for z in 0..sz {
+                    for y in 0..sy {
+                        let src = &f.data[sx * (y + sy * z)..][..sx];
+                        let base = padded[0] * ((y + 1) + padded[1] * (z + 1)) + 1;
+                        let row = &mut bits[words * ((y + 1) + padded[1] * (z + 1))..][..words];
+                        for (x, &raw) in src.iter().enumerate() {
+                            let val = match raw {
+                                255 => unknown,
+                                101..=254 => {
+                                    clamped += 1;
+                                    100
+                                }
+                                r => r,
+                            };
+                            v[base + x] = val;
+                            if val >= opts.iso_percent {
+                                row[(x + 1) / 64] |= 1 << ((x + 1) % 64);
+                                occupied += 1;
+                            }
+                        }
+                    }
+                }
+                values = Some(v);
+            }
+        }
+        Ok(Self {
+            padded,
+            words,
+            bits,
+            values,
+            occupied,
+            clamped,
+        })
+    }
+
+    /// The voxels occupied in either frame (same lattice): bits OR-ed, percent values the
+    /// maximum. `None` if the two grids have different sizes or encodings.
+    pub fn union(&self, other: &OccupancyGrid) -> Option<OccupancyGrid> {
+        self.combine(other, |a, b| a | b, u8::max)
+    }
+
+    /// The voxels occupied in both frames (same lattice): bits AND-ed, percent values the
+    /// minimum (the occupied fraction of the intersection is at most either). `None` if
+    /// the two grids have different sizes or encodings.
+    pub fn intersect(&self, other: &OccupancyGrid) -> Option<OccupancyGrid> {
+        self.combine(other, |a, b| a & b, u8::min)
+    }
+
+    fn combine(
+        &self,
+        other: &OccupancyGrid,
+        bit: impl Fn(u64, u64) -> u64,
+        value: impl Fn(u8, u8) -> u8,
+    ) -> Option<OccupancyGrid> {
+        if self.padded != other.padded
+            || self.words != other.words
+            || self.values.is_some() != other.values.is_some()
+        {
+            return None;
+        }
+        let bits: Vec<u64> = self
+            .bits
+            .iter()
+            .zip(&other.bits)
+            .map(|(a, b)| bit(*a, *b))
+            .collect();
+        let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
+        let values = match (&self.values, &other.values) {
+            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| value(*x, *y)).collect()),
+            _ => None,
+        };
+        Some(OccupancyGrid {
+            padded: self.padded,
+            words: self.words,
+            bits,
+            values,
+            occupied,
+            clamped: 0,
+        })
+    }
+
+    /// Bit row for padded (y, z).
+    #[inline]
+    pub fn row(&self, y: usize, z: usize) -> &[u64] {
+        &self.bits[self.words * (y + self.padded[1] * z)..][..self.words]
+    }
+
+    /// Occupancy of padded voxel (x, y, z).
+    #[inline]
+    pub fn get(&self, x: usize, y: usize, z: usize) -> bool {
+        (self.row(y, z)[x / 64] >> (x % 64)) & 1 == 1
+    }
+
+    /// Percent value of padded voxel (x, y, z) (100/0 for binary frames).
+    #[inline]
+    pub fn value(&self, x: usize, y: usize, z: usize) -> u8 {
+        match &self.values {
+            Some(v) => v[x + self.padded[0] * (y + self.padded[1] * z)],
+            None => 100 * u8::from(self.get(x, y, z)),
+        }
+    }
+}
+
+/// The voxels occupied in both of two frames of bodies whose lattices differ by a whole
+/// number of voxels in origin and/or by encoding (same resolution), on `ga`'s grid as a BITS
+/// frame (PERCENT frames count at their iso level, as their bits say). Frames on the same
+/// lattice use [`OccupancyGrid::intersect`] instead (it keeps percent values).
+///
+/// `None` if the resolutions differ or the origins are not a whole number of voxels apart.
+pub fn intersect_across(
+    a: &OccupancyGrid,
+    ga: &super::mesher::GridGeometry,
+    b: &OccupancyGrid,
+    gb: &super::mesher::GridGeometry,
+) -> Option<(OccupancyGrid, super::mesher::GridGeometry)> {
+    if ga == gb {
+        return a.intersect(b).map(|g| (g, *ga));
+    }
+    if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
+        return None;
+    }
+    let mut off = [0i64; 3];
+    for (o, (b, a)) in off.iter_mut().zip(gb.origin.iter().zip(&ga.origin)) {
+        let v = (b - a) / ga.resolution;
+        let r = v.round();
+        if (v - r).abs() > 1e-6 || !r.is_finite() || r.abs() > 1e9 {
+            return None;
+        }
+        *o = r as i64;
+    }
+    let g = super::mesher::GridGeometry {
+        encoding: 0,
+        scale: 2,
+        ..*ga
+    };
+    // The same lattice in another encoding (a PERCENT robot against a BITS table): the bit
+    // rows line up word for word (padding and spare words are zero in both).
+    if off == [0; 3] && ga.size == gb.size && a.padded == b.padded && a.words == b.words {
+        let bits: Vec<u64> = a.bits.iter().zip(&b.bits).map(|(x, y)| x & y).collect();
+        let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
+        let grid = OccupancyGrid {
+            padded: a.padded,
+            words: a.words,
+            bits,
+            values: None,
+            occupied,
+            clamped: 0,
+        };
+        return Some((grid, g));
+    }
+    intersect_offset(a, ga, b, gb, off, g)
+}
+
+/// [`intersect_across`] voxel by voxel, `b`'s lattice `off` voxels from `a`'s.
+fn intersect_offset(
+    a: &OccupancyGrid,
+    ga: &super::mesher::GridGeometry,
+    b: &OccupancyGrid,
+    gb: &super::mesher::GridGeometry,
+    off: [i64; 3],
+    g: super::mesher::GridGeometry,
+) -> Option<(OccupancyGrid, super::mesher::GridGeometry)> {
+    let [sx, sy, sz] = ga.size.map(|v| v as usize);
+    let [bx, by, bz] = gb.size.map(|v| v as i64);
+    let n = sx.checked_mul(sy)?.checked_mul(sz)?;
+    let mut data = vec![0u8; n.div_ceil(8)];
+    for z in 0..sz {
+        let zb = z as i64 - off[2];
+        if !(0..bz).contains(&zb) {
+            continue;
+        }
+        for y in 0..sy {
+            let yb = y as i64 - off[1];
+            if !(0..by).contains(&yb) {
+                continue;
+            }
+            for x in 0..sx {
+                let xb = x as i64 - off[0];
+                if (0..bx).contains(&xb)
+                    && a.get(x + 1, y + 1, z + 1)
+                    && b.get(xb as usize + 1, yb as usize + 1, zb as usize + 1)
+                {
+                    let i = x + sx * (y + sy * z);
+                    data[i / 8] |= 1 << (i % 8);
+                }
+            }
+        }
+    }
+    let f = FrameRef {
+        stamp_ns: 0,
+        origin: g.origin,
+        resolution: g.resolution,
+        size: g.size,
+        encoding: 0,
+        data: &data,
+    };
+    let opts = DecodeOptions {
+        max_voxels: u64::MAX,
+        max_decoded_bytes: u64::MAX,
+        ..DecodeOptions::default()
+    };
+    OccupancyGrid::decode(&f, &opts).ok().map(|grid| (grid, g))
+}
+
+/// Bytes a decoded frame and its share of the marcher's workspace take (saturating).
+pub fn decoded_bytes(size: [u32; 3], encoding: Encoding) -> u64 {
+    let [px, py, pz] = size.map(|v| u64::from(v) + 2);
+    let words = px / 64 + 2;
+    let rows = py.saturating_mul(pz);
+    let bits = rows.saturating_mul(words).saturating_mul(8);
+    let values = match encoding {
+        Encoding::Bits => 0,
+        Encoding::Percent => px.saturating_mul(rows),
+    };
+    // Two z-layers of 7 edge slots of u32 in the marcher, plus the touched lists.
+    let cache = px.saturating_mul(py).saturating_mul(2 * 7 * 4 * 2);
+    bits.saturating_add(values).saturating_add(cache)
+}
+
+/// Copies `len` bits starting at bit `start` of `src` (LSB first) into `dst` at bit 1.
+fn copy_bits(src: &[u8], start: usize, len: usize, dst: &mut [u64]) {
+    let mut x = 0;
+    // Bit-by-bit until the source is byte aligned, then whole words, whole bytes, bits.
+    while x < len && (start + x) % 8 != 0 {
+        set_from(src, start + x, x + 1, dst);
+        x += 1;
+    }
+    while x + 64 <= len {
+        let at_byte = (start + x) / 8;
+        let mut le = [0u8; 8];
+        le.copy_from_slice(&src[at_byte..at_byte + 8]);
+        let word = u64::from_le_bytes(le);
+        let at = x + 1;
+        dst[at / 64] |= word << (at % 64);
+        if at % 64 != 0 {
+            dst[at / 64 + 1] |= word >> (64 - at % 64);
+        }
+        x += 64;
+    }
+    while x + 8 <= len {
+        let byte = u64::from(src[(start + x) / 8]);
+        let at = x + 1;
+        dst[at / 64] |= byte << (at % 64);
+        if at % 64 > 56 {
+            dst[at / 64 + 1] |= byte >> (64 - at % 64);
+        }
+        x += 8;
+    }
+    while x < len {
+        set_from(src, start + x, x + 1, dst);
+        x += 1;
+    }
+}
+
+#[inline]
+fn set_from(src: &[u8], bit: usize, at: usize, dst: &mut [u64]) {
+    if (src[bit / 8] >> (bit % 8)) & 1 == 1 {
+        dst[at / 64] |= 1 << (at % 64);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Copying a bit row by words and bytes sets the bits one by one would: every start
+    /// offset within a byte and every length across word boundaries, on random bits.
+    #[test]
+    fn rows_copy_as_bit_by_bit() {
+        let mut rng = chronotope_kernel::intersect::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
+        let src: Vec<u8> = (0..64).map(|_| rng.next() as u8).collect();
+        for start in 0..24 {
+            for len in 0..=(src.len() * 8 - start).min(300) {
+                let words = (len + 2) / 64 + 2;
+                let mut fast = vec![0u64; words];
+                copy_bits(&src, start, len, &mut fast);
+                let mut slow = vec![0u64; words];
+                for x in 0..len {
+                    set_from(&src, start + x, x + 1, &mut slow);
+                }
+                assert_eq!(fast, slow, "start {start}, length {len}");
+            }
+        }
+    }
+
+    /// A PERCENT frame against a BITS frame on the same lattice: the word-wise intersection
+    /// is the voxel-by-voxel one, on random frames of sizes across word boundaries.
+    #[test]
+    fn the_same_lattice_in_two_encodings_intersects_as_voxel_by_voxel() {
+        let mut rng = chronotope_kernel::intersect::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        for size in [[1, 1, 1], [5, 3, 2], [63, 2, 3], [64, 4, 1], [130, 3, 2]] {
+            let n = (size[0] * size[1] * size[2]) as usize;
+            let percent: Vec<u8> = (0..n).map(|_| (rng.next() % 101) as u8).collect();
+            let bits: Vec<u8> = (0..n.div_ceil(8)).map(|_| rng.next() as u8).collect();
+            let geometry = |encoding: u8, scale: i32| super::super::mesher::GridGeometry {
+                origin: [0.5, -1.0, 0.0],
+                resolution: 0.01,
+                size,
+                encoding,
+                scale,
+            };
+            let frame = |encoding: u8, data: &[u8]| {
+                let f = FrameRef {
+                    stamp_ns: 0,
+                    origin: [0.5, -1.0, 0.0],
+                    resolution: 0.01,
+                    size,
+                    encoding,
+                    data,
+                };
+                OccupancyGrid::decode(&f, &DecodeOptions::default()).unwrap()
+            };
+            let (a, ga) = (frame(1, &percent), geometry(1, 100));
+            let (b, gb) = (frame(0, &bits), geometry(0, 2));
+            let (fast, g) = intersect_across(&a, &ga, &b, &gb).unwrap();
+            let (slow, g2) = intersect_offset(&a, &ga, &b, &gb, [0; 3], g).unwrap();
+            assert_eq!(g, g2);
+            assert_eq!(fast.bits, slow.bits, "{size:?}");
+            assert_eq!(fast.occupied, slow.occupied, "{size:?}");
+            assert!(fast.values.is_none() && slow.values.is_none());
+        }
+    }
+}

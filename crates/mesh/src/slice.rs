@@ -1,0 +1,459 @@
+//! Cutting a 4D tet mesh by an axis hyperplane x_k = c into a closed, oriented, welded 3D
+//! triangle mesh (the marching paper's §6: docs/methods/marching.md#slicing), and PLY
+//! export.
+//!
+//! A vertex on the plane counts as "+" (at or above c). A tet with vertices on both sides
+//! is cut into a triangle (1/3 split) or a quad (2/2 split, two triangles). Each slice point
+//! is keyed by the lattice points it comes from: an edge crossing by its two end points,
+//! an on-plane vertex by itself; triangles with a repeated key have no area and are
+//! dropped. The slice is always closed (every edge is used as often in one direction as in
+//! the other) and, for a plane through no mesh vertex, a 2-manifold; a plane through
+//! vertices can cut where two sheets of the 4D boundary cross (a saddle), and there an edge
+//! may carry four triangles. Keys are global, so slabs can be sliced one at a time as they stream and the
+//! pieces weld. Triangles are oriented outward of the 3D section, decided exactly from the
+//! tet's 4D normal with integer arithmetic.
+//!
+//! If the plane only touches the body (c is the body's lowest coordinate along the axis,
+//! e.g. t at its first frame), the "+" rule yields nothing; [`Slicer::finish`] reports that
+//! and [`slice_mesh`] then slices again with on-plane vertices counted as "−", which gives the
+//! boundary of the touching face: a slice at a frame time always reproduces that frame.
+
+use super::hash::{fast_map, FastMap};
+use super::march::TetMesh;
+use chronotope_kernel::LatticePoint;
+use rayon::prelude::*;
+use std::io::{self, Write};
+
+/// A plane coordinate in lattice units, as an exact fraction `num / den` (`den > 0`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PlaneValue {
+    /// Numerator.
+    pub num: i64,
+    /// Denominator, positive and at most 2^12 (with lattice scales up to 256 this keeps the
+    /// exact orientation test within i128).
+    pub den: i64,
+}
+
+impl PlaneValue {
+    /// An integer lattice coordinate.
+    pub fn lattice(v: i64) -> Self {
+        Self { num: v, den: 1 }
+    }
+    /// The nearest multiple of 1/1024 lattice step to a real lattice coordinate.
+    pub fn approx(v: f64) -> Self {
+        Self {
+            num: (v * 1024.0).round() as i64,
+            den: 1024,
+        }
+    }
+}
+
+/// A 3D triangle mesh: positions in lattice units of the three remaining axes.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TriMesh {
+    /// Vertex positions (lattice units, remaining axes in increasing order).
+    pub vertices: Vec<[f64; 3]>,
+    /// Triangles, counter-clockwise seen from outside.
+    pub triangles: Vec<[u32; 3]>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+enum Key {
+    Vertex(LatticePoint),
+    Edge(LatticePoint, LatticePoint),
+}
+
+/// Tets per chunk of [`Slicer::add_par`].
+pub const SLICE_CHUNK_TETS: usize = 1 << 15;
+
+/// Streams tets (from any number of slabs or caps) into one slice.
+#[derive(Debug)]
+pub struct Slicer {
+    axis: usize,
+    c: PlaneValue,
+    on_plane_is_plus: bool,
+    index: FastMap<Key, u32>,
+    mesh: TriMesh,
+    /// With [`Slicer::with_sources`]: per triangle, the tet it came from (counted over every
+    /// `add`ed mesh in order).
+    sources: Option<Vec<u32>>,
+    tets_seen: u32,
+}
+
+impl Slicer {
+    /// A slicer for the hyperplane `x_axis = c` (axis 0..4 = x, y, z, t).
+    ///
+    /// # Panics
+    /// If `axis > 3` or `c.den` is not in 1..=4096 (caller bugs, not input).
+    pub fn new(axis: usize, c: PlaneValue) -> Self {
+        assert!(axis < 4, "axis {axis} out of range");
+        assert!(
+            (1..=4096).contains(&c.den),
+            "denominator {} out of range",
+            c.den
+        );
+        Self {
+            axis,
+            c,
+            on_plane_is_plus: true,
+            index: fast_map(),
+            mesh: TriMesh::default(),
+            sources: None,
+            tets_seen: 0,
+        }
+    }
+
+    /// The same slicer with on-plane vertices counted as "−": use it (alongside the
+    /// default) when the plane may only touch the body, see the module docs.
+    pub fn on_plane_below(mut self) -> Self {
+        self.on_plane_is_plus = false;
+        self
+    }
+
+    /// Side of a vertex: true for "+".
+    fn plus(&self, p: &LatticePoint) -> bool {
+        let v = i64::from(p[self.axis]) * self.c.den;
+        if self.on_plane_is_plus {
+            v >= self.c.num
+        } else {
+            v > self.c.num
+        }
+    }
+
+    /// The same slicer, also recording which tet each triangle comes from (see
+    /// [`Slicer::finish_with_sources`]).
+    pub fn with_sources(mut self) -> Self {
+        self.sources = Some(Vec::new());
+        self
+    }
+
+    /// Cuts every tet of `mesh`.
+    pub fn add(&mut self, mesh: &TetMesh) {
+        for t in &mesh.tets {
+            let source = self.tets_seen;
+            self.tets_seen = self.tets_seen.wrapping_add(1);
+            self.cut(t.map(|v| mesh.vertices[v as usize]), source);
+        }
+    }
+
+    /// [`Slicer::add`] on rayon's pool: the tets are cut in chunks of [`SLICE_CHUNK_TETS`],
+    /// each into its own slice, and the chunks' slices joined in order, each slice point
+    /// numbered where it first occurs. The result (vertices, their numbering, triangles,
+    /// sources) is the one `add` gives, whatever the thread count.
+    pub fn add_par(&mut self, mesh: &TetMesh) {
+        let n = mesh.tets.len();
+        if rayon::current_num_threads() < 2 || n < 2 * SLICE_CHUNK_TETS {
+            self.add(mesh);
+            return;
+        }
+        let base = self.tets_seen;
+        let parts: Vec<Slicer> = mesh
+            .tets
+            .par_chunks(SLICE_CHUNK_TETS)
+            .enumerate()
+            .map(|(k, tets)| {
+                let mut part = Slicer {
+                    axis: self.axis,
+                    c: self.c,
+                    on_plane_is_plus: self.on_plane_is_plus,
+                    index: fast_map(),
+                    mesh: TriMesh::default(),
+                    sources: self.sources.as_ref().map(|_| Vec::new()),
+                    tets_seen: 0,
+                };
+                let first = base.wrapping_add((k * SLICE_CHUNK_TETS) as u32);
+                for (j, t) in tets.iter().enumerate() {
+                    let source = first.wrapping_add(j as u32);
+                    part.cut(t.map(|v| mesh.vertices[v as usize]), source);
+                }
+                part
+            })
+            .collect();
+        self.tets_seen = base.wrapping_add(n as u32);
+        for part in parts {
+            // The part's keys by its own numbering (the order it made them in).
+            let mut keys: Vec<(u32, Key)> = part.index.iter().map(|(k, &id)| (id, *k)).collect();
+            keys.sort_unstable_by_key(|x| x.0);
+            let remap: Vec<u32> = keys
+                .into_iter()
+                .zip(&part.mesh.vertices)
+                .map(|((_, key), pos)| {
+                    let next = self.mesh.vertices.len() as u32;
+                    *self.index.entry(key).or_insert_with(|| {
+                        self.mesh.vertices.push(*pos);
+                        next
+                    })
+                })
+                .collect();
+            self.mesh.triangles.extend(
+                part.mesh
+                    .triangles
+                    .iter()
+                    .map(|t| t.map(|v| remap[v as usize])),
+            );
+            if let (Some(all), Some(src)) = (&mut self.sources, part.sources) {
+                all.extend(src);
+            }
+        }
+    }
+
+    /// Cuts the tets `ids` of `mesh` (sources: the ids).
+    pub fn add_some(&mut self, mesh: &TetMesh, ids: &[u32]) {
+        for &i in ids {
+            let t = mesh.tets[i as usize];
+            self.cut(t.map(|v| mesh.vertices[v as usize]), i);
+        }
+    }
+
+    fn cut(&mut self, p: [LatticePoint; 4], source: u32) {
+        let side = p.map(|q| self.plus(&q));
+        let plus = side.iter().filter(|&&s| s).count();
+        if plus == 0 || plus == 4 {
+            return;
+        }
+        // Slice points in cyclic order around the polygon (no allocation: a triangle or a
+        // quad, in fixed arrays).
+        let mut pts = [(0usize, 0usize); 4];
+        let n = if plus == 1 || plus == 3 {
+            let lone = (0..4).find(|&i| side[i] == (plus == 1)).unwrap_or(0);
+            let mut n = 0;
+            for i in (0..4).filter(|&i| i != lone) {
+                pts[n] = (lone, i);
+                n += 1;
+            }
+            3
+        } else {
+            let (mut pos, mut neg) = ([0usize; 2], [0usize; 2]);
+            let (mut np, mut nn) = (0, 0);
+            for i in 0..4 {
+                if side[i] {
+                    pos[np] = i;
+                    np += 1;
+                } else {
+                    neg[nn] = i;
+                    nn += 1;
+                }
+            }
+            // (n0,p0) (n0,p1) (n1,p1) (n1,p0) is a cycle of the quad.
+            pts = [
+                (neg[0], pos[0]),
+                (neg[0], pos[1]),
+                (neg[1], pos[1]),
+                (neg[1], pos[0]),
+            ];
+            4
+        };
+        let normal = outward_normal(&p);
+        let geo: [([i128; 3], i128); 4] = std::array::from_fn(|m| {
+            let (i, j) = pts[m.min(n - 1)];
+            self.point(&p, i, j)
+        });
+        let keys: [Key; 4] = std::array::from_fn(|m| {
+            let (i, j) = pts[m.min(n - 1)];
+            self.key(&p, i, j)
+        });
+        let tris: &[[usize; 3]] = if n == 3 {
+            &[[0, 1, 2]]
+        } else {
+            &[[0, 1, 2], [0, 2, 3]]
+        };
+        for tri in tris {
+            let [a, b, c] = *tri;
+            if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
+                continue;
+            }
+            let s = orientation(&geo[a], &geo[b], &geo[c], &normal, self.axis);
+            let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
+            let ids = ordered.map(|i| self.vertex(keys[i]));
+            self.mesh.triangles.push(ids);
+            if let Some(src) = &mut self.sources {
+                src.push(source);
+            }
+        }
+    }
+
+    /// The slice point on edge (i, j) of tet `p`, homogeneous: (coordinates·w, w), w > 0,
+    /// relative to the tet's first vertex to keep numbers small.
+    fn point(&self, p: &[LatticePoint; 4], i: usize, j: usize) -> ([i128; 3], i128) {
+        let k = self.axis;
+        let (u, v) = (p[i], p[j]);
+        let den = i128::from(self.c.den);
+        let num = i128::from(self.c.num);
+        let (uk, vk) = (i128::from(u[k]), i128::from(v[k]));
+        // P = (u·(v_k·den − num) + v·(num − u_k·den)) / (den·(v_k − u_k)).
+        let (mut alpha, mut beta) = (vk * den - num, num - uk * den);
+        let mut w = alpha + beta;
+        if w < 0 {
+            alpha = -alpha;
+            beta = -beta;
+            w = -w;
+        }
+        let all = [0, 1, 2, 3].map(|c| {
+            let (du, dv) = (i128::from(u[c] - p[0][c]), i128::from(v[c] - p[0][c]));
+            du * alpha + dv * beta
+        });
+        (drop_axis(&all, k), w)
+    }
+
+    fn key(&self, p: &[LatticePoint; 4], i: usize, j: usize) -> Key {
+        // The ends lie on opposite sides, so at most one of them is on the plane: then the
+        // slice point is that vertex itself.
+        for q in [p[i], p[j]] {
+            if i64::from(q[self.axis]) * self.c.den == self.c.num {
+                return Key::Vertex(q);
+            }
+        }
+        let (a, b) = (p[i].min(p[j]), p[i].max(p[j]));
+        Key::Edge(a, b)
+    }
+
+    fn vertex(&mut self, key: Key) -> u32 {
+        let next = self.mesh.vertices.len() as u32;
+        *self.index.entry(key).or_insert_with(|| {
+            // Exact position from the key (independent of which tet produced it).
+            let pos = match key {
+                Key::Vertex(q) => drop_axis(&q, self.axis).map(f64::from),
+                Key::Edge(a, b) => {
+                    let k = self.axis;
+                    let t = (self.c.num as f64 / self.c.den as f64 - f64::from(a[k]))
+                        / f64::from(b[k] - a[k]);
+                    let (a3, b3) = (drop_axis(&a, k), drop_axis(&b, k));
+                    [0, 1, 2].map(|m| f64::from(a3[m]) + t * f64::from(b3[m] - a3[m]))
+                }
+            };
+            self.mesh.vertices.push(pos);
+            next
+        })
+    }
+
+    /// The slice. Triangles that occur once in each orientation (a plane containing
+    /// lateral triangles of the mesh cuts a zero-volume sheet there) cancel.
+    pub fn finish(self) -> TriMesh {
+        self.finish_with_sources().0
+    }
+
+    /// [`Slicer::finish`], with the source tet of each triangle (empty unless made
+    /// [`Slicer::with_sources`]).
+    pub fn finish_with_sources(mut self) -> (TriMesh, Vec<u32>) {
+        let tris = std::mem::take(&mut self.mesh.triangles);
+        let src = self.sources.take();
+        let mut keyed: Vec<([u32; 3], i8, [u32; 3], u32)> = tris
+            .into_iter()
+            .enumerate()
+            .map(|(i, t)| {
+                let (k, s) = crate::validate::canonical_triangle(t);
+                (k, s, t, src.as_ref().map_or(0, |v| v[i]))
+            })
+            .collect();
+        keyed.sort_unstable_by_key(|x| (x.0, x.1, x.3));
+        let mut out = Vec::with_capacity(keyed.len());
+        let mut out_src = Vec::new();
+        for group in keyed.chunk_by(|a, b| a.0 == b.0) {
+            let plus: Vec<_> = group.iter().filter(|x| x.1 > 0).collect();
+            let minus: Vec<_> = group.iter().filter(|x| x.1 < 0).collect();
+            let n = plus.len().min(minus.len());
+            for x in plus[n..].iter().chain(minus[n..].iter()) {
+                out.push(x.2);
+                if src.is_some() {
+                    out_src.push(x.3);
+                }
+            }
+        }
+        self.mesh.triangles = out;
+        (self.mesh, out_src)
+    }
+}
+
+/// The three coordinates other than `k`, in order.
+fn drop_axis<T: Copy>(p: &[T; 4], k: usize) -> [T; 3] {
+    let keep = |m: usize| if m < k { m } else { m + 1 };
+    [p[keep(0)], p[keep(1)], p[keep(2)]]
+}
+
+/// N with N·x = det[b−a, c−a, d−a, x]: outward for our orientation convention, since
+/// orient4(a, b, c, d, inside) < 0.
+fn outward_normal(p: &[LatticePoint; 4]) -> [i128; 4] {
+    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i128::from(q[k] - p[0][k]));
+    let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
+    let mut n = [0i128; 4];
+    for (k, nk) in n.iter_mut().enumerate() {
+        let mut e = [0i128; 4];
+        e[k] = 1;
+        *nk = det4(&u, &v, &w, &e);
+    }
+    n
+}
+
+fn det4(a: &[i128; 4], b: &[i128; 4], c: &[i128; 4], d: &[i128; 4]) -> i128 {
+    let s = |i: usize, j: usize| c[i] * d[j] - c[j] * d[i];
+    let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
+    t(0, 1) * s(2, 3) - t(0, 2) * s(1, 3) + t(0, 3) * s(1, 2) + t(1, 2) * s(0, 3)
+        - t(1, 3) * s(0, 2)
+        + t(2, 3) * s(0, 1)
+}
+
+/// Sign of det3[Q−P, R−P, n3] for homogeneous P, Q, R (positive weights).
+fn orientation(
+    p: &([i128; 3], i128),
+    q: &([i128; 3], i128),
+    r: &([i128; 3], i128),
+    n: &[i128; 4],
+    k: usize,
+) -> i128 {
+    let n3 = drop_axis(n, k);
+    let u = [0, 1, 2].map(|i| p.1 * q.0[i] - q.1 * p.0[i]);
+    let v = [0, 1, 2].map(|i| p.1 * r.0[i] - r.1 * p.0[i]);
+    let c = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    (c[0] * n3[0] + c[1] * n3[1] + c[2] * n3[2]).signum()
+}
+
+/// Slices a whole mesh; if the plane only touches it, slices again with on-plane vertices
+/// on the "−" side (see the module docs).
+pub fn slice_mesh(parts: &[&TetMesh], axis: usize, c: PlaneValue) -> TriMesh {
+    let mut s = Slicer::new(axis, c);
+    for m in parts {
+        s.add(m);
+    }
+    let out = s.finish();
+    if !out.triangles.is_empty() {
+        return out;
+    }
+    let mut s = Slicer::new(axis, c).on_plane_below();
+    for m in parts {
+        s.add(m);
+    }
+    s.finish()
+}
+
+/// Writes a binary little-endian PLY file of the mesh, with positions mapped by `to_world`.
+///
+/// # Errors
+/// Any I/O error of the writer.
+pub fn write_ply<W: Write>(
+    mesh: &TriMesh,
+    mut w: W,
+    to_world: impl Fn(&[f64; 3]) -> [f64; 3],
+) -> io::Result<()> {
+    write!(
+        w,
+        "ply\nformat binary_little_endian 1.0\ncomment chronotope 4D slice\nelement vertex {}\nproperty double x\nproperty double y\nproperty double z\nelement face {}\nproperty list uchar uint vertex_indices\nend_header\n",
+        mesh.vertices.len(),
+        mesh.triangles.len()
+    )?;
+    for v in &mesh.vertices {
+        for c in to_world(v) {
+            w.write_all(&c.to_le_bytes())?;
+        }
+    }
+    for t in &mesh.triangles {
+        w.write_all(&[3u8])?;
+        for i in t {
+            w.write_all(&i.to_le_bytes())?;
+        }
+    }
+    w.flush()
+}

@@ -1,0 +1,918 @@
+//! Streaming statistics and validation of one body's 4D mesh, slab by slab.
+//!
+//! The glued mesh of a stream is every slab's lateral tets plus the cap of the first frame
+//! and the cap of the last frame (the caps between slabs cancel). It is validated without
+//! ever holding more than one slab:
+//! - within a slab, every triangle not lying in one of its two time planes is shared by
+//!   exactly two tets with opposite induced orientation;
+//! - the triangles in the slab's lower time plane pair (with opposite orientation) with the
+//!   previous slab's upper-plane triangles, or with the first cap's boundary;
+//! - the last slab's upper-plane triangles pair with the last cap's boundary.
+//!
+//! Matching a time plane's triangles from its two sides uses two order-independent 128-bit
+//! multiset hashes (each a sum of per-triangle hashes from multiply-folding lanes, see
+//! `tri_hash`): one adds each triangle's hash with its orientation as sign (a matching
+//! pair cancels), the other without sign (both sides must carry the same triangles, as
+//! many times each). O(n), no sorting. Only when either check fails are the triangles
+//! sorted and paired exactly, and then the report counts exactly what is wrong. What the
+//! hashes cannot see is a triangle present k > 1 times on *both* sides with balanced
+//! orientations (over-shared but consistent); the exact fallback is not run then. (Were
+//! the triangle hash a random function, two different multisets would hash equal with
+//! probability about 2^-128.)
+//!
+//! A slab that is one of the latest few (`RECENT_SLABS`, 4) moved by whole periods in time
+//! and whole lattice steps in space, compared exactly, adds that slab's figures again
+//! without a scan: its interior faces pair as that slab's did, its planes' triangles are
+//! that slab's moved (hashed again when moved in space), and its hypervolume is the same
+//! (moved in space, only when the slab copied is closed: its two planes then bound, and the
+//! hypervolume of a closed slab does not depend on where it lies). A body at rest, or one
+//! stepping by whole voxels, is scanned once per step.
+//!
+//! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
+//! physical time scale (frame periods may differ). The upper cap's contribution to the
+//! divergence sum follows from its boundary alone (a 3-chain in a hyperplane contributes
+//! Σ det[o, ∂]), so caps between slabs are never built.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use super::march::TetMesh;
+use super::mesher::{GridGeometry, Slab};
+use super::validate::{
+    canonical_tet_faces, canonical_triangle, det4_small_tet, id_bits, pair_by_first_vertex,
+    pair_plane_faces, tet_faces, ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,
+};
+
+/// A triangle in a plane of constant t: three (x, y, z) points, sorted.
+type PlaneTri = [[i32; 3]; 3];
+
+/// Per-body statistics over a stream.
+#[derive(Debug, Clone, Default)]
+pub struct BodyStats {
+    /// Frames accepted.
+    pub frames: u64,
+    /// Slabs meshed.
+    pub slabs: u64,
+    /// Tets of the glued mesh (lateral + first and last caps).
+    pub tets: u64,
+    /// Vertices of the glued mesh.
+    pub vertices: u64,
+    /// Closedness over the whole glued mesh.
+    pub closed: ClosedReport,
+    /// Hypervolume (m³·s).
+    pub hypervolume_m3s: f64,
+    /// Hypervolume in lattice units (exact, ×24 per slab, summed as f64 for reporting).
+    pub hypervolume_lattice: f64,
+    /// Milliseconds spent meshing each slab.
+    pub slab_ms: Vec<f64>,
+    /// Slabs in which the body vanishes between its two frames (see
+    /// [`Slab::vanishes`]): the frame rate is too low for its motion there.
+    pub vanishing_slabs: u64,
+}
+
+impl BodyStats {
+    /// Median of the per-slab times (ms) (0 with no slabs).
+    pub fn slab_ms_median(&self) -> f64 {
+        percentile(&self.slab_ms, 0.5)
+    }
+    /// 99th percentile of the per-slab times (ms).
+    pub fn slab_ms_p99(&self) -> f64 {
+        percentile(&self.slab_ms, 0.99)
+    }
+}
+
+/// Nearest-rank percentile of unsorted samples.
+pub fn percentile(samples: &[f64], q: f64) -> f64 {
+    if samples.is_empty() {
+        return 0.0;
+    }
+    let mut s = samples.to_vec();
+    s.sort_by(f64::total_cmp);
+    let rank = ((q * s.len() as f64).ceil() as usize).clamp(1, s.len());
+    s[rank - 1]
+}
+
+/// A slab's lateral tets and placement, borrowed (see [`StatsAccumulator::add_lateral`]).
+#[derive(Debug, Clone, Copy)]
+pub struct LateralRef<'a> {
+    /// Index of the slab's first frame.
+    pub index: u64,
+    /// Stamps of its two frames (ns).
+    pub stamps_ns: (i64, i64),
+    /// The lattice.
+    pub geometry: &'a GridGeometry,
+    /// Lateral tets.
+    pub mesh: &'a TetMesh,
+    /// See [`Slab::unsure`].
+    pub unsure: Option<super::unsure::Unsure>,
+    /// See [`Slab::displacement`].
+    pub displacement: u16,
+}
+
+impl LateralRef<'_> {
+    /// A part of the body vanishes between the slab's frames.
+    pub fn vanishes(&self) -> bool {
+        matches!(self.unsure, Some(super::unsure::Unsure::Vanishes { .. }))
+    }
+}
+
+impl Slab {
+    /// The slab's parts, borrowed, as the statistics read them.
+    pub fn lateral_ref(&self) -> LateralRef<'_> {
+        LateralRef {
+            index: self.index,
+            stamps_ns: (self.stamp_lo_ns, self.stamp_hi_ns),
+            geometry: &self.geometry,
+            mesh: &self.mesh,
+            unsure: self.unsure,
+            displacement: self.displacement,
+        }
+    }
+}
+
+/// Accumulates [`BodyStats`] slab by slab.
+#[derive(Debug, Default)]
+pub struct StatsAccumulator {
+    stats: BodyStats,
+    /// The upper plane's triangles of the last slab (shared with its figures when kept).
+    prev_hi: Arc<[(PlaneTri, i8)]>,
+    prev_hi_hash: PlaneHash,
+    scratch: Vec<u64>,
+    lateral_vertices: u64,
+    shared_vertices: u64,
+    /// The latest slabs added through [`StatsAccumulator::add_lateral_shared`] (at most
+    /// [`RECENT_SLABS`], newest last), with what a moved copy of one adds again.
+    recent: std::collections::VecDeque<Recent>,
+    /// Slabs added as copies of one of the latest, unmoved and moved in space.
+    copies: [u64; 2],
+}
+
+/// How many of the latest slabs a new one is compared with (see
+/// [`StatsAccumulator::add_lateral_shared`]). A table stepping by whole voxels now and then
+/// repeats its step slab a few periods later, moved.
+const RECENT_SLABS: usize = 4;
+
+/// One of the latest slabs (see [`StatsAccumulator::recent`]): its tets, index and lattice
+/// step, and its figures.
+#[derive(Debug)]
+struct Recent {
+    mesh: Arc<TetMesh>,
+    index: u64,
+    scale: i32,
+    figures: Arc<SlabFigures>,
+}
+
+/// What a slab added to the figures, kept to add again for a copy of it moved (see
+/// [`TetMesh::is_moved_copy_of`]): its interior faces' report, its hypervolume, the
+/// triangles of its two time planes with their hashes, and the number of vertices in its
+/// lower plane.
+#[derive(Debug)]
+struct SlabFigures {
+    interior: ClosedReport,
+    vol24: i128,
+    lo: Vec<(PlaneTri, i8)>,
+    lo_hash: PlaneHash,
+    hi: Arc<[(PlaneTri, i8)]>,
+    hi_hash: PlaneHash,
+    lo_vertices: u64,
+}
+
+impl SlabFigures {
+    /// The figures of the slab moved by `d` in space: the same faces and hypervolume, its
+    /// planes' triangles moved (sorted points stay sorted) and hashed again.
+    fn moved(&self, d: [i32; 3]) -> Self {
+        let plane = |tris: &[(PlaneTri, i8)]| {
+            let mut hash = PlaneHash::default();
+            let moved: Vec<(PlaneTri, i8)> = tris
+                .iter()
+                .map(|(t, s)| {
+                    let t = t.map(|p| [p[0] + d[0], p[1] + d[1], p[2] + d[2]]);
+                    hash.add(&t, *s);
+                    (t, *s)
+                })
+                .collect();
+            (moved, hash)
+        };
+        let ((lo, lo_hash), (hi, hi_hash)) = (plane(&self.lo), plane(&self.hi));
+        Self {
+            interior: self.interior,
+            vol24: self.vol24,
+            lo,
+            lo_hash,
+            hi: hi.into(),
+            hi_hash,
+            lo_vertices: self.lo_vertices,
+        }
+    }
+}
+
+impl StatsAccumulator {
+    /// A fresh accumulator.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The statistics of the slabs added so far (the caps' tets and vertices, and the
+    /// closing plane's faces, count only at [`finish`](Self::finish)).
+    pub fn so_far(&self) -> &BodyStats {
+        &self.stats
+    }
+
+    /// How many slabs were added as copies of one of the latest (see
+    /// [`Self::add_lateral_shared`]): moved in time only, and moved in space too.
+    pub fn copies(&self) -> [u64; 2] {
+        self.copies
+    }
+
+    /// Records the meshing time of one slab.
+    pub fn record_time(&mut self, ms: f64) {
+        self.stats.slab_ms.push(ms);
+    }
+
+    /// Adds a slab. For the first slab, `first_cap` must be the cap of its first frame
+    /// ([`super::CapSide::Low`]).
+    pub fn add_slab(&mut self, slab: &Slab, first_cap: Option<&TetMesh>) {
+        self.add_lateral(slab.lateral_ref(), first_cap);
+    }
+
+    /// [`Self::add_slab`] for a slab given by its parts (e.g. received as a message).
+    pub fn add_lateral(&mut self, slab: LateralRef<'_>, first_cap: Option<&TetMesh>) {
+        self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS, None);
+    }
+
+    /// [`Self::add_lateral`] for a slab whose tets are `shared` (`slab.mesh` must be
+    /// them), kept for the next few slabs: a slab that is one of the latest
+    /// `RECENT_SLABS` (4) moved by whole periods in time and whole lattice steps in space
+    /// (compared exactly, [`TetMesh::is_moved_copy_of`]) adds its figures again without
+    /// scanning its tets: a body at rest, or one stepping by whole voxels. Returns whether
+    /// `slab` is the slab before it one period later (the body rests).
+    pub fn add_lateral_shared(
+        &mut self,
+        slab: LateralRef<'_>,
+        first_cap: Option<&TetMesh>,
+        shared: &Arc<TetMesh>,
+    ) -> bool {
+        debug_assert!(std::ptr::eq(slab.mesh, &**shared));
+        if let Some(at_rest) = self.add_copy(slab, shared) {
+            return at_rest;
+        }
+        self.add_lateral_in_chunks(slab, first_cap, SCAN_CHUNK_TETS, Some(shared));
+        false
+    }
+
+    /// Adds `slab` as a moved copy of one of the latest slabs, if it is one; whether it is
+    /// the last slab one period later.
+    fn add_copy(&mut self, slab: LateralRef<'_>, shared: &Arc<TetMesh>) -> Option<bool> {
+        let scale = slab.geometry.scale;
+        let (k, d) = self.recent.iter().enumerate().rev().find_map(|(k, r)| {
+            let periods = i32::try_from(slab.index.checked_sub(r.index)?).ok()?;
+            let (p, q) = (slab.mesh.vertices.first()?, r.mesh.vertices.first()?);
+            let d = [
+                p[0].checked_sub(q[0])?,
+                p[1].checked_sub(q[1])?,
+                p[2].checked_sub(q[2])?,
+                periods.checked_mul(scale)?,
+            ];
+            // Moved in space, its hypervolume is the same only if it is a closed slab
+            // (its interior faces paired, so its two planes bound): else it is scanned.
+            let moved = d[..3] != [0, 0, 0];
+            (periods > 0
+                && r.scale == scale
+                && (!moved || r.figures.interior.is_closed())
+                && slab.mesh.is_moved_copy_of(&r.mesh, d))
+            .then_some((k, d))
+        })?;
+        let source = &self.recent[k];
+        let at_rest = k + 1 == self.recent.len() && d == [0, 0, 0, scale];
+        let moved = d[..3] != [0, 0, 0];
+        let figures = if !moved {
+            source.figures.clone()
+        } else {
+            Arc::new(source.figures.moved([d[0], d[1], d[2]]))
+        };
+        // Its interior faces pair as the source's did; its lower plane pairs with the
+        // previous slab's upper one, and its upper plane is the next slab's partner.
+        self.merge(figures.interior);
+        let prev_hi = std::mem::take(&mut self.prev_hi);
+        self.match_planes(&prev_hi, self.prev_hi_hash, &figures.lo, figures.lo_hash);
+        self.prev_hi = figures.hi.clone();
+        self.prev_hi_hash = figures.hi_hash;
+        self.copies[usize::from(moved)] += 1;
+        self.shared_vertices += figures.lo_vertices;
+        self.lateral_vertices += slab.mesh.vertices.len() as u64;
+        self.stats.vanishing_slabs += u64::from(slab.vanishes());
+        self.stats.tets += slab.mesh.tets.len() as u64;
+        self.stats.slabs += 1;
+        self.add_volume(
+            figures.vol24,
+            slab.geometry,
+            slab.stamps_ns.1 - slab.stamps_ns.0,
+        );
+        self.remember(Recent {
+            mesh: shared.clone(),
+            index: slab.index,
+            scale,
+            figures,
+        });
+        Some(at_rest)
+    }
+
+    /// Keeps `r` among the latest slabs.
+    fn remember(&mut self, r: Recent) {
+        if self.recent.len() == RECENT_SLABS {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(r);
+    }
+
+    /// [`Self::add_lateral`], scanning the tets in chunks of `chunk_tets` on rayon's pool.
+    fn add_lateral_in_chunks(
+        &mut self,
+        slab: LateralRef<'_>,
+        first_cap: Option<&TetMesh>,
+        chunk_tets: usize,
+        shared: Option<&Arc<TetMesh>>,
+    ) {
+        let chunk_tets = chunk_tets.max(1);
+        let t_lo = slab.geometry.scale * slab.index as i32;
+        let t_hi = t_lo + slab.geometry.scale;
+        let m = slab.mesh;
+        // Which time plane each vertex lies in: bit 0 lower, bit 1 upper.
+        let plane: Vec<u8> = m
+            .vertices
+            .iter()
+            .map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1))
+            .collect();
+        // Faces off the two time planes pair up inside the slab: packed and gathered by
+        // their smallest vertex (counted as they come), else by their ids.
+        let shape = (m.vertices.len() <= PACKED_VERTEX_LIMIT)
+            .then(|| FaceShape::new(m.vertices.len(), 4 * m.tets.len()));
+        // The tets in chunks on rayon's pool: every figure below is an exact sum or an
+        // order-independent set, so the result does not depend on the chunking.
+        let chunk = |tets: &[[u32; 4]]| {
+            let mut c = Scan::default();
+            // Most faces are off the time planes: room for all at once, not by doubling.
+            let mut faces = shape.map(|shape| shape.gather(4 * tets.len()));
+            if faces.is_none() {
+                c.wide.reserve(4 * tets.len());
+            }
+            for t in tets {
+                let p = t.map(|v| m.vertices[v as usize]);
+                let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
+                c.vol24 -= det4_small_tet(&local[0], &local[1], &local[2], &local[3]);
+                let (sorted, order) = canonical_tet_faces(*t);
+                let flags = order.map(|i| plane[t[i] as usize]);
+                for (j, (key, s)) in sorted.into_iter().enumerate() {
+                    // The face omits the j-th smallest id (the others in order, as `key`).
+                    let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
+                    let on = flags[f[0]] & flags[f[1]] & flags[f[2]];
+                    if on != 0 {
+                        let (key, parity) = canonical_triangle(f.map(|k| {
+                            let q = p[order[k]];
+                            [q[0], q[1], q[2]]
+                        }));
+                        let s = s * parity;
+                        if on & 1 != 0 {
+                            c.lo_hash.add(&key, s);
+                            c.lo.push((key, s));
+                        } else {
+                            c.hi_cone += i128::from(s) * det3_i128(&key);
+                            c.hi_hash.add(&key, s);
+                            c.hi.push((key, s));
+                        }
+                    } else {
+                        match faces.as_mut() {
+                            Some(faces) => faces.push(key, s > 0),
+                            None => c.wide.push((key, s)),
+                        }
+                    }
+                }
+            }
+            c.faces = faces;
+            c
+        };
+        let scan = || -> Vec<Scan> {
+            if m.tets.len() <= chunk_tets {
+                vec![chunk(&m.tets)]
+            } else {
+                m.tets.par_chunks(chunk_tets).map(chunk).collect()
+            }
+        };
+        // The first slab's lower plane pairs with the first cap: its boundary is found
+        // while the slab is scanned.
+        let cap = first_cap.filter(|_| self.stats.slabs == 0);
+        let (parts, cap) = match cap {
+            Some(cap) => {
+                let (parts, cap) = rayon::join(scan, || cap_boundary(cap));
+                (parts, Some(cap))
+            }
+            None => (scan(), None),
+        };
+        let mut parts = parts.into_iter();
+        let Scan {
+            mut vol24,
+            mut hi_cone,
+            mut lo,
+            mut hi,
+            mut lo_hash,
+            mut hi_hash,
+            faces,
+            mut wide,
+        } = parts.next().unwrap_or_default();
+        let mut gathered = Vec::from_iter(faces);
+        for c in parts {
+            vol24 += c.vol24;
+            hi_cone += c.hi_cone;
+            lo_hash.merge(&c.lo_hash);
+            hi_hash.merge(&c.hi_hash);
+            lo.extend(c.lo);
+            hi.extend(c.hi);
+            wide.extend(c.wide);
+            gathered.extend(c.faces);
+        }
+        // Upper cap: Σ det over its tets = Σ over its boundary (the upper faces, reversed)
+        // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
+        vol24 -= i128::from(t_hi - t_lo) * hi_cone;
+        let interior = match shape {
+            Some(_) => FaceParts::pair(gathered, &mut self.scratch, false).0,
+            None => pair_by_first_vertex(&wide, m.vertices.len()),
+        };
+        self.merge(interior);
+        let lo_vertices = plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
+
+        // Lower plane: pairs with the previous slab's upper plane, or the first cap.
+        if self.stats.slabs == 0 {
+            match cap {
+                Some((report, boundary, hash)) => {
+                    self.merge(report);
+                    self.match_planes(&boundary, hash, &lo, lo_hash);
+                }
+                // No opening cap (not built): the first lower plane stays open.
+                None => self.merge(pair_plane_faces(lo.clone())),
+            }
+        } else {
+            self.shared_vertices += lo_vertices;
+            let prev = std::mem::take(&mut self.prev_hi);
+            self.match_planes(&prev, self.prev_hi_hash, &lo, lo_hash);
+        }
+        let hi: Arc<[(PlaneTri, i8)]> = hi.into();
+        if let Some(mesh) = shared {
+            self.remember(Recent {
+                mesh: mesh.clone(),
+                index: slab.index,
+                scale: slab.geometry.scale,
+                figures: Arc::new(SlabFigures {
+                    interior,
+                    vol24,
+                    lo,
+                    lo_hash,
+                    hi: hi.clone(),
+                    hi_hash,
+                    lo_vertices,
+                }),
+            });
+        }
+        self.prev_hi = hi;
+        self.prev_hi_hash = hi_hash;
+
+        self.lateral_vertices += m.vertices.len() as u64;
+        self.stats.vanishing_slabs += u64::from(slab.vanishes());
+        self.stats.tets += m.tets.len() as u64;
+        self.stats.slabs += 1;
+        self.add_volume(vol24, slab.geometry, slab.stamps_ns.1 - slab.stamps_ns.0);
+    }
+
+    fn add_volume(&mut self, vol24: i128, g: &GridGeometry, dt_ns: i64) {
+        let v = vol24 as f64 / 24.0;
+        self.stats.hypervolume_lattice += v;
+        let step = g.step_m();
+        self.stats.hypervolume_m3s +=
+            v * step * step * step * (dt_ns as f64 * 1e-9) / f64::from(g.scale);
+    }
+
+    /// Checks that two sides of one time plane carry the same triangles with opposite
+    /// orientations: by multiset hash, exactly (sorting) only if the hashes disagree.
+    fn match_planes(
+        &mut self,
+        a: &[(PlaneTri, i8)],
+        a_hash: PlaneHash,
+        b: &[(PlaneTri, i8)],
+        b_hash: PlaneHash,
+    ) {
+        if a_hash.matches(&b_hash) && a.len() == b.len() {
+            self.stats.closed.triangles += a.len() as u64;
+        } else {
+            self.merge(pair_plane_faces([a, b].concat()));
+        }
+    }
+
+    fn merge(&mut self, r: ClosedReport) {
+        let c = &mut self.stats.closed;
+        c.triangles += r.triangles;
+        c.unpaired += r.unpaired;
+        c.overshared += r.overshared;
+        c.misoriented += r.misoriented;
+    }
+
+    /// Closes the stream: `first_cap` / `last_cap` are the caps of the first and last
+    /// frames with their number of occupied voxels (interior cap vertices). `frames` is the
+    /// number of accepted frames.
+    pub fn finish(
+        mut self,
+        frames: u64,
+        first_cap: Option<(&TetMesh, u64)>,
+        last_cap: Option<(&TetMesh, u64)>,
+    ) -> BodyStats {
+        self.stats.frames = frames;
+        if self.stats.slabs > 0 {
+            let prev = std::mem::take(&mut self.prev_hi);
+            match last_cap {
+                Some((cap, _)) => {
+                    let (report, boundary, hash) = cap_boundary(cap);
+                    self.merge(report);
+                    self.match_planes(&prev, self.prev_hi_hash, &boundary, hash);
+                }
+                // No closing cap (not built): the last upper plane stays open.
+                None => self.merge(pair_plane_faces(prev.to_vec())),
+            }
+            for (cap, occupied) in [first_cap, last_cap].into_iter().flatten() {
+                self.stats.tets += cap.tets.len() as u64;
+                self.lateral_vertices += occupied;
+            }
+            self.stats.vertices = self.lateral_vertices - self.shared_vertices;
+        }
+        self.stats
+    }
+}
+
+fn det3_i128(t: &PlaneTri) -> i128 {
+    let m = |p: &[i32; 3]| p.map(i128::from);
+    let (a, b, c) = (m(&t[0]), m(&t[1]), m(&t[2]));
+    a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+        + a[2] * (b[0] * c[1] - b[1] * c[0])
+}
+
+/// Checks a cap's interior faces (exactly, by packed vertex ids) and returns the report, its
+/// boundary triangles keyed by coordinates, and their multiset hash.
+fn cap_boundary(cap: &TetMesh) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash) {
+    let point = |v: u32| {
+        let p = cap.vertices[v as usize];
+        [p[0], p[1], p[2]]
+    };
+    if cap.vertices.len() > PACKED_VERTEX_LIMIT {
+        // Huge caps: group faces by coordinates instead of packed ids.
+        let mut all = Vec::with_capacity(cap.tets.len() * 4);
+        for t in &cap.tets {
+            for (f, s) in tet_faces(*t) {
+                let (key, parity) = canonical_triangle(f.map(point));
+                all.push((key, s * parity));
+            }
+        }
+        all.sort_unstable_by_key(|f| f.0);
+        let mut report = ClosedReport::default();
+        let mut boundary = Vec::new();
+        let mut hash = PlaneHash::default();
+        for group in all.chunk_by(|a, b| a.0 == b.0) {
+            match group {
+                [(key, s)] => {
+                    hash.add(key, *s);
+                    boundary.push((*key, *s));
+                }
+                [(_, s1), (_, s2)] => {
+                    report.triangles += 1;
+                    if s1 == s2 {
+                        report.misoriented += 1;
+                    }
+                }
+                _ => {
+                    report.triangles += 1;
+                    report.overshared += 1;
+                }
+            }
+        }
+        return (report, boundary, hash);
+    }
+    // A cap fills its body's volume (hundreds of thousands of tets): gathered in chunks and
+    // paired in parts on rayon's pool.
+    let bits = id_bits(cap.vertices.len());
+    let shape = FaceShape::new(cap.vertices.len(), 4 * cap.tets.len());
+    let gather = |tets: &[[u32; 4]]| {
+        let mut faces = shape.gather(4 * tets.len());
+        for t in tets {
+            for (k, s) in canonical_tet_faces(*t).0 {
+                faces.push(k, s > 0);
+            }
+        }
+        faces
+    };
+    let gathered = cap.tets.par_chunks(SCAN_CHUNK_TETS).map(gather).collect();
+    let (report, single) = FaceParts::pair(gathered, &mut Vec::new(), true);
+    let mut boundary = Vec::with_capacity(single.len());
+    let mut hash = PlaneHash::default();
+    let mask = (1u64 << bits) - 1;
+    for key in single {
+        // A boundary face of the cap: decode its vertex ids.
+        let face = key >> 1;
+        let ids = [
+            (face >> (2 * bits)) as u32,
+            ((face >> bits) & mask) as u32,
+            (face & mask) as u32,
+        ];
+        let s = if key & 1 == 1 { 1 } else { -1 };
+        let (tri, parity) = canonical_triangle(ids.map(point));
+        hash.add(&tri, s * parity);
+        boundary.push((tri, s * parity));
+    }
+    (report, boundary, hash)
+}
+
+/// Tets per chunk of a slab's scan on rayon's pool (smaller slabs are scanned in one piece).
+const SCAN_CHUNK_TETS: usize = 1 << 17;
+
+/// What one chunk of a slab's tets contributes to [`StatsAccumulator::add_lateral`].
+#[derive(Default)]
+struct Scan {
+    vol24: i128,
+    hi_cone: i128,
+    lo: Vec<(PlaneTri, i8)>,
+    hi: Vec<(PlaneTri, i8)>,
+    lo_hash: PlaneHash,
+    hi_hash: PlaneHash,
+    faces: Option<FaceParts>,
+    wide: Vec<([u32; 3], i8)>,
+}
+
+/// Order-independent hashes of a set of oriented plane triangles.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+struct PlaneHash {
+    /// Σ ± h(t): orientation as sign.
+    signed: u128,
+    /// Σ h'(t): multiplicity only.
+    unsigned: u128,
+}
+
+impl PlaneHash {
+    #[inline]
+    fn add(&mut self, t: &PlaneTri, s: i8) {
+        let (h, g) = tri_hash(t);
+        self.signed = if s > 0 {
+            self.signed.wrapping_add(h)
+        } else {
+            self.signed.wrapping_sub(h)
+        };
+        self.unsigned = self.unsigned.wrapping_add(g);
+    }
+
+    /// Adds the triangles `other` hashed (the union of the two multisets).
+    fn merge(&mut self, other: &PlaneHash) {
+        self.signed = self.signed.wrapping_add(other.signed);
+        self.unsigned = self.unsigned.wrapping_add(other.unsigned);
+    }
+
+    /// Both sides of one plane: same triangles, opposite orientations.
+    fn matches(&self, other: &PlaneHash) -> bool {
+        self.signed.wrapping_add(other.signed) == 0 && self.unsigned == other.unsigned
+    }
+}
+
+/// Two independent 128-bit hashes of a triangle's nine coordinates: four 64-bit lanes, each
+/// the coordinates (packed losslessly into five words) folded by 64 × 64 → 128-bit
+/// multiplications under its own random keys, as wyhash folds its input.
+#[inline]
+fn tri_hash(t: &PlaneTri) -> (u128, u128) {
+    #[inline]
+    fn fold(a: u64, b: u64) -> u64 {
+        let r = u128::from(a) * u128::from(b);
+        (r as u64) ^ ((r >> 64) as u64)
+    }
+    let c = |p: &[i32; 3], k: usize| u64::from(p[k] as u32);
+    let words = [
+        (c(&t[0], 0) << 32) | c(&t[0], 1),
+        (c(&t[1], 0) << 32) | c(&t[1], 1),
+        (c(&t[2], 0) << 32) | c(&t[2], 1),
+        (c(&t[0], 2) << 32) | c(&t[1], 2),
+        c(&t[2], 2),
+    ];
+    let lane = |k: &[u64; 7]| {
+        let a = fold(words[0] ^ k[0], words[1] ^ k[1]);
+        let b = fold(words[2] ^ k[2], words[3] ^ k[3]);
+        let c = fold(words[4] ^ k[4], a ^ k[5]);
+        fold(b ^ k[6], c ^ k[0])
+    };
+    let h = TRI_HASH_KEYS.each_ref().map(lane);
+    (
+        (u128::from(h[0]) << 64) | u128::from(h[1]),
+        (u128::from(h[2]) << 64) | u128::from(h[3]),
+    )
+}
+
+/// The keys of [`tri_hash`]'s four lanes: published constants (wyhash's secrets, the golden
+/// ratio, SHA-2's initial hash values and round constants), none chosen for these inputs.
+const TRI_HASH_KEYS: [[u64; 7]; 4] = [
+    [
+        0xa076_1d64_78bd_642f,
+        0xe703_7ed1_a0b4_28db,
+        0x8ebc_6af0_9c88_c6e3,
+        0x5899_65cc_7537_4cc3,
+        0x1d8e_4e27_c47d_124f,
+        0x9e37_79b9_7f4a_7c15,
+        0xd6e8_feb8_6659_fd93,
+    ],
+    [
+        0x2d35_8dcc_aa6c_78a5,
+        0x8bb8_4b93_962e_acc9,
+        0x4b33_a62e_d433_d4a3,
+        0x4d5a_2da5_1de1_aa47,
+        0xa0b4_28db_e703_7ed1,
+        0x6a09_e667_f3bc_c909,
+        0xbb67_ae85_84ca_a73b,
+    ],
+    [
+        0x3c6e_f372_fe94_f82b,
+        0xa54f_f53a_5f1d_36f1,
+        0x510e_527f_ade6_82d1,
+        0x9b05_688c_2b3e_6c1f,
+        0x1f83_d9ab_fb41_bd6b,
+        0x5be0_cd19_137e_2179,
+        0xcbbb_9d5d_c105_9ed8,
+    ],
+    [
+        0x629a_292a_367c_d507,
+        0x9159_015a_3070_dd17,
+        0x152f_ecd8_f70e_5939,
+        0x6733_2667_ffc0_0b31,
+        0x8eb4_4a87_6858_1511,
+        0xdb0c_2e0d_64f9_8fa7,
+        0x47b5_481d_befa_4fa4,
+    ],
+];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesher::test_stream;
+
+    /// Scanning a slab in chunks gives the figures of one scan, exactly: on a closed body, and
+    /// on one with an open first plane (no opening cap).
+    #[test]
+    fn chunked_scans_equal_one_scan() {
+        // A ball moving along x, with scattered voxels (so slabs have many tets).
+        let (m, slabs) = test_stream([10, 9, 8], 4, |k, x, y, z| {
+            let r2 = (x - 3 - k as i32).pow(2) + (y - 4).pow(2) + (z - 4).pow(2);
+            r2 <= 9 || (x + 2 * y + 3 * z + k as i32) % 11 == 0
+        });
+        let first = m.first_frame().unwrap().clone();
+        let cap = m.cap(&first, crate::CapSide::Low).unwrap();
+        assert!(
+            slabs[0].mesh.tets.len() > 100,
+            "{}",
+            slabs[0].mesh.tets.len()
+        );
+        for opening in [Some(&cap), None] {
+            let figures = |chunk: usize| {
+                let mut acc = StatsAccumulator::new();
+                for s in &slabs {
+                    acc.add_lateral_in_chunks(s.lateral_ref(), opening, chunk, None);
+                }
+                let st = acc.finish(4, opening.map(|c| (c, 0)), None);
+                (
+                    st.closed,
+                    st.tets,
+                    st.hypervolume_lattice.to_bits(),
+                    st.vanishing_slabs,
+                )
+            };
+            let one = figures(usize::MAX);
+            for chunk in [1, 7, 64] {
+                assert_eq!(figures(chunk), one, "chunks of {chunk}");
+            }
+            assert!(one.0.unpaired > 0, "the last plane is open: {:?}", one.0);
+        }
+    }
+
+    /// A test stream's slabs (see [`test_stream`]) with its opening and closing caps.
+    fn capped_stream(
+        size: [u32; 3],
+        n: u32,
+        occ: impl Fn(u32, i32, i32, i32) -> bool,
+    ) -> (Vec<Slab>, TetMesh, TetMesh) {
+        let (m, slabs) = test_stream(size, n, occ);
+        let first = m.first_frame().unwrap().clone();
+        let cap = m.cap(&first, crate::CapSide::Low).unwrap();
+        let last = m.last_frame().unwrap().clone();
+        let end = m.cap(&last, crate::CapSide::High).unwrap();
+        (slabs, cap, end)
+    }
+
+    /// The figures two ways of adding the same slabs must agree on (floats bit for bit).
+    fn figures(st: BodyStats) -> (ClosedReport, u64, u64, u64, u64, u64) {
+        (
+            st.closed,
+            st.tets,
+            st.vertices,
+            st.slabs,
+            st.hypervolume_lattice.to_bits(),
+            st.hypervolume_m3s.to_bits(),
+        )
+    }
+
+    /// A body at rest for some periods, then moving, then at rest again: the periods that
+    /// copy the one before are recognised (and only they), and the figures equal a full scan
+    /// of every slab, on a closed stream and on one whose copied slabs carry a defect.
+    #[test]
+    fn copies_of_the_last_slab_add_the_same_figures_as_scanning_them() {
+        // Rest for frames 0-3, a step at 4, rest for 5-7, a step at 8.
+        let place = |k: u32| match k {
+            0..=3 => 0,
+            4..=7 => 2,
+            _ => 3,
+        };
+        let (slabs, cap, end) = capped_stream([9, 8, 7], 9, |k, x, y, z| {
+            let r2 = (x - 3 - place(k)).pow(2) + (y - 4).pow(2);
+            r2 + (z - 3).pow(2) <= 6 || (x + 2 * y + 3 * z) % 13 == 0
+        });
+        // Slabs 1, 2 and 5, 6 copy the slab before them; a defect in slabs 5 and 6 (one
+        // tet gone from each, the same one) keeps 6 a copy of 5, but 5 no copy of 4.
+        for defect in [false, true] {
+            let mut meshes: Vec<Arc<TetMesh>> = Vec::new();
+            for (j, s) in slabs.iter().enumerate() {
+                let mut mesh = s.mesh.clone();
+                if defect && (5..=6).contains(&j) {
+                    mesh.tets.remove(7);
+                }
+                meshes.push(Arc::new(mesh));
+            }
+            let lateral = |j: usize| LateralRef {
+                mesh: &meshes[j],
+                ..slabs[j].lateral_ref()
+            };
+            let mut scan = StatsAccumulator::new();
+            let mut shared = StatsAccumulator::new();
+            let mut copies = Vec::new();
+            for j in 0..slabs.len() {
+                scan.add_lateral(lateral(j), Some(&cap));
+                if shared.add_lateral_shared(lateral(j), Some(&cap), &meshes[j]) {
+                    copies.push(j);
+                }
+            }
+            let expected: &[usize] = if defect { &[1, 2, 6] } else { &[1, 2, 5, 6] };
+            assert_eq!(copies, expected, "defect {defect}");
+            let (a, b) = (
+                figures(scan.finish(9, Some((&cap, 0)), Some((&end, 0)))),
+                figures(shared.finish(9, Some((&cap, 0)), Some((&end, 0)))),
+            );
+            assert_eq!(a, b, "defect {defect}");
+            assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
+        }
+    }
+
+    /// A body stepping by whole voxels every third period: its slabs at rest after a step
+    /// are the ones before it moved in space, added as copies with the figures a scan of
+    /// each gives; and only while the slab copied is closed (with one tet gone from every
+    /// slab, none is copied in space, and the figures are still a scan's).
+    #[test]
+    fn slabs_moved_in_space_add_the_figures_of_scanning_them() {
+        let place = |k: u32| (k / 3) as i32;
+        let (slabs, cap, end) = capped_stream([15, 9, 8], 11, |k, x, y, z| {
+            let x = x - place(k);
+            let ball = (x - 3).pow(2) + (y - 4).pow(2) + (z - 3).pow(2) <= 5;
+            ball || (x == 1 && y == 2 && (1..6).contains(&z))
+        });
+        for defect in [false, true] {
+            let meshes: Vec<Arc<TetMesh>> = slabs
+                .iter()
+                .map(|s| {
+                    let mut mesh = s.mesh.clone();
+                    if defect {
+                        mesh.tets.remove(7);
+                    }
+                    Arc::new(mesh)
+                })
+                .collect();
+            let lateral = |j: usize| LateralRef {
+                mesh: &meshes[j],
+                ..slabs[j].lateral_ref()
+            };
+            let mut scan = StatsAccumulator::new();
+            let mut shared = StatsAccumulator::new();
+            for j in 0..slabs.len() {
+                scan.add_lateral(lateral(j), Some(&cap));
+                shared.add_lateral_shared(lateral(j), Some(&cap), &meshes[j]);
+            }
+            let [unmoved, moved] = shared.copies();
+            assert!(unmoved > 0, "defect {defect}: {unmoved} copies in time");
+            if defect {
+                assert_eq!(moved, 0, "a slab that is not closed is scanned");
+            } else {
+                assert!(moved >= 2, "{moved} copies moved in space");
+            }
+            let (a, b) = (
+                figures(scan.finish(11, Some((&cap, 0)), Some((&end, 0)))),
+                figures(shared.finish(11, Some((&cap, 0)), Some((&end, 0)))),
+            );
+            assert_eq!(a, b, "defect {defect}");
+            assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
+        }
+    }
+}
