@@ -207,7 +207,7 @@ fn run_in_pool(a: &BenchArgs) -> Result<(), CliError> {
             }
             bench::mesh::bench_mesh(*scene, &o, *validate)?;
             let build = |c: &crate::node::launch::LaunchConfig, topics: &[String]| {
-                super::replay::build_nodes(c, topics, false).map(|(nodes, _)| nodes)
+                crate::node::factory::build_nodes(c, topics, false).map(|(nodes, _)| nodes)
             };
             match launch {
                 Some(l) => Ok(bench::mesh::bench_nodes(*scene, &o, l, &build)?),

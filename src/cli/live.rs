@@ -15,7 +15,8 @@ use std::time::{Duration, Instant};
 use clap::Args;
 use futures::StreamExt;
 
-use super::replay::{build_nodes, write_json};
+use super::replay::write_json;
+use crate::node::factory::build_nodes;
 use super::CliError;
 use crate::bag::{BagReader, BagWriter};
 use crate::live::wire::{ros_topic_name, ros_type_name, RawCdr, TopicQos};

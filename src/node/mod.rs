@@ -10,6 +10,7 @@ mod ahead;
 pub mod bus;
 pub mod carving;
 pub mod checker;
+pub mod factory;
 pub mod launch;
 pub mod markers;
 pub mod mesher;
