@@ -179,6 +179,12 @@ impl OccupancyGrid {
                 for z in 0..sz {
                     for y in 0..sy {
                         let src = &f.data[sx * (y + sy * z)..][..sx];
+                        // An empty row (most of a robot's or a person's frame) leaves its
+                        // values and bits zero, untouched (nor their pages faulted in);
+                        // with an iso level of 0 every voxel is occupied, so it is read.
+                        if opts.iso_percent > 0 && src.iter().fold(0u8, |a, &b| a | b) == 0 {
+                            continue;
+                        }
                         let base = padded[0] * ((y + 1) + padded[1] * (z + 1)) + 1;
                         let row = &mut bits[words * ((y + 1) + padded[1] * (z + 1))..][..words];
                         for (x, &raw) in src.iter().enumerate() {
@@ -458,6 +464,54 @@ mod tests {
                 }
                 assert_eq!(fast, slow, "start {start}, length {len}");
             }
+        }
+    }
+
+    /// PERCENT frames with empty rows decode as voxel by voxel: values (unknown and
+    /// out-of-range ones mapped), bits at the iso level, counts; at iso levels 0 and 50.
+    #[test]
+    fn percent_frames_with_empty_rows_decode_voxel_by_voxel() {
+        let mut rng = chronotope_kernel::intersect::test_rng::Rng(0x6a09_e667_f3bc_c908);
+        let size = [70u32, 5, 4];
+        let n = 70 * 5 * 4;
+        // Every other row empty, the rest random over 0..=255.
+        let data: Vec<u8> = (0..n)
+            .map(|i| {
+                if (i / 70) % 2 == 0 {
+                    0
+                } else {
+                    rng.next() as u8
+                }
+            })
+            .collect();
+        for (iso, unknown_occupied) in [(50u8, false), (50, true), (0, false)] {
+            let opts = DecodeOptions {
+                iso_percent: iso,
+                unknown_occupied,
+                ..DecodeOptions::default()
+            };
+            let f = FrameRef {
+                stamp_ns: 0,
+                origin: [0.0; 3],
+                resolution: 0.01,
+                size,
+                encoding: 1,
+                data: &data,
+            };
+            let g = OccupancyGrid::decode(&f, &opts).unwrap();
+            let mut occupied = 0;
+            for (i, &raw) in data.iter().enumerate() {
+                let (x, y, z) = (i % 70, i / 70 % 5, i / 350);
+                let want = match raw {
+                    255 => 100 * u8::from(unknown_occupied),
+                    101..=254 => 100,
+                    r => r,
+                };
+                assert_eq!(g.value(x + 1, y + 1, z + 1), want, "voxel {i}, iso {iso}");
+                assert_eq!(g.get(x + 1, y + 1, z + 1), want >= iso, "voxel {i}, iso {iso}");
+                occupied += u64::from(want >= iso);
+            }
+            assert_eq!(g.occupied, occupied);
         }
     }
 
