@@ -1011,13 +1011,14 @@ impl McapReader {
         Ok(())
     }
 
-    /// The next step in the chunk being read: `None` if there is no chunk, `Some(None)` if
-    /// nothing is to be yielded yet.
-    fn next_in_chunk(&mut self) -> Option<Option<Result<BagMessage, BagError>>> {
+    /// The next step in the chunk being read ([`Step::End`] if no chunk is open).
+    fn next_in_chunk(&mut self) -> Step {
         // Taken out while its record is handled, so the record can borrow from its buffer.
-        let mut chunk = self.chunk.take()?;
+        let Some(mut chunk) = self.chunk.take() else {
+            return Step::End;
+        };
         let out = match chunk.reader.next_event() {
-            None => return Some(None),
+            None => return Step::More,
             // The whole chunk was handed over at the start: tell the reader that is all.
             Some(Ok(LinearReadEvent::ReadRequest(_))) => {
                 chunk.reader.notify_read(0);
@@ -1060,19 +1061,19 @@ impl McapReader {
                 if chunk.indexed_empty {
                     self.recovery.last_costs_nothing();
                 }
-                return Some(Some(Err(BagError::CorruptChunk {
+                return Step::Damage(BagError::CorruptChunk {
                     path: self.path.clone(),
                     offset: chunk.offset,
                     reason,
-                })));
+                });
             }
         };
         self.chunk = Some(chunk);
-        Some(out)
+        out.into()
     }
 
     /// Reads the next top-level record; returns what to yield, if anything.
-    fn step(&mut self) -> Result<Option<Result<BagMessage, BagError>>, BagError> {
+    fn step(&mut self) -> Result<Step, BagError> {
         let pos = self.pos;
         if pos >= self.data_end {
             self.done = true;
@@ -1080,7 +1081,7 @@ impl McapReader {
                 // Without a footer, the file was cut.
                 return Err(self.truncated());
             }
-            return Ok(None);
+            return Ok(Step::End);
         }
         let mut prefix = [0u8; RECORD_PREFIX as usize];
         let got = self.read_at(pos, &mut prefix)?;
@@ -1102,18 +1103,21 @@ impl McapReader {
                     Some((index.message_start_time, index.message_end_time)),
                     HashMap::new(),
                 );
-                return Ok(Some(Err(BagError::RecordTooLarge {
+                return Ok(Step::Damage(BagError::RecordTooLarge {
                     path: self.path.clone(),
                     offset: pos,
                     opcode: op::CHUNK,
                     len,
                     limit: self.limit,
-                })));
+                }));
             }
             let body = self.read_body(pos + RECORD_PREFIX, index.chunk_length - RECORD_PREFIX)?;
             self.pos = pos + index.chunk_length;
             self.end_awaiting();
-            return Ok(self.start_chunk(pos, &body, Some(&index)).err().map(Err));
+            return Ok(self
+                .start_chunk(pos, &body, Some(&index))
+                .err()
+                .map_or(Step::More, Step::Damage));
         }
         if got < prefix.len() {
             self.done = true;
@@ -1129,7 +1133,10 @@ impl McapReader {
         match opcode {
             op::CHUNK => {
                 self.end_awaiting();
-                Ok(self.start_chunk(pos, &body, None).err().map(Err))
+                Ok(self
+                    .start_chunk(pos, &body, None)
+                    .err()
+                    .map_or(Step::More, Step::Damage))
             }
             op::MESSAGE_INDEX => {
                 if self.awaiting_index.is_some() {
@@ -1153,12 +1160,12 @@ impl McapReader {
                         );
                     }
                 }
-                Ok(None)
+                Ok(Step::More)
             }
             op::FOOTER => {
                 self.done = true;
                 if self.tail_ok && self.pos + MAGIC.len() as u64 == self.len {
-                    Ok(None)
+                    Ok(Step::End)
                 } else if self.pos + MAGIC.len() as u64 > self.len {
                     Err(self.truncated())
                 } else {
@@ -1172,7 +1179,9 @@ impl McapReader {
             }
             _ => {
                 self.end_awaiting();
-                Ok(self.record(opcode, &body, RecordLocation::File { offset: pos }))
+                Ok(self
+                    .record(opcode, &body, RecordLocation::File { offset: pos })
+                    .into())
             }
         }
     }
@@ -1195,7 +1204,7 @@ impl McapReader {
         pos: u64,
         opcode: u8,
         rlen: u64,
-    ) -> Result<Option<Result<BagMessage, BagError>>, BagError> {
+    ) -> Result<Step, BagError> {
         self.end_awaiting();
         let next = self.resync(pos + 1)?;
         let (kind, what) = if opcode == 0 && rlen == 0 {
@@ -1262,13 +1271,13 @@ impl McapReader {
             );
             self.pos = end;
             self.done = true;
-            return Ok(Some(Err(BagError::Skipped {
+            return Ok(Step::Damage(BagError::Skipped {
                 path: self.path.clone(),
                 offset: pos,
                 bytes: end - pos,
                 reason: what,
                 next: None,
-            })));
+            }));
         };
         self.lose(
             pos,
@@ -1280,21 +1289,21 @@ impl McapReader {
         );
         self.pos = next;
         if kind == LossKind::RecordTooLarge {
-            return Ok(Some(Err(BagError::RecordTooLarge {
+            return Ok(Step::Damage(BagError::RecordTooLarge {
                 path: self.path.clone(),
                 offset: pos,
                 opcode,
                 len: rlen,
                 limit: self.limit,
-            })));
+            }));
         }
-        Ok(Some(Err(BagError::Skipped {
+        Ok(Step::Damage(BagError::Skipped {
             path: self.path.clone(),
             offset: pos,
             bytes: next - pos,
             reason: what,
             next: Some(next),
-        })))
+        }))
     }
 
     /// The offset of the next readable record at or after `from`: the next chunk the index
@@ -1435,6 +1444,31 @@ impl McapReader {
     }
 }
 
+/// What one step of the reader gives: a message, damage it read past (the reader goes on),
+/// nothing yet (more to read), or the end of what it was reading (the chunk, or the file).
+#[derive(Debug)]
+enum Step {
+    /// A message to yield.
+    Message(BagMessage),
+    /// A loss to report; reading goes on after it.
+    Damage(BagError),
+    /// Nothing to yield yet: read on.
+    More,
+    /// Nothing more here: no chunk is open, or the file is read.
+    End,
+}
+
+impl From<Option<Result<BagMessage, BagError>>> for Step {
+    /// A record's outcome: a message, damage, or nothing to yield.
+    fn from(item: Option<Result<BagMessage, BagError>>) -> Self {
+        match item {
+            Some(Ok(m)) => Step::Message(m),
+            Some(Err(e)) => Step::Damage(e),
+            None => Step::More,
+        }
+    }
+}
+
 impl Iterator for McapReader {
     type Item = Result<BagMessage, BagError>;
 
@@ -1444,16 +1478,18 @@ impl Iterator for McapReader {
                 return Some(Err(err));
             }
             match self.next_in_chunk() {
-                Some(Some(item)) => return Some(item),
-                Some(None) => continue,
-                None => {}
+                Step::Message(m) => return Some(Ok(m)),
+                Step::Damage(e) => return Some(Err(e)),
+                Step::More => continue,
+                Step::End => {}
             }
             if self.done {
                 return None;
             }
             match self.step() {
-                Ok(Some(item)) => return Some(item),
-                Ok(None) => {}
+                Ok(Step::Message(m)) => return Some(Ok(m)),
+                Ok(Step::Damage(e)) => return Some(Err(e)),
+                Ok(Step::More | Step::End) => {}
                 Err(err) => {
                     self.done = true;
                     self.chunk = None;
