@@ -68,16 +68,70 @@ const LOCAL_SEND_POLL: Duration = Duration::from_millis(50);
 /// How often a publisher waiting for room in a queue's byte budget looks again.
 const BYTES_POLL: Duration = Duration::from_millis(2);
 
-/// A node's state while it runs one of its handlers.
-const WORKING: usize = usize::MAX - 1;
-/// A node's state otherwise (unless it waits for room in another node's queue).
-const IDLE: usize = usize::MAX;
+/// What a node is doing, as a publisher waiting for room in its queue sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum NodeState {
+    /// In one of its handlers.
+    Working,
+    /// Between handlers.
+    Idle,
+    /// Waiting for room in node `n`'s queue (at work as long as `n` is).
+    WaitingFor(usize),
+}
+
+/// A node's [`NodeState`], shared between threads in one atomic word.
+struct StateCell(AtomicUsize);
+
+impl StateCell {
+    /// The word of `Working` and `Idle` (node indices are far below them).
+    const WORKING: usize = usize::MAX - 1;
+    const IDLE: usize = usize::MAX;
+
+    fn new() -> Self {
+        Self(AtomicUsize::new(Self::IDLE))
+    }
+
+    fn get(&self) -> NodeState {
+        match self.0.load(Ordering::Relaxed) {
+            Self::WORKING => NodeState::Working,
+            Self::IDLE => NodeState::Idle,
+            n => NodeState::WaitingFor(n),
+        }
+    }
+
+    fn set(&self, state: NodeState) {
+        let word = match state {
+            NodeState::Working => Self::WORKING,
+            NodeState::Idle => Self::IDLE,
+            NodeState::WaitingFor(n) => n,
+        };
+        self.0.store(word, Ordering::Relaxed);
+    }
+}
+
+/// Why a message from one node was not delivered to another.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+enum SendFailure {
+    /// The run is aborted (the message is discarded and counted as such).
+    #[error("the run is aborted")]
+    Aborted,
+    /// The reading node has ended.
+    #[error("it has ended")]
+    Ended,
+    /// A real-time publisher found the queue full.
+    #[error("its queue is full")]
+    QueueFull,
+    /// A real-time publisher found the queue holding its byte budget.
+    #[error("its queue holds its queue_mb")]
+    OverBudget,
+    /// The queue stayed full while the reading node did no work.
+    #[error("its queue stayed full while it did no work for LOCAL_SEND_WAIT")]
+    StayedFull,
+}
 
 /// How long [`Executor::finish`] still waits for a node once the run is aborted.
 pub const ABORT_WAIT: Duration = Duration::from_secs(2);
 
-/// Why a message was not delivered: the run is aborted.
-const ABORTED: &str = "the run is aborted";
 
 /// Most messages a node takes from its queue in one batch.
 pub const MAX_BATCH: usize = 64;
@@ -245,8 +299,8 @@ struct UnitHandle {
 struct Routes {
     by_topic: BTreeMap<String, Vec<(usize, &'static str)>>,
     queues: Vec<(Sender<Input>, Arc<Mutex<Shared>>)>,
-    /// Per node: [`WORKING`], [`IDLE`], or the index of the node it waits for room at.
-    state: Vec<AtomicUsize>,
+    /// Per node: what it is doing.
+    state: Vec<StateCell>,
     /// Per node: bytes of the messages queued for it or in its handler now, its budget, and
     /// the most it held.
     bytes: Vec<QueueBytes>,
@@ -393,10 +447,10 @@ impl Routes {
     /// (followed along the chain; a cycle of waits is no work).
     fn at_work(&self, mut n: usize) -> bool {
         for _ in 0..self.state.len() {
-            match self.state[n].load(Ordering::Relaxed) {
-                WORKING => return true,
-                IDLE => return false,
-                next => n = next,
+            match self.state[n].get() {
+                NodeState::Working => return true,
+                NodeState::Idle => return false,
+                NodeState::WaitingFor(next) => n = next,
             }
         }
         false
@@ -410,20 +464,20 @@ impl Routes {
         to: usize,
         tx: &Sender<Input>,
         mut input: Input,
-    ) -> Result<(), &'static str> {
+    ) -> Result<(), SendFailure> {
         let bytes = input.queue_bytes();
         let budget = &self.bytes[to];
         let mut idle = Duration::ZERO;
         let r = loop {
             if self.aborted() {
-                break Err(ABORTED);
+                break Err(SendFailure::Aborted);
             }
             let waited = if budget.reserve(bytes) {
                 match tx.send_timeout(input, LOCAL_SEND_POLL) {
                     Ok(()) => break Ok(()),
                     Err(SendTimeoutError::Disconnected(_)) => {
                         budget.release(bytes);
-                        break Err("it has ended");
+                        break Err(SendFailure::Ended);
                     }
                     Err(SendTimeoutError::Timeout(back)) => {
                         budget.release(bytes);
@@ -436,15 +490,15 @@ impl Routes {
                 std::thread::sleep(BYTES_POLL);
                 BYTES_POLL
             };
-            self.state[from].store(to, Ordering::Relaxed);
+            self.state[from].set(NodeState::WaitingFor(to));
             if !self.at_work(to) {
                 idle += waited;
                 if idle >= LOCAL_SEND_WAIT {
-                    break Err("its queue stayed full while it did no work for LOCAL_SEND_WAIT");
+                    break Err(SendFailure::StayedFull);
                 }
             }
         };
-        self.state[from].store(IDLE, Ordering::Relaxed);
+        self.state[from].set(NodeState::Idle);
         r
     }
 
@@ -481,20 +535,20 @@ impl Routes {
                         if self.bytes[to].reserve(bytes) {
                             let r = match tx.try_send(input) {
                                 Ok(()) => Ok(()),
-                                Err(TrySendError::Full(_)) => Err("its queue is full"),
-                                Err(TrySendError::Disconnected(_)) => Err("it has ended"),
+                                Err(TrySendError::Full(_)) => Err(SendFailure::QueueFull),
+                                Err(TrySendError::Disconnected(_)) => Err(SendFailure::Ended),
                             };
                             if r.is_err() {
                                 self.bytes[to].release(bytes);
                             }
                             r
                         } else {
-                            Err("its queue holds its queue_mb")
+                            Err(SendFailure::OverBudget)
                         }
                     } else {
                         self.send_waiting(from, to, tx, input)
                     };
-                    if sent == Err(ABORTED) {
+                    if sent == Err(SendFailure::Aborted) {
                         self.discard(to, &m.topic);
                     } else if let Err(why) = sent {
                         let mut s = lock(shared);
@@ -640,9 +694,9 @@ impl Unit {
         };
         let before = out.len();
         let state = &self.routes.state[self.index];
-        state.store(WORKING, Ordering::Relaxed);
+        state.set(NodeState::Working);
         let r = catch_unwind(AssertUnwindSafe(|| f(node.as_mut(), out)));
-        state.store(IDLE, Ordering::Relaxed);
+        state.set(NodeState::Idle);
         if let Err(p) = r {
             let text = crate::panic_text(p.as_ref());
             tracing::error!(
@@ -831,7 +885,7 @@ impl Executor {
                 .zip(&shared)
                 .map(|((tx, _), sh)| (tx.clone(), sh.clone()))
                 .collect(),
-            state: nodes.iter().map(|_| AtomicUsize::new(IDLE)).collect(),
+            state: nodes.iter().map(|_| StateCell::new()).collect(),
             bytes: (0..nodes.len())
                 .map(|i| {
                     QueueBytes::new(
