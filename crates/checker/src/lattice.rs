@@ -360,7 +360,7 @@ impl CommonLattice {
                     CheckError::LatticeMismatch {
                         a: fid.to_string(),
                         b: id.to_string(),
-                        reason,
+                        reason: reason.to_string(),
                     }
                 })?;
             } else {
@@ -443,8 +443,8 @@ impl CommonLattice {
 
     /// The map (common factor over the body's own × [`CHECKER_FACTOR`], shift) of `b`
     /// onto this lattice.
-    fn axis_map(&self, b: &BodyMesh) -> Result<(i64, [i64; 4]), String> {
-        let g = b.geometry.ok_or("no lattice")?;
+    fn axis_map(&self, b: &BodyMesh) -> Result<(i64, [i64; 4]), LatticeMismatch> {
+        let g = b.geometry.ok_or(LatticeMismatch::NoLattice)?;
         let ratio = i64::from(self.scale / g.scale.max(1)).max(1);
         let voxels = origin_offset(
             &self.voxel0_centre.map(|c| c - 0.5 * self.resolution),
@@ -476,7 +476,7 @@ impl CommonLattice {
             .map_err(|reason| CheckError::LatticeMismatch {
                 a: "reference".into(),
                 b: id.to_string(),
-                reason,
+                reason: reason.to_string(),
             })?;
         let mut p = Prepared {
             id: id.to_string(),
@@ -538,16 +538,42 @@ pub(super) fn prep_error(id: &str, e: PrepError) -> CheckError {
     }
 }
 
+/// Why two bodies' lattices cannot be put on one.
+#[derive(Debug, Clone, Copy, PartialEq, thiserror::Error)]
+pub enum LatticeMismatch {
+    /// A body has no lattice yet (no frame was meshed).
+    #[error("no lattice")]
+    NoLattice,
+    /// The voxel edges differ.
+    #[error("voxel edges of {a} m and {b} m")]
+    Resolution {
+        /// One body's voxel edge (m).
+        a: f64,
+        /// The other's (m).
+        b: f64,
+    },
+    /// The origins are not a whole number of voxels apart.
+    #[error("origins differ by {voxels} voxels along axis {axis}, not a whole number")]
+    Origins {
+        /// The axis (0 = x, 1 = y, 2 = z).
+        axis: usize,
+        /// The difference in voxels.
+        voxels: f64,
+    },
+}
+
 /// Whole-voxel offset from origin `a` to origin `b`, or why there is none.
-pub(crate) fn origin_offset(a: &[f64; 3], b: &[f64; 3], res: f64) -> Result<[i64; 3], String> {
+pub(crate) fn origin_offset(
+    a: &[f64; 3],
+    b: &[f64; 3],
+    res: f64,
+) -> Result<[i64; 3], LatticeMismatch> {
     let mut out = [0i64; 3];
     for k in 0..3 {
         let v = (b[k] - a[k]) / res;
         let r = v.round();
         if (v - r).abs() > 1e-6 || !r.is_finite() || r.abs() > 1e9 {
-            return Err(format!(
-                "origins differ by {v} voxels along axis {k}, not a whole number"
-            ));
+            return Err(LatticeMismatch::Origins { axis: k, voxels: v });
         }
         out[k] = r as i64;
     }

@@ -80,6 +80,7 @@ pub mod labels;
 mod lattice;
 mod normals;
 pub mod oracle;
+pub mod period;
 pub mod pipeline;
 pub mod prep;
 pub mod report;
@@ -87,14 +88,13 @@ pub mod resolve;
 pub mod rolling;
 pub mod rotate;
 mod walk;
-pub mod period;
 
 // The parts of the pair check, visible to every module of the checker.
 #[allow(unused_imports)]
 use {lattice::*, normals::*, walk::*};
 
 pub(crate) use lattice::origin_offset;
-pub use lattice::{mapped_tet_inside, CommonLattice, LinearMap, Placement};
+pub use lattice::{mapped_tet_inside, CommonLattice, LatticeMismatch, LinearMap, Placement};
 pub(crate) use normals::{t_range, tet_normal, tet_of};
 pub use walk::{
     check_pair, check_pair_detailed, check_pair_walked, interferes, merge_ranges, CrossingPair,

@@ -1078,12 +1078,15 @@ pub(super) struct PairLattice {
     pub(super) shift_b: [i64; 3],
 }
 
-pub(super) fn pair_lattice(ga: &GridGeometry, gb: &GridGeometry) -> Result<PairLattice, String> {
+pub(super) fn pair_lattice(
+    ga: &GridGeometry,
+    gb: &GridGeometry,
+) -> Result<PairLattice, crate::LatticeMismatch> {
     if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
-        return Err(format!(
-            "voxel edges of {} m and {} m",
-            ga.resolution, gb.resolution
-        ));
+        return Err(crate::LatticeMismatch::Resolution {
+            a: ga.resolution,
+            b: gb.resolution,
+        });
     }
     let off = origin_offset(&ga.origin, &gb.origin, ga.resolution)?;
     let scale = ga.scale.max(gb.scale).max(2);
