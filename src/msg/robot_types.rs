@@ -7,7 +7,7 @@
 //! As in `std_types.rs`, each struct mirrors its upstream `.msg` field by field and carries
 //! the exact ROS 2 **Jazzy** text from `msgs/deps/<pkg>/msg/<Type>.msg` (`common_interfaces`
 //! branch `jazzy`, 5.3.x; `tf2_msgs` from `geometry2` branch `jazzy`), checked by
-//! `tests/msg_definitions.rs`. Decoding goes through the suite's CDR codec, so every array
+//! `tests/it/msg_definitions.rs`. Decoding goes through the suite's CDR codec, so every array
 //! length is checked against the bytes present before anything is allocated.
 
 use serde::{Deserialize, Serialize};

@@ -5,7 +5,7 @@ Plays the VoxelGrid frames of a rosbag2 MCAP bag onto the wire with their record
 (and its PointCloud2, octomap_msgs/Octomap and tf2_msgs/TFMessage messages, which occupancy
 nodes read; static transforms and maps latched, as tf2 and octomap_server offer them) and
 collects what the checker publishes (report, labels, optionally markers), then writes
-it as JSON.  Used by tests/cyclone.rs; see docs/live.md.
+it as JSON.  Used by tests/it/cyclone.rs; see docs/live.md.
 
     python3 tests/py/cyclone_peer.py --bag BAG --out OUT.json [--domain N] [--rate R]
                                      [--match-timeout S] [--timeout S]

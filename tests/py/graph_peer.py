@@ -13,7 +13,7 @@ It joins the domain (late: whatever is there already), reads for --listen second
 
 then writes, per node, the ROS topics (`rt/` stripped), types and QoS of its writers and
 readers, and the endpoints on ROS topics that no node lists, as JSON.  Used by
-tests/graph.rs.
+tests/it/graph.rs.
 
     python3 tests/py/graph_peer.py --out OUT.json [--domain N] [--gid-size 16] [--listen S]
 

@@ -19,7 +19,7 @@
 //! its two frame times. A real cap of one body lies in a time plane where the other body
 //! may go on, and there meets the other's slabs on both sides of it: the other's window
 //! then reaches one slab further (see [`WindowBody`]). With that, every taken tet gets
-//! exactly the label and the crossings the full check gives it (tests/rolling.rs compares
+//! exactly the label and the crossings the full check gives it (tests/it/rolling.rs compares
 //! the two on whole scenes).
 //!
 //! [`Inclusion::within_time`]: super::inclusion::Inclusion::within_time

@@ -73,7 +73,7 @@
 //! decide in general position; those tests alone miss crossings in degenerate position
 //! (for example two tets cut by P in the same triangle, through their vertices and edge
 //! midpoints), which this rule finds. The unit tests check it against the DESIGN tests
-//! completed by an exact fallback, and `tests/tet_tet.rs` against an exact LP oracle.
+//! completed by an exact fallback, and `tests/it/tet_tet.rs` against an exact LP oracle.
 //!
 //! No symbolic perturbation is used: a perturbation (translating B by εw) would turn
 //! half of all face-to-face contacts between bodies in adjacent voxels into
@@ -87,7 +87,7 @@
 //! pairs are [`TetPairRelation::Touching`], not [`TetPairRelation::Crossing`]; the
 //! checker must not assume that every overlap of two bodies shows up as a crossing tet
 //! pair (inside tests on untouched components are still needed). Measured on meshed
-//! voxel boxes (`tests/tet_tet.rs`): two boxes overlapping by one voxel column give no
+//! voxel boxes (`tests/it/tet_tet.rs`): two boxes overlapping by one voxel column give no
 //! `Crossing` pair at all, only `Coplanar` overlaps with the same orientation; a box
 //! overlapping diagonally gives `Crossing` pairs; boxes in adjacent voxels give only
 //! `Touching` and opposite-orientation `Coplanar` pairs.

@@ -2,7 +2,7 @@
 //! z-planes is the sequential sweep's mesh, vertex for vertex; the mesher node's batch of
 //! several bodies' frames publishes what one-by-one handling publishes, in the same order.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

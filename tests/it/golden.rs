@@ -4,13 +4,13 @@
 //! change, re-bless with
 //!
 //! ```text
-//! CHRONOTOPE_BLESS=1 cargo test --test golden
+//! CHRONOTOPE_BLESS=1 cargo test --test it golden::
 //! ```
 //!
 //! and review the diff of `tests/golden/`. Output bags of every replay are also read by the
 //! independent Python readers, and a second replay must give the same bytes.
 
-mod pyenv;
+use crate::pyenv;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -118,7 +118,7 @@ fn every_bag_replays_to_its_golden_report_and_bag() {
         let want_json: serde_json::Value = serde_json::from_str(&want).unwrap_or_default();
         if want_json != report {
             failures.push(format!(
-                "{stem}: the report differs from {} (re-bless with CHRONOTOPE_BLESS=1 cargo test --test golden if intended)\n{text}",
+                "{stem}: the report differs from {} (re-bless with CHRONOTOPE_BLESS=1 cargo test --test it golden:: if intended)\n{text}",
                 report_path.display()
             ));
         }

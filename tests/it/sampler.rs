@@ -1,6 +1,6 @@
 //! The stochastic sampler: uniformity on figures with exact answers, the stiff and extreme
 //! cases, the adaptation of the default settings and the quality they report, and the
-//! command. (The cross-check of the checker by the sampler is in tests/sampler_checker.rs.)
+//! command. (The cross-check of the checker by the sampler is in tests/it/sampler_checker.rs.)
 
 use chronotope::sampler::exact::{ks_statistic, sphere_coordinate_cdf, sphere_x_cdf, TorusTheta};
 use chronotope::sampler::quality::ess;
@@ -880,7 +880,7 @@ fn the_explicit_scheme_reports_its_distance_off_the_figure_and_project_removes_i
 /// average (the mean of Kolmogorov's distribution). Over 60 seeds of the sphere of radius
 /// 0.7 off the origin at the defaults, KS·√ESS must average that: a bias would raise it, an
 /// ESS estimate too high as well. 30 s in a test build, so not in CI:
-/// `cargo test --test sampler -- --ignored ks_of_default_samples`.
+/// `cargo test --test it sampler:: -- --ignored ks_of_default_samples`.
 #[test]
 #[ignore]
 fn ks_of_default_samples_is_that_of_independent_ones() {

@@ -2,7 +2,7 @@
 //! changes no state (no gap is filled towards it), every other body and pair is checked and
 //! reported in full, and `check` and `replay` agree.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

@@ -1,6 +1,6 @@
 //! Hypervolumes against exact values, edge-case inputs, and bad input.
 
-mod common;
+use crate::common;
 
 use chronotope::mesh::validate::{check_closed, hypervolume24};
 use chronotope::mesh::{FrameRef, MeshError, Mesher, MesherOptions};

@@ -1,7 +1,7 @@
 //! The 4D AABB tree against brute force: tree-against-tree pairs, segment and ray
 //! candidates, rebuilds, empty and single-item trees, degenerate and huge boxes.
 //!
-//! `cargo test --release --test bvh -- --ignored --nocapture` prints build and traversal
+//! `cargo test --release --test it bvh:: -- --ignored --nocapture` prints build and traversal
 //! times for two meshes of about 1.5 M tets each.
 
 use chronotope::kernel::{

@@ -1,7 +1,7 @@
 //! rosbag2 MCAP writing and reading: round trips, the byte layout of CDR and schemas, and
 //! damaged input (truncated or corrupted bags, garbage CDR) giving errors, never panics.
 //!
-//! `CHRONOTOPE_SAMPLE_BAG=/tmp/sample.mcap cargo test --test bag_roundtrip sample_bag` also
+//! `CHRONOTOPE_SAMPLE_BAG=/tmp/sample.mcap cargo test --test it bag_roundtrip::sample_bag` also
 //! leaves a small bag there for `tests/py/read_bags.py`.
 
 use std::collections::BTreeMap;

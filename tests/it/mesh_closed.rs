@@ -1,7 +1,7 @@
 //! Closedness and orientation of 4D meshes on random grids, in both encodings; streaming
 //! validation agrees with explicit validation; slices are closed.
 
-mod common;
+use crate::common;
 
 use chronotope::mesh::slice::{slice_mesh, PlaneValue};
 use chronotope::mesh::validate::{check_closed, hypervolume24, pair_faces};

@@ -4,7 +4,7 @@
 //! mesher marches slabs in chunks and the checker checks several pairs' windows at once, so
 //! these runs take the parallel paths.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 

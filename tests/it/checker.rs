@@ -1,6 +1,6 @@
 //! The checker on scenes with known answers, and the stiff cases.
 
-mod common;
+use crate::common;
 
 use chronotope::checker::labels::LabelCounts;
 use chronotope::checker::{check_pair, check_pair_walked, CommonLattice, PairResult, StreamWalk};

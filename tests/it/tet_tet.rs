@@ -848,7 +848,7 @@ proptest! {
 // Meshed voxel bodies (the real use): adjacent bodies touch, overlapping ones interfere.
 // ---------------------------------------------------------------------------------------
 
-mod common;
+use crate::common;
 
 /// The closed 4D mesh of a box of voxels `lo..=hi` held for `frames` frames.
 fn box_body(lo: [usize; 3], hi: [usize; 3], frames: usize) -> Vec<LatticeTet> {

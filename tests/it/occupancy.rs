@@ -8,7 +8,7 @@
 //! Needs the Python environment of `python3 tests/py/setup_env.py`; without `pyoctomap` the
 //! interop test is skipped with a message, unless `CI` is set: then it fails.
 
-mod pyenv;
+use crate::pyenv;
 
 use std::path::Path;
 use std::process::Command;

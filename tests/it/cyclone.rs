@@ -13,7 +13,7 @@
 //! after the last frame (measured: 5-23 s; the peer waits 30 s). `CHRONOTOPE_CYCLONE_NO_MARKERS=1`
 //! leaves them out (the test then takes ~10 s).
 
-mod pyenv;
+use crate::pyenv;
 
 use std::collections::BTreeMap;
 use std::path::Path;

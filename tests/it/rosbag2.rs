@@ -4,7 +4,7 @@
 //! single-file bag; damaged or missing split files are reported and the rest is read; a
 //! directory written by `--out DIR/` is read back by `rosbags`.
 
-mod pyenv;
+use crate::pyenv;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -7,7 +7,7 @@
 //!   the stream; what the checker keeps does not grow with it.
 //! - Streams that lag behind one another, stop while others go on, and restart.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
@@ -309,7 +309,7 @@ fn a_stream_that_stalls_is_taken_as_ended_and_its_partner_goes_on() {
         }
         for m in &out {
             // /b's lateral pieces from 2 on are lost on the way: nothing follows its slab 1.
-            // (A piece that does come after lost ones resumes the stream: `tests/replay.rs`.)
+            // (A piece that does come after lost ones resumes the stream: `tests/it/replay.rs`.)
             if let Payload::MeshSlab(p) = &m.payload {
                 if p.body_id == "/b/occupancy" && p.kind == MeshSlab::KIND_LATERAL && p.index >= 2 {
                     continue;

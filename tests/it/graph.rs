@@ -12,7 +12,7 @@
 //! Needs the Python environment of `python3 tests/py/setup_env.py` (the README's test command). Without `cyclonedds` the tests are
 //! skipped with a message, unless `CI` is set: then they fail.
 
-mod pyenv;
+use crate::pyenv;
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
@@ -55,7 +55,7 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// A domain id for test `k`, apart from the other test files' (tests/live.rs, cyclone.rs use
+/// A domain id for test `k`, apart from the other test files' (tests/it/live.rs, cyclone.rs use
 /// 20-199) and, most of the time, from other test processes'.
 fn domain(k: u32) -> String {
     (200 + (std::process::id() % 16) * 2 + k).to_string()

@@ -1,7 +1,7 @@
 //! Bags written here are read, every message, by two readers nobody here wrote (PyPI
 //! `rosbags` and `mcap-ros2-support`, installed by the README's test command / `.ci/run`).
 
-mod pyenv;
+use crate::pyenv;
 
 use std::process::Command;
 

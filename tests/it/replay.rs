@@ -1,7 +1,7 @@
 //! `chronotope replay` on bad input: every problem is counted in the report, nothing else is
 //! lost, nothing panics.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
