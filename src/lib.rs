@@ -27,11 +27,5 @@ pub mod sampler;
 pub mod scene;
 pub mod yaml;
 
-/// The message of a caught panic (its payload), for the places that catch one and say so:
-/// the live executor's node threads and the checker's resolver pool.
-pub fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "a panic without a message".into())
-}
+/// The message of a caught panic (the checker crate's, which catches them first).
+pub use chronotope_checker::panic_text;

@@ -246,3 +246,12 @@ impl Prepared {
         Some(placement.body)
     }
 }
+
+/// The message of a caught panic (its payload), for the places that catch one and say so:
+/// the checker's resolver pool, and the live executor's node threads above it.
+pub fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
+    p.downcast_ref::<&str>()
+        .map(|s| (*s).to_owned())
+        .or_else(|| p.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "a panic without a message".into())
+}

@@ -236,10 +236,25 @@ impl OccupancyGrid {
         bit: impl Fn(u64, u64) -> u64,
         value: impl Fn(u8, u8) -> u8,
     ) -> Option<OccupancyGrid> {
-        if self.padded != other.padded
-            || self.words != other.words
-            || self.values.is_some() != other.values.is_some()
-        {
+        if self.values.is_some() != other.values.is_some() {
+            return None;
+        }
+        let mut g = self.combine_bits(other, bit)?;
+        g.values = match (&self.values, &other.values) {
+            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| value(*x, *y)).collect()),
+            _ => None,
+        };
+        Some(g)
+    }
+
+    /// The bit rows of two grids of one size combined word by word, without values (a BITS
+    /// grid whatever the two encodings). `None` if the sizes differ.
+    fn combine_bits(
+        &self,
+        other: &OccupancyGrid,
+        bit: impl Fn(u64, u64) -> u64,
+    ) -> Option<OccupancyGrid> {
+        if self.padded != other.padded || self.words != other.words {
             return None;
         }
         let bits: Vec<u64> = self
@@ -249,15 +264,11 @@ impl OccupancyGrid {
             .map(|(a, b)| bit(*a, *b))
             .collect();
         let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
-        let values = match (&self.values, &other.values) {
-            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| value(*x, *y)).collect()),
-            _ => None,
-        };
         Some(OccupancyGrid {
             padded: self.padded,
             words: self.words,
             bits,
-            values,
+            values: None,
             occupied,
             clamped: 0,
         })
@@ -319,18 +330,10 @@ pub fn intersect_across(
     };
     // The same lattice in another encoding (a PERCENT robot against a BITS table): the bit
     // rows line up word for word (padding and spare words are zero in both).
-    if off == [0; 3] && ga.size == gb.size && a.padded == b.padded && a.words == b.words {
-        let bits: Vec<u64> = a.bits.iter().zip(&b.bits).map(|(x, y)| x & y).collect();
-        let occupied = bits.iter().map(|w| u64::from(w.count_ones())).sum();
-        let grid = OccupancyGrid {
-            padded: a.padded,
-            words: a.words,
-            bits,
-            values: None,
-            occupied,
-            clamped: 0,
-        };
-        return Some((grid, g));
+    if off == [0; 3] && ga.size == gb.size {
+        if let Some(grid) = a.combine_bits(b, |x, y| x & y) {
+            return Some((grid, g));
+        }
     }
     intersect_offset(a, ga, b, gb, off, g)
 }
@@ -508,7 +511,11 @@ mod tests {
                     r => r,
                 };
                 assert_eq!(g.value(x + 1, y + 1, z + 1), want, "voxel {i}, iso {iso}");
-                assert_eq!(g.get(x + 1, y + 1, z + 1), want >= iso, "voxel {i}, iso {iso}");
+                assert_eq!(
+                    g.get(x + 1, y + 1, z + 1),
+                    want >= iso,
+                    "voxel {i}, iso {iso}"
+                );
                 occupied += u64::from(want >= iso);
             }
             assert_eq!(g.occupied, occupied);

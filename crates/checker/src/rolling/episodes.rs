@@ -519,7 +519,7 @@ fn resolver_pool() -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
         // A resolution that panics (a bug) must not abort the process, rayon's default:
         // its result channel closes and the checker says so.
         .panic_handler(|p| {
-            tracing::error!("a resolution panicked: {}", panic_text(p.as_ref()));
+            tracing::error!("a resolution panicked: {}", crate::panic_text(p.as_ref()));
         })
         .build()
 }
@@ -818,14 +818,6 @@ fn search(
     }
     let rs: Vec<&PairResult> = rs.iter().collect();
     Some(suggest(&prepared[im], &others, &rs, metric, lat, rotation))
-}
-
-/// What a caught panic said (its `&str` or `String` payload).
-fn panic_text(p: &(dyn std::any::Any + Send)) -> String {
-    p.downcast_ref::<&str>()
-        .map(|s| (*s).to_owned())
-        .or_else(|| p.downcast_ref::<String>().cloned())
-        .unwrap_or_else(|| "a panic without a message".into())
 }
 
 #[cfg(test)]
