@@ -1,6 +1,7 @@
 //! Face adjacency of a closed tet mesh: for each tet and each face (face i omits vertex i),
 //! the tet on the other side.
 
+#[cfg(test)]
 use chronotope_mesh::TetMesh;
 
 /// No neighbour (the mesh is open there).
@@ -8,6 +9,8 @@ pub const NO_NEIGHBOUR: u32 = u32::MAX;
 
 /// Neighbours across each face. Faces shared by more than two tets (never in a closed
 /// 2-manifold boundary) are left unlinked, as are faces naming a vertex that does not exist.
+/// (The whole mesh at once: what the pieces' adjacency is tested against.)
+#[cfg(test)]
 pub fn face_adjacency(mesh: &TetMesh) -> Vec<[u32; 4]> {
     let mut b = AdjacencyBuilder::new();
     b.add(&mesh.tets, mesh.vertices.len());
@@ -34,6 +37,7 @@ pub struct AdjacencyBuilder {
 
 impl AdjacencyBuilder {
     /// No tets yet.
+    #[cfg(test)]
     pub fn new() -> Self {
         Self::default()
     }
@@ -41,16 +45,6 @@ impl AdjacencyBuilder {
     /// Makes room for `tets` more tets' neighbours (exactly, where growing would double).
     pub fn reserve_tets(&mut self, tets: usize) {
         self.adj.reserve_exact(tets);
-    }
-
-    /// Tets added so far.
-    pub fn len(&self) -> usize {
-        self.adj.len()
-    }
-
-    /// Whether no tet was added.
-    pub fn is_empty(&self) -> bool {
-        self.adj.is_empty()
     }
 
     /// Adds `tets` (numbered after the tets added before) over a vertex table of

@@ -247,7 +247,7 @@ impl<'a> Inclusion<'a> {
     }
 
     /// As [`Inclusion::new`], with a normal of each tet's hyperplane (one per tet of
-    /// `mesh`, positive multiples of the signed edge minors, [`NO_NORMAL`](super::NO_NORMAL)
+    /// `mesh`, positive multiples of the signed edge minors, [`NO_NORMAL`](crate::NO_NORMAL)
     /// where unknown): most candidate tets of a segment are then rejected by two dot
     /// products. Normals of the wrong length are not used.
     pub fn with_normals(mesh: &'a TetMesh, bvh: &'a Bvh, normals: &'a [[i32; 4]]) -> Self {

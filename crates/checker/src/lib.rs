@@ -5,7 +5,7 @@
 //! Pipeline for a pair: both meshes are put on one integer lattice ([`Prepared`]: common
 //! scale, integer origin offset, a common time lattice, coordinates ×8 so that several
 //! interior points of every tet are lattice points); an AABB tree over each body's tets
-//! gives candidate pairs; the exact predicate [`classify`] keeps the pairs whose boundaries
+//! gives candidate pairs; the exact predicate [`classify`](chronotope_kernel::classify) keeps the pairs whose boundaries
 //! cross (or overlap in one hyperplane with the same orientation). Tets that touch the
 //! other boundary without crossing it are *contact* tets, tested one by one; every other tet
 //! is disjoint from the other boundary, and face-adjacent such tets lie on the same side, so
@@ -72,22 +72,31 @@
 
 #![warn(missing_docs)]
 
-pub mod adjacency;
-pub mod bounds;
-pub mod contact;
-pub mod inclusion;
+// The API: checking bodies at once or as they stream, the report, the resolutions.
 pub mod labels;
-mod lattice;
-mod normals;
-pub mod oracle;
-pub mod period;
 pub mod pipeline;
-pub mod prep;
 pub mod report;
 pub mod resolve;
 pub mod rolling;
 pub mod rotate;
+
+// The pipeline's parts.
+mod adjacency;
+mod contact;
+mod inclusion;
+mod lattice;
+mod normals;
+mod period;
 mod walk;
+
+// Parts this workspace's benchmarks and tests reach into: public for them, with no promise
+// to anyone else (hidden from these docs).
+#[doc(hidden)]
+pub mod bounds;
+#[doc(hidden)]
+pub mod oracle;
+#[doc(hidden)]
+pub mod prep;
 
 // The parts of the pair check, visible to every module of the checker.
 #[allow(unused_imports)]
@@ -96,6 +105,7 @@ use {lattice::*, normals::*, walk::*};
 pub(crate) use lattice::origin_offset;
 pub use lattice::{mapped_tet_inside, CommonLattice, LatticeMismatch, LinearMap, Placement};
 pub(crate) use normals::{t_range, tet_normal, tet_of};
+pub use normals::NO_NORMAL;
 pub use walk::{
     check_pair, check_pair_detailed, check_pair_walked, interferes, merge_ranges, CrossingPair,
     PairResult, PairTiming, StreamWalk,

@@ -393,7 +393,7 @@ pub struct Crossing {
     /// Checker-time range of the section.
     pub t: (f64, f64),
     /// Positions of the two tets among their bodies' taken tets, in piece order (see
-    /// [`PreparedWindow::position`]).
+    /// `PreparedWindow::position`).
     pub tets: (u32, u32),
     /// Their hyperplane normals (exact integers in `f64`, so sums are exact).
     pub normals: ([f64; 4], [f64; 4]),

@@ -107,8 +107,97 @@ pub fn check_streamed(
     opts: MesherOptions,
 ) -> Result<CheckOutcome, CheckError> {
     let start = Instant::now();
+    let mut problems = unmeshed_bodies(bodies);
+    let mut pair_ids = planned_pairs(bodies, plan, &mut problems);
+    let unchecked = drop_incomparable(bodies, plan, &mut pair_ids, &mut problems);
+    // Bodies that can all be compared are checked together; otherwise each group of
+    // pairs that can is checked on its own lattice.
+    if !pair_ids.is_empty() && CommonLattice::of(&pair_bodies(bodies, &pair_ids)).is_err() {
+        let groups = Groups {
+            bodies,
+            pair_ids: &pair_ids,
+            plan,
+            opts,
+        };
+        return groups.check(preps, walks, problems, unchecked);
+    }
+    let mut ids: Vec<String> = pair_ids
+        .iter()
+        .flat_map(|(a, b)| [a.clone(), b.clone()])
+        .collect();
+    ids.sort();
+    ids.dedup();
+    let mut report = report_of_bodies(bodies, plan, problems, unchecked);
+    if ids.is_empty() {
+        report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;
+        return Ok(CheckOutcome {
+            report,
+            lattice: None,
+            ids,
+            prepared: Vec::new(),
+            results: Vec::new(),
+        });
+    }
+    let named: Vec<(&str, &BodyMesh)> = ids.iter().map(|k| (k.as_str(), &bodies[k])).collect();
+    let lat = CommonLattice::of(&named)?;
+    let span = (lat.stamps_ns[lat.stamps_ns.len() - 1] - lat.stamps_ns[0]) as f64 * 1e-9;
+    let period = span / (lat.stamps_ns.len() - 1) as f64;
+    let c = plan.time_scale.unwrap_or(lat.resolution / period);
+    report.time_scale_m_per_s = c;
+    let index = |id: &str| ids.binary_search_by(|x| x.as_str().cmp(id)).ok();
+    let jobs: Vec<(usize, usize)> = pair_ids
+        .iter()
+        .filter_map(|(a, b)| Some((index(a)?, index(b)?)))
+        .collect();
+    let time_origin_ns = report.time_origin_ns;
+    let checked = CheckedPairs {
+        named: &named,
+        ids: &ids,
+        lat: &lat,
+        time_origin_ns,
+        opts,
+    };
+    let (prepared, pairs, results) = checked.check(&jobs, &mut preps, &mut walks)?;
+    report.pairs = pairs;
+    let t_check = start.elapsed();
+    let results: Vec<(usize, usize, PairResult)> = jobs
+        .iter()
+        .zip(results)
+        .map(|(&(i, j), r)| (i, j, r))
+        .collect();
+    for m in &plan.movable {
+        let Some(im) = index(m) else {
+            let why = format!("movable body {m}: in no checked pair; no resolution");
+            tracing::warn!("{why}");
+            report.problems.push(why);
+            continue;
+        };
+        report.resolutions.extend(resolve_movable(
+            im,
+            &prepared,
+            &results,
+            &lat,
+            c,
+            &plan.rotation,
+            time_origin_ns,
+        ));
+    }
+    report.timings_ms.check = t_check.as_secs_f64() * 1e3;
+    report.timings_ms.resolve = (start.elapsed() - t_check).as_secs_f64() * 1e3;
+    report.note_unsure_resolutions();
+    Ok(CheckOutcome {
+        report,
+        lattice: Some(lat),
+        ids,
+        prepared,
+        results,
+    })
+}
+
+/// The problems of the bodies that have no 4D mesh (fewer than two frames accepted): they
+/// are not checked.
+fn unmeshed_bodies(bodies: &BTreeMap<String, BodyMesh>) -> Vec<String> {
     let mut problems = Vec::new();
-    let meshed = |id: &str| bodies.get(id).is_some_and(|b| b.stamps_ns.len() >= 2);
     for (id, b) in bodies {
         if b.stamps_ns.len() < 2 {
             let why = match b.losses.spans.iter().find(|s| s.kind == LossKind::Refused) {
@@ -129,6 +218,18 @@ pub fn check_streamed(
             problems.push(why);
         }
     }
+    problems
+}
+
+/// The pairs the plan asks for whose bodies both have a 4D mesh, each as its ids in sorted
+/// order, sorted, once each. A pair the plan names that cannot be checked (a body paired with
+/// itself, or without a mesh) is a problem.
+fn planned_pairs(
+    bodies: &BTreeMap<String, BodyMesh>,
+    plan: &CheckPlan,
+    problems: &mut Vec<String>,
+) -> Vec<(String, String)> {
+    let meshed = |id: &str| bodies.get(id).is_some_and(|b| b.stamps_ns.len() >= 2);
     let wanted: Vec<(String, String)> = match &plan.pairs {
         Some(p) => p.clone(),
         None => {
@@ -156,7 +257,18 @@ pub fn check_streamed(
     }
     pair_ids.sort();
     pair_ids.dedup();
-    // A pair whose bodies cannot be compared costs only that pair.
+    pair_ids
+}
+
+/// Takes out of `pair_ids` the pairs whose bodies cannot be compared (in different frames,
+/// or not on one lattice) and returns them as unchecked pairs, each a problem too: such a
+/// pair costs only itself.
+fn drop_incomparable(
+    bodies: &BTreeMap<String, BodyMesh>,
+    plan: &CheckPlan,
+    pair_ids: &mut Vec<(String, String)>,
+    problems: &mut Vec<String>,
+) -> Vec<UncheckedPair> {
     let mut unchecked = Vec::new();
     pair_ids.retain(|(a, b)| {
         let frames = match (plan.frame_ids.get(a), plan.frame_ids.get(b)) {
@@ -186,84 +298,106 @@ pub fn check_streamed(
             None => true,
         }
     });
-    // Bodies that can all be compared are checked together; otherwise each group of
-    // pairs that can is checked on its own lattice.
-    if !pair_ids.is_empty() {
-        if CommonLattice::of(&pair_bodies(bodies, &pair_ids)).is_err() {
-            let groups = lattice_groups(bodies, &pair_ids);
-            let mut merged: Option<CheckOutcome> = None;
-            for group in groups {
-                let sub = CheckPlan {
-                    pairs: Some(group.clone()),
-                    movable: plan
-                        .movable
-                        .iter()
-                        .filter(|m| group.iter().any(|(a, b)| a == *m || b == *m))
-                        .cloned()
-                        .collect(),
-                    time_scale: plan.time_scale,
-                    frame_ids: BTreeMap::new(),
-                    rotation: plan.rotation,
-                };
-                let mut sub_preps = BTreeMap::new();
-                let mut sub_walks = BTreeMap::new();
-                for (a, b) in &group {
-                    for id in [a, b] {
-                        if let Some(p) = preps.remove(id) {
-                            sub_preps.insert(id.clone(), p);
-                        }
-                    }
-                    if let Some(w) = walks.remove(&(a.clone(), b.clone())) {
-                        sub_walks.insert((a.clone(), b.clone()), w);
+    unchecked
+}
+
+/// Pairs whose bodies are not all on one lattice, checked group by group, each group on its
+/// own lattice ([`lattice_groups`]).
+struct Groups<'a> {
+    bodies: &'a BTreeMap<String, BodyMesh>,
+    pair_ids: &'a [(String, String)],
+    plan: &'a CheckPlan,
+    opts: MesherOptions,
+}
+
+impl Groups<'_> {
+    /// Checks each group as a plan of its own (with the preparations and walks of its
+    /// bodies and pairs) and merges the outcomes: pairs sorted, the problems found before
+    /// (`problems`, `unchecked`) first, once each. The outcome keeps the first group's
+    /// lattice and bodies.
+    fn check(
+        &self,
+        mut preps: BTreeMap<String, BodyPrep>,
+        mut walks: BTreeMap<(String, String), StreamWalk>,
+        problems: Vec<String>,
+        mut unchecked: Vec<UncheckedPair>,
+    ) -> Result<CheckOutcome, CheckError> {
+        let plan = self.plan;
+        let mut merged: Option<CheckOutcome> = None;
+        for group in lattice_groups(self.bodies, self.pair_ids) {
+            let sub = CheckPlan {
+                pairs: Some(group.clone()),
+                movable: plan
+                    .movable
+                    .iter()
+                    .filter(|m| group.iter().any(|(a, b)| a == *m || b == *m))
+                    .cloned()
+                    .collect(),
+                time_scale: plan.time_scale,
+                frame_ids: BTreeMap::new(),
+                rotation: plan.rotation,
+            };
+            let mut sub_preps = BTreeMap::new();
+            let mut sub_walks = BTreeMap::new();
+            for (a, b) in &group {
+                for id in [a, b] {
+                    if let Some(p) = preps.remove(id) {
+                        sub_preps.insert(id.clone(), p);
                     }
                 }
-                let o = check_streamed(bodies, sub_preps, sub_walks, &sub, opts)?;
-                merged = Some(match merged {
-                    None => o,
-                    Some(mut m) => {
-                        m.report.pairs.extend(o.report.pairs);
-                        m.report.resolutions.extend(o.report.resolutions);
-                        m.report.unchecked_pairs.extend(o.report.unchecked_pairs);
-                        for p in o.report.problems {
-                            if !m.report.problems.contains(&p) {
-                                m.report.problems.push(p);
-                            }
-                        }
-                        m.report.timings_ms.check += o.report.timings_ms.check;
-                        m.report.timings_ms.resolve += o.report.timings_ms.resolve;
-                        // One lattice per group: the outcome keeps the first group's.
-                        m
-                    }
-                });
-            }
-            let mut m = merged.expect("at least one group");
-            m.report
-                .pairs
-                .sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
-            for p in problems.into_iter().rev() {
-                if !m.report.problems.contains(&p) {
-                    m.report.problems.insert(0, p);
+                if let Some(w) = walks.remove(&(a.clone(), b.clone())) {
+                    sub_walks.insert((a.clone(), b.clone()), w);
                 }
             }
-            unchecked.extend(m.report.unchecked_pairs);
-            unchecked.sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
-            m.report.unchecked_pairs = unchecked;
-            return Ok(m);
+            let o = check_streamed(self.bodies, sub_preps, sub_walks, &sub, self.opts)?;
+            merged = Some(match merged {
+                None => o,
+                Some(mut m) => {
+                    m.report.pairs.extend(o.report.pairs);
+                    m.report.resolutions.extend(o.report.resolutions);
+                    m.report.unchecked_pairs.extend(o.report.unchecked_pairs);
+                    for p in o.report.problems {
+                        if !m.report.problems.contains(&p) {
+                            m.report.problems.push(p);
+                        }
+                    }
+                    m.report.timings_ms.check += o.report.timings_ms.check;
+                    m.report.timings_ms.resolve += o.report.timings_ms.resolve;
+                    // One lattice per group: the outcome keeps the first group's.
+                    m
+                }
+            });
         }
+        let mut m = merged.expect("at least one group");
+        m.report
+            .pairs
+            .sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
+        for p in problems.into_iter().rev() {
+            if !m.report.problems.contains(&p) {
+                m.report.problems.insert(0, p);
+            }
+        }
+        unchecked.extend(m.report.unchecked_pairs);
+        unchecked.sort_by(|x, y| (&x.a, &x.b).cmp(&(&y.a, &y.b)));
+        m.report.unchecked_pairs = unchecked;
+        Ok(m)
     }
-    let mut ids: Vec<String> = pair_ids
-        .iter()
-        .flat_map(|(a, b)| [a.clone(), b.clone()])
-        .collect();
-    ids.sort();
-    ids.dedup();
-    let index = |id: &str| ids.binary_search_by(|x| x.as_str().cmp(id)).ok();
+}
+
+/// The report before any pair is checked: every body's figures, the problems and the pairs
+/// not checked so far. Its time origin is the earliest first frame of any body.
+fn report_of_bodies(
+    bodies: &BTreeMap<String, BodyMesh>,
+    plan: &CheckPlan,
+    problems: Vec<String>,
+    unchecked: Vec<UncheckedPair>,
+) -> Report {
     let time_origin_ns = bodies
         .values()
         .filter_map(|b| b.stamps_ns.first().copied())
         .min()
         .unwrap_or(0);
-    let mut report = Report {
+    Report {
         schema: "chronotope.report/1",
         time_origin_ns,
         time_scale_m_per_s: plan.time_scale.unwrap_or(0.0),
@@ -287,138 +421,168 @@ pub fn check_streamed(
         timings_ms: Timings::default(),
         problems,
         unchecked_pairs: unchecked,
-    };
-    if ids.is_empty() {
-        report.timings_ms.check = start.elapsed().as_secs_f64() * 1e3;
-        return Ok(CheckOutcome {
-            report,
-            lattice: None,
+    }
+}
+
+/// The bodies to check on one lattice, to be placed there and checked pair by pair.
+struct CheckedPairs<'a> {
+    /// The bodies by id, sorted.
+    named: &'a [(&'a str, &'a BodyMesh)],
+    /// Their ids, in the same order.
+    ids: &'a [String],
+    /// Their common lattice.
+    lat: &'a CommonLattice,
+    /// The report's time origin.
+    time_origin_ns: i64,
+    opts: MesherOptions,
+}
+
+impl CheckedPairs<'_> {
+    /// Prepares the bodies (those prepared as they streamed, in `preps`, are placed), then
+    /// checks each pair of `jobs` (indices into the bodies; walked as it streamed if `walks`
+    /// holds it and both bodies lie on the lattice as they were prepared), measures the
+    /// overlap of those that interfere and writes each pair's report (its verdict unsure
+    /// over the spans where either body was not observed well enough). Bodies are prepared,
+    /// and pairs checked, on all cores: they are independent. Gives the prepared bodies,
+    /// and per job its report and result.
+    fn check(
+        &self,
+        jobs: &[(usize, usize)],
+        preps: &mut BTreeMap<String, BodyPrep>,
+        walks: &mut BTreeMap<(String, String), StreamWalk>,
+    ) -> Result<(Vec<Prepared>, Vec<PairReport>, Vec<PairResult>), CheckError> {
+        let Self {
+            named,
             ids,
-            prepared: Vec::new(),
-            results: Vec::new(),
-        });
-    }
-    let named: Vec<(&str, &BodyMesh)> = ids.iter().map(|k| (k.as_str(), &bodies[k])).collect();
-    let lat = CommonLattice::of(&named)?;
-    let span = (lat.stamps_ns[lat.stamps_ns.len() - 1] - lat.stamps_ns[0]) as f64 * 1e-9;
-    let period = span / (lat.stamps_ns.len() - 1) as f64;
-    let c = plan.time_scale.unwrap_or(lat.resolution / period);
-    report.time_scale_m_per_s = c;
-    // Bodies are prepared, and pairs checked, on all cores: they are independent.
-    let streamed: Vec<Option<BodyPrep>> = named.iter().map(|(id, _)| preps.remove(*id)).collect();
-    let prepared: Vec<Prepared> = named
-        .par_iter()
-        .zip(streamed)
-        .map(|(&(id, b), p)| match p {
-            Some(p) => lat.place_prep(id, b, p),
-            None => lat.prepare(id, b),
-        })
-        .collect::<Result<_, _>>()?;
-    let jobs: Vec<(usize, usize)> = pair_ids
-        .iter()
-        .filter_map(|(a, b)| Some((index(a)?, index(b)?)))
-        .collect();
-    let as_is: Vec<bool> = named.iter().map(|(_, b)| lat.places_as_is(b)).collect();
-    let walked: Vec<Option<StreamWalk>> = jobs
-        .iter()
-        .map(|&(i, j)| {
-            let w = walks.remove(&(ids[i].clone(), ids[j].clone()));
-            w.filter(|_| as_is[i] && as_is[j])
-        })
-        .collect();
-    let results: Vec<(PairResult, _)> = jobs
-        .par_iter()
-        .zip(walked)
-        .map(|(&(i, j), w)| {
-            let r = match w {
-                Some(w) => check_pair_walked(&prepared[i], &prepared[j], w),
-                None => check_pair(&prepared[i], &prepared[j]),
-            };
-            let hv = if r.interfering() {
-                overlap_hypervolume(named[i].1, named[j].1, opts)
-            } else {
-                Some((0.0, 0.0))
-            };
-            (r, hv)
-        })
-        .collect();
-    let mut checked = Vec::new();
-    for (&(i, j), (r, hv)) in jobs.iter().zip(results) {
-        let mut pair = pair_report(&ids[i], &ids[j], &r, hv, &lat, time_origin_ns);
-        // Unsure where either body is, over the time both exist.
-        let (a, b) = (named[i].1, named[j].1);
-        let both_from = a.stamps_ns.first().max(b.stamps_ns.first()).copied();
-        let both_to = a.stamps_ns.last().min(b.stamps_ns.last()).copied();
-        if let (Some(from), Some(to)) = (both_from, both_to) {
-            let (fast_a, fast_b) = fast_spans(a, b);
-            let (spans, not_listed) = UnsureSpanReport::of_pair(
-                &[
-                    (&ids[i], &a.unsure),
-                    (&ids[j], &b.unsure),
-                    (&ids[i], &fast_a),
-                    (&ids[j], &fast_b),
-                ],
-                from,
-                to,
+            lat,
+            time_origin_ns,
+            opts,
+        } = *self;
+        let streamed: Vec<Option<BodyPrep>> =
+            named.iter().map(|(id, _)| preps.remove(*id)).collect();
+        let prepared: Vec<Prepared> = named
+            .par_iter()
+            .zip(streamed)
+            .map(|(&(id, b), p)| match p {
+                Some(p) => lat.place_prep(id, b, p),
+                None => lat.prepare(id, b),
+            })
+            .collect::<Result<_, _>>()?;
+        let as_is: Vec<bool> = named.iter().map(|(_, b)| lat.places_as_is(b)).collect();
+        let walked: Vec<Option<StreamWalk>> = jobs
+            .iter()
+            .map(|&(i, j)| {
+                let w = walks.remove(&(ids[i].clone(), ids[j].clone()));
+                w.filter(|_| as_is[i] && as_is[j])
+            })
+            .collect();
+        let checked: Vec<(PairResult, _)> = jobs
+            .par_iter()
+            .zip(walked)
+            .map(|(&(i, j), w)| {
+                let r = match w {
+                    Some(w) => check_pair_walked(&prepared[i], &prepared[j], w),
+                    None => check_pair(&prepared[i], &prepared[j]),
+                };
+                let hv = if r.interfering() {
+                    overlap_hypervolume(named[i].1, named[j].1, opts)
+                } else {
+                    Some((0.0, 0.0))
+                };
+                (r, hv)
+            })
+            .collect();
+        let mut pairs = Vec::with_capacity(jobs.len());
+        let mut results = Vec::with_capacity(jobs.len());
+        for (&(i, j), (r, hv)) in jobs.iter().zip(checked) {
+            let (a, b) = (named[i].1, named[j].1);
+            let pair = pair_report(&ids[i], &ids[j], &r, hv, lat, time_origin_ns);
+            pairs.push(with_unsure_spans(
+                pair,
+                (&ids[i], a),
+                (&ids[j], b),
                 time_origin_ns,
-            );
-            pair.verdict = Verdict::of(pair.interfering, !spans.is_empty() || not_listed > 0);
-            pair.unsure_spans_s = spans;
-            pair.unsure_spans_not_listed = not_listed;
-        }
-        report.pairs.push(pair);
-        checked.push((i, j, r));
-    }
-    let t_check = start.elapsed();
-    for m in &plan.movable {
-        let Some(im) = index(m) else {
-            let why = format!("movable body {m}: in no checked pair; no resolution");
-            tracing::warn!("{why}");
-            report.problems.push(why);
-            continue;
-        };
-        let mut others = Vec::new();
-        let mut rs = Vec::new();
-        for (i, j, r) in &checked {
-            if *i == im {
-                others.push(&prepared[*j]);
-                rs.push(std::borrow::Cow::Borrowed(r));
-            } else if *j == im {
-                others.push(&prepared[*i]);
-                rs.push(std::borrow::Cow::Owned(r.clone().swapped()));
-            }
-        }
-        if rs.iter().any(|r| r.interfering()) {
-            let rs: Vec<&PairResult> = rs.iter().map(|r| r.as_ref()).collect();
-            let episode = [
-                lat.time_s(0.0, time_origin_ns),
-                lat.time_s(
-                    ((lat.stamps_ns.len() - 1) as i64 * lat.per_step()) as f64,
-                    time_origin_ns,
-                ),
-            ];
-            report.resolutions.extend(resolve(
-                &prepared[im],
-                &others,
-                &rs,
-                &lat,
-                c,
-                &plan.rotation,
-                time_origin_ns,
-                episode,
             ));
+            results.push(r);
+        }
+        Ok((prepared, pairs, results))
+    }
+}
+
+/// `pair` with its verdict and unsure spans: where either body (`a`, `b`: id and mesh) was
+/// not observed well enough, over the time both exist.
+fn with_unsure_spans(
+    mut pair: PairReport,
+    (ia, a): (&String, &BodyMesh),
+    (ib, b): (&String, &BodyMesh),
+    time_origin_ns: i64,
+) -> PairReport {
+    let both_from = a.stamps_ns.first().max(b.stamps_ns.first()).copied();
+    let both_to = a.stamps_ns.last().min(b.stamps_ns.last()).copied();
+    if let (Some(from), Some(to)) = (both_from, both_to) {
+        let (fast_a, fast_b) = fast_spans(a, b);
+        let (spans, not_listed) = UnsureSpanReport::of_pair(
+            &[
+                (ia, &a.unsure),
+                (ib, &b.unsure),
+                (ia, &fast_a),
+                (ib, &fast_b),
+            ],
+            from,
+            to,
+            time_origin_ns,
+        );
+        pair.verdict = Verdict::of(pair.interfering, !spans.is_empty() || not_listed > 0);
+        pair.unsure_spans_s = spans;
+        pair.unsure_spans_not_listed = not_listed;
+    }
+    pair
+}
+
+/// The resolutions of movable body `im` (an index into `prepared`) against the bodies it is
+/// checked with (`checked`: pairs of indices and their results), if it interferes with any:
+/// the whole checked time is the episode they clear.
+fn resolve_movable(
+    im: usize,
+    prepared: &[Prepared],
+    checked: &[(usize, usize, PairResult)],
+    lat: &CommonLattice,
+    c: f64,
+    rotation: &RotationSpec,
+    time_origin_ns: i64,
+) -> Vec<Resolution> {
+    let mut others = Vec::new();
+    let mut rs = Vec::new();
+    for (i, j, r) in checked {
+        if *i == im {
+            others.push(&prepared[*j]);
+            rs.push(std::borrow::Cow::Borrowed(r));
+        } else if *j == im {
+            others.push(&prepared[*i]);
+            rs.push(std::borrow::Cow::Owned(r.clone().swapped()));
         }
     }
-    report.timings_ms.check = t_check.as_secs_f64() * 1e3;
-    report.timings_ms.resolve = (start.elapsed() - t_check).as_secs_f64() * 1e3;
-    report.note_unsure_resolutions();
-    Ok(CheckOutcome {
-        report,
-        lattice: Some(lat),
-        ids,
-        prepared,
-        results: checked,
-    })
+    if !rs.iter().any(|r| r.interfering()) {
+        return Vec::new();
+    }
+    let rs: Vec<&PairResult> = rs.iter().map(|r| r.as_ref()).collect();
+    let episode = [
+        lat.time_s(0.0, time_origin_ns),
+        lat.time_s(
+            ((lat.stamps_ns.len() - 1) as i64 * lat.per_step()) as f64,
+            time_origin_ns,
+        ),
+    ];
+    resolve(
+        &prepared[im],
+        &others,
+        &rs,
+        lat,
+        c,
+        rotation,
+        time_origin_ns,
+        episode,
+    )
 }
 
 /// Translation, time scaling and rotation (about `rotation`'s axis) of body `a` against

@@ -1,11 +1,11 @@
 //! Rotation with time fixed (the interference paper's third resolution,
 //! docs/methods/interference.md#rotation-with-time-fixed): the smallest turn of one body
 //! about a given axis, the same at every instant, that clears it of every other body,
-//! verified exactly like the other suggestions ([`resolve`](super::resolve)).
+//! verified exactly like the other suggestions ([`resolve`]).
 //!
 //! **Exact rotations.** A rotation by the integer quaternion q = (a, k·u), u an integer
 //! direction with s = |u|², has the rational matrix R = M/n with the integer matrix
-//! M = (a² − k²s)·I + 2k²·u·uᵀ + 2ak·[u]ₓ and n = a² + k²s (divided by the gcd of M's
+//! M = (a² − k²s)·I + 2k²·u·uᵀ + 2ak·\[u\]ₓ and n = a² + k²s (divided by the gcd of M's
 //! entries and n): MᵀM = n²·I and det M = n³ > 0. Its angle is 2·atan(k·√s/a), so the
 //! parameter τ = k/a runs over the rationals, and the angles it gives are dense. Every body
 //! is put on a lattice n times finer about the rotation point p (a lattice point): the
@@ -25,7 +25,7 @@
 //! angle lies inside. The other sense is searched only below the first sense's answer. A
 //! candidate is refuted, when it can be, by a witness: a tet of the moved body that was
 //! inside another body and whose rotated interior point still is (one exact ray, against
-//! the other body scaled as it is read, [`Inclusion::scaled`]: no placement); a clear
+//! the other body scaled as it is read, `Inclusion::scaled`: no placement); a clear
 //! verdict always comes from the full exact check. Clearing need not be monotone in the
 //! angle, so the answer is the least the search finds, not proven minimal.
 

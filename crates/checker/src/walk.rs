@@ -19,7 +19,7 @@ pub struct PairResult {
     /// Checker-time ranges where the bodies overlap, merged and sorted.
     pub intervals: Vec<(f64, f64)>,
     /// For each interval, how fast the boundaries approach at its start and recede at its
-    /// end (voxels per frame period; see [`contact_speeds`]).
+    /// end (voxels per frame period; see `contact_speeds`).
     pub interval_speeds: Vec<(Option<f64>, Option<f64>)>,
     /// Where the time went.
     pub timing: PairTiming,

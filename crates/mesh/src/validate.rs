@@ -347,7 +347,7 @@ pub struct FaceShape {
 
 impl FaceShape {
     /// The shape for about `faces` faces over vertex ids below `vertices` (at most
-    /// [`PACKED_VERTEX_LIMIT`]): parts of about [`PART_FACES`] faces, at most 2^16 ids each.
+    /// [`PACKED_VERTEX_LIMIT`]): parts of about `PART_FACES` faces, at most 2^16 ids each.
     pub fn new(vertices: usize, faces: usize) -> Self {
         Self::with_part_faces(vertices, faces, PART_FACES)
     }

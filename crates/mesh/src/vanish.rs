@@ -15,7 +15,7 @@
 //! frame by one voxel, keep this frame's voxels inside it (the parts that carry on), grow
 //! them through this frame's occupied voxels until nothing changes (a few steps: as many as
 //! a carried-on part is thick beyond the dilation), and whatever is left ends. Growth that
-//! is still changing after [`WORD_STEPS`] steps is finished voxel by voxel, so a long thin
+//! is still changing after `WORD_STEPS` steps is finished voxel by voxel, so a long thin
 //! part costs its length once, never its length times the grid.
 //!
 //! How many times the frame rate would join a vanishing part is estimated from the parts

@@ -5,7 +5,7 @@
 //! period, last cap) and, for the overlap measure and the windows' artificial caps, its
 //! decoded frames. For each pair, the frame period starting at stamp `s` is checked as soon
 //! as both bodies' slabs for it are in, with what follows each of them (the next slab, or
-//! the last cap): see [`window`](super::window) for why one slab closed by two caps gives
+//! the last cap): see the `period` module for why one slab closed by two caps gives
 //! exactly the labels and crossings of the full check. What a period gives (labels of its
 //! tets, ranges of overlap, crossing pairs) is folded into the pair's running answer:
 //! label counts, intervals (merged exactly as the full check merges them), closing speeds
@@ -266,9 +266,13 @@ pub enum RollingOutput {
 
 #[derive(Debug)]
 struct HeldSlab {
+    /// The run (stream of the body) it belongs to ([`Run::id`]).
     run: u64,
+    /// Its index in the run (0: the run's first slab).
     index: u32,
+    /// Stamp of its upper frame (its lower one is its key in [`BodyStream::slabs`]).
     hi: i64,
+    /// Its lateral tets, shared with the windows that hold it.
     mesh: Arc<TetMesh>,
     /// Its vertices' box (see [`TetMesh::spatial_bounds`]).
     bounds: Option<SpatialBounds>,
@@ -284,26 +288,67 @@ struct HeldSlab {
 
 #[derive(Debug)]
 struct Run {
+    /// Its number in the body ([`BodyStream::next_run`] when it began).
     id: u64,
+    /// The lattice of its frames (one per run: another lattice begins another run).
     geometry: GridGeometry,
+    /// Stamp of its first frame.
     first_stamp: i64,
+    /// The cap closing it below, at its first frame (empty if it began mid-stream).
     first_cap: Arc<TetMesh>,
+    /// Occupied voxels of its first frame (the first cap's interior vertices).
     first_occupied: u64,
     /// Stamp of the latest frame (the last slab's upper one).
     frontier: i64,
     /// Index of the run's first frame: 0, or the first piece after lost ones (the run then
     /// has no opening cap).
     first_index: u32,
+    /// Index of its latest frame (the upper frame of its latest slab).
     next_index: u32,
     /// The closing cap came (stamp, cap), or the run was closed without one.
     end: Option<RunEnd>,
+    /// Tets of its caps and slabs so far (the next slab's first tet number).
     tets: u64,
+    /// Its mesh's statistics so far, slab by slab (empty while a job on the pool adds the
+    /// latest piece: [`BodyStream::stats_job`]).
     acc: StatsAccumulator,
     /// The run's statistics, once it ended.
     stats: Option<BodyStats>,
 }
 
 impl Run {
+    /// Run `id` beginning at piece `p` (its first frame, at index `first_index`), closed
+    /// below by `first_cap` (empty for a run that begins mid-stream) over `first_occupied`
+    /// voxels.
+    fn begun(
+        id: u64,
+        p: &Piece,
+        first_cap: Arc<TetMesh>,
+        first_occupied: u64,
+        first_index: u32,
+    ) -> Self {
+        // An opening cap's tets are the run's first; a slab's are counted as it is held.
+        let tets = if p.kind == PieceKind::CapStart {
+            p.mesh.tets.len() as u64
+        } else {
+            0
+        };
+        Run {
+            id,
+            geometry: p.geometry,
+            first_stamp: p.stamps_ns.0,
+            first_cap,
+            first_occupied,
+            frontier: p.stamps_ns.0,
+            first_index,
+            next_index: first_index,
+            end: None,
+            tets,
+            acc: StatsAccumulator::new(),
+            stats: None,
+        }
+    }
+
     /// The run's figures without its meshes (for the report).
     fn clone_summary(&self) -> Run {
         Run {
@@ -384,12 +429,19 @@ impl Closing {
 /// Cumulative figures of a body's finished runs.
 #[derive(Debug, Default, Clone)]
 struct Totals {
+    /// Frames accepted.
     frames: u64,
+    /// Tets of their meshes (caps and slabs).
     tets: u64,
+    /// Vertices of their meshes.
     vertices: u64,
+    /// Hypervolume of their 4D solids (m³·s).
     hypervolume_m3s: f64,
+    /// Slabs in which part of the body vanishes within one frame period.
     vanishing: u64,
+    /// Every finished run's mesh closed and consistently oriented.
     closed: bool,
+    /// Runs finished.
     runs: u64,
 }
 
@@ -399,13 +451,23 @@ type RunEnd = (i64, Option<(Arc<TetMesh>, u64)>);
 
 #[derive(Debug, Default)]
 struct BodyStream {
+    /// Its runs (streams), oldest first: the finished ones kept for the report's figures,
+    /// the last one current.
     runs: Vec<Run>,
+    /// Number of the next run to begin.
     next_run: u64,
+    /// The slabs kept, by the stamp of their lower frame (the rolling window, and the
+    /// slabs behind it that later windows and the horizon still reach).
     slabs: BTreeMap<i64, HeldSlab>,
+    /// Its decoded frames kept, by stamp, for the pairs' overlap measure (as long as a
+    /// slab starting or ending there is kept, within `max_frame_bytes`).
     frames: BTreeMap<i64, KeptGrid>,
+    /// Figures of its finished runs.
     totals: Totals,
     /// The lattice of its latest stream.
     geometry: Option<GridGeometry>,
+    /// Said that the checker joined this body's stream mid-way (said once; cleared when a
+    /// stream of it begins at its first frame).
     joined_late: bool,
     /// Pairs it is in.
     pairs: usize,
@@ -496,6 +558,36 @@ fn wait_on_pool<T>(rx: &std::sync::mpsc::Receiver<T>) -> Option<T> {
     }
 }
 
+/// Refuses a piece no window can rely on: a lattice step that is not a power of two (two
+/// bodies' lattices must map onto their common one exactly), or a tet naming a vertex the
+/// piece does not have.
+fn malformed(p: &Piece) -> Option<Accepted> {
+    let id = &p.body;
+    let scale = p.geometry.scale;
+    if scale < 1 || scale.count_ones() != 1 {
+        return Some(Accepted::refused(
+            "bad_piece",
+            format!("{id}: a piece with lattice scale {scale} (a power of two is needed); ignored"),
+        ));
+    }
+    let nv = p.mesh.vertices.len();
+    // The largest id first (a reduction over all the ids, which vectorises), the tet naming
+    // it only if it is past the vertices.
+    let past = |t: &[u32; 4]| t.iter().any(|&v| v as usize >= nv);
+    let largest = p
+        .mesh
+        .tets
+        .iter()
+        .fold(0, |m, t| m.max(t[0]).max(t[1]).max(t[2]).max(t[3]));
+    let t = (!p.mesh.tets.is_empty() && largest as usize >= nv)
+        .then(|| p.mesh.tets.iter().position(past))
+        .flatten()?;
+    Some(Accepted::refused(
+        "bad_piece",
+        format!("{id}: tet {t} of a piece names a vertex past its {nv}; ignored"),
+    ))
+}
+
 /// A body's window kept from its last rest ([`RollingChecker::moved`]) is dropped once it
 /// has moved for more slabs than this.
 const REST_KEPT_SLABS: u32 = 32;
@@ -569,8 +661,11 @@ enum Status {
 /// A crossing kept for the closing speeds: checker times, tets (body run numbers), normals.
 #[derive(Debug, Clone, Copy)]
 struct Record {
+    /// Checker-time range of the crossing's section (pair base).
     t: (f64, f64),
+    /// The two tets (numbers in their bodies' runs: a's, b's).
     tets: (u64, u64),
+    /// Their outward 4D normals (a's, b's).
     normals: ([f64; 4], [f64; 4]),
 }
 
@@ -584,6 +679,7 @@ struct Interval {
     speeds: (Option<Option<f64>>, Option<Option<f64>>),
     /// Frame periods (s) at start and end.
     periods: (f64, f64),
+    /// Its number among the pair's contacts (0: the first), as announced.
     index: u64,
 }
 
@@ -591,22 +687,34 @@ struct Interval {
 struct Overlap {
     /// Overlap and bound of the runs of periods closed by a gap (see `overlap_push`).
     closed: (f64, f64),
+    /// Meshes the intersection of the two bodies' frames, period by period (made at the
+    /// first frame fed, dropped when a gap closes the run).
     mesher: Option<Mesher>,
+    /// The intersection mesh's statistics so far: its hypervolume is the overlap.
     acc: StatsAccumulator,
+    /// The intersection's cap at the run's first frame.
     first_cap: Option<TetMesh>,
+    /// Sums of the intersection mesh's normals' spatial and temporal parts so far, in
+    /// lattice units: the overlap's error bound (`run_overlap`).
     sums: (f64, f64),
     /// `sums` with the normals of the cap closing the run at its last frame (the bound's
     /// sums once two frames are in), worked out as the frame is fed when the pair
     /// interferes (only then is it reported), else when it is reported.
     closed_sums: Option<(f64, f64)>,
+    /// Stamp of the latest frame fed (a frame at or before it is not fed again).
     last_pushed: Option<i64>,
+    /// The run's first and latest stamps fed, and how many frames (its mean period).
     stamps: (i64, i64, u64),
+    /// Not measurable any more: a frame was missing, refused, or on another lattice (the
+    /// report then says the overlap is unknown).
     unknown: bool,
+    /// The intersection's lattice (the run's frames must all be on it).
     geometry: Option<GridGeometry>,
 }
 
 #[derive(Debug)]
 struct PairRoll {
+    /// The two bodies' ids (`a` < `b`).
     a: String,
     b: String,
     /// Stamp of the next period to decide.
@@ -616,22 +724,36 @@ struct PairRoll {
     base: i64,
     /// Stamps of recent common frame indices.
     stamps: BTreeMap<i64, i64>,
+    /// INTERFERENCE and INSIDE tets of a and of b over the periods decided.
     counts: (LabelCounts, LabelCounts),
+    /// Candidate tet pairs walked (boxes overlapping), over the periods decided.
     candidates: u64,
+    /// Tet pairs whose boundaries cross, over the periods decided.
     crossings: u64,
+    /// The latest closed contact intervals (at most `max_intervals`).
     intervals: VecDeque<Interval>,
+    /// Closed intervals dropped from `intervals` for `max_intervals` (counted).
     dropped_intervals: u64,
+    /// The contact interval going on, if one is.
     open: Option<Interval>,
+    /// Contacts begun so far (the next one's [`Interval::index`]).
     contacts: u64,
+    /// Crossings kept for the closing speeds at the ends of intervals (dropped once no
+    /// start or end can use them: [`RollingChecker::finish_speeds`]).
     records: VecDeque<Record>,
+    /// The overlap hypervolume measured so far.
     overlap: Overlap,
     /// The overlap being fed on rayon's pool, if it is (then `overlap` is a stand-in).
     overlap_job: Option<OverlapJob>,
+    /// Why the pair is no longer checked (its bodies on lattices that cannot be compared,
+    /// in different frames, ...), once it is not: said once, in the report.
     stopped: Option<String>,
     /// Steps per frame period of the pair's lattice (0 until the first window).
     per: i64,
     /// Spent any window: the pair is in the report.
     checked: bool,
+    /// Regions or contact tets whose inclusion stayed undecided (labelled OUTSIDE), over
+    /// the periods decided.
     undecided: u64,
     /// Said once per absence that the partner is late.
     partner_absent: bool,
@@ -646,11 +768,16 @@ struct PairRoll {
 /// A pair's unsure span that is going on (see [`UnsureUpdate`]).
 #[derive(Debug, Clone)]
 struct OpenUnsure {
+    /// Its number among the pair's unsure spans.
     index: u64,
+    /// The body not observed well enough.
     body: String,
+    /// Its start and latest end (ns).
     from_ns: i64,
     to_ns: i64,
+    /// Why the body was not observed well enough.
     why: chronotope_mesh::unsure::Unsure,
+    /// The frame period (ns) at its start.
     period_ns: i64,
 }
 
@@ -658,19 +785,29 @@ struct OpenUnsure {
 #[derive(Debug)]
 pub struct RollingChecker {
     cfg: RollingConfig,
+    /// The options the bodies' meshers use (and the overlap's).
     opts: MesherOptions,
+    /// Which pairs, which bodies move (resolutions), the rotation asked for.
     plan: CheckPlan,
+    /// Every body seen, by id.
     bodies: BTreeMap<String, BodyStream>,
+    /// The planned pairs whose bodies have been seen, in the order of their ids.
     pairs: Vec<PairRoll>,
+    /// Earliest first stamp of any body (the report's time origin).
     origin_ns: Option<i64>,
+    /// The distinct frame stamps over the bodies (the report's frames).
     union: UnionStamps,
+    /// The streams are over ([`RollingChecker::finish`]): what is not there will not come.
     finishing: bool,
-    /// Problems for the report.
+    /// Problems for the report (at most [`KEPT_PROBLEMS`]).
     problems: Vec<String>,
+    /// Problems not kept for [`KEPT_PROBLEMS`] (counted).
     dropped_problems: u64,
     /// Per movable body: contacts ending before this (s) are resolved.
     resolved_until: BTreeMap<String, f64>,
+    /// The latest resolutions (at most `max_resolutions`).
     resolutions: VecDeque<Resolution>,
+    /// Resolutions not kept for `max_resolutions` (counted).
     dropped_resolutions: u64,
     /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
     prefetched: Vec<Prefetched>,
@@ -1018,247 +1155,227 @@ impl RollingChecker {
     }
 
     fn accept(&mut self, p: &Piece) -> Accepted {
-        let id = p.body.clone();
-        // What a window relies on: a lattice step that is a power of two (so two bodies'
-        // lattices map onto their common one exactly), and tets that name their vertices.
-        let scale = p.geometry.scale;
-        if scale < 1 || scale.count_ones() != 1 {
-            return Accepted::refused(
-                "bad_piece",
-                format!(
-                    "{id}: a piece with lattice scale {scale} (a power of two is needed); ignored"
-                ),
-            );
+        if let Some(refused) = malformed(p) {
+            return refused;
         }
-        let nv = p.mesh.vertices.len();
-        // The largest id first (a reduction over all the ids, which vectorises), the tet
-        // naming it only if it is past the vertices.
-        let past = |t: &[u32; 4]| t.iter().any(|&v| v as usize >= nv);
-        let largest = p
-            .mesh
-            .tets
-            .iter()
-            .fold(0, |m, t| m.max(t[0]).max(t[1]).max(t[2]).max(t[3]));
-        let bad = (!p.mesh.tets.is_empty() && largest as usize >= nv)
-            .then(|| p.mesh.tets.iter().position(past))
-            .flatten();
-        if let Some(t) = bad {
-            return Accepted::refused(
-                "bad_piece",
-                format!("{id}: tet {t} of a piece names a vertex past its {nv}; ignored"),
-            );
-        }
-        let origin = &mut self.origin_ns;
-        let union = &mut self.union;
-        let b = self.bodies.get_mut(&id).expect("checked above");
+        let b = self.bodies.get_mut(&p.body).expect("checked above");
         if b.frame_id != p.frame_id {
             b.frame_id.clone_from(&p.frame_id);
         }
         match p.kind {
-            PieceKind::CapStart => {
-                let mut restarted = None;
-                if let Some(r) = b.runs.last_mut() {
-                    if !r.ended() {
-                        r.close(None);
-                        restarted = Some(format!(
-                            "{id}: the mesh starts again at {} ns without a closing cap after \
-                             {} slab(s) (a restarted mesher?); the earlier stream is checked up to \
-                             its last slab",
-                            p.stamps_ns.0, r.next_index
-                        ));
-                    }
-                }
-                if b.runs.last().is_some_and(|r| p.stamps_ns.0 <= r.frontier) {
-                    return Accepted::refused(
-                        "bad_piece",
-                        format!(
-                            "{id}: a stream starting at {} ns, not after the previous one's last \
-                             frame; ignored",
-                            p.stamps_ns.0
-                        ),
-                    );
-                }
-                let run = Run {
-                    id: b.next_run,
-                    geometry: p.geometry,
-                    first_stamp: p.stamps_ns.0,
-                    first_cap: p.mesh.clone(),
-                    first_occupied: p.occupied,
-                    frontier: p.stamps_ns.0,
-                    first_index: 0,
-                    next_index: 0,
-                    end: None,
-                    tets: p.mesh.tets.len() as u64,
-                    acc: StatsAccumulator::new(),
-                    stats: None,
-                };
-                b.next_run += 1;
-                b.joined_late = false;
-                b.geometry = Some(p.geometry);
-                b.runs.push(run);
-                *origin = Some(origin.map_or(p.stamps_ns.0, |o: i64| o.min(p.stamps_ns.0)));
-                union.add(p.stamps_ns.0);
-                if let Some(why) = restarted {
-                    return Accepted::Noted {
-                        kind: "stream_restarted",
-                        text: why,
-                    };
-                }
-                Accepted::Taken
-            }
-            PieceKind::Lateral | PieceKind::CapEnd => {
-                // A slab with no open run before it, or after a run whose last pieces are
-                // gone: checked from here, in a run without an opening cap.
-                let open = b.runs.last().filter(|r| !r.ended());
-                let jumped = open.is_some_and(|r| {
-                    p.index > r.next_index && p.stamps_ns.0 > r.frontier && p.geometry == r.geometry
-                });
-                let mut note = None;
-                if p.kind == PieceKind::Lateral && (open.is_none() || jumped) {
-                    let after = b.runs.last().map(|r| r.frontier);
-                    if after.is_some_and(|f| p.stamps_ns.0 < f) || p.stamps_ns.1 <= p.stamps_ns.0 {
-                        return Accepted::refused(
-                            "piece_out_of_order",
-                            format!(
-                                "{id}: piece index {} ({} ns) before the body's last frame; \
-                                 ignored",
-                                p.index, p.stamps_ns.0
-                            ),
-                        );
-                    }
-                    let resumed = "checked again from this piece; the mesh is open where the \
-                                   pieces are missing";
-                    if let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) {
-                        r.close(None);
-                        note = Some((
-                            "pieces_missing",
-                            format!(
-                                "{id}: pieces {} to {} missing ({} ns to {} ns, lost on the way \
-                                 or dropped by a node that was behind): {resumed}",
-                                r.next_index,
-                                p.index - 1,
-                                r.frontier,
-                                p.stamps_ns.0
-                            ),
-                        ));
-                    } else if let Some(f) = after {
-                        note = Some((
-                            "pieces_missing",
-                            format!(
-                                "{id}: piece index {} at {} ns with no stream open (its first cap \
-                                 is missing, or the stream was taken as ended at {f} ns): \
-                                 {resumed}",
-                                p.index, p.stamps_ns.0
-                            ),
-                        ));
-                    } else if !b.joined_late {
-                        b.joined_late = true;
-                        note = Some((
-                            "joined_mid_stream",
-                            format!(
-                                "{id}: the first piece seen is index {} (this node started after \
-                                 the body's stream did, or missed its start): the pieces before \
-                                 are gone; the stream is checked from this piece, its mesh open \
-                                 there",
-                                p.index
-                            ),
-                        ));
-                    }
-                    b.runs.push(Run {
-                        id: b.next_run,
-                        geometry: p.geometry,
-                        first_stamp: p.stamps_ns.0,
-                        first_cap: Arc::new(TetMesh::default()),
-                        first_occupied: 0,
-                        frontier: p.stamps_ns.0,
-                        first_index: p.index,
-                        next_index: p.index,
-                        end: None,
-                        tets: 0,
-                        acc: StatsAccumulator::new(),
-                        stats: None,
-                    });
-                    b.next_run += 1;
-                    b.geometry = Some(p.geometry);
-                    *origin = Some(origin.map_or(p.stamps_ns.0, |o: i64| o.min(p.stamps_ns.0)));
-                    union.add(p.stamps_ns.0);
-                }
-                let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
-                    // A closing cap with no stream open: nothing to close.
-                    return Accepted::Taken;
-                };
-                if p.geometry != r.geometry {
-                    return Accepted::refused(
-                        "bad_piece",
-                        format!("{id}: a piece on another lattice; ignored"),
-                    );
-                }
-                if p.kind == PieceKind::CapEnd {
-                    if r.next_index == r.first_index || p.index != r.next_index {
-                        return Accepted::refused(
-                            "piece_out_of_order",
-                            format!(
-                                "{id}: closing cap at index {} (expected index {}); ignored",
-                                p.index, r.next_index
-                            ),
-                        );
-                    }
-                    r.tets += p.mesh.tets.len() as u64;
-                    // Its statistics (the cap's faces paired: a cap fills the body's
-                    // volume) are finished by `on_piece`, on the pool.
-                    let cap = Some((p.mesh.clone(), p.occupied));
-                    if let Some(closing) = r.end_at_frontier(cap) {
-                        self.pending_stats = Some(PendingStats::Finish(r.id, closing));
-                    }
-                    return Accepted::Taken;
-                }
-                if p.index != r.next_index
-                    || p.stamps_ns.0 != r.frontier
-                    || p.stamps_ns.1 <= p.stamps_ns.0
-                {
-                    return Accepted::refused(
-                        "piece_out_of_order",
-                        format!(
-                            "{id}: piece index {} out of order (expected index {}); ignored, the \
-                             body's mesh will not be closed",
-                            p.index, r.next_index
-                        ),
-                    );
-                }
-                // Added to the run's statistics by `on_piece`, while windows are checked.
-                // A run that starts after lost pieces has no opening cap to pair with.
-                let first_cap = (r.next_index == 0).then(|| r.first_cap.clone());
-                self.pending_stats = Some(PendingStats::Add(r.id, first_cap));
-                let first_tet = r.tets;
-                r.tets += p.mesh.tets.len() as u64;
-                r.next_index += 1;
-                r.frontier = p.stamps_ns.1;
-                union.add(p.stamps_ns.1);
-                let worst = if self.cfg.slabs_done {
-                    vec![0; p.mesh.tets.len()]
-                } else {
-                    Vec::new()
-                };
-                b.slabs.insert(
-                    p.stamps_ns.0,
-                    HeldSlab {
-                        run: r.id,
-                        index: p.index,
-                        hi: p.stamps_ns.1,
-                        mesh: p.mesh.clone(),
-                        bounds: p.mesh.spatial_bounds(),
-                        first_tet,
-                        worst,
-                        unsure: p.unsure,
-                        displacement: p.displacement,
-                    },
-                );
-                note.map_or(Accepted::Taken, |(kind, text)| Accepted::Noted {
-                    kind,
-                    text,
-                })
+            PieceKind::CapStart => self.accept_opening_cap(p),
+            PieceKind::Lateral => self.accept_slab(p),
+            PieceKind::CapEnd => self.accept_closing_cap(p),
+        }
+    }
+
+    /// A stream's opening cap begins a run (closing the one before, if it was open: its
+    /// mesher restarted).
+    fn accept_opening_cap(&mut self, p: &Piece) -> Accepted {
+        let id = &p.body;
+        let b = self.bodies.get_mut(id).expect("checked above");
+        let mut restarted = None;
+        if let Some(r) = b.runs.last_mut() {
+            if !r.ended() {
+                r.close(None);
+                restarted = Some(format!(
+                    "{id}: the mesh starts again at {} ns without a closing cap after \
+                     {} slab(s) (a restarted mesher?); the earlier stream is checked up to \
+                     its last slab",
+                    p.stamps_ns.0, r.next_index
+                ));
             }
         }
+        if b.runs.last().is_some_and(|r| p.stamps_ns.0 <= r.frontier) {
+            return Accepted::refused(
+                "bad_piece",
+                format!(
+                    "{id}: a stream starting at {} ns, not after the previous one's last \
+                     frame; ignored",
+                    p.stamps_ns.0
+                ),
+            );
+        }
+        b.joined_late = false;
+        let run = Run::begun(b.next_run, p, p.mesh.clone(), p.occupied, 0);
+        self.begin_run(id, run);
+        match restarted {
+            Some(text) => Accepted::Noted {
+                kind: "stream_restarted",
+                text,
+            },
+            None => Accepted::Taken,
+        }
+    }
+
+    /// A slab (lateral piece) extends the body's open run; with no run open, or after
+    /// pieces of it were lost, it begins a run of its own, without an opening cap.
+    fn accept_slab(&mut self, p: &Piece) -> Accepted {
+        let begun = self.begin_run_at_slab(p);
+        if let Accepted::Refused { .. } = begun {
+            return begun;
+        }
+        let id = &p.body;
+        let b = self.bodies.get_mut(id).expect("checked above");
+        let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
+            return Accepted::Taken;
+        };
+        if p.geometry != r.geometry {
+            return Accepted::refused(
+                "bad_piece",
+                format!("{id}: a piece on another lattice; ignored"),
+            );
+        }
+        if p.index != r.next_index || p.stamps_ns.0 != r.frontier || p.stamps_ns.1 <= p.stamps_ns.0
+        {
+            return Accepted::refused(
+                "piece_out_of_order",
+                format!(
+                    "{id}: piece index {} out of order (expected index {}); ignored, the \
+                     body's mesh will not be closed",
+                    p.index, r.next_index
+                ),
+            );
+        }
+        // Added to the run's statistics by `on_piece`, while windows are checked.
+        // A run that starts after lost pieces has no opening cap to pair with.
+        let first_cap = (r.next_index == 0).then(|| r.first_cap.clone());
+        self.pending_stats = Some(PendingStats::Add(r.id, first_cap));
+        let first_tet = r.tets;
+        r.tets += p.mesh.tets.len() as u64;
+        r.next_index += 1;
+        r.frontier = p.stamps_ns.1;
+        self.union.add(p.stamps_ns.1);
+        let worst = if self.cfg.slabs_done {
+            vec![0; p.mesh.tets.len()]
+        } else {
+            Vec::new()
+        };
+        b.slabs.insert(
+            p.stamps_ns.0,
+            HeldSlab {
+                run: r.id,
+                index: p.index,
+                hi: p.stamps_ns.1,
+                mesh: p.mesh.clone(),
+                bounds: p.mesh.spatial_bounds(),
+                first_tet,
+                worst,
+                unsure: p.unsure,
+                displacement: p.displacement,
+            },
+        );
+        begun
+    }
+
+    /// Begins a run at slab `p` if the body has no run open, or if pieces of its open run
+    /// are missing before `p` (the open run is then closed at its last slab): taken,
+    /// noted (what was missing, or that the checker joined the stream mid-way), or
+    /// refused (a slab before the body's last frame).
+    fn begin_run_at_slab(&mut self, p: &Piece) -> Accepted {
+        let id = &p.body;
+        let b = self.bodies.get_mut(id).expect("checked above");
+        let open = b.runs.last().filter(|r| !r.ended());
+        let jumped = open.is_some_and(|r| {
+            p.index > r.next_index && p.stamps_ns.0 > r.frontier && p.geometry == r.geometry
+        });
+        if open.is_some() && !jumped {
+            return Accepted::Taken;
+        }
+        let after = b.runs.last().map(|r| r.frontier);
+        if after.is_some_and(|f| p.stamps_ns.0 < f) || p.stamps_ns.1 <= p.stamps_ns.0 {
+            return Accepted::refused(
+                "piece_out_of_order",
+                format!(
+                    "{id}: piece index {} ({} ns) before the body's last frame; ignored",
+                    p.index, p.stamps_ns.0
+                ),
+            );
+        }
+        let resumed = "checked again from this piece; the mesh is open where the pieces are \
+                       missing";
+        let mut note = Accepted::Taken;
+        if let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) {
+            r.close(None);
+            note = Accepted::Noted {
+                kind: "pieces_missing",
+                text: format!(
+                    "{id}: pieces {} to {} missing ({} ns to {} ns, lost on the way or dropped \
+                     by a node that was behind): {resumed}",
+                    r.next_index,
+                    p.index - 1,
+                    r.frontier,
+                    p.stamps_ns.0
+                ),
+            };
+        } else if let Some(f) = after {
+            note = Accepted::Noted {
+                kind: "pieces_missing",
+                text: format!(
+                    "{id}: piece index {} at {} ns with no stream open (its first cap is \
+                     missing, or the stream was taken as ended at {f} ns): {resumed}",
+                    p.index, p.stamps_ns.0
+                ),
+            };
+        } else if !b.joined_late {
+            b.joined_late = true;
+            note = Accepted::Noted {
+                kind: "joined_mid_stream",
+                text: format!(
+                    "{id}: the first piece seen is index {} (this node started after the \
+                     body's stream did, or missed its start): the pieces before are gone; the \
+                     stream is checked from this piece, its mesh open there",
+                    p.index
+                ),
+            };
+        }
+        let run = Run::begun(b.next_run, p, Arc::new(TetMesh::default()), 0, p.index);
+        self.begin_run(id, run);
+        note
+    }
+
+    /// A stream's closing cap ends the body's open run at its last slab (its statistics are
+    /// finished by `on_piece`, on the pool); with no run open there is nothing to close.
+    fn accept_closing_cap(&mut self, p: &Piece) -> Accepted {
+        let id = &p.body;
+        let b = self.bodies.get_mut(id).expect("checked above");
+        let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
+            return Accepted::Taken;
+        };
+        if p.geometry != r.geometry {
+            return Accepted::refused(
+                "bad_piece",
+                format!("{id}: a piece on another lattice; ignored"),
+            );
+        }
+        if r.next_index == r.first_index || p.index != r.next_index {
+            return Accepted::refused(
+                "piece_out_of_order",
+                format!(
+                    "{id}: closing cap at index {} (expected index {}); ignored",
+                    p.index, r.next_index
+                ),
+            );
+        }
+        r.tets += p.mesh.tets.len() as u64;
+        // Its statistics (the cap's faces paired: a cap fills the body's volume) are
+        // finished by `on_piece`, on the pool.
+        let cap = Some((p.mesh.clone(), p.occupied));
+        if let Some(closing) = r.end_at_frontier(cap) {
+            self.pending_stats = Some(PendingStats::Finish(r.id, closing));
+        }
+        Accepted::Taken
+    }
+
+    /// Adds `run` (numbered [`BodyStream::next_run`]) to body `id` as its current run.
+    fn begin_run(&mut self, id: &str, run: Run) {
+        let first = run.first_stamp;
+        let b = self.bodies.get_mut(id).expect("checked above");
+        b.next_run += 1;
+        b.geometry = Some(run.geometry);
+        b.runs.push(run);
+        self.origin_ns = Some(self.origin_ns.map_or(first, |o| o.min(first)));
+        self.union.add(first);
     }
 
     /// The inputs have ended: every open stream is closed at its last slab, every period
