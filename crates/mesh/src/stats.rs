@@ -18,7 +18,10 @@
 //! hashes cannot see is a triangle present k > 1 times on *both* sides with balanced
 //! orientations (over-shared but consistent); the exact fallback is not run then. (Were
 //! the triangle hash a random function, two different multisets would hash equal with
-//! probability about 2^-128.)
+//! probability about 2^-128.) A slab's interior triangles are checked the same way, by one
+//! signed hash of their vertex ids (`FaceHash`), and paired exactly (gathered by their
+//! smallest vertex) only when it does not cancel. `validate::check_closed`, which the
+//! tests run on whole meshes, always pairs exactly.
 //!
 //! A slab that is one of the latest few (`RECENT_SLABS`, 4) moved by whole periods in time
 //! and whole lattice steps in space, compared exactly, adds that slab's figures again
@@ -344,19 +347,10 @@ impl StatsAccumulator {
             .iter()
             .map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1))
             .collect();
-        // Faces off the two time planes pair up inside the slab: packed and gathered by
-        // their smallest vertex (counted as they come), else by their ids.
-        let shape = (m.vertices.len() <= PACKED_VERTEX_LIMIT)
-            .then(|| FaceShape::new(m.vertices.len(), 4 * m.tets.len()));
         // The tets in chunks on rayon's pool: every figure below is an exact sum or an
         // order-independent set, so the result does not depend on the chunking.
         let chunk = |tets: &[[u32; 4]]| {
             let mut c = Scan::default();
-            // Most faces are off the time planes: room for all at once, not by doubling.
-            let mut faces = shape.map(|shape| shape.gather(4 * tets.len()));
-            if faces.is_none() {
-                c.wide.reserve(4 * tets.len());
-            }
             for t in tets {
                 let p = t.map(|v| m.vertices[v as usize]);
                 let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
@@ -382,14 +376,11 @@ impl StatsAccumulator {
                             c.hi.push((key, s));
                         }
                     } else {
-                        match faces.as_mut() {
-                            Some(faces) => faces.push(key, s > 0),
-                            None => c.wide.push((key, s)),
-                        }
+                        // Off the time planes: it pairs inside the slab.
+                        c.interior.add(&key, s);
                     }
                 }
             }
-            c.faces = faces;
             c
         };
         let scan = || -> Vec<Scan> {
@@ -417,26 +408,25 @@ impl StatsAccumulator {
             mut hi,
             mut lo_hash,
             mut hi_hash,
-            faces,
-            mut wide,
+            mut interior,
         } = parts.next().unwrap_or_default();
-        let mut gathered = Vec::from_iter(faces);
         for c in parts {
             vol24 += c.vol24;
             hi_cone += c.hi_cone;
             lo_hash.merge(&c.lo_hash);
             hi_hash.merge(&c.hi_hash);
+            interior.merge(&c.interior);
             lo.extend(c.lo);
             hi.extend(c.hi);
-            wide.extend(c.wide);
-            gathered.extend(c.faces);
         }
         // Upper cap: Σ det over its tets = Σ over its boundary (the upper faces, reversed)
         // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
         vol24 -= i128::from(t_hi - t_lo) * hi_cone;
-        let interior = match shape {
-            Some(_) => FaceParts::pair(gathered, &mut self.scratch, false).0,
-            None => pair_by_first_vertex(&wide, m.vertices.len()),
+        // Every interior face twice, in opposite orientations: by their hash; exactly (each
+        // face paired by its ids) only if the hash says otherwise.
+        let interior = match interior.paired() {
+            Some(report) => report,
+            None => pair_interior_faces(m, &plane, chunk_tets, &mut self.scratch),
         };
         self.merge(interior);
         let lo_vertices = plane.iter().filter(|&&f| f & 1 != 0).count() as u64;
@@ -630,6 +620,44 @@ fn cap_boundary(cap: &TetMesh) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash)
 /// Tets per chunk of a slab's scan on rayon's pool (smaller slabs are scanned in one piece).
 const SCAN_CHUNK_TETS: usize = 1 << 17;
 
+/// Pairs the faces of a slab's tets that do not lie in one of its time planes (`plane`:
+/// each vertex's planes, bit 0 lower, bit 1 upper) exactly, each face by its vertex ids:
+/// packed and gathered by their smallest vertex (counted as they come) on rayon's pool in
+/// chunks of `chunk_tets` tets, else (too many vertices to pack) by their ids.
+fn pair_interior_faces(
+    m: &TetMesh,
+    plane: &[u8],
+    chunk_tets: usize,
+    scratch: &mut Vec<u64>,
+) -> ClosedReport {
+    let interior_faces = |t: &[u32; 4]| {
+        let (sorted, order) = canonical_tet_faces(*t);
+        let flags = order.map(|i| plane[t[i] as usize]);
+        sorted.into_iter().enumerate().filter_map(move |(j, face)| {
+            let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
+            (flags[f[0]] & flags[f[1]] & flags[f[2]] == 0).then_some(face)
+        })
+    };
+    if m.vertices.len() > PACKED_VERTEX_LIMIT {
+        let wide: Vec<([u32; 3], i8)> = m.tets.iter().flat_map(interior_faces).collect();
+        return pair_by_first_vertex(&wide, m.vertices.len());
+    }
+    let shape = FaceShape::new(m.vertices.len(), 4 * m.tets.len());
+    let gathered = m
+        .tets
+        .par_chunks(chunk_tets.max(1))
+        .map(|tets| {
+            // Most faces are off the time planes: room for all at once, not by doubling.
+            let mut faces = shape.gather(4 * tets.len());
+            for (key, s) in tets.iter().flat_map(interior_faces) {
+                faces.push(key, s > 0);
+            }
+            faces
+        })
+        .collect();
+    FaceParts::pair(gathered, scratch, false).0
+}
+
 /// What one chunk of a slab's tets contributes to [`StatsAccumulator::add_lateral`].
 #[derive(Default)]
 struct Scan {
@@ -639,8 +667,64 @@ struct Scan {
     hi: Vec<(PlaneTri, i8)>,
     lo_hash: PlaneHash,
     hi_hash: PlaneHash,
-    faces: Option<FaceParts>,
-    wide: Vec<([u32; 3], i8)>,
+    interior: FaceHash,
+}
+
+/// An order-independent hash of a slab's interior faces (those off its time planes): the
+/// sum of each face's hash with its orientation as sign, and the number of faces. In a
+/// closed, consistently oriented slab every face comes twice with opposite orientations, so
+/// the sum is zero; a face used once, or twice the same way, leaves its hash in it (as two
+/// different multisets of faces hash equal, with probability about 2^-128). A face used
+/// 2k > 2 times with balanced orientations (over-shared, consistent) cancels too: the hash
+/// cannot see it, as for the time planes (module docs).
+#[derive(Debug, Clone, Copy, Default)]
+struct FaceHash {
+    signed: u128,
+    faces: u64,
+}
+
+impl FaceHash {
+    /// Adds the face of sorted vertex ids `k` with orientation `s`.
+    #[inline]
+    fn add(&mut self, k: &[u32; 3], s: i8) {
+        let h = face_hash(k);
+        self.signed = if s > 0 {
+            self.signed.wrapping_add(h)
+        } else {
+            self.signed.wrapping_sub(h)
+        };
+        self.faces += 1;
+    }
+
+    fn merge(&mut self, other: &FaceHash) {
+        self.signed = self.signed.wrapping_add(other.signed);
+        self.faces += other.faces;
+    }
+
+    /// The report of faces that all pair, if the hash says they do.
+    fn paired(&self) -> Option<ClosedReport> {
+        (self.signed == 0 && self.faces % 2 == 0).then_some(ClosedReport {
+            triangles: self.faces / 2,
+            ..ClosedReport::default()
+        })
+    }
+}
+
+/// A 128-bit hash of a face's three vertex ids: two 64-bit lanes, each the ids (two words)
+/// folded by 64 × 64 → 128-bit multiplications under its own keys (those of [`tri_hash`]).
+#[inline]
+fn face_hash(k: &[u32; 3]) -> u128 {
+    #[inline]
+    fn fold(a: u64, b: u64) -> u64 {
+        let r = u128::from(a) * u128::from(b);
+        (r as u64) ^ ((r >> 64) as u64)
+    }
+    let (w0, w1) = ((u64::from(k[0]) << 32) | u64::from(k[1]), u64::from(k[2]));
+    let lane = |key: &[u64; 7]| {
+        let a = fold(w0 ^ key[0], w1 ^ key[1]);
+        fold(a ^ key[2], w1 ^ key[3])
+    };
+    (u128::from(lane(&TRI_HASH_KEYS[0])) << 64) | u128::from(lane(&TRI_HASH_KEYS[1]))
 }
 
 /// Order-independent hashes of a set of oriented plane triangles.
@@ -788,6 +872,52 @@ mod tests {
                 assert_eq!(figures(chunk), one, "chunks of {chunk}");
             }
             assert!(one.0.unpaired > 0, "the last plane is open: {:?}", one.0);
+        }
+    }
+
+    /// The hash of a slab's interior faces says they pair exactly when they do, and sends a
+    /// slab whose faces do not (a tet missing, a tet turned over) to the exact pairing.
+    #[test]
+    fn interior_face_hash_agrees_with_exact_pairing() {
+        let (_, slabs) = test_stream([9, 8, 7], 3, |k, x, y, z| {
+            let r2 = (x - 3 - k as i32).pow(2) + (y - 4).pow(2) + (z - 3).pow(2);
+            r2 <= 8 || (x + 2 * y + 3 * z + k as i32) % 7 == 0
+        });
+        let slab = &slabs[1];
+        let t_lo = slab.geometry.scale * slab.index as i32;
+        let t_hi = t_lo + slab.geometry.scale;
+        let report = |m: &TetMesh| {
+            let plane: Vec<u8> = m
+                .vertices
+                .iter()
+                .map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1))
+                .collect();
+            let mut hash = FaceHash::default();
+            for t in &m.tets {
+                let (sorted, order) = canonical_tet_faces(*t);
+                let flags = order.map(|i| plane[t[i] as usize]);
+                for (j, (key, s)) in sorted.into_iter().enumerate() {
+                    let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
+                    if flags[f[0]] & flags[f[1]] & flags[f[2]] == 0 {
+                        hash.add(&key, s);
+                    }
+                }
+            }
+            let exact = pair_interior_faces(m, &plane, 64, &mut Vec::new());
+            (hash.paired(), exact)
+        };
+        let (hashed, exact) = report(&slab.mesh);
+        assert!(exact.is_closed() && exact.triangles > 100, "{exact:?}");
+        assert_eq!(hashed, Some(exact));
+        let mut missing = slab.mesh.clone();
+        missing.tets.remove(missing.tets.len() / 2);
+        let mut turned = slab.mesh.clone();
+        let k = turned.tets.len() / 3;
+        turned.tets[k].swap(0, 1);
+        for broken in [missing, turned] {
+            let (hashed, exact) = report(&broken);
+            assert_eq!(hashed, None);
+            assert!(!exact.is_closed(), "{exact:?}");
         }
     }
 
