@@ -1093,7 +1093,7 @@ def bench_sources(a, exe, domain, tmp, kind):
         bag = tmp / f"robot-cell-{grid}.mcap"
         scene = ["scene", "robot-cell", "--grid", str(grid), "--frame-hz", f"{frame_hz:g}",
                  "--joint-hz", f"{joint_hz:g}", "--encoding", "bits", "--out", str(bag)]
-        cfg = ROOT / "launch_configs/robot_cell.yaml"
+        cfg = Path(a.config) if a.config else ROOT / "launch_configs/robot_cell.yaml"
         latency_from = "/joint_states,/table/occupancy"
         what = (f"robot cell {grid}^3: joint states at {joint_hz:g} Hz (two partial messages an "
                 f"instant), the table's frames at {frame_hz:g} Hz, the robot node's frames at the "
@@ -1104,7 +1104,7 @@ def bench_sources(a, exe, domain, tmp, kind):
         bag = tmp / f"person-cell-{grid}.mcap"
         scene = ["scene", "person-cell", "--grid", str(grid), "--frames", str(frames),
                  "--frame-hz", f"{frame_hz:g}", "--camera", a.camera, "--out", str(bag)]
-        cfg = ROOT / "launch_configs/person_cell.yaml"
+        cfg = Path(a.config) if a.config else ROOT / "launch_configs/person_cell.yaml"
         latency_from = ""
         w, h = (int(v) for v in a.camera.split("x"))
         what = (f"person cell {grid}^3: a {w}x{h} = {w * h}-point organised cloud and the three "
@@ -1220,7 +1220,8 @@ def main() -> int:
     ap.add_argument("--bag", default=None, help="mesher: a machine-tool bag (default: generate)")
     ap.add_argument("--grid", type=int, default=128)
     ap.add_argument("--config", default=None,
-                    help="mesher: launch config (default launch_configs/machine_tool.yaml)")
+                    help="mesher, robot, cloud: the launch config (default: the scene's, e.g. "
+                         "launch_configs/machine_tool.yaml)")
     ap.add_argument("--frames", type=int, default=None,
                     help="mesher: frames per body of the generated scene (default: the scene's, 64)")
     ap.add_argument("--markers-reader", action="store_true",
