@@ -47,12 +47,12 @@ mod tool;
 pub mod toolsurfel;
 mod workpiece;
 
+pub use cut_stats::CutStats;
 pub use force::{
     ForceModel, ForceParams, ForceRenderer, COUPLING_STABILITY_MARGIN, COUPLING_STEP_S,
     MAX_MOVE_DT_S,
 };
 pub use math::{Quat, Vec3};
-pub use cut_stats::CutStats;
 pub use sweep::{MAX_SUBSTEPS, MAX_SWEEP_POINTS_PER_POSE, MAX_SWEEP_ROWS_PER_POSE};
 pub use tool::{Tool, ToolKind};
 pub use workpiece::{

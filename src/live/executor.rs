@@ -132,7 +132,6 @@ enum SendFailure {
 /// How long [`Executor::finish`] still waits for a node once the run is aborted.
 pub const ABORT_WAIT: Duration = Duration::from_secs(2);
 
-
 /// Most messages a node takes from its queue in one batch.
 pub const MAX_BATCH: usize = 64;
 

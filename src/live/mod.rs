@@ -28,7 +28,9 @@ use rustdds::{
 };
 use serde::Serialize;
 
-use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time};
+use crate::msg::{
+    DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time,
+};
 use crate::node::launch::{NodeSpec, ParamValue, MAX_QUEUE_MB};
 use crate::node::{is_hidden_topic, Message, Node, NodeStatus, TopicRef};
 use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut, DEFAULT_QUEUE_BYTES};
@@ -529,7 +531,10 @@ impl WireOut for RealtimeOut {
             st.problem(
                 Fault::Dropped,
                 &m.topic,
-                format!("{}: not sent: {why} (a real-time node never waits)", m.topic),
+                format!(
+                    "{}: not sent: {why} (a real-time node never waits)",
+                    m.topic
+                ),
             );
         }
     }
@@ -1050,8 +1055,11 @@ pub fn run_nodes(
         if targets.is_empty() {
             continue;
         }
-        let reader =
-            participant.reader(&t.topic, t.type_name, TopicQos::reader_for_type(t.type_name))?;
+        let reader = participant.reader(
+            &t.topic,
+            t.type_name,
+            TopicQos::reader_for_type(t.type_name),
+        )?;
         tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
         main_readers.push((
             t.topic.clone(),
@@ -1432,7 +1440,10 @@ pub fn node_diagnostic(name: &str, r: &NodeRun) -> DiagnosticStatus {
     );
     values.extend(r.unfinished.as_ref().map(|w| kv("unfinished", w)));
     for (topic, l) in &r.lag {
-        values.push(kv(format!("lag_p99_ms.{topic}"), format!("{:.3}", l.p99_ms)));
+        values.push(kv(
+            format!("lag_p99_ms.{topic}"),
+            format!("{:.3}", l.p99_ms),
+        ));
     }
     values.extend(
         s.problems

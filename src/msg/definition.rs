@@ -140,10 +140,7 @@ impl Definition {
     /// (`self` is what is expected, `other` what a bag holds).
     pub fn difference(&self, other: &Definition) -> Option<String> {
         if self.name != other.name {
-            return Some(format!(
-                "it defines {}, not {}",
-                other.name, self.name
-            ));
+            return Some(format!("it defines {}, not {}", other.name, self.name));
         }
         let mut todo = vec![self.name.clone()];
         let mut seen = BTreeSet::new();
@@ -156,9 +153,7 @@ impl Definition {
                 continue;
             };
             let Some(got) = other.types.get(&name) else {
-                return Some(format!(
-                    "it does not define {name}, which its fields use"
-                ));
+                return Some(format!("it does not define {name}, which its fields use"));
             };
             if let Some(d) = type_difference(&name, want, got) {
                 return Some(d);
@@ -253,7 +248,11 @@ mod tests {
     use crate::msg::{ros2msg_schema, VoxelGrid};
 
     fn ours() -> Definition {
-        Definition::parse("chronotope_msgs/msg/VoxelGrid", &ros2msg_schema::<VoxelGrid>()).unwrap()
+        Definition::parse(
+            "chronotope_msgs/msg/VoxelGrid",
+            &ros2msg_schema::<VoxelGrid>(),
+        )
+        .unwrap()
     }
 
     fn theirs(text: &str) -> Option<String> {
@@ -285,13 +284,18 @@ mod tests {
     #[test]
     fn a_different_field_list_is_refused_by_name() {
         let ours_text = ros2msg_schema::<VoxelGrid>();
-        let why = theirs(&ours_text.replacen("float64 resolution", "float32 resolution", 1)).unwrap();
-        assert!(why.contains("float32 resolution") && why.contains("field 3"), "{why}");
+        let why =
+            theirs(&ours_text.replacen("float64 resolution", "float32 resolution", 1)).unwrap();
+        assert!(
+            why.contains("float32 resolution") && why.contains("field 3"),
+            "{why}"
+        );
         let why = theirs(&ours_text.replacen("uint32 size_z\n", "", 1)).unwrap();
         assert!(why.contains("size_z"), "{why}");
         let why = theirs(&ours_text.replacen("float64 z", "float32 z", 1)).unwrap();
         assert!(why.contains("geometry_msgs/Point"), "{why}");
-        let why = theirs(&ours_text.replacen("ENCODING_PERCENT=1", "ENCODING_PERCENT=2", 1)).unwrap();
+        let why =
+            theirs(&ours_text.replacen("ENCODING_PERCENT=1", "ENCODING_PERCENT=2", 1)).unwrap();
         assert!(why.contains("ENCODING_PERCENT"), "{why}");
         // A nested type left undefined is not guessed.
         let main_only = ours_text.split(&"=".repeat(80)).next().unwrap();

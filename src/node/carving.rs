@@ -793,7 +793,10 @@ impl CarvingDisplay {
         out.push(Message::new(
             &self.surfels_topic,
             stamp,
-            Payload::PointCloud2(Arc::new(surfel_cloud(self.header(stamp), self.cloud.clone()))),
+            Payload::PointCloud2(Arc::new(surfel_cloud(
+                self.header(stamp),
+                self.cloud.clone(),
+            ))),
         ));
     }
 }

@@ -15,8 +15,8 @@ pub mod launch;
 pub mod markers;
 pub mod mesher;
 pub mod names;
-pub mod robot;
 pub mod occupancy;
+pub mod robot;
 pub mod routes;
 
 use std::collections::BTreeMap;

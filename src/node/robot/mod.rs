@@ -434,14 +434,18 @@ impl RobotNode {
                 let skipped = n - keep;
                 let jump = i64::try_from(skipped * i128::from(period)).unwrap_or(i64::MAX);
                 t = t.saturating_add(jump);
-                self.quietly("frames_dropped", u64::try_from(skipped).unwrap_or(u64::MAX), || {
-                    format!(
-                        "the grid times jump by more than MAX_PENDING_FRAMES = \
+                self.quietly(
+                    "frames_dropped",
+                    u64::try_from(skipped).unwrap_or(u64::MAX),
+                    || {
+                        format!(
+                            "the grid times jump by more than MAX_PENDING_FRAMES = \
                          {MAX_PENDING_FRAMES} frames (to {:.3} s): the {skipped} oldest are not \
                          made",
-                        until as f64 * 1e-9
-                    )
-                });
+                            until as f64 * 1e-9
+                        )
+                    },
+                );
             }
         }
         while t <= until {
@@ -540,10 +544,9 @@ impl RobotNode {
                     let first = (arrival.div_euclid(period) * period).saturating_add(period);
                     // Grid times from the first after the arrival through the first at or after the end.
                     let span = (i128::from(p.end) - i128::from(first)).max(0);
-                    let frames = usize::try_from(
-                        (span + i128::from(period) - 1) / i128::from(period) + 1,
-                    )
-                    .unwrap_or(usize::MAX);
+                    let frames =
+                        usize::try_from((span + i128::from(period) - 1) / i128::from(period) + 1)
+                            .unwrap_or(usize::MAX);
                     if frames > MAX_PLAN_FRAMES {
                         self.problem(
                             "plan_cut",
