@@ -229,7 +229,7 @@ fn schema_difference(data: &[u8]) -> Option<String> {
     };
     match Definition::parse(VoxelGrid::TYPE_NAME, text) {
         Ok(got) => expected.difference(&got),
-        Err(why) => Some(why),
+        Err(why) => Some(why.to_string()),
     }
 }
 

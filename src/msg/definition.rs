@@ -35,6 +35,37 @@ const PRIMITIVES: &[&str] = &[
 /// Most sections (types) a definition may hold; a larger text is refused, not parsed.
 pub const MAX_SECTIONS: usize = 4096;
 
+/// Why a definition text is refused ([`Definition::parse`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DefinitionError {
+    /// More than [`MAX_SECTIONS`] sections.
+    #[error("more than {MAX_SECTIONS} dependency sections")]
+    TooManySections,
+    /// A dependency section whose first line is not its `MSG: pkg/Type` line.
+    #[error(
+        "a dependency section starts with `{}` instead of `MSG: pkg/Type`",
+        shorten(.line)
+    )]
+    NoMsgLine {
+        /// The line found (its code, comments dropped).
+        line: String,
+    },
+    /// A line of a type that is neither a field nor a constant.
+    #[error("in {type_name}: `{}` is neither a field nor a constant", shorten(.line))]
+    NotAField {
+        /// The type (`pkg/Type`).
+        type_name: String,
+        /// The line (its code, comments dropped).
+        line: String,
+    },
+    /// A type defined twice, the two differently.
+    #[error("{type_name} is defined twice, differently")]
+    DefinedTwice {
+        /// The type (`pkg/Type`).
+        type_name: String,
+    },
+}
+
 /// One type of a definition, by meaning.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 struct TypeDef {
@@ -57,17 +88,17 @@ impl Definition {
     /// Reads the definition of `type_name` (`pkg/msg/Type` or `pkg/Type`) from its text.
     ///
     /// # Errors
-    /// A line that is neither a field nor a constant, a dependency section without its
-    /// `MSG:` line, a type defined twice differently, or more than [`MAX_SECTIONS`] sections:
-    /// why, in words.
-    pub fn parse(type_name: &str, text: &str) -> Result<Self, String> {
+    /// [`DefinitionError`]: a line that is neither a field nor a constant, a dependency
+    /// section without its `MSG:` line, a type defined twice differently, or more than
+    /// [`MAX_SECTIONS`] sections.
+    pub fn parse(type_name: &str, text: &str) -> Result<Self, DefinitionError> {
         let main = short_name(type_name);
         let mut sections: Vec<(Option<String>, Vec<&str>)> = vec![(Some(main.clone()), Vec::new())];
         for line in text.lines() {
             let code = line.split('#').next().unwrap_or_default().trim();
             if code.len() >= 3 && code.bytes().all(|b| b == b'=') {
                 if sections.len() >= MAX_SECTIONS {
-                    return Err(format!("more than {MAX_SECTIONS} dependency sections"));
+                    return Err(DefinitionError::TooManySections);
                 }
                 sections.push((None, Vec::new()));
                 continue;
@@ -80,10 +111,9 @@ impl Definition {
                     continue;
                 }
                 let Some(name) = code.strip_prefix("MSG:") else {
-                    return Err(format!(
-                        "a dependency section starts with `{}` instead of `MSG: pkg/Type`",
-                        shorten(code)
-                    ));
+                    return Err(DefinitionError::NoMsgLine {
+                        line: code.to_owned(),
+                    });
                 };
                 section.0 = Some(short_name(name.trim()));
                 continue;
@@ -104,10 +134,10 @@ impl Definition {
                     continue;
                 }
                 let Some(f) = parse_msg_fields(code).into_iter().next() else {
-                    return Err(format!(
-                        "in {name}: `{}` is neither a field nor a constant",
-                        shorten(code)
-                    ));
+                    return Err(DefinitionError::NotAField {
+                        type_name: name,
+                        line: code.to_owned(),
+                    });
                 };
                 let ty = normalise_type(&f, &package);
                 if f.is_constant {
@@ -119,7 +149,7 @@ impl Definition {
             }
             match types.get(&name) {
                 Some(existing) if *existing != def => {
-                    return Err(format!("{name} is defined twice, differently"));
+                    return Err(DefinitionError::DefinedTwice { type_name: name });
                 }
                 Some(_) => {}
                 None => {
@@ -258,7 +288,7 @@ mod tests {
     fn theirs(text: &str) -> Option<String> {
         match Definition::parse("chronotope_msgs/msg/VoxelGrid", text) {
             Ok(d) => ours().difference(&d),
-            Err(e) => Some(e),
+            Err(e) => Some(e.to_string()),
         }
     }
 
