@@ -32,7 +32,7 @@ use crate::msg::{
     DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time,
 };
 use crate::node::launch::{NodeSpec, ParamValue, MAX_QUEUE_MB};
-use crate::node::{is_hidden_topic, Message, Node, NodeStatus, TopicRef};
+use crate::node::{is_hidden_topic, Message, Node, NodeStatus, ParamError, TopicRef};
 use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut, DEFAULT_QUEUE_BYTES};
 use graph::GraphAnnouncer;
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
@@ -244,7 +244,9 @@ impl Participant {
         for (k, v) in params {
             opts = opts.declare_parameter(k, ros_param(v));
         }
-        // The validator also sees the declarations; it asks the node only once it runs.
+        // The validator also sees the declarations; it asks the node only once it runs. It
+        // answers as ros2-client takes it, in text (`SetParametersResult`): the node's
+        // `ParamError` is turned into its message here.
         let running = Arc::new(AtomicBool::new(false));
         let flag = running.clone();
         let node = fqn.to_owned();
@@ -276,11 +278,12 @@ impl Participant {
                 }
                 _ => wait(),
             };
-            answer.unwrap_or_else(|_| {
-                Err(format!(
+            match answer {
+                Ok(r) => r.map_err(|e| e.to_string()),
+                Err(_) => Err(format!(
                     "{name}: {node} did not answer within 5 s (busy checking?); try again"
-                ))
-            })
+                )),
+            }
         }));
         let node = self
             .ctx
@@ -302,7 +305,7 @@ pub struct ParamRequest {
     /// The new value.
     pub value: ParamValue,
     /// Where the node's answer goes.
-    pub reply: SyncSender<Result<(), String>>,
+    pub reply: SyncSender<Result<(), ParamError>>,
 }
 
 fn from_ros_param(v: &ros2_client::ParameterValue) -> Option<ParamValue> {
@@ -466,6 +469,17 @@ fn is_bulk(type_name: &str) -> bool {
     .contains(&type_name)
 }
 
+/// Why a message was not written to the wire.
+#[derive(Debug, thiserror::Error)]
+enum SendError {
+    /// It does not encode as CDR.
+    #[error(transparent)]
+    Encode(#[from] crate::msg::CdrError),
+    /// The writer refused it.
+    #[error(transparent)]
+    Write(#[from] rustdds::dds::WriteError<()>),
+}
+
 /// Writes a node's messages to DDS on the thread that publishes them.
 struct DdsOut {
     writers: BTreeMap<String, Arc<Mutex<RawWriter>>>,
@@ -480,8 +494,11 @@ impl DdsOut {
         let r = m
             .payload
             .encode()
-            .map_err(|e| e.to_string())
-            .and_then(|bytes| write_stamped(&w.lock().unwrap_or_else(|p| p.into_inner()), bytes));
+            .map_err(SendError::from)
+            .and_then(|bytes| {
+                write_stamped(&w.lock().unwrap_or_else(|p| p.into_inner()), bytes)
+                    .map_err(SendError::from)
+            });
         let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
         match r {
             Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
@@ -1375,10 +1392,10 @@ impl Coordinator {
 /// (`ros2 topic delay`, a peer's `SampleInfo`) see when it was published.
 ///
 /// # Errors
-/// The writer's error, as text.
-pub fn write_stamped(w: &RawWriter, bytes: Vec<u8>) -> Result<(), String> {
+/// The writer's error, without the sample it gives back.
+pub fn write_stamped(w: &RawWriter, bytes: Vec<u8>) -> Result<(), rustdds::dds::WriteError<()>> {
     w.write(RawCdr(bytes), Some(rustdds::Timestamp::now()))
-        .map_err(|e| e.to_string())
+        .map_err(rustdds::dds::WriteError::forget_data)
 }
 
 fn wall_clock_ns() -> i64 {

@@ -516,11 +516,13 @@ fn the_mesher_idle_timeout_changes_while_it_runs() {
     assert_eq!(caps(&out), 1, "0.9 s quiet > 0.5 s: closed");
     let e = m
         .set_parameter("idle_timeout_s", &ParamValue::Double(-1.0))
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("[0.001, 1e6]"), "{e}");
     let e = m
         .set_parameter("bodies", &ParamValue::StringArray(vec![]))
-        .unwrap_err();
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("at start only"), "{e}");
 }
 
