@@ -417,7 +417,8 @@ pub enum BagError {
         /// The compression format (`zstd`).
         format: String,
         /// Why.
-        reason: String,
+        #[source]
+        reason: DecompressError,
     },
     /// A rosbag2 directory's `metadata.yaml` disagrees with what its split files hold
     /// (messages it counts that were not read, files it does not list, a time span not
@@ -479,6 +480,40 @@ fn list_or_none(topics: &[String]) -> String {
     } else {
         topics.join(", ")
     }
+}
+
+/// Why one message of a bag compressed per message does not decompress
+/// ([`BagError::Decompression`]).
+#[derive(Debug, thiserror::Error)]
+pub enum DecompressError {
+    /// The data does not start as a zstd frame.
+    #[error("it is not a zstd frame")]
+    NotZstd,
+    /// The frame's header declares more than the reader takes.
+    #[error("it declares {declared} bytes, more than the reader's limit of {limit} bytes")]
+    DeclaredTooLarge {
+        /// What the header declares.
+        declared: u64,
+        /// The reader's limit (`BagReadOptions::max_record_bytes`).
+        limit: usize,
+    },
+    /// The frame holds less or more than its header declares.
+    #[error("it holds {held} bytes where its header declares {declared}")]
+    SizeMismatch {
+        /// What it decompressed to.
+        held: usize,
+        /// What the header declares.
+        declared: u64,
+    },
+    /// Without a declared size, it decompresses to more than the reader takes.
+    #[error("it decompresses to more than the reader's limit of {limit} bytes")]
+    TooLarge {
+        /// The reader's limit (`BagReadOptions::max_record_bytes`).
+        limit: usize,
+    },
+    /// The zstd decoder's error (a damaged frame).
+    #[error(transparent)]
+    Zstd(#[from] std::io::Error),
 }
 
 /// What went wrong iterating the VoxelGrid frames of a bag.

@@ -16,8 +16,8 @@ use serde::Serialize;
 
 use super::error::{BagError, FrameError};
 use super::reader::{BagMessage, BagSchema};
-use super::source::BagReader;
 use super::recovery::Recovery;
+use super::source::BagReader;
 use crate::msg::{decode_cdr, ros2msg_schema, Definition, RosMessage, VoxelGrid};
 
 /// A topic whose messages are not read as VoxelGrid frames, and what that cost.
@@ -229,7 +229,7 @@ fn schema_difference(data: &[u8]) -> Option<String> {
     };
     match Definition::parse(VoxelGrid::TYPE_NAME, text) {
         Ok(got) => expected.difference(&got),
-        Err(why) => Some(why),
+        Err(why) => Some(why.to_string()),
     }
 }
 
@@ -438,8 +438,11 @@ mod tests {
         // Constants first, as PyPI rosbags writes the definition: the same type.
         let constants_first = format!(
             "uint8 ENCODING_BITS=0\nuint8 ENCODING_PERCENT=1\n{}",
-            ours.replacen("uint8 ENCODING_BITS=0", "", 1)
-                .replacen("uint8 ENCODING_PERCENT=1", "", 1)
+            ours.replacen("uint8 ENCODING_BITS=0", "", 1).replacen(
+                "uint8 ENCODING_PERCENT=1",
+                "",
+                1
+            )
         );
         assert_eq!(schema_difference(constants_first.as_bytes()), None);
     }

@@ -30,7 +30,7 @@ mod sqlite;
 mod summary;
 mod writer;
 
-pub use error::{BagError, FrameError, RecordLocation};
+pub use error::{BagError, DecompressError, FrameError, RecordLocation};
 pub use frames::{voxel_channel_refusal, voxel_frames, voxel_topics, RefusedTopic, VoxelFrames};
 pub use reader::{
     BagChannel, BagMessage, BagReadOptions, BagSchema, McapReader,

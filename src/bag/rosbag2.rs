@@ -434,47 +434,104 @@ fn shape(v: &Value) -> String {
     }
 }
 
+/// What a whole number of `metadata.yaml` must be, as its errors say.
+const WHOLE_NUMBER: &str = "expected a whole number from 0 to 18446744073709551615";
+
+/// Why a `metadata.yaml` value is not what its field takes: what the value is ([`shape`]),
+/// then what was expected.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+enum ValueError {
+    /// A negative integer where a whole number goes.
+    #[error("{found}: negative; {WHOLE_NUMBER}")]
+    Negative {
+        /// What the value is.
+        found: String,
+    },
+    /// A number that is not a whole number from 0 to 2^64 - 1.
+    #[error("{found}: not a whole number in range; {WHOLE_NUMBER}")]
+    OutOfRange {
+        /// What the value is.
+        found: String,
+    },
+    /// Text (a quoted number, say) where a whole number goes.
+    #[error("{found}; {WHOLE_NUMBER} (written without quotes)")]
+    Quoted {
+        /// What the value is.
+        found: String,
+    },
+    /// Anything else where a whole number goes.
+    #[error("{found}; {WHOLE_NUMBER}")]
+    NotANumber {
+        /// What the value is.
+        found: String,
+    },
+    /// Anything but text where text goes.
+    #[error("{found}; expected text")]
+    NotText {
+        /// What the value is.
+        found: String,
+    },
+}
+
+/// Why an entry of `topics_with_message_count` is not used.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+enum TopicEntryError {
+    /// The entry has no `topic_metadata`.
+    #[error("it has no topic_metadata")]
+    NoMetadata,
+    /// A field of its `topic_metadata` is not text.
+    #[error("topic_metadata.{key} {source}")]
+    Field {
+        /// The field.
+        key: &'static str,
+        /// What it is instead.
+        source: ValueError,
+    },
+    /// Its `topic_metadata` names no topic.
+    #[error("topic_metadata has no name")]
+    NoName,
+    /// Its `message_count` is not a whole number.
+    #[error("message_count {0}")]
+    MessageCount(ValueError),
+}
+
 /// A whole number from 0 to 2^64 - 1, or why the value is not one.
-fn whole_number(v: &Value) -> Result<u64, String> {
+fn whole_number(v: &Value) -> Result<u64, ValueError> {
     if let Some(n) = v.as_u64() {
         return Ok(n);
     }
-    let expected = "expected a whole number from 0 to 18446744073709551615";
+    let found = shape(v);
     Err(match v {
-        Value::Number(n) if n.as_i64().is_some() => {
-            format!("{}: negative; {expected}", shape(v))
-        }
-        Value::Number(_) => format!("{}: not a whole number in range; {expected}", shape(v)),
-        Value::String(_) => format!("{}; {expected} (written without quotes)", shape(v)),
-        _ => format!("{}; {expected}", shape(v)),
+        Value::Number(n) if n.as_i64().is_some() => ValueError::Negative { found },
+        Value::Number(_) => ValueError::OutOfRange { found },
+        Value::String(_) => ValueError::Quoted { found },
+        _ => ValueError::NotANumber { found },
     })
 }
 
 /// A text value, or why the value is not one.
-fn text_field(v: &Value) -> Result<String, String> {
+fn text_field(v: &Value) -> Result<String, ValueError> {
     v.as_str()
         .map(str::to_owned)
-        .ok_or_else(|| format!("{}; expected text", shape(v)))
+        .ok_or_else(|| ValueError::NotText { found: shape(v) })
 }
 
 /// One entry of `topics_with_message_count`.
-fn metadata_topic(t: &Value) -> Result<MetadataTopic, String> {
-    let m = t
-        .get("topic_metadata")
-        .ok_or_else(|| "it has no topic_metadata".to_owned())?;
-    let s = |k: &str| -> Result<String, String> {
-        match m.get(k).filter(|v| !v.is_null()) {
+fn metadata_topic(t: &Value) -> Result<MetadataTopic, TopicEntryError> {
+    let m = t.get("topic_metadata").ok_or(TopicEntryError::NoMetadata)?;
+    let s = |key: &'static str| -> Result<String, TopicEntryError> {
+        match m.get(key).filter(|v| !v.is_null()) {
             None => Ok(String::new()),
-            Some(v) => text_field(v).map_err(|e| format!("topic_metadata.{k} {e}")),
+            Some(v) => text_field(v).map_err(|source| TopicEntryError::Field { key, source }),
         }
     };
     let name = s("name")?;
     if name.is_empty() {
-        return Err("topic_metadata has no name".to_owned());
+        return Err(TopicEntryError::NoName);
     }
     let message_count = match t.get("message_count").filter(|v| !v.is_null()) {
         None => 0,
-        Some(v) => whole_number(v).map_err(|e| format!("message_count {e}"))?,
+        Some(v) => whole_number(v).map_err(TopicEntryError::MessageCount)?,
     };
     Ok(MetadataTopic {
         name,

@@ -21,7 +21,7 @@ use std::io::{BufRead, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
-use super::error::BagError;
+use super::error::{BagError, DecompressError};
 use super::reader::{BagChannel, BagMessage, BagReadOptions, BagSchema, McapReader, MAX_CHANNELS};
 use super::recovery::{BagLoss, LossKind, Recovery};
 use super::rosbag2::{storage_of, Compression, Rosbag2Dir, METADATA_FILE};
@@ -1052,34 +1052,31 @@ fn decompress_file(path: &Path, input: File, limit: u64) -> Result<File, BagErro
 }
 
 /// Decompresses one message's data (a zstd frame), at most `limit` bytes.
-fn decompress_message(data: &[u8], limit: usize) -> Result<Vec<u8>, String> {
-    let declared = zstd::zstd_safe::get_frame_content_size(data)
-        .map_err(|_| "it is not a zstd frame".to_owned())?;
+fn decompress_message(data: &[u8], limit: usize) -> Result<Vec<u8>, DecompressError> {
+    let declared =
+        zstd::zstd_safe::get_frame_content_size(data).map_err(|_| DecompressError::NotZstd)?;
     if let Some(size) = declared {
         if size > limit as u64 {
-            return Err(format!(
-                "it declares {size} bytes, more than the reader's limit of {limit} bytes"
-            ));
+            return Err(DecompressError::DeclaredTooLarge {
+                declared: size,
+                limit,
+            });
         }
-        let out = zstd::bulk::decompress(data, size as usize).map_err(|e| e.to_string())?;
+        let out = zstd::bulk::decompress(data, size as usize)?;
         if out.len() as u64 != size {
-            return Err(format!(
-                "it holds {} bytes where its header declares {size}",
-                out.len()
-            ));
+            return Err(DecompressError::SizeMismatch {
+                held: out.len(),
+                declared: size,
+            });
         }
         return Ok(out);
     }
     let mut out = Vec::new();
-    zstd::stream::read::Decoder::new(data)
-        .map_err(|e| e.to_string())?
+    zstd::stream::read::Decoder::new(data)?
         .take(limit as u64 + 1)
-        .read_to_end(&mut out)
-        .map_err(|e| e.to_string())?;
+        .read_to_end(&mut out)?;
     if out.len() > limit {
-        return Err(format!(
-            "it decompresses to more than the reader's limit of {limit} bytes"
-        ));
+        return Err(DecompressError::TooLarge { limit });
     }
     Ok(out)
 }

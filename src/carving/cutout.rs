@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use super::math::{add, norm, scale, Vec3};
 use super::workpiece::{Workpiece, BOUND, COLOUR_CUTOUT, OUTSIDE};
-use super::CutStats;
+use super::{CarveError, CutStats};
 
 /// Largest image side (pixels).
 pub const MAX_IMAGE_SIDE: usize = 8192;
@@ -57,8 +57,68 @@ pub enum ImageError {
         /// The file.
         path: PathBuf,
         /// What is wrong.
-        reason: String,
+        #[source]
+        reason: FormatError,
     },
+}
+
+/// What is wrong with an image's bytes: not a PGM or PNG this reads, malformed, or too large.
+#[derive(Debug, thiserror::Error)]
+pub enum FormatError {
+    /// Neither PGM's magic (`P2`, `P5`) nor PNG's.
+    #[error("not a PGM (magic {magic:?}; P2 or P5 expected) nor a PNG")]
+    NotAnImage {
+        /// The first token of the file.
+        magic: String,
+    },
+    /// The PGM header stops before its width, height and maxval (or a P2 before its pixels).
+    #[error("the PGM header ends early")]
+    PgmEnds,
+    /// A PGM header field or P2 pixel that is not a number.
+    #[error("PGM {what} {token:?} is not a number")]
+    PgmNumber {
+        /// What it is (`width`, `height`, `maxval`, `pixel`).
+        what: &'static str,
+        /// The text found.
+        token: String,
+    },
+    /// A PGM maxval out of 1..=65535.
+    #[error("PGM maxval {0}: 1..=65535 allowed")]
+    PgmMaxval(usize),
+    /// P5 pixel data shorter than its header says.
+    #[error("P5 data holds {held} bytes, {needed} needed")]
+    P5Short {
+        /// Bytes after the header.
+        held: usize,
+        /// Bytes the header's size asks for.
+        needed: usize,
+    },
+    /// An empty image, or one larger than [`MAX_IMAGE_SIDE`] on a side.
+    #[error("image is {width}x{height} pixels: 1..={MAX_IMAGE_SIDE} on a side allowed")]
+    Size {
+        /// Columns.
+        width: usize,
+        /// Rows.
+        height: usize,
+    },
+    /// The PNG decoder cannot size its output buffer.
+    #[error("PNG: image too large")]
+    PngTooLarge,
+    /// A palette image the decoder did not expand.
+    #[error("PNG: indexed colour not expanded")]
+    PngIndexed,
+    /// The PNG ends early or cannot be read.
+    #[error("PNG: truncated or unreadable ({0})")]
+    PngUnreadable(std::io::Error),
+    /// A chunk length, CRC or header field of the PNG is wrong.
+    #[error("PNG: malformed or damaged (a chunk length, CRC or header field is wrong)")]
+    PngDamaged,
+    /// The PNG decoder was called wrongly.
+    #[error("PNG: the decoder was misused (a bug)")]
+    PngMisused,
+    /// The PNG is larger than the decoder's memory limit.
+    #[error("PNG: the image is larger than the decoder's memory limit")]
+    PngLimits,
 }
 
 /// A binary image: `black[row * width + col]`, row 0 at the top.
@@ -119,10 +179,10 @@ impl BinaryImage {
     ///
     /// # Errors
     /// What is malformed.
-    pub fn from_pgm(bytes: &[u8]) -> Result<Self, String> {
+    pub fn from_pgm(bytes: &[u8]) -> Result<Self, FormatError> {
         let mut pos = 0usize;
         // Header tokens, skipping whitespace and comments.
-        let token = |pos: &mut usize| -> Result<String, String> {
+        let token = |pos: &mut usize| -> Result<String, FormatError> {
             loop {
                 while *pos < bytes.len() && bytes[*pos].is_ascii_whitespace() {
                     *pos += 1;
@@ -140,39 +200,37 @@ impl BinaryImage {
                 *pos += 1;
             }
             if start == *pos {
-                return Err("the PGM header ends early".into());
+                return Err(FormatError::PgmEnds);
             }
             Ok(String::from_utf8_lossy(&bytes[start..*pos]).into_owned())
         };
         let magic = token(&mut pos)?;
         if magic != "P2" && magic != "P5" {
-            return Err(format!(
-                "not a PGM (magic {magic:?}; P2 or P5 expected) nor a PNG"
-            ));
+            return Err(FormatError::NotAnImage { magic });
         }
-        let num = |t: String, what: &str| -> Result<usize, String> {
-            t.parse::<usize>()
-                .map_err(|_| format!("PGM {what} {t:?} is not a number"))
+        let num = |token: String, what: &'static str| -> Result<usize, FormatError> {
+            token
+                .parse::<usize>()
+                .map_err(|_| FormatError::PgmNumber { what, token })
         };
         let width = num(token(&mut pos)?, "width")?;
         let height = num(token(&mut pos)?, "height")?;
         let maxval = num(token(&mut pos)?, "maxval")?;
         check_size(width, height)?;
         if !(1..=65535).contains(&maxval) {
-            return Err(format!("PGM maxval {maxval}: 1..=65535 allowed"));
+            return Err(FormatError::PgmMaxval(maxval));
         }
         let n = width * height;
         let mut values = Vec::with_capacity(n);
         if magic == "P5" {
             pos += 1; // the single whitespace after maxval
             let bpp = if maxval < 256 { 1 } else { 2 };
-            let data = bytes.get(pos..pos + n * bpp).ok_or_else(|| {
-                format!(
-                    "P5 data holds {} bytes, {} needed",
-                    bytes.len().saturating_sub(pos),
-                    n * bpp
-                )
-            })?;
+            let data = bytes
+                .get(pos..pos + n * bpp)
+                .ok_or_else(|| FormatError::P5Short {
+                    held: bytes.len().saturating_sub(pos),
+                    needed: n * bpp,
+                })?;
             for px in data.chunks(bpp) {
                 values.push(if bpp == 1 {
                     usize::from(px[0])
@@ -197,7 +255,7 @@ impl BinaryImage {
     ///
     /// # Errors
     /// What the decoder said, or an unsupported colour type.
-    pub fn from_png(bytes: &[u8]) -> Result<Self, String> {
+    pub fn from_png(bytes: &[u8]) -> Result<Self, FormatError> {
         let mut dec = png::Decoder::new(std::io::Cursor::new(bytes));
         dec.set_transformations(png::Transformations::EXPAND | png::Transformations::STRIP_16);
         let mut reader = dec.read_info().map_err(png_error)?;
@@ -208,7 +266,7 @@ impl BinaryImage {
         check_size(w, h)?;
         let size = reader
             .output_buffer_size()
-            .ok_or_else(|| "PNG: image too large".to_string())?;
+            .ok_or(FormatError::PngTooLarge)?;
         let mut buf = vec![0u8; size];
         let info = reader.next_frame(&mut buf).map_err(png_error)?;
         let channels = match info.color_type {
@@ -216,7 +274,7 @@ impl BinaryImage {
             png::ColorType::GrayscaleAlpha => 2,
             png::ColorType::Rgb => 3,
             png::ColorType::Rgba => 4,
-            png::ColorType::Indexed => return Err("PNG: indexed colour not expanded".into()),
+            png::ColorType::Indexed => return Err(FormatError::PngIndexed),
         };
         let mut black = Vec::with_capacity(w * h);
         for row in 0..h {
@@ -289,11 +347,12 @@ fn special_kind(_: &std::fs::FileType) -> &'static str {
     "not a regular file"
 }
 
-fn check_size(w: usize, h: usize) -> Result<(), String> {
+fn check_size(w: usize, h: usize) -> Result<(), FormatError> {
     if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
-        return Err(format!(
-            "image is {w}x{h} pixels: 1..={MAX_IMAGE_SIDE} on a side allowed"
-        ));
+        return Err(FormatError::Size {
+            width: w,
+            height: h,
+        });
     }
     Ok(())
 }
@@ -310,13 +369,13 @@ pub enum Axis {
 }
 
 impl std::str::FromStr for Axis {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = CarveError;
+    fn from_str(s: &str) -> Result<Self, CarveError> {
         match s {
             "x" => Ok(Self::X),
             "y" => Ok(Self::Y),
             "z" => Ok(Self::Z),
-            o => Err(format!("axis {o:?}: one of x, y, z")),
+            o => Err(CarveError::UnknownAxis(o.to_owned())),
         }
     }
 }
@@ -410,17 +469,13 @@ impl Workpiece {
     }
 }
 
-/// A PNG decoding error in words (the png crate's own text can embed a debug dump of the
-/// chunk type).
-fn png_error(e: png::DecodingError) -> String {
+/// A PNG decoding error as a [`FormatError`] in words (the png crate's own text can embed
+/// a debug dump of the chunk type).
+fn png_error(e: png::DecodingError) -> FormatError {
     match e {
-        png::DecodingError::IoError(e) => format!("PNG: truncated or unreadable ({e})"),
-        png::DecodingError::Format(_) => {
-            "PNG: malformed or damaged (a chunk length, CRC or header field is wrong)".into()
-        }
-        png::DecodingError::Parameter(_) => "PNG: the decoder was misused (a bug)".into(),
-        png::DecodingError::LimitsExceeded => {
-            "PNG: the image is larger than the decoder's memory limit".into()
-        }
+        png::DecodingError::IoError(e) => FormatError::PngUnreadable(e),
+        png::DecodingError::Format(_) => FormatError::PngDamaged,
+        png::DecodingError::Parameter(_) => FormatError::PngMisused,
+        png::DecodingError::LimitsExceeded => FormatError::PngLimits,
     }
 }

@@ -28,13 +28,13 @@ pub enum ForceModel {
 }
 
 impl std::str::FromStr for ForceModel {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = CarveError;
+    fn from_str(s: &str) -> Result<Self, CarveError> {
         match s {
             "count" => Ok(Self::Count),
             "volume" => Ok(Self::Volume),
             "section" => Ok(Self::Section),
-            o => Err(format!("force model {o:?}: one of count, volume, section")),
+            o => Err(CarveError::UnknownForceModel(o.to_owned())),
         }
     }
 }

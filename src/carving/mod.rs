@@ -47,17 +47,17 @@ mod tool;
 pub mod toolsurfel;
 mod workpiece;
 
+pub use cut_stats::CutStats;
 pub use force::{
     ForceModel, ForceParams, ForceRenderer, COUPLING_STABILITY_MARGIN, COUPLING_STEP_S,
     MAX_MOVE_DT_S,
 };
 pub use math::{Quat, Vec3};
-pub use cut_stats::CutStats;
 pub use sweep::{MAX_SUBSTEPS, MAX_SWEEP_POINTS_PER_POSE, MAX_SWEEP_ROWS_PER_POSE};
 pub use tool::{Tool, ToolKind};
 pub use workpiece::{
-    Flag, Surfel, SurfelDelta, Workpiece, BYTES_PER_POINT, MAX_POINTS, SURFEL_BYTES,
-    WORKPIECE_MEMORY_BYTES,
+    Flag, InvariantError, Surfel, SurfelDelta, Workpiece, BYTES_PER_POINT, MAX_POINTS,
+    SURFEL_BYTES, WORKPIECE_MEMORY_BYTES,
 };
 
 /// Why a workpiece, tool or pose was refused.
@@ -72,6 +72,12 @@ pub enum CarveError {
     /// An unknown tool name.
     #[error("unknown tool {0:?}: one of knife, chisel")]
     UnknownTool(String),
+    /// An unknown force model name.
+    #[error("force model {0:?}: one of count, volume, section")]
+    UnknownForceModel(String),
+    /// An unknown axis for a cut-out.
+    #[error("axis {0:?}: one of x, y, z")]
+    UnknownAxis(String),
     /// A pose with a non-finite position or a quaternion that cannot be normalised.
     #[error("pose: {0}")]
     Pose(String),

@@ -4,6 +4,58 @@
 use super::math::{add, scale, Vec3};
 use super::CarveError;
 
+/// A broken invariant of a workpiece ([`Workpiece::validate`], for tests); flags are shown
+/// as their numbers ([`Flag`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum InvariantError {
+    /// A point's flag is not the one its neighbours make it.
+    #[error("point {point:?} is {flag}, should be {want}")]
+    Flag {
+        /// The point's grid coordinates.
+        point: [usize; 3],
+        /// Its flag.
+        flag: u8,
+        /// The flag it should have.
+        want: u8,
+    },
+    /// A BOUND point without a surfel, or another point with one.
+    #[error("point {point:?} flag {flag} has surfel: {has}")]
+    Surfel {
+        /// The point's grid coordinates.
+        point: [usize; 3],
+        /// Its flag.
+        flag: u8,
+        /// Whether it has a surfel.
+        has: bool,
+    },
+    /// A point's surfel names another point as its owner.
+    #[error("surfel of {point:?} has the wrong owner")]
+    Owner {
+        /// The point's grid coordinates.
+        point: [usize; 3],
+    },
+    /// The material count kept differs from the points that are material.
+    #[error("material count {kept} != {counted}")]
+    MaterialCount {
+        /// The count the workpiece keeps.
+        kept: u64,
+        /// The material points counted.
+        counted: u64,
+    },
+    /// The surfels and their owners are lists of different lengths.
+    #[error("surfels and owners differ in length")]
+    Owners,
+    /// A point's occupancy bit disagrees with its flag.
+    #[error("occupancy bit of {point:?} is stale")]
+    StaleBit {
+        /// The point's grid coordinates.
+        point: [usize; 3],
+    },
+    /// The surfel cloud's bytes are not the surfels'.
+    #[error("the surfel bytes do not match the surfels")]
+    StaleCloud,
+}
+
 /// Memory a workpiece may need at worst (bytes), with the carving node's display: 4 GiB, the
 /// budget of the carving node on the documented machine (2 cores, 8 GB, shared with the
 /// mesher and the checker). Only a workpiece whose every point carries a surfel comes near
@@ -566,8 +618,8 @@ impl Workpiece {
     /// BOUND points and only they have a surfel; the material count is right.
     ///
     /// # Errors
-    /// The first violation, described.
-    pub fn validate(&self) -> Result<(), String> {
+    /// The first violation ([`InvariantError`]).
+    pub fn validate(&self) -> Result<(), InvariantError> {
         let mut material = 0u64;
         for idx in 0..self.flags.len() {
             let f = self.flags[idx];
@@ -582,39 +634,45 @@ impl Workpiece {
                 INSIDE
             };
             if f != want {
-                return Err(format!(
-                    "point {:?} is {f}, should be {want}",
-                    self.coords(idx)
-                ));
+                return Err(InvariantError::Flag {
+                    point: self.coords(idx),
+                    flag: f,
+                    want,
+                });
             }
             let has = self.surfel_of[idx] != NO_SURFEL;
             if has != (f == BOUND) {
-                return Err(format!(
-                    "point {:?} flag {f} has surfel: {has}",
-                    self.coords(idx)
-                ));
+                return Err(InvariantError::Surfel {
+                    point: self.coords(idx),
+                    flag: f,
+                    has,
+                });
             }
             if has && self.owners[self.surfel_of[idx] as usize] as usize != idx {
-                return Err(format!(
-                    "surfel of {:?} has the wrong owner",
-                    self.coords(idx)
-                ));
+                return Err(InvariantError::Owner {
+                    point: self.coords(idx),
+                });
             }
         }
         if material != self.material {
-            return Err(format!("material count {} != {material}", self.material));
+            return Err(InvariantError::MaterialCount {
+                kept: self.material,
+                counted: material,
+            });
         }
         if self.surfels.len() != self.owners.len() {
-            return Err("surfels and owners differ in length".into());
+            return Err(InvariantError::Owners);
         }
         for (idx, &f) in self.flags.iter().enumerate() {
             if (self.bits[idx / 8] >> (idx % 8) & 1 == 1) != (f != OUTSIDE) {
-                return Err(format!("occupancy bit of {:?} is stale", self.coords(idx)));
+                return Err(InvariantError::StaleBit {
+                    point: self.coords(idx),
+                });
             }
         }
         let fresh: Vec<u8> = self.surfels.iter().flat_map(Surfel::to_bytes).collect();
         if fresh != self.cloud {
-            return Err("the surfel bytes do not match the surfels".into());
+            return Err(InvariantError::StaleCloud);
         }
         Ok(())
     }

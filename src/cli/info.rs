@@ -342,6 +342,17 @@ pub struct RefusedInfo {
     pub messages: u64,
 }
 
+/// What a channel's messages are to the suite, decided at its first message (its schema
+/// text compared once).
+enum ChannelVerdict {
+    /// Not a VoxelGrid channel.
+    Other,
+    /// VoxelGrid frames the suite reads.
+    Frames,
+    /// A VoxelGrid channel refused, and why.
+    Refused(String),
+}
+
 #[derive(Default)]
 struct TopicAcc {
     type_name: String,
@@ -538,7 +549,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
     let mut bodies: BTreeMap<String, BodyAcc> = BTreeMap::new();
     let mut refused: BTreeMap<String, RefusedInfo> = BTreeMap::new();
     let mut sensed: BTreeMap<String, SensedAcc> = BTreeMap::new();
-    let mut verdicts: HashMap<u16, Option<Result<(), String>>> = HashMap::new();
+    let mut verdicts: HashMap<u16, ChannelVerdict> = HashMap::new();
     let mut robots = super::info_robot::RobotAcc::default();
     let note = |info: &mut BagInfo, e: String| {
         if info.errors.len() < MAX_ERRORS {
@@ -589,18 +600,16 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
         }
         let verdict = verdicts.entry(m.channel_id).or_insert_with(|| {
             if m.schema_name != VoxelGrid::TYPE_NAME {
-                return None;
+                return ChannelVerdict::Other;
             }
-            Some(
-                match crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding) {
-                    Some(reason) => Err(reason),
-                    None => Ok(()),
-                },
-            )
+            match crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding) {
+                Some(reason) => ChannelVerdict::Refused(reason),
+                None => ChannelVerdict::Frames,
+            }
         });
         match verdict {
-            None => {}
-            Some(Err(reason)) => {
+            ChannelVerdict::Other => {}
+            ChannelVerdict::Refused(reason) => {
                 refused
                     .entry(m.topic.clone())
                     .or_insert_with(|| RefusedInfo {
@@ -610,7 +619,7 @@ pub fn bag_info(path: &std::path::Path) -> Result<BagInfo, CliError> {
                     })
                     .messages += 1;
             }
-            Some(Ok(())) => {
+            ChannelVerdict::Frames => {
                 let body = bodies.entry(m.topic.clone()).or_default();
                 match decode_cdr::<VoxelGrid>(&m.data) {
                     Ok(g) => body.frame(&g),

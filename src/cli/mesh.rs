@@ -66,23 +66,45 @@ pub struct SliceSpec {
     pub value: f64,
 }
 
-fn parse_slice(s: &str) -> Result<SliceSpec, String> {
+/// Why a `--slice` value is refused (clap shows it after the value).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SliceError {
+    /// No `=` between axis and value.
+    #[error("slice {0:?}: expected AXIS=VALUE, e.g. t=1.5")]
+    NoEquals(String),
+    /// An axis other than x, y, z or t.
+    #[error("slice axis {0:?}: expected x, y, z or t")]
+    Axis(String),
+    /// A value that is not a number.
+    #[error("slice value {value:?}: {reason}")]
+    Value {
+        /// The value as given.
+        value: String,
+        /// Why it does not parse.
+        reason: std::num::ParseFloatError,
+    },
+    /// A value that is infinite or NaN.
+    #[error("slice value {0:?} is not finite")]
+    NotFinite(String),
+}
+
+fn parse_slice(s: &str) -> Result<SliceSpec, SliceError> {
     let (a, v) = s
         .split_once('=')
-        .ok_or_else(|| format!("slice {s:?}: expected AXIS=VALUE, e.g. t=1.5"))?;
+        .ok_or_else(|| SliceError::NoEquals(s.to_owned()))?;
     let axis = match a.trim() {
         "x" => 0,
         "y" => 1,
         "z" => 2,
         "t" => 3,
-        other => return Err(format!("slice axis {other:?}: expected x, y, z or t")),
+        other => return Err(SliceError::Axis(other.to_owned())),
     };
-    let value: f64 = v
-        .trim()
-        .parse()
-        .map_err(|e| format!("slice value {v:?}: {e}"))?;
+    let value: f64 = v.trim().parse().map_err(|reason| SliceError::Value {
+        value: v.to_owned(),
+        reason,
+    })?;
     if !value.is_finite() {
-        return Err(format!("slice value {v:?} is not finite"));
+        return Err(SliceError::NotFinite(v.to_owned()));
     }
     Ok(SliceSpec { axis, value })
 }

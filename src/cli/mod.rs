@@ -98,7 +98,8 @@ pub enum CliError {
         /// The path.
         path: PathBuf,
         /// Why, and what to do.
-        reason: String,
+        #[source]
+        reason: paths::OutputRefusal,
     },
     /// The bag offers no body to check, so the nodes that mesh the bag's bodies cannot run:
     /// why no body could be read, then what the config says.

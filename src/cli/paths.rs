@@ -33,6 +33,100 @@ pub enum OutputKind {
     Dir,
 }
 
+/// What to do about an output path that holds a bag the user did not ask to replace.
+const GIVE_ANOTHER: &str = "give another path, or pass --overwrite to replace it";
+
+/// Why an output path is refused ([`CliError::Output`]), and what to do.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum OutputRefusal {
+    /// A special file (a FIFO, a device, a socket).
+    #[error("it is {0}; an output must be a regular file or a new path")]
+    Special(SpecialKind),
+    /// The same file as an input.
+    #[error("it is {role} ({}), the same file; write the output elsewhere", path.display())]
+    IsInput {
+        /// What the input is ("the input bag").
+        role: String,
+        /// The input's path.
+        path: PathBuf,
+    },
+    /// A place inside an input directory.
+    #[error(
+        "it lies inside {role} ({}): writing there would change the recording; write the \
+         output elsewhere",
+        path.display()
+    )]
+    InsideInput {
+        /// What the input is ("the input bag's directory").
+        role: String,
+        /// The input's path.
+        path: PathBuf,
+    },
+    /// A directory output that holds an input.
+    #[error("it holds {role} ({}); write the output elsewhere", path.display())]
+    HoldsInput {
+        /// What the input is.
+        role: String,
+        /// The input's path.
+        path: PathBuf,
+    },
+    /// The same place as another output, or one inside the other.
+    #[error(
+        "{option} names the same place ({}); give each output its own path",
+        path.display()
+    )]
+    SamePlace {
+        /// The other output's option.
+        option: String,
+        /// The other output's path.
+        path: PathBuf,
+    },
+    /// A directory where a file is written.
+    #[error("it is a directory; give a file name")]
+    Directory,
+    /// A directory holding files other than a bag, where a rosbag2 directory is written.
+    #[error(
+        "it is a directory holding other files; a rosbag2 output needs a new or an empty \
+         directory"
+    )]
+    DirectoryNotEmpty,
+    /// A rosbag2 directory that also holds other files (never replaced).
+    #[error(
+        "it is a rosbag2 directory that also holds other files ({}); it is not replaced even \
+         with --overwrite: give another path",
+        strays.join(", ")
+    )]
+    Strays {
+        /// The first few other files.
+        strays: Vec<String>,
+    },
+    /// A rosbag2 directory holding a bag this command did not derive.
+    #[error(
+        "it is a rosbag2 directory holding a bag this command did not derive (a recording, or \
+         a bag of another program); {GIVE_ANOTHER}"
+    )]
+    HoldsRecordedDirectory,
+    /// A file where a directory (a path ending with `/`) is written.
+    #[error("it is a file, not a directory")]
+    NotADirectory,
+    /// A bag file the command may not replace without `--overwrite`.
+    #[error(
+        "it holds {} ({format}); {GIVE_ANOTHER}",
+        if *derived {
+            "a bag this program derived"
+        } else {
+            "a bag this command did not derive (a recording, or a bag of another program)"
+        }
+    )]
+    HoldsBag {
+        /// The bag's format ("MCAP", "SQLite", "zstd-compressed").
+        format: &'static str,
+        /// Whether this program derived it (it is then refused for another kind of output
+        /// only).
+        derived: bool,
+    },
+}
+
 /// One path read.
 #[derive(Debug, Clone)]
 struct Input {
@@ -156,7 +250,7 @@ impl Paths {
     /// [`CliError::Output`] naming the output, the option and why.
     pub fn check(&self) -> Result<(), CliError> {
         for (i, o) in self.outputs.iter().enumerate() {
-            let refuse = |reason: String| CliError::Output {
+            let refuse = |reason: OutputRefusal| CliError::Output {
                 option: o.role.clone(),
                 path: o.path.clone(),
                 reason,
@@ -165,28 +259,23 @@ impl Paths {
             let place = resolved(&o.path);
             if let Some(kind) = meta.as_ref().and_then(SpecialKind::of) {
                 if kind != SpecialKind::Directory {
-                    return Err(refuse(format!(
-                        "it is {kind}; an output must be a regular file or a new path"
-                    )));
+                    return Err(refuse(OutputRefusal::Special(kind)));
                 }
             }
             let id = meta.as_ref().map(FileId::of);
             for input in &self.inputs {
                 if id.is_some() && id == input.id {
-                    return Err(refuse(format!(
-                        "it is {} ({}), the same file; write the output elsewhere",
-                        input.role,
-                        input.path.display()
-                    )));
+                    return Err(refuse(OutputRefusal::IsInput {
+                        role: input.role.clone(),
+                        path: input.path.clone(),
+                    }));
                 }
                 if let Some(dir) = &input.dir {
                     if place.starts_with(dir) {
-                        return Err(refuse(format!(
-                            "it lies inside {} ({}): writing there would change the recording; \
-                             write the output elsewhere",
-                            input.role,
-                            input.path.display()
-                        )));
+                        return Err(refuse(OutputRefusal::InsideInput {
+                            role: input.role.clone(),
+                            path: input.path.clone(),
+                        }));
                     }
                 }
                 if o.kind != OutputKind::File {
@@ -196,11 +285,10 @@ impl Paths {
                         .or_else(|| input.path.canonicalize().ok())
                         .is_some_and(|p| p.starts_with(&place));
                     if inside {
-                        return Err(refuse(format!(
-                            "it holds {} ({}); write the output elsewhere",
-                            input.role,
-                            input.path.display()
-                        )));
+                        return Err(refuse(OutputRefusal::HoldsInput {
+                            role: input.role.clone(),
+                            path: input.path.clone(),
+                        }));
                     }
                 }
             }
@@ -212,11 +300,10 @@ impl Paths {
                     a.kind != OutputKind::File && b_place.starts_with(a_place)
                 };
                 if same || within(o, &place, &other_place) || within(other, &other_place, &place) {
-                    return Err(refuse(format!(
-                        "{} names the same place ({}); give each output its own path",
-                        other.role,
-                        other.path.display()
-                    )));
+                    return Err(refuse(OutputRefusal::SamePlace {
+                        option: other.role.clone(),
+                        path: other.path.clone(),
+                    }));
                 }
             }
             if let Some(meta) = &meta {
@@ -227,16 +314,15 @@ impl Paths {
     }
 
     /// What an output path already holds, and whether it may be replaced.
-    fn check_existing(&self, o: &Output, meta: &std::fs::Metadata) -> Result<(), String> {
+    fn check_existing(&self, o: &Output, meta: &std::fs::Metadata) -> Result<(), OutputRefusal> {
         let as_dir = match o.kind {
             OutputKind::Bag { .. } => is_directory_path(&o.path),
             OutputKind::Dir => true,
             OutputKind::File => false,
         };
-        let how = "give another path, or pass --overwrite to replace it";
         if meta.is_dir() {
             if !as_dir {
-                return Err("it is a directory; give a file name".to_owned());
+                return Err(OutputRefusal::Directory);
             }
             if o.kind == OutputKind::Dir {
                 return Ok(());
@@ -249,11 +335,7 @@ impl Paths {
                 n == METADATA_FILE || crate::bag::storage_file_name(n.to_string_lossy().as_ref())
             });
             if !holds_bag {
-                return Err(
-                    "it is a directory holding other files; a rosbag2 output needs a new or an \
-                     empty directory"
-                        .to_owned(),
-                );
+                return Err(OutputRefusal::DirectoryNotEmpty);
             }
             let strays: Vec<String> = entries
                 .iter()
@@ -262,11 +344,7 @@ impl Paths {
                 .take(3)
                 .collect();
             if !strays.is_empty() {
-                return Err(format!(
-                    "it is a rosbag2 directory that also holds other files ({}); it is not \
-                     replaced even with --overwrite: give another path",
-                    strays.join(", ")
-                ));
+                return Err(OutputRefusal::Strays { strays });
             }
             let derived = crate::bag::Rosbag2Dir::open(&o.path)
                 .ok()
@@ -275,13 +353,10 @@ impl Paths {
             if self.overwrite || (derived && matches!(o.kind, OutputKind::Bag { derived: true })) {
                 return Ok(());
             }
-            return Err(format!(
-                "it is a rosbag2 directory holding a bag this command did not derive (a \
-                 recording, or a bag of another program); {how}"
-            ));
+            return Err(OutputRefusal::HoldsRecordedDirectory);
         }
         if as_dir && o.path.as_os_str().to_string_lossy().ends_with('/') {
-            return Err("it is a file, not a directory".to_owned());
+            return Err(OutputRefusal::NotADirectory);
         }
         let Some(format) = bag_format(&o.path) else {
             // Any other file is replaced, whole and at once.
@@ -291,12 +366,7 @@ impl Paths {
         if self.overwrite || (derived && matches!(o.kind, OutputKind::Bag { derived: true })) {
             return Ok(());
         }
-        let what = if derived {
-            "a bag this program derived"
-        } else {
-            "a bag this command did not derive (a recording, or a bag of another program)"
-        };
-        Err(format!("it holds {what} ({format}); {how}"))
+        Err(OutputRefusal::HoldsBag { format, derived })
     }
 }
 

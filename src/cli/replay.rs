@@ -17,13 +17,13 @@ use serde::Serialize;
 use super::CliError;
 use crate::bag::{BagReader, BagWriter};
 use crate::checker::report::Report;
-use crate::node::bus::Bus;
+use crate::node::bus::{Bus, Misrouted};
 use crate::node::checker::CheckerNode;
 use crate::node::factory::{build_nodes, Selection};
 use crate::node::launch::{LaunchConfig, NodeKind, NodeSpec, Params};
 use crate::node::mesher::MesherNode;
 use crate::node::occupancy::InputKind;
-use crate::node::{Message, NodeStatus, Payload};
+use crate::node::{Message, Node, NodeStatus, Payload};
 
 /// Options of `chronotope replay`.
 #[derive(Debug, Clone, Args)]
@@ -142,6 +142,20 @@ struct Output {
 }
 
 impl Output {
+    /// An output bag at `path` of what `selection` takes.
+    fn create(path: &Path, selection: Selection) -> Result<Self, crate::bag::BagError> {
+        Ok(Self {
+            writer: BagWriter::create_with(
+                path,
+                crate::bag::BagWriteOptions::new().derived("replay"),
+            )?,
+            selection,
+            counts: OutputCounts::default(),
+            error: None,
+            bytes: Vec::new(),
+        })
+    }
+
     fn record(&mut self, m: &Message) {
         if self.error.is_some() || !self.selection.wants(&m.topic) {
             return;
@@ -281,6 +295,37 @@ pub fn replay(
     progress: bool,
 ) -> Result<ReplayReport, CliError> {
     let start = Instant::now();
+    let bodies = bag_bodies(bag)?;
+    let is_default = config.is_none();
+    let (config, sensors) = replay_config(bag, config, &bodies.topics);
+    let (nodes, selection) = replay_nodes(bag, &config, &bodies.topics, &sensors, is_default)?;
+    let mut bus = Bus::new(nodes);
+    let mut output = match out {
+        Some(p) => Some(Output::create(p, selection)?),
+        None => None,
+    };
+    // What neither a node nor the output bag reads is not built (markers without --out).
+    bus.set_demand(|t| output.as_ref().is_some_and(|o| o.selection.wants(t)));
+    // The mesher (any node reading only the bag) works a frame of each body ahead of the
+    // checker, on a thread of its own; the output is the same message for message.
+    bus.run_ahead(bodies.topics.len().clamp(1, AHEAD_INPUTS_MAX));
+    let bar = progress_bar(progress);
+    let (mut input, misrouted) = deliver_bag(bag, &mut bus, &mut output, &bar)?;
+    let counts = finish(&mut bus, output, misrouted, &mut input, &bar)?;
+    Ok(replay_report(&bus, input, counts, &bodies, start))
+}
+
+/// The bodies of a replayed bag.
+struct BagBodies {
+    /// Its VoxelGrid topics read, sorted.
+    topics: Vec<String>,
+    /// Its VoxelGrid topics beyond [`super::MAX_BODIES`], not read.
+    over_limit: usize,
+}
+
+/// Open the bag: its bodies are its VoxelGrid topics (those of what can be read, in a
+/// damaged bag), the first [`super::MAX_BODIES`] in sorted order.
+fn bag_bodies(bag: &Path) -> Result<BagBodies, CliError> {
     let bag_bodies = match crate::bag::voxel_topics(bag) {
         Ok(t) => t,
         Err(crate::bag::BagError::NoVoxelTopics { .. }) => Vec::new(),
@@ -315,6 +360,19 @@ pub fn replay(
         );
         bag_bodies.truncate(super::MAX_BODIES);
     }
+    Ok(BagBodies {
+        topics: bag_bodies,
+        over_limit,
+    })
+}
+
+/// Configure: `config`, or the default one (with a robot node when the bag holds a robot),
+/// with what the bag's OctoMap and point-cloud topics need; and those topics.
+fn replay_config(
+    bag: &Path,
+    config: Option<&LaunchConfig>,
+    bag_bodies: &[String],
+) -> (LaunchConfig, Vec<(String, InputKind)>) {
     // A robot recorded the ROS way becomes a body through a robot node: without a launch
     // config, one runs on the first body's lattice and frame times.
     let robot = if config.is_none() {
@@ -345,13 +403,20 @@ pub fn replay(
     // their type, and by nodes of their own with the default config.
     let sensors = sensor_topics(bag);
     let is_default = config.is_none();
-    let config = with_bag_sensors(
-        config.unwrap_or(&default),
-        &sensors,
-        &bag_bodies,
-        is_default,
-    );
-    let (nodes, selection) = match build_nodes(&config, &bag_bodies, is_default) {
+    let config = with_bag_sensors(config.unwrap_or(&default), &sensors, bag_bodies, is_default);
+    (config, sensors)
+}
+
+/// Build the nodes: those `config` names (or why the bag has no body, when that is why they
+/// cannot be built), refused if one reads a bag's body or sensor topic as another type.
+fn replay_nodes(
+    bag: &Path,
+    config: &LaunchConfig,
+    bag_bodies: &[String],
+    sensors: &[(String, InputKind)],
+    is_default: bool,
+) -> Result<(Vec<Box<dyn Node>>, Selection), CliError> {
+    let (nodes, selection) = match build_nodes(config, bag_bodies, is_default) {
         Ok(built) => built,
         // Nothing to mesh because the bag offers no body: say why the bag has none.
         Err(e) if bag_bodies.is_empty() => {
@@ -368,7 +433,7 @@ pub fn replay(
     };
     // The bag's bodies are VoxelGrid topics: a node that reads one as anything else is
     // refused (a carving `pose_topic` set to a body's topic, say); so are its sensor topics.
-    let uses = crate::node::routes::topic_uses(&config, &nodes);
+    let uses = crate::node::routes::topic_uses(config, &nodes);
     crate::node::routes::check_bag_types(
         &uses,
         bag_bodies
@@ -382,26 +447,12 @@ pub fn replay(
             .chain(sensors.iter().map(|(t, k)| (t.as_str(), k.type_name()))),
     )
     .map_err(|e| CliError::Usage(e.to_string()))?;
-    let mut bus = Bus::new(nodes);
-    let mut output = match out {
-        Some(p) => Some(Output {
-            writer: BagWriter::create_with(
-                p,
-                crate::bag::BagWriteOptions::new().derived("replay"),
-            )?,
-            selection,
-            counts: OutputCounts::default(),
-            error: None,
-            bytes: Vec::new(),
-        }),
-        None => None,
-    };
-    // What neither a node nor the output bag reads is not built (markers without --out).
-    bus.set_demand(|t| output.as_ref().is_some_and(|o| o.selection.wants(t)));
-    // The mesher (any node reading only the bag) works a frame of each body ahead of the
-    // checker, on a thread of its own; the output is the same message for message.
-    bus.run_ahead(bag_bodies.len().clamp(1, AHEAD_INPUTS_MAX));
-    let bar = if progress && std::io::stderr().is_terminal() {
+    Ok((nodes, selection))
+}
+
+/// A spinner of the messages read, on a terminal when `progress` asks for one.
+fn progress_bar(progress: bool) -> indicatif::ProgressBar {
+    if progress && std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new_spinner();
         b.set_style(
             indicatif::ProgressStyle::with_template("{spinner} {elapsed} {pos} messages {msg}")
@@ -410,7 +461,18 @@ pub fn replay(
         b
     } else {
         indicatif::ProgressBar::hidden()
-    };
+    }
+}
+
+/// Run: every message of the bag read in order and put on the bus (the channel rules of
+/// `check`, the types the nodes read), with the bag's log time as the nodes' clock; what the
+/// nodes publish goes to `output`. Gives what was read and what the bus could not deliver.
+fn deliver_bag(
+    bag: &Path,
+    bus: &mut Bus,
+    output: &mut Option<Output>,
+    bar: &indicatif::ProgressBar,
+) -> Result<(InputCounts, Vec<Misrouted>), CliError> {
     let mut input = InputCounts::default();
     let mut sink = |m: &Message| {
         if let Some(o) = output.as_mut() {
@@ -420,9 +482,7 @@ pub fn replay(
     let mut misrouted = Vec::new();
     let mut last_tick: Option<i64> = None;
     let mut reader = BagReader::open(bag)?;
-    let mut refused: BTreeMap<String, crate::bag::RefusedTopic> = BTreeMap::new();
-    // Each channel's verdict, decided at its first message (the schema text is compared once).
-    let mut verdicts: std::collections::HashMap<u16, Option<String>> = Default::default();
+    let mut gate = Gate::default();
     for item in reader.by_ref() {
         let m = match item {
             Ok(m) => m,
@@ -443,43 +503,8 @@ pub fn replay(
         };
         input.messages += 1;
         bar.inc(1);
-        // The channel rules of `check` (bag::voxel_frames): a VoxelGrid channel is read only
-        // in CDR with our schema text.
-        if m.schema.is_none()
-            || m.schema_name == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME
-        {
-            let verdict = verdicts.entry(m.channel_id).or_insert_with(|| {
-                crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
-            });
-            if let Some(reason) = verdict {
-                let first = crate::bag::RefusedTopic::count(
-                    &mut refused,
-                    &m.topic,
-                    || reason.clone(),
-                    m.log_time_ns,
-                );
-                if first {
-                    tracing::error!(topic = %m.topic, "channel refused: {reason}");
-                }
-                continue;
-            }
-        }
-        let Some(ty) = bus.expected_type(&m.topic) else {
-            input.unused += 1;
+        let Some(payload) = gate.admit(&m, bus, &mut input) else {
             continue;
-        };
-        if m.schema_name != ty {
-            tracing::warn!(topic = %m.topic, "a {} where a {ty} is read; skipped", m.schema_name);
-            *input.wrong_type.entry(m.topic).or_default() += 1;
-            continue;
-        }
-        let payload = match Payload::decode(ty, &m.data) {
-            Ok(p) => p,
-            Err(e) => {
-                tracing::warn!(topic = %m.topic, log_time_ns = m.log_time_ns, "skipping message: does not decode: {e}");
-                *input.undecodable.entry(m.topic).or_default() += 1;
-                continue;
-            }
         };
         input.delivered += 1;
         let log_ns = m.log_time_ns.min(i64::MAX as u64) as i64;
@@ -491,8 +516,87 @@ pub fn replay(
         }
         misrouted.extend(bus.put(Message::new(&m.topic, log_ns, payload), &mut sink));
     }
-    input.refused_topics = refused.into_values().collect();
+    input.refused_topics = gate.refused.into_values().collect();
     input.recovery = Some(reader.recovery().clone());
+    Ok((input, misrouted))
+}
+
+/// What decides whether a message of the bag reaches the nodes: the channel rules of
+/// `check` and the types the nodes read.
+#[derive(Default)]
+struct Gate {
+    /// Each channel's verdict, decided at its first message (the schema text is compared
+    /// once).
+    verdicts: std::collections::HashMap<u16, Option<String>>,
+    /// The VoxelGrid topics whose channel was refused.
+    refused: BTreeMap<String, crate::bag::RefusedTopic>,
+}
+
+impl Gate {
+    /// The payload of `m` for the nodes, or `None` if it is not delivered (counted in
+    /// `input`: on a refused channel, on a topic no node reads, of another type than the
+    /// node expects, or undecodable).
+    fn admit(
+        &mut self,
+        m: &crate::bag::BagMessage,
+        bus: &Bus,
+        input: &mut InputCounts,
+    ) -> Option<Payload> {
+        // The channel rules of `check` (bag::voxel_frames): a VoxelGrid channel is read only
+        // in CDR with our schema text.
+        if m.schema.is_none()
+            || m.schema_name == <crate::msg::VoxelGrid as crate::msg::RosMessage>::TYPE_NAME
+        {
+            let verdict = self.verdicts.entry(m.channel_id).or_insert_with(|| {
+                crate::bag::voxel_channel_refusal(m.schema.as_deref(), &m.message_encoding)
+            });
+            if let Some(reason) = verdict {
+                let first = crate::bag::RefusedTopic::count(
+                    &mut self.refused,
+                    &m.topic,
+                    || reason.clone(),
+                    m.log_time_ns,
+                );
+                if first {
+                    tracing::error!(topic = %m.topic, "channel refused: {reason}");
+                }
+                return None;
+            }
+        }
+        let Some(ty) = bus.expected_type(&m.topic) else {
+            input.unused += 1;
+            return None;
+        };
+        if m.schema_name != ty {
+            tracing::warn!(topic = %m.topic, "a {} where a {ty} is read; skipped", m.schema_name);
+            *input.wrong_type.entry(m.topic.clone()).or_default() += 1;
+            return None;
+        }
+        match Payload::decode(ty, &m.data) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                tracing::warn!(topic = %m.topic, log_time_ns = m.log_time_ns, "skipping message: does not decode: {e}");
+                *input.undecodable.entry(m.topic.clone()).or_default() += 1;
+                None
+            }
+        }
+    }
+}
+
+/// Finish: the nodes publish what they have left (closing meshes, the last check); what
+/// the bus could not deliver is counted as of a wrong type; the output bag is completed.
+fn finish(
+    bus: &mut Bus,
+    mut output: Option<Output>,
+    mut misrouted: Vec<Misrouted>,
+    input: &mut InputCounts,
+    bar: &indicatif::ProgressBar,
+) -> Result<OutputCounts, CliError> {
+    let mut sink = |m: &Message| {
+        if let Some(o) = output.as_mut() {
+            o.record(m);
+        }
+    };
     bar.set_message("checking");
     misrouted.extend(bus.finish(&mut sink));
     bar.finish_and_clear();
@@ -508,6 +612,19 @@ pub fn replay(
         counts = o.counts;
         o.writer.finish()?;
     }
+    Ok(counts)
+}
+
+/// Report: the checker's report (an empty one without a checker) with the frames the
+/// meshers and the input lost, the bag's problems and the timings; what was read, each
+/// node's status and what went into the output bag.
+fn replay_report(
+    bus: &Bus,
+    input: InputCounts,
+    output: OutputCounts,
+    bodies: &BagBodies,
+    start: Instant,
+) -> ReplayReport {
     let mut report = bus
         .nodes()
         .iter()
@@ -539,17 +656,18 @@ pub fn replay(
         b.skipped_frames += input.undecodable.get(&b.id).copied().unwrap_or(0)
             + input.wrong_type.get(&b.id).copied().unwrap_or(0);
     }
-    if over_limit > 0 {
+    if bodies.over_limit > 0 {
         report.problems.push(format!(
-            "{over_limit} VoxelGrid topic(s) not read: more than {} (MAX_BODIES) in one bag; \
+            "{} VoxelGrid topic(s) not read: more than {} (MAX_BODIES) in one bag; \
              their messages are counted as unused",
+            bodies.over_limit,
             super::MAX_BODIES
         ));
     }
-    if bag_bodies.len() == 1 && report.pairs.is_empty() && report.unchecked_pairs.is_empty() {
+    if bodies.topics.len() == 1 && report.pairs.is_empty() && report.unchecked_pairs.is_empty() {
         report.problems.push(format!(
             "the bag has one body ({}): no pair to check",
-            bag_bodies[0]
+            bodies.topics[0]
         ));
     }
     let total = start.elapsed().as_secs_f64() * 1e3;
@@ -560,12 +678,12 @@ pub fn replay(
         .into_iter()
         .map(|(n, s)| (n.to_owned(), s.clone()))
         .collect();
-    Ok(ReplayReport {
+    ReplayReport {
         report,
         input,
         nodes,
-        output: counts,
-    })
+        output,
+    }
 }
 
 /// One line per resolution: what to do to clear each contact episode, and whether it was

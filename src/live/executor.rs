@@ -55,7 +55,7 @@ use crossbeam_channel::{
 use serde::Serialize;
 
 use super::{LagStats, ParamRequest};
-use crate::node::{Message, Node, NodeStatus, Payload};
+use crate::node::{Message, Node, NodeStatus, ParamError, Payload};
 
 /// Longest a message from one node waits for room in another node's queue, counting only
 /// the time that node does no work, before it is dropped and counted (a non-real-time
@@ -131,7 +131,6 @@ enum SendFailure {
 
 /// How long [`Executor::finish`] still waits for a node once the run is aborted.
 pub const ABORT_WAIT: Duration = Duration::from_secs(2);
-
 
 /// Most messages a node takes from its queue in one batch.
 pub const MAX_BATCH: usize = 64;
@@ -349,10 +348,28 @@ pub fn thread_cpu_s() -> f64 {
     }
 }
 
-/// Puts the calling thread at SCHED_FIFO `priority`: `Ok("SCHED_FIFO 40")`, or why not
-/// (without CAP_SYS_NICE or an rtprio limit the system refuses; the node then runs at normal
-/// priority, still on its own thread). Threads it starts afterwards inherit the policy.
-pub fn make_realtime(priority: i32) -> Result<String, String> {
+/// Why the system refused real-time scheduling ([`make_realtime`]).
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "SCHED_FIFO {priority} refused ({reason}): normal priority on its own thread; grant \
+     CAP_SYS_NICE or an rtprio limit (ulimit -r) for real-time scheduling"
+)]
+pub struct RealtimeRefused {
+    /// The priority asked for.
+    pub priority: i32,
+    /// The system's answer.
+    #[source]
+    pub reason: std::io::Error,
+}
+
+/// Puts the calling thread at SCHED_FIFO `priority`: `Ok("SCHED_FIFO 40")`, the scheduling
+/// as diagnostics show it, or why not (without CAP_SYS_NICE or an rtprio limit the system
+/// refuses; the node then runs at normal priority, still on its own thread). Threads it
+/// starts afterwards inherit the policy.
+///
+/// # Errors
+/// [`RealtimeRefused`] with the system's reason.
+pub fn make_realtime(priority: i32) -> Result<String, RealtimeRefused> {
     let param = libc::sched_param {
         sched_priority: priority,
     };
@@ -361,11 +378,10 @@ pub fn make_realtime(priority: i32) -> Result<String, String> {
     if r == 0 {
         Ok(format!("SCHED_FIFO {priority}"))
     } else {
-        Err(format!(
-            "SCHED_FIFO {priority} refused ({}): normal priority on its own thread; \
-             grant CAP_SYS_NICE or an rtprio limit (ulimit -r) for real-time scheduling",
-            std::io::Error::from_raw_os_error(r)
-        ))
+        Err(RealtimeRefused {
+            priority,
+            reason: std::io::Error::from_raw_os_error(r),
+        })
     }
 }
 
@@ -591,7 +607,7 @@ impl Unit {
                 Ok(s) => tracing::info!(node = self.name, "real-time: {s}"),
                 Err(e) => tracing::warn!(node = self.name, "real-time: {e}"),
             }
-            lock(&self.shared).run.scheduling = Some(r.unwrap_or_else(|e| e));
+            lock(&self.shared).run.scheduling = Some(r.unwrap_or_else(|e| e.to_string()));
         }
         let mut next_tick = Instant::now() + self.tick;
         let mut next_report = Instant::now();
@@ -618,7 +634,9 @@ impl Unit {
                 Input::Param(req) => {
                     let r = match self.node.as_mut() {
                         Some(n) => n.set_parameter(&req.name, &req.value),
-                        None => Err(format!("{}: stopped after a fault", req.node)),
+                        None => Err(ParamError::Stopped {
+                            node: req.node.clone(),
+                        }),
                     };
                     match &r {
                         Ok(()) => tracing::info!(node = req.node, "parameter {} set", req.name),

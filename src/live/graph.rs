@@ -140,10 +140,8 @@ pub fn split_fqn(fqn: &str) -> (&str, &str) {
 /// serialise the same fields, so one is read back as the other).
 fn from_ros2_client(
     info: &ros2_client::entities_info::ParticipantEntitiesInfo,
-) -> Result<ParticipantEntities, String> {
-    serde_json::to_value(info)
-        .and_then(serde_json::from_value)
-        .map_err(|e| e.to_string())
+) -> Result<ParticipantEntities, serde_json::Error> {
+    serde_json::to_value(info).and_then(serde_json::from_value)
 }
 
 /// When the full info goes out again after a reader of `ros_discovery_info` matched: soon
@@ -213,7 +211,7 @@ impl GraphAnnouncer {
     ///
     /// # Errors
     /// ros2-client's info does not read as `ParticipantEntitiesInfo` (it always does).
-    pub fn info(&self) -> Result<ParticipantEntities, String> {
+    pub fn info(&self) -> Result<ParticipantEntities, serde_json::Error> {
         Ok(merge(
             from_ros2_client(&self.ctx.participant_entities_info())?,
             &self.endpoints,

@@ -28,9 +28,11 @@ use rustdds::{
 };
 use serde::Serialize;
 
-use crate::msg::{DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time};
+use crate::msg::{
+    DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time,
+};
 use crate::node::launch::{NodeSpec, ParamValue, MAX_QUEUE_MB};
-use crate::node::{is_hidden_topic, Message, Node, NodeStatus, TopicRef};
+use crate::node::{is_hidden_topic, Message, Node, NodeStatus, ParamError, TopicRef};
 use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut, DEFAULT_QUEUE_BYTES};
 use graph::GraphAnnouncer;
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
@@ -242,7 +244,9 @@ impl Participant {
         for (k, v) in params {
             opts = opts.declare_parameter(k, ros_param(v));
         }
-        // The validator also sees the declarations; it asks the node only once it runs.
+        // The validator also sees the declarations; it asks the node only once it runs. It
+        // answers as ros2-client takes it, in text (`SetParametersResult`): the node's
+        // `ParamError` is turned into its message here.
         let running = Arc::new(AtomicBool::new(false));
         let flag = running.clone();
         let node = fqn.to_owned();
@@ -274,11 +278,12 @@ impl Participant {
                 }
                 _ => wait(),
             };
-            answer.unwrap_or_else(|_| {
-                Err(format!(
+            match answer {
+                Ok(r) => r.map_err(|e| e.to_string()),
+                Err(_) => Err(format!(
                     "{name}: {node} did not answer within 5 s (busy checking?); try again"
-                ))
-            })
+                )),
+            }
         }));
         let node = self
             .ctx
@@ -300,7 +305,7 @@ pub struct ParamRequest {
     /// The new value.
     pub value: ParamValue,
     /// Where the node's answer goes.
-    pub reply: SyncSender<Result<(), String>>,
+    pub reply: SyncSender<Result<(), ParamError>>,
 }
 
 fn from_ros_param(v: &ros2_client::ParameterValue) -> Option<ParamValue> {
@@ -464,6 +469,17 @@ fn is_bulk(type_name: &str) -> bool {
     .contains(&type_name)
 }
 
+/// Why a message was not written to the wire.
+#[derive(Debug, thiserror::Error)]
+enum SendError {
+    /// It does not encode as CDR.
+    #[error(transparent)]
+    Encode(#[from] crate::msg::CdrError),
+    /// The writer refused it.
+    #[error(transparent)]
+    Write(#[from] rustdds::dds::WriteError<()>),
+}
+
 /// Writes a node's messages to DDS on the thread that publishes them.
 struct DdsOut {
     writers: BTreeMap<String, Arc<Mutex<RawWriter>>>,
@@ -478,8 +494,11 @@ impl DdsOut {
         let r = m
             .payload
             .encode()
-            .map_err(|e| e.to_string())
-            .and_then(|bytes| write_stamped(&w.lock().unwrap_or_else(|p| p.into_inner()), bytes));
+            .map_err(SendError::from)
+            .and_then(|bytes| {
+                write_stamped(&w.lock().unwrap_or_else(|p| p.into_inner()), bytes)
+                    .map_err(SendError::from)
+            });
         let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
         match r {
             Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
@@ -529,7 +548,10 @@ impl WireOut for RealtimeOut {
             st.problem(
                 Fault::Dropped,
                 &m.topic,
-                format!("{}: not sent: {why} (a real-time node never waits)", m.topic),
+                format!(
+                    "{}: not sent: {why} (a real-time node never waits)",
+                    m.topic
+                ),
             );
         }
     }
@@ -824,132 +846,280 @@ pub fn run_nodes(
     if nodes.is_empty() {
         return Err(LiveError::Nothing("no node to run".into()));
     }
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .worker_threads(1)
-        .enable_all()
-        .build()?;
-    let participant = Arc::new(Participant::new(opts.domain_id)?);
-    tracing::info!(domain = participant.domain_id(), "joined the DDS domain");
-    let status = Arc::new(Mutex::new(TransportStatus::default()));
-    let io_stop = Arc::new(AtomicBool::new(false));
+    let transport = Transport::start(opts)?;
+    let plan = Plan::of(&nodes, specs, opts);
+    let writers = Writers::open(&transport, &plan, opts)?;
+    let io = node_wires(&nodes, &transport, &plan, &writers, opts)?;
+    let watched = watched_publications(&plan, &io.realtime, &writers.main);
+    let exec = Executor::start(nodes, &plan.unit_options, io.wires, opts.tick)?;
+    let mut demand = Demand {
+        watched,
+        readers: HashMap::new(),
+    };
+    demand.poll(&exec);
+    let injector = exec.injector();
+    let ros_nodes = start_ros_nodes(&transport, specs, &plan, &exec)?;
+    let main_readers = start_readers(&transport, &plan, &exec, &injector, &io.realtime)?;
+    let graph = announce_graph(&transport, &plan, &writers, &io.realtime, &main_readers)?;
+    tracing::info!(
+        nodes = ros_nodes.len(),
+        "announced in the ROS graph (ros_discovery_info)"
+    );
+    // The allocator's settings for a long run (a fixed mmap threshold, trims), not beside a
+    // real-time node: a trim holds each arena's lock for up to tens of ms, and the
+    // real-time thread may share one.
+    let tune_allocator = !plan.unit_options.iter().any(|o| o.realtime);
+    let Writers {
+        bulk_participant,
+        main: main_writers,
+        diagnostics,
+    } = writers;
+    let coordinator = Coordinator {
+        participants: std::iter::once(transport.participant.clone())
+            .chain(bulk_participant.iter().cloned())
+            .chain(io.realtime.iter().map(|io| io.participant.clone()))
+            .collect(),
+        inputs: plan.inputs,
+        diagnostics,
+        status: transport.status.clone(),
+        wrong_writers: BTreeSet::new(),
+        graph,
+    };
+    let mut running = Running {
+        exec,
+        demand,
+        coordinator,
+        ros_nodes,
+        realtime: io.realtime,
+        bulk_threads: io.bulk_threads,
+        main_writers,
+        bulk_participant,
+        transport,
+        tune_allocator,
+    };
+    running.run_until_stopped(opts, &shutdown);
+    Ok(running.shut_down(&shutdown))
+}
 
-    // Each node's executor options, from its spec (nodes a spec makes more than one of, such
-    // as the carving node's display, share nothing but the spec's name prefix: defaults).
-    let unit_options: Vec<UnitOptions> = nodes
-        .iter()
-        .map(|n| {
-            let e = specs
-                .iter()
-                .find(|s| s.fqn == n.name())
-                .and_then(|s| s.executor().ok());
-            UnitOptions {
-                realtime: e.is_some_and(|e| e.realtime),
-                queue_depth: e
-                    .and_then(|e| e.queue_depth)
-                    .unwrap_or(opts.queue_capacity)
-                    .max(1),
-                queue_bytes: e
-                    .and_then(|e| e.queue_mb)
-                    .unwrap_or(opts.queue_mb)
-                    .clamp(1, MAX_QUEUE_MB as usize)
-                    << 20,
-            }
-        })
-        .collect();
-    let runtime_params: BTreeMap<String, Vec<(String, ParamValue)>> = nodes
-        .iter()
-        .map(|n| (n.name().to_owned(), n.runtime_parameters()))
-        .collect();
+/// The transport's own parts: the async runtime of its readers and ROS spinners, the main
+/// participant, the transport's counters, and the flag that stops the real-time I/O threads.
+/// (Fields drop in order: the runtime, whose tasks hold the participant, goes last.)
+struct Transport {
+    io_stop: Arc<AtomicBool>,
+    status: Arc<Mutex<TransportStatus>>,
+    participant: Arc<Participant>,
+    runtime: tokio::runtime::Runtime,
+}
 
-    let (inputs, outputs) = wire_topics(&nodes, &opts.remote_subscribed);
-    // What each node reads and writes, and the ROS node it shows under in the graph.
-    let graph_plan: Vec<(Option<String>, Vec<TopicRef>, Vec<TopicRef>)> = nodes
-        .iter()
-        .map(|n| {
-            (
-                ros_owner(n.name(), specs).map(str::to_owned),
-                n.publications(),
-                n.subscriptions(),
-            )
+impl Transport {
+    /// Runtime setup: starts the async runtime and joins the DDS domain.
+    fn start(opts: &LiveOptions) -> Result<Self, LiveError> {
+        let runtime = tokio::runtime::Builder::new_multi_thread()
+            .worker_threads(1)
+            .enable_all()
+            .build()?;
+        let participant = Arc::new(Participant::new(opts.domain_id)?);
+        tracing::info!(domain = participant.domain_id(), "joined the DDS domain");
+        Ok(Self {
+            io_stop: Arc::new(AtomicBool::new(false)),
+            status: Arc::new(Mutex::new(TransportStatus::default())),
+            participant,
+            runtime,
         })
-        .collect();
-    // A real-time node writes its small outputs on its own participant: the main one has no
-    // writer for them (unless another node publishes the topic too).
-    let rt_small: BTreeSet<String> = {
-        let small = |realtime: bool| -> BTreeSet<String> {
-            nodes
-                .iter()
-                .zip(&unit_options)
-                .filter(|(_, o)| o.realtime == realtime)
-                .flat_map(|(n, _)| n.publications())
-                .filter(|p| !is_bulk(p.type_name) && outputs.contains(p))
-                .map(|p| p.topic)
+    }
+}
+
+/// What each node needs from the transport, decided from the nodes and their specs before
+/// anything is created on the wire.
+struct Plan {
+    /// Each node's executor options, in node order.
+    unit_options: Vec<UnitOptions>,
+    /// The parameters each node can change while it runs, by node name.
+    runtime_params: BTreeMap<String, Vec<(String, ParamValue)>>,
+    /// Topics read from the wire.
+    inputs: Vec<TopicRef>,
+    /// Topics written to the wire.
+    outputs: Vec<TopicRef>,
+    /// Per node, in node order: the ROS node it shows under in the graph, what it writes and
+    /// what it reads.
+    graph: Vec<(Option<String>, Vec<TopicRef>, Vec<TopicRef>)>,
+    /// Small outputs that only real-time nodes publish: written on their own participants.
+    rt_small: BTreeSet<String>,
+}
+
+impl Plan {
+    /// Plan: each node's executor options and runtime parameters, the topics read from and
+    /// written to the wire, and which outputs real-time nodes write themselves.
+    fn of(nodes: &[Box<dyn Node>], specs: &[NodeSpec], opts: &LiveOptions) -> Self {
+        // Each node's executor options, from its spec (nodes a spec makes more than one of,
+        // such as the carving node's display, share nothing but the spec's name prefix:
+        // defaults).
+        let unit_options: Vec<UnitOptions> = nodes
+            .iter()
+            .map(|n| {
+                let e = specs
+                    .iter()
+                    .find(|s| s.fqn == n.name())
+                    .and_then(|s| s.executor().ok());
+                UnitOptions {
+                    realtime: e.is_some_and(|e| e.realtime),
+                    queue_depth: e
+                        .and_then(|e| e.queue_depth)
+                        .unwrap_or(opts.queue_capacity)
+                        .max(1),
+                    queue_bytes: e
+                        .and_then(|e| e.queue_mb)
+                        .unwrap_or(opts.queue_mb)
+                        .clamp(1, MAX_QUEUE_MB as usize)
+                        << 20,
+                }
+            })
+            .collect();
+        let runtime_params = nodes
+            .iter()
+            .map(|n| (n.name().to_owned(), n.runtime_parameters()))
+            .collect();
+        let (inputs, outputs) = wire_topics(nodes, &opts.remote_subscribed);
+        // What each node reads and writes, and the ROS node it shows under in the graph.
+        let graph = nodes
+            .iter()
+            .map(|n| {
+                (
+                    ros_owner(n.name(), specs).map(str::to_owned),
+                    n.publications(),
+                    n.subscriptions(),
+                )
+            })
+            .collect();
+        // A real-time node writes its small outputs on its own participant: the main one has
+        // no writer for them (unless another node publishes the topic too).
+        let rt_small = {
+            let small = |realtime: bool| -> BTreeSet<String> {
+                nodes
+                    .iter()
+                    .zip(&unit_options)
+                    .filter(|(_, o)| o.realtime == realtime)
+                    .flat_map(|(n, _)| n.publications())
+                    .filter(|p| !is_bulk(p.type_name) && outputs.contains(p))
+                    .map(|p| p.topic)
+                    .collect()
+            };
+            let shared = small(false);
+            small(true)
+                .into_iter()
+                .filter(|t| !shared.contains(t))
                 .collect()
         };
-        let shared = small(false);
-        small(true)
-            .into_iter()
-            .filter(|t| !shared.contains(t))
-            .collect()
-    };
-    // Large outputs (frames, clouds, meshes, markers, labels) go through a participant of
-    // their own: resending their fragments to a slow reader keeps a RustDDS event loop busy
-    // for seconds, and the inputs must not wait behind that.
-    let bulk_participant = if outputs.iter().any(|t| is_bulk(t.type_name)) {
-        Some(Arc::new(Participant::new(opts.domain_id)?))
-    } else {
-        None
-    };
-    let main_writers: BTreeMap<String, Arc<Mutex<RawWriter>>> = outputs
-        .iter()
-        .filter(|t| !rt_small.contains(&t.topic))
-        .map(|t| {
-            let p = match &bulk_participant {
-                Some(b) if is_bulk(t.type_name) => b,
-                _ => &participant,
-            };
-            let w = p.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
-            tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
-            Ok((t.topic.clone(), Arc::new(Mutex::new(w))))
-        })
-        .collect::<Result<_, LiveError>>()?;
-    let diagnostics = participant.writer(
-        "/diagnostics",
-        DiagnosticArray::TYPE_NAME,
-        TopicQos::for_type(DiagnosticArray::TYPE_NAME),
-    )?;
+        Self {
+            unit_options,
+            runtime_params,
+            inputs,
+            outputs,
+            graph,
+            rt_small,
+        }
+    }
+}
 
-    // Real-time nodes: their own participant and I/O thread; large outputs through a writer
-    // thread on the main participant.
+/// The writers on the shared participants: every output but those real-time nodes write
+/// themselves, and `/diagnostics`. (Fields drop in order: the writers before the participant.)
+struct Writers {
+    /// The writer of `/diagnostics`, on the main participant.
+    diagnostics: RawWriter,
+    /// The writers of the outputs, by topic.
+    main: BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    /// The participant of the large outputs, if there are any.
+    bulk_participant: Option<Arc<Participant>>,
+}
+
+impl Writers {
+    /// Participants and writers: a writer per output on the main participant, or on the bulk
+    /// participant for a large type, and the `/diagnostics` writer.
+    fn open(transport: &Transport, plan: &Plan, opts: &LiveOptions) -> Result<Self, LiveError> {
+        // Large outputs (frames, clouds, meshes, markers, labels) go through a participant of
+        // their own: resending their fragments to a slow reader keeps a RustDDS event loop
+        // busy for seconds, and the inputs must not wait behind that.
+        let bulk_participant = if plan.outputs.iter().any(|t| is_bulk(t.type_name)) {
+            Some(Arc::new(Participant::new(opts.domain_id)?))
+        } else {
+            None
+        };
+        let main = plan
+            .outputs
+            .iter()
+            .filter(|t| !plan.rt_small.contains(&t.topic))
+            .map(|t| {
+                let p = match &bulk_participant {
+                    Some(b) if is_bulk(t.type_name) => b,
+                    _ => &transport.participant,
+                };
+                let w = p.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+                tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
+                Ok((t.topic.clone(), Arc::new(Mutex::new(w))))
+            })
+            .collect::<Result<_, LiveError>>()?;
+        let diagnostics = transport.participant.writer(
+            "/diagnostics",
+            DiagnosticArray::TYPE_NAME,
+            TopicQos::for_type(DiagnosticArray::TYPE_NAME),
+        )?;
+        Ok(Self {
+            diagnostics,
+            main,
+            bulk_participant,
+        })
+    }
+}
+
+/// How each node's outputs reach the wire, and the threads of the real-time nodes.
+struct NodeWires {
+    /// Each node's wire, in node order.
+    wires: Vec<Arc<dyn WireOut>>,
+    /// The real-time nodes' own participants and I/O threads, in node order.
+    realtime: Vec<RealtimeIo>,
+    /// The real-time nodes' writer threads for their large outputs.
+    bulk_threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+/// Node wires: a node writes through the shared writers; a real-time node gets its own
+/// participant and I/O thread for its inputs and small outputs, and a writer thread on the
+/// main participant for its large outputs.
+fn node_wires(
+    nodes: &[Box<dyn Node>],
+    transport: &Transport,
+    plan: &Plan,
+    writers: &Writers,
+    opts: &LiveOptions,
+) -> Result<NodeWires, LiveError> {
     let mut wires: Vec<Arc<dyn WireOut>> = Vec::new();
-    let mut rt_io = Vec::new();
+    let mut realtime = Vec::new();
     let mut bulk_threads = Vec::new();
     for (i, n) in nodes.iter().enumerate() {
         let shared_out = || DdsOut {
-            writers: main_writers.clone(),
-            status: status.clone(),
+            writers: writers.main.clone(),
+            status: transport.status.clone(),
         };
-        if !unit_options[i].realtime {
+        if !plan.unit_options[i].realtime {
             wires.push(Arc::new(shared_out()));
             continue;
         }
         let my_inputs: Vec<TopicRef> = n
             .subscriptions()
             .into_iter()
-            .filter(|s| inputs.contains(s))
+            .filter(|s| plan.inputs.contains(s))
             .collect();
         let small: Vec<TopicRef> = n
             .publications()
             .into_iter()
-            .filter(|p| !is_bulk(p.type_name) && outputs.contains(p))
+            .filter(|p| !is_bulk(p.type_name) && plan.outputs.contains(p))
             .collect();
         let io = start_realtime_io(
             opts.domain_id,
             i,
             my_inputs,
             small,
-            status.clone(),
-            io_stop.clone(),
+            transport.status.clone(),
+            transport.io_stop.clone(),
         )?;
         let (bulk_tx, bulk_rx) = crossbeam_channel::bounded::<Message>(BULK_QUEUE);
         let bulk = shared_out();
@@ -966,26 +1136,38 @@ pub fn run_nodes(
         wires.push(Arc::new(RealtimeOut {
             own: DdsOut {
                 writers: io.own.writers.clone(),
-                status: status.clone(),
+                status: transport.status.clone(),
             },
-            bulk_topics: main_writers.keys().cloned().collect(),
+            bulk_topics: writers.main.keys().cloned().collect(),
             bulk: bulk_tx,
-            status: status.clone(),
+            status: transport.status.clone(),
         }));
         tracing::info!(node = n.name(), "real-time: own thread and DDS participant");
-        rt_io.push(io);
+        realtime.push(io);
     }
+    Ok(NodeWires {
+        wires,
+        realtime,
+        bulk_threads,
+    })
+}
 
-    // Each node's publications no node of the process reads, with the writer whose readers
-    // on the wire decide whether anything does (none: nothing ever reads it).
-    let local_read: BTreeSet<&str> = graph_plan
+/// Demand: each node's publications no node of the process reads, with the writer whose
+/// readers on the wire decide whether anything does (none: nothing ever reads it).
+fn watched_publications(
+    plan: &Plan,
+    realtime: &[RealtimeIo],
+    main_writers: &BTreeMap<String, Arc<Mutex<RawWriter>>>,
+) -> Vec<Watched> {
+    let local_read: BTreeSet<&str> = plan
+        .graph
         .iter()
         .flat_map(|(_, _, subs)| subs.iter().map(|s| s.topic.as_str()))
         .collect();
-    let mut rt_of = rt_io.iter();
+    let mut rt_of = realtime.iter();
     let mut watched = Vec::new();
-    for (i, (_, pubs, _)) in graph_plan.iter().enumerate() {
-        let own = if unit_options[i].realtime {
+    for (i, (_, pubs, _)) in plan.graph.iter().enumerate() {
+        let own = if plan.unit_options[i].realtime {
             rt_of.next().map(|io| &io.own.writers)
         } else {
             None
@@ -1010,37 +1192,56 @@ pub fn run_nodes(
             });
         }
     }
-    let exec = Executor::start(nodes, &unit_options, wires, opts.tick)?;
-    let mut demand = Demand {
-        watched,
-        readers: HashMap::new(),
-    };
-    demand.poll(&exec);
-    let injector = exec.injector();
+    watched
+}
 
+/// ROS nodes: one per launch spec, declaring the launch's parameters and those its node can
+/// change while it runs, spun on the transport's runtime.
+fn start_ros_nodes(
+    transport: &Transport,
+    specs: &[NodeSpec],
+    plan: &Plan,
+    exec: &Executor,
+) -> Result<Vec<ros2_client::Node>, LiveError> {
     let mut ros_nodes = Vec::new();
     for spec in specs {
         // The launch's parameters, and those the node can change while it runs.
         let mut params = spec.params.clone();
-        for (k, v) in runtime_params.get(&spec.fqn).into_iter().flatten() {
+        for (k, v) in plan.runtime_params.get(&spec.fqn).into_iter().flatten() {
             params.entry(k.clone()).or_insert_with(|| v.clone());
         }
-        let mut n = participant.ros_node(&spec.fqn, &params, exec.param_sender(&spec.fqn))?;
+        let mut n =
+            transport
+                .participant
+                .ros_node(&spec.fqn, &params, exec.param_sender(&spec.fqn))?;
         let spinner = n
             .spinner()
             .map_err(|e| e.to_string())
             .map_err(dds_err(format!("the spinner of {}", spec.fqn)))?;
-        runtime.spawn(async move {
+        transport.runtime.spawn(async move {
             if let Err(e) = spinner.spin().await {
                 tracing::warn!("a ROS node's spinner stopped: {e:?}");
             }
         });
         ros_nodes.push(n);
     }
+    Ok(ros_nodes)
+}
 
-    // Readers on the main participant: topic, GUID and the nodes they feed.
-    let mut main_readers: Vec<(String, rustdds::GUID, Vec<usize>)> = Vec::new();
-    for t in &inputs {
+/// A reader on the main participant: its topic, its GUID and the nodes it feeds.
+type MainReader = (String, rustdds::GUID, Vec<usize>);
+
+/// Readers: one on the main participant per input topic that a node not real-time reads,
+/// feeding the executor; then the real-time nodes' own readers start.
+fn start_readers(
+    transport: &Transport,
+    plan: &Plan,
+    exec: &Executor,
+    injector: &executor::Injector,
+    realtime: &[RealtimeIo],
+) -> Result<Vec<MainReader>, LiveError> {
+    let mut main_readers = Vec::new();
+    for t in &plan.inputs {
         let targets: Vec<usize> = exec
             .readers_of(&t.topic)
             .into_iter()
@@ -1050,33 +1251,46 @@ pub fn run_nodes(
         if targets.is_empty() {
             continue;
         }
-        let reader =
-            participant.reader(&t.topic, t.type_name, TopicQos::reader_for_type(t.type_name))?;
+        let reader = transport.participant.reader(
+            &t.topic,
+            t.type_name,
+            TopicQos::reader_for_type(t.type_name),
+        )?;
         tracing::info!(topic = t.topic, ty = t.type_name, "reading from the wire");
         main_readers.push((
             t.topic.clone(),
             rustdds::RTPSEntity::guid(&reader),
             targets.clone(),
         ));
-        runtime.spawn(read_into(
+        transport.runtime.spawn(read_into(
             reader,
             t.clone(),
-            participant.clone(),
-            status.clone(),
+            transport.participant.clone(),
+            transport.status.clone(),
             injector.clone(),
             targets,
         ));
     }
-    for io in &rt_io {
+    for io in realtime {
         let _ = io.start.send(injector.clone());
     }
+    Ok(main_readers)
+}
 
-    // The ROS graph: every endpoint under the ROS node it serves.
-    let mut graph = GraphAnnouncer::new(&participant)?;
-    let diagnostics_id = rustdds::RTPSEntity::guid(&diagnostics);
-    let mut rt_ios = rt_io.iter();
-    for (i, (owner, pubs, subs)) in graph_plan.iter().enumerate() {
-        let rt = if unit_options[i].realtime {
+/// Graph: every endpoint (writers, readers, `/diagnostics`) announced under the ROS node it
+/// serves, on `ros_discovery_info`.
+fn announce_graph(
+    transport: &Transport,
+    plan: &Plan,
+    writers: &Writers,
+    realtime: &[RealtimeIo],
+    main_readers: &[MainReader],
+) -> Result<GraphAnnouncer, LiveError> {
+    let mut graph = GraphAnnouncer::new(&transport.participant)?;
+    let diagnostics_id = rustdds::RTPSEntity::guid(&writers.diagnostics);
+    let mut rt_ios = realtime.iter();
+    for (i, (owner, pubs, subs)) in plan.graph.iter().enumerate() {
+        let rt = if plan.unit_options[i].realtime {
             rt_ios.next()
         } else {
             None
@@ -1087,7 +1301,7 @@ pub fn run_nodes(
         graph.add_writer(owner, diagnostics_id);
         for p in pubs {
             let own = rt.and_then(|io| io.own.writers.get(&p.topic));
-            if let Some(w) = own.or_else(|| main_writers.get(&p.topic)) {
+            if let Some(w) = own.or_else(|| writers.main.get(&p.topic)) {
                 let id = rustdds::RTPSEntity::guid(&*w.lock().unwrap_or_else(|e| e.into_inner()));
                 graph.add_writer(owner, id);
             }
@@ -1106,48 +1320,116 @@ pub fn run_nodes(
         }
     }
     graph.announce(Instant::now());
-    tracing::info!(
-        nodes = ros_nodes.len(),
-        "announced in the ROS graph (ros_discovery_info)"
-    );
+    Ok(graph)
+}
 
-    let mut coordinator = Coordinator {
-        participants: std::iter::once(participant.clone())
-            .chain(bulk_participant.iter().cloned())
-            .chain(rt_io.iter().map(|io| io.participant.clone()))
-            .collect(),
-        inputs,
-        diagnostics,
-        status: status.clone(),
-        wrong_writers: BTreeSet::new(),
-        graph,
-    };
-    let start = Instant::now();
-    let mut last_diag = start;
-    let mut last_trim = start;
-    // The allocator's settings for a long run (a fixed mmap threshold, trims), not beside a
-    // real-time node: a trim holds each arena's lock for up to tens of ms, and the
-    // real-time thread may share one.
-    let tune_allocator = !unit_options.iter().any(|o| o.realtime);
-    if tune_allocator {
-        keep_resident_memory_flat();
-    }
-    while !(shutdown.stopping() || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
-        std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
-        coordinator.graph.poll(Instant::now());
-        demand.poll(&exec);
-        if tune_allocator && last_trim.elapsed() >= TRIM_PERIOD {
-            last_trim = Instant::now();
-            trim_heap();
+/// A live run once everything has started: what the main loop polls, and what shutting
+/// down stops.
+struct Running {
+    exec: Executor,
+    demand: Demand,
+    coordinator: Coordinator,
+    /// The ROS nodes, in the graph until the nodes have finished.
+    ros_nodes: Vec<ros2_client::Node>,
+    realtime: Vec<RealtimeIo>,
+    bulk_threads: Vec<std::thread::JoinHandle<()>>,
+    main_writers: BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    bulk_participant: Option<Arc<Participant>>,
+    transport: Transport,
+    /// Whether the allocator is tuned for a long run (not beside a real-time node).
+    tune_allocator: bool,
+}
+
+impl Running {
+    /// Main loop: until a stop is asked for or `opts.run_for` has passed, polls the ROS
+    /// graph and the demand for the nodes' outputs, trims the heap, checks for publishers of
+    /// wrong types and publishes `/diagnostics`.
+    fn run_until_stopped(&mut self, opts: &LiveOptions, shutdown: &Shutdown) {
+        let start = Instant::now();
+        let mut last_diag = start;
+        let mut last_trim = start;
+        if self.tune_allocator {
+            keep_resident_memory_flat();
         }
-        if last_diag.elapsed() >= opts.diagnostics_period {
-            last_diag = Instant::now();
-            coordinator.check_foreign_types();
-            coordinator.publish_diagnostics(&exec.runs());
+        while !(shutdown.stopping() || opts.run_for.is_some_and(|d| start.elapsed() >= d)) {
+            std::thread::sleep(opts.tick.min(Duration::from_millis(50)));
+            self.coordinator.graph.poll(Instant::now());
+            self.demand.poll(&self.exec);
+            if self.tune_allocator && last_trim.elapsed() >= TRIM_PERIOD {
+                last_trim = Instant::now();
+                trim_heap();
+            }
+            if last_diag.elapsed() >= opts.diagnostics_period {
+                last_diag = Instant::now();
+                self.coordinator.check_foreign_types();
+                self.coordinator.publish_diagnostics(&self.exec.runs());
+            }
         }
     }
-    coordinator.check_foreign_types();
-    tracing::info!("stopping: the nodes finish what they have (a second Ctrl-C aborts)");
+
+    /// Shutdown: the nodes finish in rank order (an abort asked for meanwhile reaches them),
+    /// the last diagnostics go out, the I/O threads stop, reliable readers get a moment to
+    /// acknowledge, and the participants leave the domain.
+    fn shut_down(self, shutdown: &Arc<Shutdown>) -> LiveSummary {
+        let Running {
+            exec,
+            demand,
+            mut coordinator,
+            ros_nodes,
+            realtime,
+            bulk_threads,
+            main_writers,
+            bulk_participant,
+            transport,
+            tune_allocator: _,
+        } = self;
+        coordinator.check_foreign_types();
+        tracing::info!("stopping: the nodes finish what they have (a second Ctrl-C aborts)");
+        let runs = finish_nodes(exec, shutdown);
+        coordinator.publish_diagnostics(&runs);
+        transport.io_stop.store(true, Ordering::Relaxed);
+        for t in bulk_threads {
+            let _ = t.join();
+        }
+        for w in main_writers
+            .values()
+            .chain(realtime.iter().flat_map(|io| io.own.writers.values()))
+        {
+            // Reliable samples are resent until acknowledged; give readers a moment.
+            let _ = w
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .wait_for_acknowledgments(Duration::from_secs(2));
+        }
+        let summary = LiveSummary {
+            transport: coordinator.transport(&runs),
+            nodes: runs,
+        };
+        if summary.transport.sent.values().any(|&n| n > 0) {
+            std::thread::sleep(LEAVE_GRACE);
+        }
+        drop(coordinator);
+        drop(ros_nodes);
+        for io in realtime {
+            let _ = io.thread.join();
+        }
+        let Transport {
+            runtime,
+            participant,
+            ..
+        } = transport;
+        runtime.shutdown_timeout(Duration::from_millis(500));
+        // The writers go before their participants, in the order they always went.
+        drop(demand);
+        drop(main_writers);
+        drop(bulk_participant);
+        drop(participant);
+        summary
+    }
+}
+
+/// Finishes the nodes in rank order (at most 30 s a rank) and gives what each did.
+fn finish_nodes(exec: Executor, shutdown: &Arc<Shutdown>) -> BTreeMap<String, NodeRun> {
     // An abort asked for while the nodes finish reaches the executor through this watcher.
     let finished = Arc::new(AtomicBool::new(false));
     let watcher = {
@@ -1170,35 +1452,7 @@ pub fn run_nodes(
     if let Some(w) = watcher {
         let _ = w.join();
     }
-    coordinator.publish_diagnostics(&runs);
-    io_stop.store(true, Ordering::Relaxed);
-    for t in bulk_threads {
-        let _ = t.join();
-    }
-    for w in main_writers
-        .values()
-        .chain(rt_io.iter().flat_map(|io| io.own.writers.values()))
-    {
-        // Reliable samples are resent until acknowledged; give readers a moment.
-        let _ = w
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .wait_for_acknowledgments(Duration::from_secs(2));
-    }
-    let summary = LiveSummary {
-        transport: coordinator.transport(&runs),
-        nodes: runs,
-    };
-    if summary.transport.sent.values().any(|&n| n > 0) {
-        std::thread::sleep(LEAVE_GRACE);
-    }
-    drop(coordinator);
-    drop(ros_nodes);
-    for io in rt_io {
-        let _ = io.thread.join();
-    }
-    runtime.shutdown_timeout(Duration::from_millis(500));
-    Ok(summary)
+    runs
 }
 
 /// A publication no node of the process reads: whether a reader on the wire does.
@@ -1367,10 +1621,10 @@ impl Coordinator {
 /// (`ros2 topic delay`, a peer's `SampleInfo`) see when it was published.
 ///
 /// # Errors
-/// The writer's error, as text.
-pub fn write_stamped(w: &RawWriter, bytes: Vec<u8>) -> Result<(), String> {
+/// The writer's error, without the sample it gives back.
+pub fn write_stamped(w: &RawWriter, bytes: Vec<u8>) -> Result<(), rustdds::dds::WriteError<()>> {
     w.write(RawCdr(bytes), Some(rustdds::Timestamp::now()))
-        .map_err(|e| e.to_string())
+        .map_err(rustdds::dds::WriteError::forget_data)
 }
 
 fn wall_clock_ns() -> i64 {
@@ -1432,7 +1686,10 @@ pub fn node_diagnostic(name: &str, r: &NodeRun) -> DiagnosticStatus {
     );
     values.extend(r.unfinished.as_ref().map(|w| kv("unfinished", w)));
     for (topic, l) in &r.lag {
-        values.push(kv(format!("lag_p99_ms.{topic}"), format!("{:.3}", l.p99_ms)));
+        values.push(kv(
+            format!("lag_p99_ms.{topic}"),
+            format!("{:.3}", l.p99_ms),
+        ));
     }
     values.extend(
         s.problems

@@ -35,6 +35,37 @@ const PRIMITIVES: &[&str] = &[
 /// Most sections (types) a definition may hold; a larger text is refused, not parsed.
 pub const MAX_SECTIONS: usize = 4096;
 
+/// Why a definition text is refused ([`Definition::parse`]).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DefinitionError {
+    /// More than [`MAX_SECTIONS`] sections.
+    #[error("more than {MAX_SECTIONS} dependency sections")]
+    TooManySections,
+    /// A dependency section whose first line is not its `MSG: pkg/Type` line.
+    #[error(
+        "a dependency section starts with `{}` instead of `MSG: pkg/Type`",
+        shorten(.line)
+    )]
+    NoMsgLine {
+        /// The line found (its code, comments dropped).
+        line: String,
+    },
+    /// A line of a type that is neither a field nor a constant.
+    #[error("in {type_name}: `{}` is neither a field nor a constant", shorten(.line))]
+    NotAField {
+        /// The type (`pkg/Type`).
+        type_name: String,
+        /// The line (its code, comments dropped).
+        line: String,
+    },
+    /// A type defined twice, the two differently.
+    #[error("{type_name} is defined twice, differently")]
+    DefinedTwice {
+        /// The type (`pkg/Type`).
+        type_name: String,
+    },
+}
+
 /// One type of a definition, by meaning.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 struct TypeDef {
@@ -57,17 +88,17 @@ impl Definition {
     /// Reads the definition of `type_name` (`pkg/msg/Type` or `pkg/Type`) from its text.
     ///
     /// # Errors
-    /// A line that is neither a field nor a constant, a dependency section without its
-    /// `MSG:` line, a type defined twice differently, or more than [`MAX_SECTIONS`] sections:
-    /// why, in words.
-    pub fn parse(type_name: &str, text: &str) -> Result<Self, String> {
+    /// [`DefinitionError`]: a line that is neither a field nor a constant, a dependency
+    /// section without its `MSG:` line, a type defined twice differently, or more than
+    /// [`MAX_SECTIONS`] sections.
+    pub fn parse(type_name: &str, text: &str) -> Result<Self, DefinitionError> {
         let main = short_name(type_name);
         let mut sections: Vec<(Option<String>, Vec<&str>)> = vec![(Some(main.clone()), Vec::new())];
         for line in text.lines() {
             let code = line.split('#').next().unwrap_or_default().trim();
             if code.len() >= 3 && code.bytes().all(|b| b == b'=') {
                 if sections.len() >= MAX_SECTIONS {
-                    return Err(format!("more than {MAX_SECTIONS} dependency sections"));
+                    return Err(DefinitionError::TooManySections);
                 }
                 sections.push((None, Vec::new()));
                 continue;
@@ -80,10 +111,9 @@ impl Definition {
                     continue;
                 }
                 let Some(name) = code.strip_prefix("MSG:") else {
-                    return Err(format!(
-                        "a dependency section starts with `{}` instead of `MSG: pkg/Type`",
-                        shorten(code)
-                    ));
+                    return Err(DefinitionError::NoMsgLine {
+                        line: code.to_owned(),
+                    });
                 };
                 section.0 = Some(short_name(name.trim()));
                 continue;
@@ -104,10 +134,10 @@ impl Definition {
                     continue;
                 }
                 let Some(f) = parse_msg_fields(code).into_iter().next() else {
-                    return Err(format!(
-                        "in {name}: `{}` is neither a field nor a constant",
-                        shorten(code)
-                    ));
+                    return Err(DefinitionError::NotAField {
+                        type_name: name,
+                        line: code.to_owned(),
+                    });
                 };
                 let ty = normalise_type(&f, &package);
                 if f.is_constant {
@@ -119,7 +149,7 @@ impl Definition {
             }
             match types.get(&name) {
                 Some(existing) if *existing != def => {
-                    return Err(format!("{name} is defined twice, differently"));
+                    return Err(DefinitionError::DefinedTwice { type_name: name });
                 }
                 Some(_) => {}
                 None => {
@@ -140,10 +170,7 @@ impl Definition {
     /// (`self` is what is expected, `other` what a bag holds).
     pub fn difference(&self, other: &Definition) -> Option<String> {
         if self.name != other.name {
-            return Some(format!(
-                "it defines {}, not {}",
-                other.name, self.name
-            ));
+            return Some(format!("it defines {}, not {}", other.name, self.name));
         }
         let mut todo = vec![self.name.clone()];
         let mut seen = BTreeSet::new();
@@ -156,9 +183,7 @@ impl Definition {
                 continue;
             };
             let Some(got) = other.types.get(&name) else {
-                return Some(format!(
-                    "it does not define {name}, which its fields use"
-                ));
+                return Some(format!("it does not define {name}, which its fields use"));
             };
             if let Some(d) = type_difference(&name, want, got) {
                 return Some(d);
@@ -253,13 +278,17 @@ mod tests {
     use crate::msg::{ros2msg_schema, VoxelGrid};
 
     fn ours() -> Definition {
-        Definition::parse("chronotope_msgs/msg/VoxelGrid", &ros2msg_schema::<VoxelGrid>()).unwrap()
+        Definition::parse(
+            "chronotope_msgs/msg/VoxelGrid",
+            &ros2msg_schema::<VoxelGrid>(),
+        )
+        .unwrap()
     }
 
     fn theirs(text: &str) -> Option<String> {
         match Definition::parse("chronotope_msgs/msg/VoxelGrid", text) {
             Ok(d) => ours().difference(&d),
-            Err(e) => Some(e),
+            Err(e) => Some(e.to_string()),
         }
     }
 
@@ -285,13 +314,18 @@ mod tests {
     #[test]
     fn a_different_field_list_is_refused_by_name() {
         let ours_text = ros2msg_schema::<VoxelGrid>();
-        let why = theirs(&ours_text.replacen("float64 resolution", "float32 resolution", 1)).unwrap();
-        assert!(why.contains("float32 resolution") && why.contains("field 3"), "{why}");
+        let why =
+            theirs(&ours_text.replacen("float64 resolution", "float32 resolution", 1)).unwrap();
+        assert!(
+            why.contains("float32 resolution") && why.contains("field 3"),
+            "{why}"
+        );
         let why = theirs(&ours_text.replacen("uint32 size_z\n", "", 1)).unwrap();
         assert!(why.contains("size_z"), "{why}");
         let why = theirs(&ours_text.replacen("float64 z", "float32 z", 1)).unwrap();
         assert!(why.contains("geometry_msgs/Point"), "{why}");
-        let why = theirs(&ours_text.replacen("ENCODING_PERCENT=1", "ENCODING_PERCENT=2", 1)).unwrap();
+        let why =
+            theirs(&ours_text.replacen("ENCODING_PERCENT=1", "ENCODING_PERCENT=2", 1)).unwrap();
         assert!(why.contains("ENCODING_PERCENT"), "{why}");
         // A nested type left undefined is not guessed.
         let main_only = ours_text.split(&"=".repeat(80)).next().unwrap();

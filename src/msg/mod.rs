@@ -14,7 +14,7 @@ mod suite;
 mod voxel_grid;
 
 pub use cdr::{decode_cdr, encapsulation, encode_cdr, encode_cdr_into, CdrEndianness, CdrError};
-pub use definition::Definition;
+pub use definition::{Definition, DefinitionError};
 pub use octomap::Octomap;
 pub use robot_types::{
     JointState, JointTrajectory, JointTrajectoryPoint, RosString, TFMessage, Transform,

@@ -14,7 +14,7 @@ use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::{Duration, Instant};
 
 use super::ahead::{AheadNode, Event, Feed};
-use super::{Message, Node, NodeStatus};
+use super::{Message, Node, NodeStatus, ParamError};
 
 /// Nodes wired by topic.
 pub struct Bus {
@@ -266,10 +266,12 @@ impl Bus {
         node: &str,
         name: &str,
         value: &super::launch::ParamValue,
-    ) -> Result<(), String> {
+    ) -> Result<(), ParamError> {
         match self.nodes.iter_mut().find(|n| n.name() == node) {
             Some(n) => n.set_parameter(name, value),
-            None => Err(format!("no node {node} here")),
+            None => Err(ParamError::NoSuchNode {
+                node: node.to_owned(),
+            }),
         }
     }
 

@@ -38,10 +38,10 @@ use std::sync::{Arc, Mutex};
 
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
-use crate::carving::cutout::{Axis, BinaryImage};
+use crate::carving::cutout::{Axis, BinaryImage, ImageError};
 use crate::carving::{
-    ForceModel, ForceParams, ForceRenderer, SurfelDelta, Tool, ToolKind, ToolPose, Workpiece,
-    SURFEL_BYTES,
+    CarveError, ForceModel, ForceParams, ForceRenderer, SurfelDelta, Tool, ToolKind, ToolPose,
+    Workpiece, SURFEL_BYTES,
 };
 use crate::msg::{
     Header, Point, PointCloud2, PointField, PoseStamped, RosMessage, Time, Vector3, VoxelGrid,
@@ -57,6 +57,37 @@ pub const MAX_FRAME_BYTES_PER_S: f64 = 512.0 * 1024.0 * 1024.0;
 /// A gap between two poses longer than this (ns) is a pause: counted, and integrated by the
 /// force as [`crate::carving::MAX_MOVE_DT_S`] only.
 const PAUSE_NS: i64 = 100_000_000;
+
+/// Why the display part cannot be made ([`CarvingNode::display`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DisplayError {
+    /// The memory for its copy of the surfels cannot be reserved.
+    #[error(
+        "cannot reserve {:.1} MB for the display's copy of the surfels",
+        *.points as f64 * 32.0 / 1e6
+    )]
+    Surfels {
+        /// Grid points, each of which may hold a surfel.
+        points: usize,
+    },
+    /// The memory for its copy of the occupancy cannot be reserved.
+    #[error("cannot reserve the display's copy of the occupancy")]
+    Occupancy,
+}
+
+/// Why a `cutouts` entry is skipped.
+#[derive(Debug, thiserror::Error)]
+enum CutoutError {
+    /// The entry is not an axis and a path.
+    #[error("expected \"AXIS PATH\"")]
+    Entry,
+    /// The axis is not one of x, y, z.
+    #[error(transparent)]
+    Axis(#[from] CarveError),
+    /// The image cannot be read or used.
+    #[error(transparent)]
+    Image(#[from] ImageError),
+}
 
 /// The carving node.
 pub struct CarvingNode {
@@ -117,7 +148,7 @@ impl CarvingNode {
         let tool_name = p.string("tool")?.unwrap_or_else(|| "knife".into());
         let tool: ToolKind = tool_name
             .parse()
-            .map_err(|e: crate::carving::CarveError| bad("tool", e.to_string()))?;
+            .map_err(|e: CarveError| bad("tool", e.to_string()))?;
         let schedule_raw = p.strings("tool_schedule")?.unwrap_or_default();
         let knife_len = p.double("knife_length_m", 0.02, 1e-5..=1.0)?;
         let knife_width = p.double("knife_width_m", 0.01, 1e-5..=1.0)?;
@@ -128,7 +159,9 @@ impl CarvingNode {
         let cutouts = p.strings("cutouts")?.unwrap_or_default();
         let model = match p.string("force_model")?.as_deref() {
             None => ForceModel::Section,
-            Some(s) => s.parse().map_err(|e: String| bad("force_model", e))?,
+            Some(s) => s
+                .parse()
+                .map_err(|e: CarveError| bad("force_model", e.to_string()))?,
         };
         let defaults = ForceParams::default();
         let force = ForceParams {
@@ -153,7 +186,7 @@ impl CarvingNode {
             proxy_mass: p.double("proxy_mass_kg", defaults.proxy_mass, 1e-6..=100.0)?,
             max_force: p.double("max_force_n", defaults.max_force, 0.0..=1e4)?,
         };
-        if let Err(crate::carving::CarveError::Force { param, reason }) = force.validate() {
+        if let Err(CarveError::Force { param, reason }) = force.validate() {
             return Err(bad(param, reason));
         }
         let period = p.double("occupancy_period_s", 1.0 / 30.0, 1e-3..=3600.0)?;
@@ -238,13 +271,13 @@ impl CarvingNode {
     /// Applies one `cutouts` entry ("AXIS PATH"); a bad entry or image is a counted problem.
     fn apply_cutout(&mut self, entry: &str) {
         let (axis, path) = match entry.trim().split_once(char::is_whitespace) {
-            Some((a, path)) => (a.parse::<Axis>(), path.trim()),
-            None => (Err("expected \"AXIS PATH\"".to_string()), ""),
+            Some((a, path)) => (a.parse::<Axis>().map_err(CutoutError::from), path.trim()),
+            None => (Err(CutoutError::Entry), ""),
         };
         let result = axis.and_then(|axis| {
             BinaryImage::load(std::path::Path::new(path))
                 .map(|img| (axis, img))
-                .map_err(|e| e.to_string())
+                .map_err(CutoutError::from)
         });
         match result {
             Ok((axis, img)) => {
@@ -409,24 +442,19 @@ impl CarvingNode {
     /// here, for a surfel on every point.
     ///
     /// # Errors
-    /// The memory for the copy cannot be reserved.
-    pub fn display(&mut self) -> Result<CarvingDisplay, String> {
+    /// [`DisplayError`]: the memory for a copy cannot be reserved.
+    pub fn display(&mut self) -> Result<CarvingDisplay, DisplayError> {
         let mut cloud = Vec::new();
         let points = self.work.dims().iter().product::<usize>();
         cloud
             .try_reserve_exact(points * SURFEL_BYTES)
-            .map_err(|_| {
-                format!(
-                    "cannot reserve {:.1} MB for the display's copy of the surfels",
-                    points as f64 * 32.0 / 1e6
-                )
-            })?;
+            .map_err(|_| DisplayError::Surfels { points })?;
         // The display starts from the cloud and occupancy as they are (the block, cut out).
         let start = self.work.take_surfel_delta();
         start.apply(&mut cloud);
         let mut bits = Vec::new();
         bits.try_reserve_exact(self.work.occupancy_bits().len())
-            .map_err(|_| "cannot reserve the display's copy of the occupancy".to_string())?;
+            .map_err(|_| DisplayError::Occupancy)?;
         bits.extend_from_slice(self.work.occupancy_bits());
         self.has_display = true;
         let (lo, _) = self.work.block_bounds();
@@ -793,7 +821,10 @@ impl CarvingDisplay {
         out.push(Message::new(
             &self.surfels_topic,
             stamp,
-            Payload::PointCloud2(Arc::new(surfel_cloud(self.header(stamp), self.cloud.clone()))),
+            Payload::PointCloud2(Arc::new(surfel_cloud(
+                self.header(stamp),
+                self.cloud.clone(),
+            ))),
         ));
     }
 }

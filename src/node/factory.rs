@@ -57,10 +57,10 @@ pub(crate) fn build_nodes(
     let mut sensed: Vec<String> = Vec::new();
     for spec in config.of_kind(NodeKind::Carving) {
         let mut c = CarvingNode::from_spec(spec)?;
-        let display = c.display().map_err(|reason| LaunchError::Param {
+        let display = c.display().map_err(|e| LaunchError::Param {
             node: spec.fqn.clone(),
             param: "workpiece_max".into(),
-            reason,
+            reason: e.to_string(),
         })?;
         bodies.push(c.occupancy_topic().to_owned());
         nodes.push(Box::new(c));

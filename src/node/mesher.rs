@@ -14,7 +14,7 @@ use rayon::prelude::*;
 
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
 use super::markers::{body_color, mid_slab_plane, triangle_list};
-use super::{Message, Node, NodeStatus, Payload, TopicRef};
+use super::{Message, Node, NodeStatus, ParamError, Payload, TopicRef};
 use crate::mesh::slice::Slicer;
 use crate::mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
 use crate::mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
@@ -664,7 +664,7 @@ impl Node for MesherNode {
 
     /// `idle_timeout_s` can change while the node runs (1 ms to 10^6 s); the rest is taken at
     /// start.
-    fn set_parameter(&mut self, name: &str, value: &ParamValue) -> Result<(), String> {
+    fn set_parameter(&mut self, name: &str, value: &ParamValue) -> Result<(), ParamError> {
         let seconds = match value {
             ParamValue::Double(v) => Some(*v),
             ParamValue::Integer(i) => Some(*i as f64),
@@ -676,14 +676,16 @@ impl Node for MesherNode {
                 tracing::info!(node = self.fqn, "idle_timeout_s set to {v}");
                 Ok(())
             }
-            ("idle_timeout_s", _) => Err(format!(
-                "idle_timeout_s: {value:?} is not a number of seconds in [0.001, 1e6]"
-            )),
-            (other, _) => Err(format!(
-                "{other}: {} takes it at start only (idle_timeout_s can change while it runs); \
-                 relaunch with the new value",
-                self.fqn
-            )),
+            ("idle_timeout_s", _) => Err(ParamError::BadValue {
+                name: "idle_timeout_s",
+                value: format!("{value:?}"),
+                expected: "a number of seconds in [0.001, 1e6]",
+            }),
+            (other, _) => Err(ParamError::StartOnly {
+                name: other.to_owned(),
+                node: self.fqn.clone(),
+                changeable: Some("idle_timeout_s"),
+            }),
         }
     }
 

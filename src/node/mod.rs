@@ -15,8 +15,8 @@ pub mod launch;
 pub mod markers;
 pub mod mesher;
 pub mod names;
-pub mod robot;
 pub mod occupancy;
+pub mod robot;
 pub mod routes;
 
 use std::collections::BTreeMap;
@@ -209,6 +209,53 @@ pub enum DecodeError {
     Cdr(CdrError),
 }
 
+/// Why a parameter change asked for while a node runs ([`Node::set_parameter`]) is
+/// refused.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ParamError {
+    /// The node takes the parameter at start only: it shapes what was already built.
+    #[error(
+        "{name}: {node} takes it at start only{}; relaunch with the new value",
+        changeable_note(*.changeable)
+    )]
+    StartOnly {
+        /// The parameter.
+        name: String,
+        /// The node's fully qualified name.
+        node: String,
+        /// The parameter of the node that can change while it runs, if one can.
+        changeable: Option<&'static str>,
+    },
+    /// The value is not one the parameter takes (a wrong type or out of its range).
+    #[error("{name}: {value} is not {expected}")]
+    BadValue {
+        /// The parameter.
+        name: &'static str,
+        /// The value as the node shows it.
+        value: String,
+        /// What it takes (`a number of seconds in [0, 3600]`).
+        expected: &'static str,
+    },
+    /// No node of that name runs on the transport asked.
+    #[error("no node {node} here")]
+    NoSuchNode {
+        /// The name asked for.
+        node: String,
+    },
+    /// The node was stopped after a fault (a live transport stops a node that panicked and
+    /// runs the others on).
+    #[error("{node}: stopped after a fault")]
+    Stopped {
+        /// The node's fully qualified name.
+        node: String,
+    },
+}
+
+/// The note a [`ParamError::StartOnly`] adds when another parameter of the node can change.
+fn changeable_note(changeable: Option<&'static str>) -> String {
+    changeable.map_or_else(String::new, |p| format!(" ({p} can change while it runs)"))
+}
+
 /// One message on a topic.
 #[derive(Debug, Clone)]
 pub struct Message {
@@ -339,13 +386,14 @@ pub trait Node: Send + std::any::Any {
     /// was already built and are taken at start only.
     ///
     /// # Errors
-    /// The reason the value is refused.
-    fn set_parameter(&mut self, name: &str, value: &launch::ParamValue) -> Result<(), String> {
+    /// [`ParamError`]: why the value is refused.
+    fn set_parameter(&mut self, name: &str, value: &launch::ParamValue) -> Result<(), ParamError> {
         let _ = value;
-        Err(format!(
-            "{name}: {} takes it at start only; relaunch with the new value",
-            self.name()
-        ))
+        Err(ParamError::StartOnly {
+            name: name.to_owned(),
+            node: self.name().to_owned(),
+            changeable: None,
+        })
     }
     /// Whether anything reads `topic`, one of its publications, now: a node in the
     /// process, a reader on the wire, or an output bag. A node may then skip building what

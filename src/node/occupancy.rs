@@ -30,11 +30,11 @@ use std::sync::Arc;
 use chronotope_occupancy::{
     Axis as LatticeAxis, CloudError, CloudOptions, CloudRasterizer, Encoding, Fill, Lattice,
     LatticeError, OctomapError, OctomapMsg, OctomapOptions, OctomapRasterizer, PointCloud2Ref,
-    PointField as CloudField, RigidTransform, Toward, VoxelFrame,
+    PointField as CloudField, RigidTransform, Toward, TransformError, VoxelFrame,
 };
 
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
-use super::{Message, Node, NodeStatus, Payload, TopicRef};
+use super::{Message, Node, NodeStatus, ParamError, Payload, TopicRef};
 use crate::msg::{Header, Octomap, Point, PointCloud2, RosMessage, TFMessage, Time, VoxelGrid};
 
 /// Source frames kept waiting for their first cell frame time (with `stamps_from`); an older
@@ -598,7 +598,7 @@ impl OccupancyNode {
         &self,
         frame: &str,
         lattice_frame: &str,
-    ) -> Result<Option<RigidTransform>, String> {
+    ) -> Result<Option<RigidTransform>, TfError> {
         if let Some(t) = self.transform {
             return Ok(Some(t));
         }
@@ -608,15 +608,11 @@ impl OccupancyNode {
         match self.tf.lookup(frame, lattice_frame) {
             Some(Ok(t)) => Ok(Some(t)),
             Some(Err(e)) => Err(e),
-            None => Err(format!(
-                "no transform from {} to the lattice's frame {} is known{}",
-                crate::yaml::quote(frame),
-                crate::yaml::quote(lattice_frame),
-                match &self.tf_topic {
-                    Some(t) => format!(" (none on {t} yet; or give `transform`)"),
-                    None => " (give `transform`, or `frame_id` so that /tf_static is read)".into(),
-                }
-            )),
+            None => Err(TfError::Unknown {
+                from: frame.to_owned(),
+                to: lattice_frame.to_owned(),
+                tf_topic: self.tf_topic.clone(),
+            }),
         }
     }
 
@@ -1063,7 +1059,7 @@ impl Node for OccupancyNode {
     }
 
     /// `hold_s` can change while the node runs; the rest is taken at start.
-    fn set_parameter(&mut self, name: &str, value: &ParamValue) -> Result<(), String> {
+    fn set_parameter(&mut self, name: &str, value: &ParamValue) -> Result<(), ParamError> {
         let seconds = match value {
             ParamValue::Double(v) => Some(*v),
             ParamValue::Integer(i) => Some(*i as f64),
@@ -1074,15 +1070,16 @@ impl Node for OccupancyNode {
                 self.hold_ns = (v * 1e9).round() as i64;
                 Ok(())
             }
-            ("hold_s", _) => Err(format!(
-                "hold_s: {} is not a number of seconds in [0, 3600]",
-                value.shown()
-            )),
-            (other, _) => Err(format!(
-                "{other}: {} takes it at start only (hold_s can change while it runs); \
-                 relaunch with the new value",
-                self.fqn
-            )),
+            ("hold_s", _) => Err(ParamError::BadValue {
+                name: "hold_s",
+                value: value.shown(),
+                expected: "a number of seconds in [0, 3600]",
+            }),
+            (other, _) => Err(ParamError::StartOnly {
+                name: other.to_owned(),
+                node: self.fqn.clone(),
+                changeable: Some("hold_s"),
+            }),
         }
     }
 
@@ -1094,6 +1091,53 @@ impl Node for OccupancyNode {
         // Before the mesher, which meshes its frames.
         0
     }
+}
+
+/// Why a static transform is refused, or a frame cannot be placed in the lattice's.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+enum TfError {
+    /// Its parent or child frame is empty, or they are the same frame.
+    #[error(
+        "a transform from {} to {} names no two frames",
+        crate::yaml::quote(.parent),
+        crate::yaml::quote(.child)
+    )]
+    NoTwoFrames { parent: String, child: String },
+    /// A non-finite entry, or a quaternion not of unit norm.
+    #[error(
+        "the transform of {} in {} is not finite or its quaternion is not of unit norm",
+        crate::yaml::quote(.child),
+        crate::yaml::quote(.parent)
+    )]
+    NotRigid { child: String, parent: String },
+    /// A new frame beyond [`MAX_TF_FRAMES`].
+    #[error("more than {MAX_TF_FRAMES} frames (MAX_TF_FRAMES)")]
+    TooManyFrames,
+    /// The chain of parents from `frame` is longer than [`MAX_TF_DEPTH`].
+    #[error(
+        "the static transforms from {} go on for more than {MAX_TF_DEPTH} frames (a loop?)",
+        crate::yaml::quote(.frame)
+    )]
+    TooDeep { frame: String },
+    /// The composed transform is not a rigid one.
+    #[error(transparent)]
+    Transform(#[from] TransformError),
+    /// No transform heard joins the two frames (and none is given).
+    #[error(
+        "no transform from {} to the lattice's frame {} is known{}",
+        crate::yaml::quote(.from),
+        crate::yaml::quote(.to),
+        match .tf_topic {
+            Some(t) => format!(" (none on {t} yet; or give `transform`)"),
+            None => " (give `transform`, or `frame_id` so that /tf_static is read)".into(),
+        }
+    )]
+    Unknown {
+        from: String,
+        to: String,
+        /// The topic static transforms are read on, if any.
+        tf_topic: Option<String>,
+    },
 }
 
 /// The static transforms heard: each frame's pose in its parent, by child frame.
@@ -1163,29 +1207,21 @@ impl Rigid {
 }
 
 impl StaticTf {
-    fn insert(&mut self, t: &crate::msg::TransformStamped) -> Result<(), String> {
+    fn insert(&mut self, t: &crate::msg::TransformStamped) -> Result<(), TfError> {
         let child = t.child_frame_id.trim_start_matches('/').to_owned();
         let parent = t.header.frame_id.trim_start_matches('/').to_owned();
         if child.is_empty() || parent.is_empty() || child == parent {
-            return Err(format!(
-                "a transform from {} to {} names no two frames",
-                crate::yaml::quote(&parent),
-                crate::yaml::quote(&child)
-            ));
+            return Err(TfError::NoTwoFrames { parent, child });
         }
         let tr = &t.transform;
         let q = [tr.rotation.x, tr.rotation.y, tr.rotation.z, tr.rotation.w];
         let v = [tr.translation.x, tr.translation.y, tr.translation.z];
         let norm = q.iter().map(|c| c * c).sum::<f64>().sqrt();
         if !(q.iter().chain(v.iter()).all(|c| c.is_finite()) && (norm - 1.0).abs() <= 1e-3) {
-            return Err(format!(
-                "the transform of {} in {} is not finite or its quaternion is not of unit norm",
-                crate::yaml::quote(&child),
-                crate::yaml::quote(&parent)
-            ));
+            return Err(TfError::NotRigid { child, parent });
         }
         if !self.parents.contains_key(&child) && self.parents.len() >= MAX_TF_FRAMES {
-            return Err(format!("more than {MAX_TF_FRAMES} frames (MAX_TF_FRAMES)"));
+            return Err(TfError::TooManyFrames);
         }
         self.parents.insert(
             child,
@@ -1201,7 +1237,7 @@ impl StaticTf {
     }
 
     /// `frame`'s pose in its root, and the root.
-    fn to_root(&self, frame: &str) -> Result<(String, Rigid), String> {
+    fn to_root(&self, frame: &str) -> Result<(String, Rigid), TfError> {
         let mut pose = Rigid::IDENTITY;
         let mut at = frame.trim_start_matches('/').to_owned();
         for _ in 0..MAX_TF_DEPTH {
@@ -1213,15 +1249,14 @@ impl StaticTf {
                 }
             }
         }
-        Err(format!(
-            "the static transforms from {} go on for more than {MAX_TF_DEPTH} frames (a loop?)",
-            crate::yaml::quote(frame)
-        ))
+        Err(TfError::TooDeep {
+            frame: frame.to_owned(),
+        })
     }
 
     /// The transform taking points in `from` into `to`; `None` if the two frames are not
     /// joined by the transforms heard.
-    fn lookup(&self, from: &str, to: &str) -> Option<Result<RigidTransform, String>> {
+    fn lookup(&self, from: &str, to: &str) -> Option<Result<RigidTransform, TfError>> {
         let (ra, a) = match self.to_root(from) {
             Ok(x) => x,
             Err(e) => return Some(Err(e)),
@@ -1234,7 +1269,7 @@ impl StaticTf {
             return None;
         }
         let t = b.inverse().then_after(&a);
-        Some(RigidTransform::from_quaternion(t.q, t.t).map_err(|e| e.to_string()))
+        Some(RigidTransform::from_quaternion(t.q, t.t).map_err(TfError::from))
     }
 }
 

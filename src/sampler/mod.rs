@@ -162,6 +162,9 @@ pub enum SamplerError {
     /// The figure is malformed (dimensions, walls, shapes).
     #[error("bad figure: {0}")]
     BadFigure(String),
+    /// A scheme name that is none of [`Scheme::ALL`].
+    #[error("unknown scheme `{0}`: expected explicit, projected or metropolis")]
+    UnknownScheme(String),
     /// No walker could be put on the figure.
     #[error("cannot put walkers on the figure after {tries} tries: {why}")]
     NoStart {
@@ -186,15 +189,13 @@ pub enum Scheme {
 }
 
 impl std::str::FromStr for Scheme {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
+    type Err = SamplerError;
+    fn from_str(s: &str) -> Result<Self, SamplerError> {
         match s {
             "explicit" => Ok(Self::Explicit),
             "projected" => Ok(Self::Projected),
             "metropolis" => Ok(Self::Metropolis),
-            _ => Err(format!(
-                "unknown scheme `{s}`: expected explicit, projected or metropolis"
-            )),
+            _ => Err(SamplerError::UnknownScheme(s.to_owned())),
         }
     }
 }

@@ -23,6 +23,9 @@ use chronotope_occupancy::{
 use std::collections::HashMap;
 use std::process::ExitCode;
 
+/// Errors of an example program: whatever went wrong, shown by its message.
+type Result<T> = std::result::Result<T, Box<dyn std::error::Error>>;
+
 /// A reader of one CDR-encapsulated message.
 struct Cdr<'a> {
     body: &'a [u8],
@@ -31,7 +34,7 @@ struct Cdr<'a> {
 }
 
 impl<'a> Cdr<'a> {
-    fn new(bytes: &'a [u8]) -> Result<Self, String> {
+    fn new(bytes: &'a [u8]) -> Result<Self> {
         let le = match bytes.get(..4) {
             Some([0, 1, _, _]) => true,
             Some([0, 0, _, _]) => false,
@@ -43,7 +46,7 @@ impl<'a> Cdr<'a> {
             le,
         })
     }
-    fn take(&mut self, n: usize, align: usize) -> Result<&'a [u8], String> {
+    fn take(&mut self, n: usize, align: usize) -> Result<&'a [u8]> {
         self.pos = self.pos.div_ceil(align) * align;
         let s = self
             .body
@@ -52,10 +55,10 @@ impl<'a> Cdr<'a> {
         self.pos += n;
         Ok(s)
     }
-    fn u8(&mut self) -> Result<u8, String> {
+    fn u8(&mut self) -> Result<u8> {
         Ok(self.take(1, 1)?[0])
     }
-    fn u32(&mut self) -> Result<u32, String> {
+    fn u32(&mut self) -> Result<u32> {
         let b: [u8; 4] = self.take(4, 4)?.try_into().unwrap();
         Ok(if self.le {
             u32::from_le_bytes(b)
@@ -63,7 +66,7 @@ impl<'a> Cdr<'a> {
             u32::from_be_bytes(b)
         })
     }
-    fn f64(&mut self) -> Result<f64, String> {
+    fn f64(&mut self) -> Result<f64> {
         let b: [u8; 8] = self.take(8, 8)?.try_into().unwrap();
         Ok(if self.le {
             f64::from_le_bytes(b)
@@ -71,16 +74,16 @@ impl<'a> Cdr<'a> {
             f64::from_be_bytes(b)
         })
     }
-    fn bytes(&mut self) -> Result<&'a [u8], String> {
+    fn bytes(&mut self) -> Result<&'a [u8]> {
         let n = self.u32()? as usize;
         self.take(n, 1)
     }
-    fn string(&mut self) -> Result<&'a str, String> {
+    fn string(&mut self) -> Result<&'a str> {
         let b = self.bytes()?;
         let b = b.strip_suffix(&[0]).unwrap_or(b);
-        std::str::from_utf8(b).map_err(|e| e.to_string())
+        Ok(std::str::from_utf8(b)?)
     }
-    fn header(&mut self) -> Result<(), String> {
+    fn header(&mut self) -> Result<()> {
         self.u32()?; // stamp.sec
         self.u32()?; // stamp.nanosec
         self.string()?; // frame_id
@@ -88,7 +91,7 @@ impl<'a> Cdr<'a> {
     }
 }
 
-fn parse_list<T: std::str::FromStr>(s: &str, n: usize, what: &str) -> Result<Vec<T>, String> {
+fn parse_list<T: std::str::FromStr>(s: &str, n: usize, what: &str) -> Result<Vec<T>> {
     let v: Vec<T> = s
         .split(',')
         .map(|x| {
@@ -96,31 +99,30 @@ fn parse_list<T: std::str::FromStr>(s: &str, n: usize, what: &str) -> Result<Vec
                 .parse()
                 .map_err(|_| format!("{what}: bad number {x:?}"))
         })
-        .collect::<Result<_, _>>()?;
+        .collect::<std::result::Result<_, _>>()?;
     if v.len() != n {
-        return Err(format!("{what}: want {n} numbers, got {}", v.len()));
+        return Err(format!("{what}: want {n} numbers, got {}", v.len()).into());
     }
     Ok(v)
 }
 
-fn lattice_of(args: &HashMap<String, String>) -> Result<(Lattice, Encoding), String> {
+fn lattice_of(args: &HashMap<String, String>) -> Result<(Lattice, Encoding)> {
     let get = |k: &str| args.get(k).ok_or(format!("--{k} is needed"));
     let o: Vec<f64> = parse_list(get("origin")?, 3, "--origin")?;
     let s: Vec<u32> = parse_list(get("size")?, 3, "--size")?;
     let res: f64 = get("lattice-res")?
         .parse()
         .map_err(|_| "--lattice-res: bad number")?;
-    let lattice =
-        Lattice::new([o[0], o[1], o[2]], res, [s[0], s[1], s[2]]).map_err(|e| e.to_string())?;
+    let lattice = Lattice::new([o[0], o[1], o[2]], res, [s[0], s[1], s[2]])?;
     let enc = match args.get("encoding").map(String::as_str) {
         Some("percent") => Encoding::Percent,
         Some("bits") | None => Encoding::Bits,
-        Some(e) => return Err(format!("--encoding {e}: bits or percent")),
+        Some(e) => return Err(format!("--encoding {e}: bits or percent").into()),
     };
     Ok((lattice, enc))
 }
 
-fn octomap_options(args: &HashMap<String, String>) -> Result<OctomapOptions, String> {
+fn octomap_options(args: &HashMap<String, String>) -> Result<OctomapOptions> {
     let mut opts = OctomapOptions::new()
         .unknown_occupied(args.contains_key("unknown-occupied"))
         .allow_trailing_bytes(args.contains_key("allow-trailing"));
@@ -130,15 +132,11 @@ fn octomap_options(args: &HashMap<String, String>) -> Result<OctomapOptions, Str
     Ok(opts)
 }
 
-fn run_octomap(
-    msg: &OctomapMsg<'_>,
-    args: &HashMap<String, String>,
-) -> Result<(Vec<u8>, String), String> {
+fn run_octomap(msg: &OctomapMsg<'_>, args: &HashMap<String, String>) -> Result<(Vec<u8>, String)> {
     let (lattice, enc) = lattice_of(args)?;
     let mut frame = VoxelFrame::new();
-    let stats = OctomapRasterizer::new(octomap_options(args)?)
-        .rasterize(msg, &lattice, enc, &mut frame)
-        .map_err(|e| e.to_string())?;
+    let stats =
+        OctomapRasterizer::new(octomap_options(args)?).rasterize(msg, &lattice, enc, &mut frame)?;
     let line = format!(
         "nodes={} occupied_leaves={} free_leaves={} max_depth={} leaves_in_lattice={} occupied_voxels={} unknown_voxels={}",
         stats.stream.nodes,
@@ -152,7 +150,7 @@ fn run_octomap(
     Ok((frame.take_data(), line))
 }
 
-fn cloud_options(args: &HashMap<String, String>) -> Result<CloudOptions, String> {
+fn cloud_options(args: &HashMap<String, String>) -> Result<CloudOptions> {
     let mut opts = CloudOptions::new();
     if let Some(n) = args.get("min-points") {
         opts = opts.min_points(n.parse().map_err(|_| "--min-points: 1..=255")?);
@@ -168,7 +166,9 @@ fn cloud_options(args: &HashMap<String, String>) -> Result<CloudOptions, String>
                     "x" => Axis::X,
                     "y" => Axis::Y,
                     "z" => Axis::Z,
-                    _ => return Err(format!("--fill {s}: none, or an axis and a sign as z-")),
+                    _ => {
+                        return Err(format!("--fill {s}: none, or an axis and a sign as z-").into())
+                    }
                 };
                 let toward = if &s[1..] == "-" {
                     Toward::Min
@@ -177,21 +177,19 @@ fn cloud_options(args: &HashMap<String, String>) -> Result<CloudOptions, String>
                 };
                 Fill::Columns { axis, toward }
             }
-            s => return Err(format!("--fill {s}: none, or an axis and a sign as z-")),
+            s => return Err(format!("--fill {s}: none, or an axis and a sign as z-").into()),
         };
         opts = opts.fill(fill);
     }
     if let Some(m) = args.get("matrix") {
         let v: Vec<f64> = parse_list(m, 12, "--matrix")?;
         let r = [[v[0], v[1], v[2]], [v[3], v[4], v[5]], [v[6], v[7], v[8]]];
-        opts = opts.transform(Some(
-            RigidTransform::from_matrix(r, [v[9], v[10], v[11]]).map_err(|e| e.to_string())?,
-        ));
+        opts = opts.transform(Some(RigidTransform::from_matrix(r, [v[9], v[10], v[11]])?));
     }
     Ok(opts)
 }
 
-fn run(args: &[String]) -> Result<(), String> {
+fn run(args: &[String]) -> Result<()> {
     let (cmd, rest) = args
         .split_first()
         .ok_or("give a command: octomap, octomap-cdr or cloud-cdr")?;
@@ -211,9 +209,9 @@ fn run(args: &[String]) -> Result<(), String> {
             );
         }
     }
-    let read = |k: &str| -> Result<Vec<u8>, String> {
+    let read = |k: &str| -> Result<Vec<u8>> {
         let p = kv.get(k).ok_or(format!("--{k} is needed"))?;
-        std::fs::read(p).map_err(|e| format!("{p}: {e}"))
+        Ok(std::fs::read(p).map_err(|e| format!("{p}: {e}"))?)
     };
     let (data, line) = match cmd.as_str() {
         "octomap" => {
@@ -294,19 +292,14 @@ fn run(args: &[String]) -> Result<(), String> {
             let (lattice, enc) = lattice_of(&kv)?;
             let mut frame = VoxelFrame::new();
             let s = CloudRasterizer::new(cloud_options(&kv)?)
-                .rasterize(&cloud, &lattice, enc, &mut frame)
-                .map_err(|e| e.to_string())?;
+                .rasterize(&cloud, &lattice, enc, &mut frame)?;
             let line = format!(
                 "points={} nonfinite={} outside={} margin_points={} marked_voxels={} occupied_voxels={} trailing_bytes={}",
                 s.points, s.nonfinite, s.outside, s.margin_points, s.marked_voxels, s.occupied_voxels, s.trailing_bytes
             );
             (frame.take_data(), line)
         }
-        c => {
-            return Err(format!(
-                "unknown command {c}: octomap, octomap-cdr or cloud-cdr"
-            ))
-        }
+        c => return Err(format!("unknown command {c}: octomap, octomap-cdr or cloud-cdr").into()),
     };
     let out = kv.get("out").ok_or("--out is needed")?;
     std::fs::write(out, data).map_err(|e| format!("{out}: {e}"))?;

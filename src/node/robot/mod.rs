@@ -76,6 +76,22 @@ struct Loaded {
     violations: Vec<LimitViolation>,
 }
 
+/// Why a robot is refused as it is loaded: its URDF or meshes, or the bodies it is cut into.
+#[derive(Debug, thiserror::Error)]
+enum LoadError {
+    /// The URDF or a mesh does not load.
+    #[error(transparent)]
+    Robot(#[from] RobotError),
+    /// A body of parameter `bodies` names a link the URDF does not have.
+    #[error("parameter bodies: {body} names link `{link}`, which is not a link of the URDF")]
+    UnknownLink {
+        /// The body, as messages name it ("the body", "body `arm`").
+        body: String,
+        /// The link.
+        link: String,
+    },
+}
+
 /// What a frame time can be made from now.
 enum Readiness {
     /// The joints' positions are in `q`.
@@ -158,7 +174,7 @@ impl RobotNode {
         if let Description::File(path) = node.s.description.clone() {
             let options = LoadOptions::new().package_path(node.s.package_path.clone());
             let loaded = Robot::from_urdf_file(&path, options)
-                .map_err(|e| e.to_string())
+                .map_err(LoadError::from)
                 .and_then(|r| node.prepare(r, 0));
             match loaded {
                 Ok(l) => node.loaded = Some(l),
@@ -207,18 +223,18 @@ impl RobotNode {
     }
 
     /// Checks a freshly loaded robot against the bodies and makes its history.
-    fn prepare(&self, robot: Robot, source: u64) -> Result<Loaded, String> {
+    fn prepare(&self, robot: Robot, source: u64) -> Result<Loaded, LoadError> {
         let mut bodies = Vec::new();
         for b in &self.s.bodies {
             let body = if b.links.is_empty() {
                 robot.whole_body()
             } else {
                 robot.body(&b.links).map_err(|e| match e {
-                    RobotError::UnknownLink(l) => format!(
-                        "parameter bodies: {} names link `{l}`, which is not a link of the URDF",
-                        body_label(b)
-                    ),
-                    e => e.to_string(),
+                    RobotError::UnknownLink(link) => LoadError::UnknownLink {
+                        body: body_label(b),
+                        link,
+                    },
+                    e => LoadError::Robot(e),
                 })?
             };
             bodies.push(body);
@@ -320,7 +336,7 @@ impl RobotNode {
         }
         let options = LoadOptions::new().package_path(self.s.package_path.clone());
         let result = Robot::from_urdf_str(&m.data, &options)
-            .map_err(|e| e.to_string())
+            .map_err(LoadError::from)
             .and_then(|r| self.prepare(r, h));
         match result {
             Ok(l) => {
@@ -434,14 +450,18 @@ impl RobotNode {
                 let skipped = n - keep;
                 let jump = i64::try_from(skipped * i128::from(period)).unwrap_or(i64::MAX);
                 t = t.saturating_add(jump);
-                self.quietly("frames_dropped", u64::try_from(skipped).unwrap_or(u64::MAX), || {
-                    format!(
-                        "the grid times jump by more than MAX_PENDING_FRAMES = \
+                self.quietly(
+                    "frames_dropped",
+                    u64::try_from(skipped).unwrap_or(u64::MAX),
+                    || {
+                        format!(
+                            "the grid times jump by more than MAX_PENDING_FRAMES = \
                          {MAX_PENDING_FRAMES} frames (to {:.3} s): the {skipped} oldest are not \
                          made",
-                        until as f64 * 1e-9
-                    )
-                });
+                            until as f64 * 1e-9
+                        )
+                    },
+                );
             }
         }
         while t <= until {
@@ -540,10 +560,9 @@ impl RobotNode {
                     let first = (arrival.div_euclid(period) * period).saturating_add(period);
                     // Grid times from the first after the arrival through the first at or after the end.
                     let span = (i128::from(p.end) - i128::from(first)).max(0);
-                    let frames = usize::try_from(
-                        (span + i128::from(period) - 1) / i128::from(period) + 1,
-                    )
-                    .unwrap_or(usize::MAX);
+                    let frames =
+                        usize::try_from((span + i128::from(period) - 1) / i128::from(period) + 1)
+                            .unwrap_or(usize::MAX);
                     if frames > MAX_PLAN_FRAMES {
                         self.problem(
                             "plan_cut",
