@@ -214,9 +214,13 @@ fn samples(r: &PairResult) -> Vec<u32> {
     cand.into_iter().step_by(step).collect()
 }
 
+/// Sample tets whose rays one task casts (about 60 tasks for the most samples).
+const SAMPLES_PER_TASK: usize = 64;
+
 /// The sample points of `a` inside `b` (see [`samples`]) with their exits along `dir`, in
 /// sample order; `None` as soon as one exit lies farther than `bound` (`f64` bits of a
-/// positive distance): then `dir` is not the shortest way out.
+/// positive distance): then `dir` is not the shortest way out. The rays are cast on all
+/// cores, a task of [`SAMPLES_PER_TASK`] at a time.
 fn exits_within(
     a: &Prepared,
     samples: &[u32],
@@ -224,24 +228,31 @@ fn exits_within(
     dir: &V4,
     bound: &AtomicU64,
 ) -> Option<Vec<Exit>> {
-    let mut ws = TraverseWorkspace::new();
-    let mut hits = Vec::new();
-    let mut out = Vec::new();
-    for &t in samples {
-        let point = centroid(&tet_of(&a.mesh, t));
-        let xs = ray_crossings(&point, dir, b, &mut ws, &mut hits);
-        if xs.len() % 2 == 1 {
-            if xs[0] > f64::from_bits(bound.load(Ordering::Relaxed)) {
-                return None;
-            }
-            out.push(Exit {
-                tet: t,
-                point,
-                distance: xs[0],
-            });
-        }
-    }
-    Some(out)
+    let tasks: Option<Vec<Vec<Exit>>> = samples
+        .par_chunks(SAMPLES_PER_TASK)
+        .map_init(
+            || (TraverseWorkspace::new(), Vec::new()),
+            |(ws, hits), task| {
+                let mut out = Vec::new();
+                for &t in task {
+                    let point = centroid(&tet_of(&a.mesh, t));
+                    let xs = ray_crossings(&point, dir, b, ws, hits);
+                    if xs.len() % 2 == 1 {
+                        if xs[0] > f64::from_bits(bound.load(Ordering::Relaxed)) {
+                            return None;
+                        }
+                        out.push(Exit {
+                            tet: t,
+                            point,
+                            distance: xs[0],
+                        });
+                    }
+                }
+                Some(out)
+            },
+        )
+        .collect();
+    tasks.map(|t| t.concat())
 }
 
 /// The sample points of `a` inside `b` with their exits along `dir`, in sample order.
@@ -396,13 +407,22 @@ impl<'a> Verifier<'a> {
 fn overlap_gradient(a: &Prepared, results: &[&PairResult]) -> V4 {
     let mut g = [0.0; 4];
     for r in results {
-        for (i, l) in r.labels_a.labels.iter().enumerate() {
-            let w = match l {
-                Label::Inside => 1.0 / 6.0,
-                Label::Interference => 0.5 / 6.0,
-                Label::Outside => continue,
-            };
-            let n = normal(&tet_of(&a.mesh, i as u32));
+        // The normals on all cores, summed in tet order (the same sum, bit for bit).
+        let terms: Vec<(f64, V4)> = r
+            .labels_a
+            .labels
+            .par_iter()
+            .enumerate()
+            .filter_map(|(i, l)| {
+                let w = match l {
+                    Label::Inside => 1.0 / 6.0,
+                    Label::Interference => 0.5 / 6.0,
+                    Label::Outside => return None,
+                };
+                Some((w, normal(&tet_of(&a.mesh, i as u32))))
+            })
+            .collect();
+        for (w, n) in terms {
             for k in 0..4 {
                 g[k] += w * n[k];
             }
@@ -425,13 +445,15 @@ pub fn clears(a: &Prepared, others: &[&Prepared]) -> bool {
 }
 
 /// Per direction (unit vectors in the metric space), the exits of `a`'s samples from each
-/// body of `hits` along it, on all cores (independent ray casts).
+/// body of `hits` along it; the directions one after the other in the order given, each
+/// one's rays on all cores ([`exits_within`]).
 ///
 /// A direction is dropped (`None`) as soon as one of its exits lies farther
 /// than the farthest exit of a direction already done: it cannot be the shortest. The
 /// shortest is never dropped (its exits are all within every done direction's farthest),
-/// so [`shortest`] picks what it picks from all exits in full, whatever the order the
-/// directions finish in.
+/// so [`shortest`] picks what it picks from all exits in full. Done in turn, every
+/// direction after the first is held to the best of those before it (the gradient comes
+/// first, and is mostly the best or near it), so most are dropped after a few rays.
 fn direction_exits(
     a: &Prepared,
     others: &[&Prepared],
@@ -443,7 +465,7 @@ fn direction_exits(
     let sampled: Vec<(usize, Vec<u32>)> = hits.iter().map(|&i| (i, samples(results[i]))).collect();
     let bound = AtomicU64::new(f64::INFINITY.to_bits());
     directions
-        .par_iter()
+        .iter()
         .map(|(u, _)| {
             // Move λ along dir_lattice = u/σ: the metric displacement is λ·u, |u| = 1.
             let dir: V4 = [0, 1, 2, 3].map(|k| u[k] / m.sigma[k]);
@@ -816,6 +838,8 @@ struct Seen<'a> {
     /// vertices).
     bounds: Option<[[i32; 2]; 4]>,
     map: AxisMap,
+    /// The map is the identity.
+    identity: bool,
     /// The vertices mapped (empty under the identity: the body's own serve).
     vertices: Vec<LatticePoint>,
     /// The normals' weights under the map (see [`AxisMap::normal_weights`]).
@@ -844,6 +868,7 @@ impl<'a> Seen<'a> {
             body,
             bounds,
             map: AxisMap::IDENTITY,
+            identity: true,
             vertices: Vec::new(),
             weights: None,
             marks: Vec::new(),
@@ -858,9 +883,10 @@ impl<'a> Seen<'a> {
             return false;
         }
         self.map = map;
+        self.identity = map == AxisMap::IDENTITY;
         self.weights = map.normal_weights();
         self.vertices.clear();
-        if map != AxisMap::IDENTITY {
+        if !self.identity {
             let source = &self.body.mesh.vertices;
             self.vertices.par_extend(
                 source
@@ -874,7 +900,7 @@ impl<'a> Seen<'a> {
 
     /// The vertices as seen.
     fn vertices(&self) -> &[LatticePoint] {
-        if self.map == AxisMap::IDENTITY {
+        if self.identity {
             &self.body.mesh.vertices
         } else {
             &self.vertices
@@ -903,7 +929,11 @@ impl<'a> Seen<'a> {
     /// A box of the body's tree as seen.
     #[inline]
     fn image(&self, b: &Aabb4) -> Aabb4 {
-        self.map.image(b)
+        if self.identity {
+            *b
+        } else {
+            self.map.image(b)
+        }
     }
 
     /// Makes room for a stamp per tet (once).

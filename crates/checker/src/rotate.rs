@@ -31,7 +31,7 @@
 
 use super::inclusion::Inclusion;
 use super::labels::Label;
-use super::resolve::clears;
+use super::resolve::{clears, meet, Meet};
 use super::*;
 use chronotope_kernel::float::tet_normal as float_normal;
 use chronotope_mesh::slice::{slice_mesh, PlaneValue};
@@ -549,43 +549,15 @@ fn pair_interferes(a: &View, b: &View, stack: &mut Vec<(u32, u32)>) -> bool {
     false
 }
 
-/// Whether two tets interfere: as the walk's `visit` decides when touching does not
-/// matter (a pair meeting at one instant, or with one on a side of the other's
-/// hyperplane, only touches; a pair facing each other in one hyperplane never
-/// interferes), then the exact relation.
+/// Whether two tets interfere, as the walk's `visit` decides when touching does not
+/// matter ([`meet`]).
 fn tets_interfere(
     ta: &[LatticePoint; 4],
     na: &[i32; 4],
     tb: &[LatticePoint; 4],
     nb: &[i32; 4],
 ) -> bool {
-    if one_instant(ta, tb).is_some() {
-        return false;
-    }
-    let sides_of_b = sides(na, ta, tb);
-    if sides_of_b.is_some_and(|s| strictly_one_side(&s)) {
-        return false;
-    }
-    if sides_of_b == Some([0; 4]) && facing(na, nb) {
-        return false;
-    }
-    let sides_of_a = sides(nb, tb, ta);
-    if sides_of_a.is_some_and(|s| strictly_one_side(&s)) {
-        return false;
-    }
-    if let (Some(sb), Some(sa)) = (sides_of_b, sides_of_a) {
-        if sb != [0; 4] && !(straddles(&sb) && straddles(&sa)) {
-            return false;
-        }
-    }
-    matches!(
-        classify_if(ta, tb, false),
-        TetPairRelation::Crossing
-            | TetPairRelation::Coplanar {
-                overlap_volume_positive: true,
-                same_orientation: true,
-            }
-    )
+    meet(ta, na, tb, nb, false) == Meet::Interferes
 }
 
 /// What one sense's search found: its smallest clearing parameter, with the largest
