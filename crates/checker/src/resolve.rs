@@ -29,10 +29,10 @@
 //! [`interferes`] does for the bodies placed, without placing them: the trees are walked
 //! with their boxes, tets and normals mapped as they are read (the walk stops at the first
 //! interfering pair, as a failing candidate's usually does), and containment is tested
-//! in frames where the tree tested against is the prepared one, at most scaled (only the
-//! vertices of the other body are mapped). A placement writes a whole tree and every
-//! normal out for every candidate; this reads the few the other body comes near. A clear
-//! verdict always comes from the full check.
+//! in frames where the tree tested against is the prepared one, at most scaled, and the
+//! tested tets are mapped as they are read. A placement writes a whole tree, every vertex
+//! and every normal out for every candidate; this reads the few the other body comes near.
+//! A clear verdict always comes from the full check.
 
 use super::inclusion::Inclusion;
 use super::labels::{any_inside, InsideTest, Label, Touch};
@@ -41,7 +41,7 @@ use super::{
     one_instant, sides, straddles, strictly_one_side, tet_of, CommonLattice, PairResult, Placement,
     Prepared, INTERIOR_WEIGHTS, NO_NORMAL, SPLIT_DEPTH,
 };
-use chronotope_kernel::bvh::{Node, TraverseWorkspace};
+use chronotope_kernel::bvh::{Bvh, Node, TraverseWorkspace};
 use chronotope_kernel::intersect::{classify_if, TetPairRelation};
 use chronotope_kernel::{Aabb4, LatticePoint};
 use rayon::prelude::*;
@@ -277,40 +277,41 @@ const WITNESSES: usize = 8;
 
 /// The exact check of one body's candidate moves against the others, as a search places
 /// them, without placing them: the moved body is [`Seen`] through the move, the others
-/// through one scaling (1, or the time scaling's refinement Q) set at the start.
+/// through one scaling set at the start (1; the time scaling's refinement Q; a rotation's
+/// lattice refinement n about its point).
 struct Verifier<'a> {
     moved: Seen<'a>,
     others: Vec<Seen<'a>>,
-    /// The others' scaling.
-    scale: i64,
+    /// The others' scaling x → n·(x − centre): n and the centre.
+    scale: (i64, LatticePoint),
     /// The stamp of the latest walk (see [`walk_seen`]).
     stamp: u32,
-    /// An other body's vertices in the frame where the moved body is only scaled (see
-    /// [`other_inside`]), reused from move to move.
-    frame: Vec<LatticePoint>,
     /// The moved body placed in full, for a move whose frame does not fit (made when
-    /// first needed).
+    /// first needed, see [`other_inside`]).
     placed: Option<Placement<'a>>,
 }
 
 impl<'a> Verifier<'a> {
-    /// Checks of moves of `a` against `others` scaled by `scale` (x → scale·x on every
-    /// axis); `None` if a scaled coordinate would leave ±2^30, as a scaled copy could not
-    /// be placed.
-    fn new(a: &'a Prepared, others: &[&'a Prepared], scale: i64) -> Option<Self> {
+    /// Checks of moves of `a` against `others` scaled by `n` about `centre`
+    /// (x → n·(x − centre) on every axis); `None` if a scaled coordinate would leave
+    /// ±2^30, where a scaled copy could not be placed.
+    fn new(a: &'a Prepared, others: &[&'a Prepared], n: i64, centre: LatticePoint) -> Option<Self> {
+        let map = AxisMap {
+            mul: [n; 4],
+            add: centre.map(|c| i64::from(c).saturating_mul(-n)),
+        };
         let others = others
             .iter()
             .map(|b| {
                 let mut seen = Seen::new(b);
-                seen.place(AxisMap::scaling(scale)).then_some(seen)
+                seen.place(map).then_some(seen)
             })
             .collect::<Option<Vec<_>>>()?;
         Some(Self {
             moved: Seen::new(a),
             others,
-            scale,
+            scale: (n, centre),
             stamp: 0,
-            frame: Vec::new(),
             placed: None,
         })
     }
@@ -320,10 +321,9 @@ impl<'a> Verifier<'a> {
     fn inclusion_of(&self, k: usize) -> Option<Inclusion<'a>> {
         let b = self.others[k].body;
         let inc = Inclusion::with_normals(&b.mesh, &b.bvh, &b.normals);
-        if self.scale == 1 {
-            Some(inc)
-        } else {
-            inc.scaled(self.scale, [0; 4])
+        match self.scale {
+            (1, [0, 0, 0, 0]) => Some(inc),
+            (n, centre) => inc.scaled(n, centre),
         }
     }
 
@@ -378,7 +378,6 @@ impl<'a> Verifier<'a> {
         let Self {
             moved,
             others,
-            frame,
             placed,
             ..
         } = self;
@@ -389,14 +388,10 @@ impl<'a> Verifier<'a> {
                     &a.body.adjacency,
                     &a.touch,
                     a.body.components(),
-                    &mut SeenInside {
-                        tets: &a.body.mesh.tets,
-                        vertices: a.vertices(),
-                        inc,
-                    },
+                    &mut SeenInside::new(a.body, a.map, inc),
                 )
             },
-            || other_inside(a, b, frame, placed),
+            || other_inside(a, b, placed),
         );
         a_inside || b_inside
     }
@@ -559,7 +554,7 @@ pub fn suggest_translation(
         .flat_map(|(i, e)| e.iter().map(move |e| (e.distance, e.tet, *i)))
         .collect();
     likely.sort_by(|x, y| y.0.total_cmp(&x.0));
-    let mut verifier = Verifier::new(a, others, 1);
+    let mut verifier = Verifier::new(a, others, 1, [0; 4]);
     // Place the body at metric length `len` along u (snapped to the lattice, each component
     // rounded away from zero) and verify exactly.
     let mut place = |len: f64| {
@@ -693,7 +688,7 @@ pub fn suggest_time_scaling(
     likely.sort_by(|x, y| y.0.total_cmp(&x.0));
     // s = p/Q with Q = 64, rounded away from 1; the others are seen refined Q times.
     const Q: i64 = 64;
-    let mut verifier = Verifier::new(a, others, Q);
+    let mut verifier = Verifier::new(a, others, Q, [0; 4]);
     let mut try_p = |p: i64| {
         let witnesses: Vec<(u32, usize)> = likely
             .iter()
@@ -828,10 +823,9 @@ impl AxisMap {
 }
 
 /// A prepared body as a candidate move places it, without placing it: seen through an
-/// [`AxisMap`], its vertices mapped into a buffer of its own (reused from move to move),
-/// its tree's boxes and its normals mapped as a walk reads them. A [`Placement`] writes
-/// the whole tree and every normal out for every move; a walk reads the few the other
-/// body comes near.
+/// [`AxisMap`], its tree's boxes, its tets and their normals mapped as a walk reads them.
+/// A [`Placement`] writes the whole tree, every vertex and every normal out for every
+/// move; a walk reads the few the other body comes near.
 struct Seen<'a> {
     body: &'a Prepared,
     /// The smallest and largest coordinate of its vertices on each axis (`None` without
@@ -840,8 +834,6 @@ struct Seen<'a> {
     map: AxisMap,
     /// The map is the identity.
     identity: bool,
-    /// The vertices mapped (empty under the identity: the body's own serve).
-    vertices: Vec<LatticePoint>,
     /// The normals' weights under the map (see [`AxisMap::normal_weights`]).
     weights: Option<[i128; 4]>,
     /// Per tet, the stamp of the latest walk that found it meeting the other body.
@@ -869,7 +861,6 @@ impl<'a> Seen<'a> {
             bounds,
             map: AxisMap::IDENTITY,
             identity: true,
-            vertices: Vec::new(),
             weights: None,
             marks: Vec::new(),
             touch: Vec::new(),
@@ -885,33 +876,24 @@ impl<'a> Seen<'a> {
         self.map = map;
         self.identity = map == AxisMap::IDENTITY;
         self.weights = map.normal_weights();
-        self.vertices.clear();
-        if !self.identity {
-            let source = &self.body.mesh.vertices;
-            self.vertices.par_extend(
-                source
-                    .par_iter()
-                    .with_min_len(1 << 14)
-                    .map(|p| map.point(p)),
-            );
-        }
         true
-    }
-
-    /// The vertices as seen.
-    fn vertices(&self) -> &[LatticePoint] {
-        if self.identity {
-            &self.body.mesh.vertices
-        } else {
-            &self.vertices
-        }
     }
 
     /// Tet `i` as seen.
     #[inline]
     fn tet(&self, i: u32) -> [LatticePoint; 4] {
-        let v = self.vertices();
-        self.body.mesh.tets[i as usize].map(|j| v[j as usize])
+        let t = tet_of(&self.body.mesh, i);
+        if self.identity {
+            t
+        } else {
+            t.map(|p| self.map.point(&p))
+        }
+    }
+
+    /// Tet `i` with its vertices and normal as seen.
+    #[inline]
+    fn seen_tet(&self, i: u32) -> SeenTet {
+        (i, self.tet(i), self.normal(i))
     }
 
     /// The normal of tet `i` as seen: the one a placed copy would hold.
@@ -1107,38 +1089,70 @@ fn walk_under(
         if found.load(Ordering::Relaxed) {
             return false;
         }
-        let box_nb = b.image(&nb.aabb);
-        for sa in na.slots() {
-            let box_a = a.image(&ta.leaf_boxes()[sa]);
-            if !box_a.overlaps(&box_nb) {
+        if leaves_interfere(a, b, na, nb, stamp) {
+            return true;
+        }
+    }
+    false
+}
+
+/// A tet as a walk reads it: its index, its vertices and its normal as seen.
+type SeenTet = (u32, [LatticePoint; 4], [i32; 4]);
+
+/// The tet pairs of two leaves whose boxes, as seen, overlap ([`pair_seen`]): `true` at
+/// the first that interferes. Each tet is mapped once for the leaf pair, however many of
+/// the other leaf's tets it meets.
+fn leaves_interfere(a: &Seen, b: &Seen, na: &Node, nb: &Node, stamp: u32) -> bool {
+    let (ta, tb) = (&a.body.bvh, &b.body.bvh);
+    let box_nb = b.image(&nb.aabb);
+    let slots_b = nb.slots();
+    // The other leaf's boxes and tets, mapped when first needed (a leaf holds at most
+    // Bvh::LEAF_SIZE items; a larger one, which no build makes, is read without a cache).
+    let cached = slots_b.len() <= Bvh::LEAF_SIZE;
+    let mut boxes_b = [Aabb4::EMPTY; Bvh::LEAF_SIZE];
+    if cached {
+        for (k, sb) in slots_b.clone().enumerate() {
+            boxes_b[k] = b.image(&tb.leaf_boxes()[sb]);
+        }
+    }
+    let mut tets_b: [Option<SeenTet>; Bvh::LEAF_SIZE] = [None; Bvh::LEAF_SIZE];
+    for sa in na.slots() {
+        let box_a = a.image(&ta.leaf_boxes()[sa]);
+        if !box_a.overlaps(&box_nb) {
+            continue;
+        }
+        let mut tet_a: Option<SeenTet> = None;
+        for (k, sb) in slots_b.clone().enumerate() {
+            let box_b = if cached {
+                boxes_b[k]
+            } else {
+                b.image(&tb.leaf_boxes()[sb])
+            };
+            if !box_a.overlaps(&box_b) {
                 continue;
             }
-            for sb in nb.slots() {
-                if box_a.overlaps(&b.image(&tb.leaf_boxes()[sb]))
-                    && pair_seen(a, b, ta.order()[sa], tb.order()[sb], stamp)
-                {
-                    return true;
-                }
+            let x = *tet_a.get_or_insert_with(|| a.seen_tet(ta.order()[sa]));
+            let y = if cached {
+                *tets_b[k].get_or_insert_with(|| b.seen_tet(tb.order()[sb]))
+            } else {
+                b.seen_tet(tb.order()[sb])
+            };
+            if pair_seen(a, b, &x, &y, stamp) {
+                return true;
             }
         }
     }
     false
 }
 
-/// Tet `i` of `a` against tet `j` of `b`, as seen: `true` if they interfere, else both
+/// Tet `x` of `a` against tet `y` of `b`, as seen: `true` if they interfere, else both
 /// marked with `stamp` if they meet (touching matters only while one is not marked yet).
 #[inline]
-fn pair_seen(a: &Seen, b: &Seen, i: u32, j: u32, stamp: u32) -> bool {
-    let (mark_a, mark_b) = (&a.marks[i as usize], &b.marks[j as usize]);
+fn pair_seen(a: &Seen, b: &Seen, x: &SeenTet, y: &SeenTet, stamp: u32) -> bool {
+    let (mark_a, mark_b) = (&a.marks[x.0 as usize], &b.marks[y.0 as usize]);
     let touching_matters =
         mark_a.load(Ordering::Relaxed) != stamp || mark_b.load(Ordering::Relaxed) != stamp;
-    match meet(
-        &a.tet(i),
-        &a.normal(i),
-        &b.tet(j),
-        &b.normal(j),
-        touching_matters,
-    ) {
+    match meet(&x.1, &x.2, &y.1, &y.2, touching_matters) {
         Meet::Interferes => true,
         Meet::Touch => {
             mark_a.store(stamp, Ordering::Relaxed);
@@ -1149,19 +1163,24 @@ fn pair_seen(a: &Seen, b: &Seen, i: u32, j: u32, stamp: u32) -> bool {
     }
 }
 
-/// Inclusion tests of one body's tets, with its vertices as some frame sees them, against
+/// Inclusion tests of one body's tets, seen through an axis map into some frame, against
 /// a body in that frame: what the checker's labelling asks of a placed body
 /// (`walk::TetInside`), for a body that is not placed.
 struct SeenInside<'a> {
-    tets: &'a [[u32; 4]],
-    vertices: &'a [LatticePoint],
+    body: &'a Prepared,
+    /// Into the frame (its far points and coordinates within ±2^30, checked).
+    map: AxisMap,
     inc: Inclusion<'a>,
 }
 
-impl SeenInside<'_> {
+impl<'a> SeenInside<'a> {
+    fn new(body: &'a Prepared, map: AxisMap, inc: Inclusion<'a>) -> Self {
+        Self { body, map, inc }
+    }
+
     #[inline]
     fn tet(&self, t: u32) -> [LatticePoint; 4] {
-        self.tets[t as usize].map(|v| self.vertices[v as usize])
+        tet_of(&self.body.mesh, t).map(|p| self.map.point(&p))
     }
 }
 
@@ -1233,20 +1252,14 @@ fn frame_of(a: &AxisMap, b: &AxisMap) -> Option<(i64, AxisMap)> {
 /// Whether a part of `b` lies inside `a`, both as seen, as [`any_inside`] decides it for
 /// the two placed (from `b`'s tets that the latest walk found meeting `a`). Decided in
 /// the frame where `a` is only scaled ([`frame_of`]): there `a`'s tree and normals serve
-/// as they are ([`Inclusion::scaled`]), and only `b`'s own vertices are mapped (into
-/// `frame`).
-/// An increasing axis map keeps every incidence and orientation, so every decided answer
-/// is the one of the placed bodies; under a translation the frame is the placed one moved
-/// by a lattice vector, and every test is the same test. If the frame does not fit
-/// ±2^30, `a` is placed in full (`placed`) and tested as it is.
-fn other_inside<'a>(
-    a: &Seen<'a>,
-    b: &Seen<'_>,
-    frame: &mut Vec<LatticePoint>,
-    placed: &mut Option<Placement<'a>>,
-) -> bool {
+/// as they are ([`Inclusion::scaled`]), and `b`'s tets are mapped as they are tested. An
+/// increasing axis map keeps every incidence and orientation, so every decided answer is
+/// the one of the placed bodies; under a translation (or no move) the frame is the placed
+/// one moved by a lattice vector, and every test is the same test. If the frame does not
+/// fit ±2^30, `a` is placed in full (`placed`) and tested as it is.
+fn other_inside<'a>(a: &Seen<'a>, b: &Seen<'_>, placed: &mut Option<Placement<'a>>) -> bool {
     let body = a.body;
-    let tests = frame_of(&a.map, &b.map).and_then(|(n, map)| {
+    let frame = frame_of(&a.map, &b.map).and_then(|(n, map)| {
         if !b.bounds.is_none_or(|bounds| map.keeps_within(&bounds)) {
             return None;
         }
@@ -1256,33 +1269,12 @@ fn other_inside<'a>(
         } else {
             inc.scaled(n, [0; 4])
         }?;
-        Some((map, inc))
+        Some(SeenInside::new(b.body, map, inc))
     });
-    let inside = |vertices: &[LatticePoint], inc: Inclusion| {
-        any_inside(
-            &b.body.adjacency,
-            &b.touch,
-            b.body.components(),
-            &mut SeenInside {
-                tets: &b.body.mesh.tets,
-                vertices,
-                inc,
-            },
-        )
-    };
-    let Some((map, inc)) = tests else {
-        return other_inside_placed(a, b, placed);
-    };
-    frame.clear();
-    frame.par_extend(
-        b.body
-            .mesh
-            .vertices
-            .par_iter()
-            .with_min_len(1 << 14)
-            .map(|p| map.point(p)),
-    );
-    inside(frame, inc)
+    match frame {
+        Some(mut test) => any_inside(&b.body.adjacency, &b.touch, b.body.components(), &mut test),
+        None => other_inside_placed(a, b, placed),
+    }
 }
 
 /// [`other_inside`] with `a` placed in full (`placed`), in the frame `b` is seen in.
@@ -1292,16 +1284,27 @@ fn other_inside_placed<'a>(a: &Seen<'a>, b: &Seen<'_>, placed: &mut Option<Place
         // Where a placed copy cannot be made, the move is not clear.
         return true;
     };
+    let inc = Inclusion::with_normals(&moved.mesh, &moved.bvh, &moved.normals);
     any_inside(
         &b.body.adjacency,
         &b.touch,
         b.body.components(),
-        &mut SeenInside {
-            tets: &b.body.mesh.tets,
-            vertices: b.vertices(),
-            inc: Inclusion::with_normals(&moved.mesh, &moved.bvh, &moved.normals),
-        },
+        &mut SeenInside::new(b.body, b.map, inc),
     )
+}
+
+/// Whether `a`, as it is, clears every body of `others` scaled by `n` about `centre`
+/// (x → n·(x − centre) on every axis), exactly as [`clears`] decides it for the others
+/// placed so, without placing them (see [`Verifier::interferes`]); `None` if a scaled
+/// coordinate would leave ±2^30.
+pub(crate) fn clears_scaled(
+    a: &Prepared,
+    others: &[&Prepared],
+    n: i64,
+    centre: LatticePoint,
+) -> Option<bool> {
+    let mut check = Verifier::new(a, others, n, centre)?;
+    Some((0..others.len()).all(|k| !check.interferes(k)))
 }
 
 #[cfg(test)]
@@ -1433,7 +1436,7 @@ mod tests {
                 let placed_a = pa.mapped(map.mul, map.add).expect("fits");
                 let placed_b = pb.mapped([scale; 4], [0; 4]).expect("fits");
                 let want = interferes(&placed_a, &placed_b);
-                let mut check = Verifier::new(&pa, &[&pb], scale).expect("fits");
+                let mut check = Verifier::new(&pa, &[&pb], scale, [0; 4]).expect("fits");
                 assert!(check.moved.place(map));
                 assert_eq!(check.interferes(0), want, "move {map:?}");
                 // The other body's containment against the moved body placed in full.
@@ -1442,12 +1445,7 @@ mod tests {
                     let (a, b) = (&check.moved, &check.others[0]);
                     let mut placed = None;
                     let inside_b = other_inside_placed(a, b, &mut placed);
-                    let mut frame = Vec::new();
-                    assert_eq!(
-                        other_inside(a, b, &mut frame, &mut None),
-                        inside_b,
-                        "move {map:?}"
-                    );
+                    assert_eq!(other_inside(a, b, &mut None), inside_b, "move {map:?}");
                     contained += usize::from(inside_b);
                 }
                 if want {
