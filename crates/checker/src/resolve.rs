@@ -347,7 +347,7 @@ impl<'a> Verifier<'a> {
         self.moved.place(map) && (0..self.others.len()).all(|k| !self.interferes(k))
     }
 
-    /// Whether the placed body interferes with other body `k`, exactly as [`interferes`]
+    /// Whether the moved body interferes with other body `k`, exactly as [`interferes`]
     /// decides it for the two bodies placed: a tet pair that interferes
     /// ([`walk_seen`]), else a part of one inside the other, decided from the tets that
     /// meet the other body as labelling decides it ([`any_inside`]). The moved body's
@@ -1252,11 +1252,18 @@ fn frame_of(a: &AxisMap, b: &AxisMap) -> Option<(i64, AxisMap)> {
 /// Whether a part of `b` lies inside `a`, both as seen, as [`any_inside`] decides it for
 /// the two placed (from `b`'s tets that the latest walk found meeting `a`). Decided in
 /// the frame where `a` is only scaled ([`frame_of`]): there `a`'s tree and normals serve
-/// as they are ([`Inclusion::scaled`]), and `b`'s tets are mapped as they are tested. An
-/// increasing axis map keeps every incidence and orientation, so every decided answer is
-/// the one of the placed bodies; under a translation (or no move) the frame is the placed
-/// one moved by a lattice vector, and every test is the same test. If the frame does not
-/// fit ±2^30, `a` is placed in full (`placed`) and tested as it is.
+/// as they are ([`Inclusion::scaled`]), and `b`'s tets are mapped as they are tested.
+///
+/// Exact: an increasing axis map keeps every incidence and orientation, so every point,
+/// segment and sign tested is the image of the one tested for the placed bodies, and
+/// every decided answer is theirs. Under a translation (or no move, as for a rotated
+/// body placed) the frame is the placed one moved by a lattice vector, far points
+/// included: every test is the same test. Under a time scaling the far points are not
+/// the images of the placed body's (they are offset from the box in lattice units of
+/// each frame), so a point that no far point decides in one frame (it would have to lie
+/// on the other boundary's degenerate alignments towards all six) may be decided in the
+/// other; both are exact wherever they decide. If the frame does not fit ±2^30, `a` is
+/// placed in full (`placed`) and tested as it is.
 fn other_inside<'a>(a: &Seen<'a>, b: &Seen<'_>, placed: &mut Option<Placement<'a>>) -> bool {
     let body = a.body;
     let frame = frame_of(&a.map, &b.map).and_then(|(n, map)| {

@@ -14,7 +14,7 @@
 //! the result is the exact answer for the rotated body; coordinates stay multiples of 8
 //! (interior points of tets stay lattice points) and within ±2^29 (which bounds n). The
 //! moved body's tree is refitted and its normals mapped ([`Placement::place_linear`]);
-//! the others are scaled as they are read ([`clears_scaled`]).
+//! the others are scaled as they are read, not placed.
 //!
 //! **Search.** For each sense (first the one the overlap shrinks in: dV/dθ from the
 //! seed's gradient, the sum over the moved body's tets inside the others of N/6 · (u × r)),
