@@ -300,11 +300,12 @@ impl<'a> Verifier<'a> {
             mul: [n; 4],
             add: centre.map(|c| i64::from(c).saturating_mul(-n)),
         };
+        // Bodies taken as they are need no room (as the checks of placed bodies take them).
         let others = others
             .iter()
             .map(|b| {
                 let mut seen = Seen::new(b);
-                seen.place(map).then_some(seen)
+                (map == AxisMap::IDENTITY || seen.place(map)).then_some(seen)
             })
             .collect::<Option<Vec<_>>>()?;
         Some(Self {
