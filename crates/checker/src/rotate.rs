@@ -14,7 +14,7 @@
 //! the result is the exact answer for the rotated body; coordinates stay multiples of 8
 //! (interior points of tets stay lattice points) and within ±2^29 (which bounds n). The
 //! moved body's tree is refitted and its normals mapped ([`Placement::place_linear`]);
-//! the others are placed by axis maps ([`Placement::place`]).
+//! the others are scaled as they are read, not placed.
 //!
 //! **Search.** For each sense (first the one the overlap shrinks in: dV/dθ from the
 //! seed's gradient, the sum over the moved body's tets inside the others of N/6 · (u × r)),
@@ -31,7 +31,7 @@
 
 use super::inclusion::Inclusion;
 use super::labels::Label;
-use super::resolve::clears;
+use super::resolve::{clears_scaled, meet, Meet};
 use super::*;
 use chronotope_kernel::float::tet_normal as float_normal;
 use chronotope_mesh::slice::{slice_mesh, PlaneValue};
@@ -330,7 +330,6 @@ struct Search<'a> {
     /// Largest n the lattice has room for.
     n_max: i64,
     moved: Placement<'a>,
-    placed: Vec<Placement<'a>>,
     /// Witnesses in the order they are tried: the latest that refuted an angle first.
     witnesses: Vec<Witness>,
     /// The node pairs of [`pair_interferes`]'s walk.
@@ -384,19 +383,15 @@ impl Search<'_> {
         Verdict::NoPairInterferes
     }
 
-    /// The full exact check of one angle: every body placed on the finer lattice, the
-    /// rotated one checked against each other as the checker checks a pair
-    /// ([`clears`]). `None` if a placement does not fit.
+    /// The full exact check of one angle: the rotated body placed on the finer lattice and
+    /// checked against each other body scaled onto it as the checker checks a pair
+    /// ([`clears_scaled`]: the others are scaled as they are read, not placed). `None` if
+    /// a body does not fit.
     fn verify(&mut self, tau: Tau, sense: i128) -> Option<bool> {
         let rot = self.rotation(tau, sense).filter(|r| r.n <= self.n_max)?;
         self.full_checks += 1;
-        let (n, p) = (rot.n, self.point.map(i64::from));
-        let mut others = Vec::with_capacity(self.placed.len());
-        for placement in &mut self.placed {
-            others.push(placement.place([n; 4], p.map(|c| -c * n))?);
-        }
         let moved = self.moved.place_linear(&rot.about(&self.point))?;
-        Some(clears(moved, &others))
+        clears_scaled(moved, self.others, rot.n, self.point)
     }
 
     /// The first witness (of at most [`WITNESSES`]) whose tet, mapped by `map`, has its
@@ -549,43 +544,15 @@ fn pair_interferes(a: &View, b: &View, stack: &mut Vec<(u32, u32)>) -> bool {
     false
 }
 
-/// Whether two tets interfere: as the walk's `visit` decides when touching does not
-/// matter (a pair meeting at one instant, or with one on a side of the other's
-/// hyperplane, only touches; a pair facing each other in one hyperplane never
-/// interferes), then the exact relation.
+/// Whether two tets interfere, as the walk's `visit` decides when touching does not
+/// matter ([`meet`]).
 fn tets_interfere(
     ta: &[LatticePoint; 4],
     na: &[i32; 4],
     tb: &[LatticePoint; 4],
     nb: &[i32; 4],
 ) -> bool {
-    if one_instant(ta, tb).is_some() {
-        return false;
-    }
-    let sides_of_b = sides(na, ta, tb);
-    if sides_of_b.is_some_and(|s| strictly_one_side(&s)) {
-        return false;
-    }
-    if sides_of_b == Some([0; 4]) && facing(na, nb) {
-        return false;
-    }
-    let sides_of_a = sides(nb, tb, ta);
-    if sides_of_a.is_some_and(|s| strictly_one_side(&s)) {
-        return false;
-    }
-    if let (Some(sb), Some(sa)) = (sides_of_b, sides_of_a) {
-        if sb != [0; 4] && !(straddles(&sb) && straddles(&sa)) {
-            return false;
-        }
-    }
-    matches!(
-        classify_if(ta, tb, false),
-        TetPairRelation::Crossing
-            | TetPairRelation::Coplanar {
-                overlap_volume_positive: true,
-                same_orientation: true,
-            }
-    )
+    meet(ta, na, tb, nb, false) == Meet::Interferes
 }
 
 /// What one sense's search found: its smallest clearing parameter, with the largest
@@ -624,7 +591,6 @@ pub fn suggest_rotation(
         point,
         n_max: room(a, others, &point),
         moved: Placement::new(a),
-        placed: others.iter().map(|b| Placement::new(b)).collect(),
         witnesses: witnesses(a, results, &point, &unit),
         stack: Vec::new(),
         angles: 0,
@@ -1316,6 +1282,44 @@ mod tests {
             not += usize::from(!walked);
         }
         assert!(crossing >= 3 && not >= 3, "{crossing} {not}");
+    }
+
+    /// The full check of a turned body against the others scaled as they are read
+    /// ([`clears_scaled`]) says what the check against copies placed scaled says
+    /// ([`resolve::clears`](super::super::resolve::clears)), at angles that cross and
+    /// clear, about two points.
+    #[test]
+    fn a_turn_checked_against_the_others_scaled_as_read_answers_as_placed_copies_do() {
+        let (_, a, b, _) = bar_and_post();
+        let mut moved = Placement::new(&a);
+        let (mut clear, mut not) = (0, 0);
+        for pivot in [[56, 312, 56, 0], [600, 330, 56, 8]] {
+            for (k, q) in [
+                (0, 1),
+                (-1, 40),
+                (-1, 20),
+                (-1, 10),
+                (1, 6),
+                (-1, 2),
+                (1, 1),
+            ] {
+                let rot = RationalRotation::of([0, 0, 1], k, q).expect("a rotation");
+                let n = rot.n;
+                let placed_b = b
+                    .mapped([n; 4], pivot.map(|c| -i64::from(c) * n))
+                    .expect("fits");
+                let placed_a = moved.place_linear(&rot.about(&pivot)).expect("fits");
+                let want = super::super::resolve::clears(placed_a, &[&placed_b]);
+                assert_eq!(
+                    clears_scaled(placed_a, &[&b], n, pivot),
+                    Some(want),
+                    "{k}/{q} about {pivot:?}"
+                );
+                clear += usize::from(want);
+                not += usize::from(!want);
+            }
+        }
+        assert!(clear >= 3 && not >= 3, "{clear} {not}");
     }
 
     /// Inclusion against a body seen scaled about a point answers as against a copy of it
