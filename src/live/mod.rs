@@ -754,19 +754,24 @@ pub const LEAVE_GRACE: Duration = Duration::from_secs(1);
 const TRIM_PERIOD: Duration = Duration::from_secs(5);
 
 /// Blocks at least this large get pages of their own from the system (and give them back
-/// when freed), in a live launch without a real-time node: glibc's default, 128 KiB, held
-/// fixed (see [`keep_resident_memory_flat`]).
-const MMAP_THRESHOLD: i32 = 128 * 1024;
+/// when freed), in a live launch without a real-time node: 64 MiB, held fixed (see
+/// [`keep_resident_memory_flat`]).
+const MMAP_THRESHOLD: i32 = 64 * 1024 * 1024;
 
-/// Keeps a long live run's resident memory at what is in use. glibc raises its mmap
-/// threshold each time a mapped block is freed (up to 32 MiB), so after the first few
-/// slabs the checker's blocks of a few MB come from the arenas, where freed ones stay
-/// resident: a launch checking the 48³ periodic scene climbed in steps from 171–187 MB in
-/// its first minute to 265–267 MB after 2.3 minutes. With the threshold fixed (setting it
-/// turns the raising off) the same run stayed at 52–54 MB from 10 s to 5 minutes. Left to
-/// glibc when `MALLOC_MMAP_THRESHOLD_` is set, and beside a real-time node (not measured
-/// there): mapping and unmapping every block of a few MB takes the process's address-space
-/// lock, which the real-time thread's page faults may have to wait for.
+/// Keeps a long live run's resident memory at what is in use, without paying for it at
+/// every frame. glibc raises its mmap threshold each time a mapped block is freed (up to
+/// 32 MiB), so after the first few slabs the checker's blocks of a few MB come from the
+/// arenas, where freed ones stay resident: a launch checking the 48³ periodic scene climbed
+/// in steps from 171–187 MB in its first minute to 265–267 MB after 2.3 minutes. Setting
+/// the threshold turns the raising off. At glibc's default, 128 KiB, every frame's blocks
+/// of a few MB (a decoded grid, a robot's frame, a slab's mesh) were mapped, faulted in page
+/// by page and unmapped again: a third of a 128³ robot launch's CPU went to page faults and
+/// unmapping, and its contact latency doubled. At 64 MiB they are taken from the arenas
+/// and used again, and the periodic trim ([`trim_heap`], every [`TRIM_PERIOD`]) gives the
+/// system back what is free, so memory stays at what is in use over the last period. Left
+/// to glibc when `MALLOC_MMAP_THRESHOLD_` is set, and beside a real-time node (not measured
+/// there): mapping and unmapping takes the process's address-space lock, which the
+/// real-time thread's page faults may have to wait for.
 fn keep_resident_memory_flat() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     if std::env::var_os("MALLOC_MMAP_THRESHOLD_").is_none() {
