@@ -647,16 +647,25 @@ fn clear_when_placed(
     scale: i64,
     what: &str,
 ) -> bool {
-    let clear = a.mapped(map.mul, map.add).is_some_and(|moved| {
-        others.iter().all(|b| {
-            if scale == 1 {
-                !interferes(&moved, b)
-            } else {
-                b.mapped([scale; 4], [0; 4])
-                    .is_some_and(|b| !interferes(&moved, &b))
-            }
-        })
+    let moved = a.mapped(map.mul, map.add);
+    // The others as the search saw them: as they are, or refined `scale` times.
+    let refined: Option<Vec<Prepared>> = match scale {
+        1 => Some(Vec::new()),
+        n => others.iter().map(|b| b.mapped([n; 4], [0; 4])).collect(),
+    };
+    let placed: Option<Vec<&Prepared>> = refined.as_ref().map(|r| match scale {
+        1 => others.to_vec(),
+        _ => r.iter().collect(),
     });
+    let (Some(moved), Some(placed)) = (moved, placed) else {
+        tracing::warn!(
+            body = %a.id,
+            "the {what} found clear does not fit the lattice when the bodies are placed, so it \
+             cannot be checked again; it is not suggested as clear"
+        );
+        return false;
+    };
+    let clear = placed.iter().all(|b| !interferes(&moved, b));
     if !clear {
         tracing::error!(
             body = %a.id,
