@@ -35,11 +35,11 @@
 //! A clear verdict always comes from the full check.
 
 use super::inclusion::Inclusion;
-use super::labels::{any_inside, InsideTest, Label, Touch};
+use super::labels::{any_inside, Label, Touch};
 use super::{
-    faces_apart, facing, gcd64, interferes, interior_point, mapped_tet_inside, normal_in_i32,
-    one_instant, sides, straddles, strictly_one_side, tet_of, CommonLattice, PairResult, Placement,
-    Prepared, INTERIOR_WEIGHTS, NO_NORMAL, SPLIT_DEPTH,
+    faces_apart, facing, gcd64, interferes, mapped_tet_inside, normal_in_i32, one_instant, sides,
+    straddles, strictly_one_side, tet_of, CommonLattice, PairResult, Placement, Prepared,
+    TetInside, TetSource, NO_NORMAL, SPLIT_DEPTH,
 };
 use chronotope_kernel::bvh::{Bvh, Node, TraverseWorkspace};
 use chronotope_kernel::intersect::{classify_if, TetPairRelation};
@@ -389,7 +389,7 @@ impl<'a> Verifier<'a> {
                     &a.body.adjacency,
                     &a.touch,
                     a.body.components(),
-                    &mut SeenInside::new(a.body, a.map, inc),
+                    &mut seen_inside(a.body, a.map, inc),
                 )
             },
             || other_inside(a, b, placed),
@@ -1215,62 +1215,31 @@ fn pair_seen(a: &Seen, b: &Seen, x: &SeenTet, y: &SeenTet, stamp: u32) -> bool {
     }
 }
 
-/// Inclusion tests of one body's tets, seen through an axis map into some frame, against
-/// a body in that frame: what the checker's labelling asks of a placed body
-/// (`walk::TetInside`), for a body that is not placed.
-struct SeenInside<'a> {
+/// One body's tets seen through an axis map into some frame: inclusion tests of them against
+/// a body in that frame are what the checker's labelling asks of a placed body
+/// ([`TetInside`]), for a body that is not placed.
+#[derive(Clone, Copy)]
+struct SeenTets<'a> {
     body: &'a Prepared,
     /// Into the frame (its far points and coordinates within ±2^30, checked).
     map: AxisMap,
-    inc: Inclusion<'a>,
 }
 
-impl<'a> SeenInside<'a> {
-    fn new(body: &'a Prepared, map: AxisMap, inc: Inclusion<'a>) -> Self {
-        Self { body, map, inc }
-    }
-
+impl TetSource for SeenTets<'_> {
     #[inline]
     fn tet(&self, t: u32) -> [LatticePoint; 4] {
         tet_of(&self.body.mesh, t).map(|p| self.map.point(&p))
     }
 }
 
-impl InsideTest for SeenInside<'_> {
-    fn far(&mut self, t: u32, tries: usize) -> Option<(bool, LatticePoint)> {
-        // As walk::TetInside: a tet lying in one tet of the other boundary has every
-        // point on it, and each try would be undecided.
-        let tet = self.tet(t);
-        if tries > 1
-            && self
-                .inc
-                .lies_in_boundary(&interior_point(&tet, &INTERIOR_WEIGHTS[0]), &tet)
-        {
-            return None;
-        }
-        INTERIOR_WEIGHTS.iter().take(tries).find_map(|w| {
-            let c = interior_point(&tet, w);
-            self.inc.contains(&c).map(|inside| (inside, c))
-        })
-    }
-    fn from_known(
-        &mut self,
-        t: u32,
-        q: &LatticePoint,
-        q_inside: bool,
-    ) -> Option<(bool, LatticePoint)> {
-        let c = self.point(t);
-        self.inc
-            .contains_from(&c, q, q_inside)
-            .map(|inside| (inside, c))
-    }
-    fn point(&self, t: u32) -> LatticePoint {
-        interior_point(&self.tet(t), &INTERIOR_WEIGHTS[0])
-    }
-    fn lies_in_boundary(&mut self, t: u32) -> bool {
-        let tet = self.tet(t);
-        self.inc
-            .lies_in_boundary(&interior_point(&tet, &INTERIOR_WEIGHTS[0]), &tet)
+/// Inclusion tests of `body`'s tets, seen through `map`, against `inc`.
+type SeenInside<'a> = TetInside<'a, SeenTets<'a>>;
+
+/// The tests of `body`'s tets seen through `map` against `inc`.
+fn seen_inside<'a>(body: &'a Prepared, map: AxisMap, inc: Inclusion<'a>) -> SeenInside<'a> {
+    TetInside {
+        mesh: SeenTets { body, map },
+        inc,
     }
 }
 
@@ -1328,7 +1297,7 @@ fn other_inside<'a>(a: &Seen<'a>, b: &Seen<'_>, placed: &mut Option<Placement<'a
         } else {
             inc.scaled(n, [0; 4])
         }?;
-        Some(SeenInside::new(b.body, map, inc))
+        Some(seen_inside(b.body, map, inc))
     });
     match frame {
         Some(mut test) => any_inside(&b.body.adjacency, &b.touch, b.body.components(), &mut test),
@@ -1348,7 +1317,7 @@ fn other_inside_placed<'a>(a: &Seen<'a>, b: &Seen<'_>, placed: &mut Option<Place
         &b.body.adjacency,
         &b.touch,
         b.body.components(),
-        &mut SeenInside::new(b.body, b.map, inc),
+        &mut seen_inside(b.body, b.map, inc),
     )
 }
 

@@ -537,9 +537,23 @@ pub(super) fn interior_point(tet: &[LatticePoint; 4], w: &[i64; 4]) -> LatticePo
     [0, 1, 2, 3].map(|k| ((0..4).map(|v| w[v] * i64::from(tet[v][k])).sum::<i64>() / 8) as i32)
 }
 
-/// Inclusion tests of one body's tets against the other body.
-pub(super) struct TetInside<'a> {
-    pub(super) mesh: &'a TetMesh,
+/// Where inclusion tests read a body's tets: as its mesh holds them, or seen through a map
+/// into another frame (the resolution's unplaced check).
+pub(super) trait TetSource {
+    /// Tet `t`'s vertices.
+    fn tet(&self, t: u32) -> [LatticePoint; 4];
+}
+
+impl TetSource for &TetMesh {
+    #[inline]
+    fn tet(&self, t: u32) -> [LatticePoint; 4] {
+        tet_of(self, t)
+    }
+}
+
+/// Inclusion tests of one body's tets (read from `mesh`) against the other body.
+pub(super) struct TetInside<'a, S = &'a TetMesh> {
+    pub(super) mesh: S,
     pub(super) inc: Inclusion<'a>,
 }
 
@@ -551,17 +565,13 @@ impl<'a> TetInside<'a> {
             inc: Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals),
         }
     }
-
-    fn interior(&self, t: u32, w: &[i64; 4]) -> LatticePoint {
-        interior_point(&tet_of(self.mesh, t), w)
-    }
 }
 
-impl labels::InsideTest for TetInside<'_> {
+impl<S: TetSource> labels::InsideTest for TetInside<'_, S> {
     fn far(&mut self, t: u32, tries: usize) -> Option<(bool, LatticePoint)> {
         // A tet lying in one tet of the other boundary has every point on it: each try
         // would be undecided.
-        let tet = tet_of(self.mesh, t);
+        let tet = self.mesh.tet(t);
         if tries > 1
             && self
                 .inc
@@ -580,16 +590,16 @@ impl labels::InsideTest for TetInside<'_> {
         q: &LatticePoint,
         q_inside: bool,
     ) -> Option<(bool, LatticePoint)> {
-        let c = self.interior(t, &INTERIOR_WEIGHTS[0]);
+        let c = self.point(t);
         self.inc
             .contains_from(&c, q, q_inside)
             .map(|inside| (inside, c))
     }
     fn point(&self, t: u32) -> LatticePoint {
-        self.interior(t, &INTERIOR_WEIGHTS[0])
+        interior_point(&self.mesh.tet(t), &INTERIOR_WEIGHTS[0])
     }
     fn lies_in_boundary(&mut self, t: u32) -> bool {
-        let tet = tet_of(self.mesh, t);
+        let tet = self.mesh.tet(t);
         self.inc
             .lies_in_boundary(&interior_point(&tet, &INTERIOR_WEIGHTS[0]), &tet)
     }

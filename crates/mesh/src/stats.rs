@@ -359,7 +359,7 @@ impl StatsAccumulator {
                 let flags = order.map(|i| plane[t[i] as usize]);
                 for (j, (key, s)) in sorted.into_iter().enumerate() {
                     // The face omits the j-th smallest id (the others in order, as `key`).
-                    let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
+                    let f = FACE_CORNERS[j];
                     let on = flags[f[0]] & flags[f[1]] & flags[f[2]];
                     if on != 0 {
                         let (key, parity) = canonical_triangle(f.map(|k| {
@@ -620,6 +620,21 @@ fn cap_boundary(cap: &TetMesh) -> (ClosedReport, Vec<(PlaneTri, i8)>, PlaneHash)
 /// Tets per chunk of a slab's scan on rayon's pool (smaller slabs are scanned in one piece).
 const SCAN_CHUNK_TETS: usize = 1 << 17;
 
+/// The sorted-id positions of a tet's face that omits the j-th smallest id (the order of
+/// [`canonical_tet_faces`]).
+const FACE_CORNERS: [[usize; 3]; 4] = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
+
+/// The faces of tet `t` that do not lie in one of its slab's time planes (`plane`: each
+/// vertex's planes, bit 0 lower, bit 1 upper), as sorted ids with their orientation.
+fn interior_faces(t: &[u32; 4], plane: &[u8]) -> impl Iterator<Item = ([u32; 3], i8)> {
+    let (sorted, order) = canonical_tet_faces(*t);
+    let flags = order.map(|i| plane[t[i] as usize]);
+    sorted.into_iter().enumerate().filter_map(move |(j, face)| {
+        let f = FACE_CORNERS[j];
+        (flags[f[0]] & flags[f[1]] & flags[f[2]] == 0).then_some(face)
+    })
+}
+
 /// Pairs the faces of a slab's tets that do not lie in one of its time planes (`plane`:
 /// each vertex's planes, bit 0 lower, bit 1 upper) exactly, each face by its vertex ids:
 /// packed and gathered by their smallest vertex (counted as they come) on rayon's pool in
@@ -630,16 +645,9 @@ fn pair_interior_faces(
     chunk_tets: usize,
     scratch: &mut Vec<u64>,
 ) -> ClosedReport {
-    let interior_faces = |t: &[u32; 4]| {
-        let (sorted, order) = canonical_tet_faces(*t);
-        let flags = order.map(|i| plane[t[i] as usize]);
-        sorted.into_iter().enumerate().filter_map(move |(j, face)| {
-            let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
-            (flags[f[0]] & flags[f[1]] & flags[f[2]] == 0).then_some(face)
-        })
-    };
+    let faces_of = |t: &[u32; 4]| interior_faces(t, plane);
     if m.vertices.len() > PACKED_VERTEX_LIMIT {
-        let wide: Vec<([u32; 3], i8)> = m.tets.iter().flat_map(interior_faces).collect();
+        let wide: Vec<([u32; 3], i8)> = m.tets.iter().flat_map(faces_of).collect();
         return pair_by_first_vertex(&wide, m.vertices.len());
     }
     let shape = FaceShape::new(m.vertices.len(), 4 * m.tets.len());
@@ -649,7 +657,7 @@ fn pair_interior_faces(
         .map(|tets| {
             // Most faces are off the time planes: room for all at once, not by doubling.
             let mut faces = shape.gather(4 * tets.len());
-            for (key, s) in tets.iter().flat_map(interior_faces) {
+            for (key, s) in tets.iter().flat_map(faces_of) {
                 faces.push(key, s > 0);
             }
             faces
@@ -893,15 +901,8 @@ mod tests {
                 .map(|p| u8::from(p[3] == t_lo) | (u8::from(p[3] == t_hi) << 1))
                 .collect();
             let mut hash = FaceHash::default();
-            for t in &m.tets {
-                let (sorted, order) = canonical_tet_faces(*t);
-                let flags = order.map(|i| plane[t[i] as usize]);
-                for (j, (key, s)) in sorted.into_iter().enumerate() {
-                    let f = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]][j];
-                    if flags[f[0]] & flags[f[1]] & flags[f[2]] == 0 {
-                        hash.add(&key, s);
-                    }
-                }
+            for (key, s) in m.tets.iter().flat_map(|t| interior_faces(t, &plane)) {
+                hash.add(&key, s);
             }
             let exact = pair_interior_faces(m, &plane, 64, &mut Vec::new());
             (hash.paired(), exact)
