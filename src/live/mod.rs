@@ -16,9 +16,9 @@ pub mod graph;
 pub mod wire;
 
 use std::collections::{BTreeMap, BTreeSet, HashMap};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::sync::mpsc::{sync_channel, SyncSender};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime};
 
 use futures::StreamExt;
@@ -39,6 +39,53 @@ use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
 
 /// A writer of serialised messages.
 pub type RawWriter = DataWriter<RawCdr, RawCdrAdapter>;
+
+/// A writer of the wire, and whether writing to it is worth its cost.
+pub struct WireWriter {
+    raw: Mutex<RawWriter>,
+    guid: rustdds::GUID,
+    /// A volatile writer of a large type (frames, clouds, meshes, markers, labels): while no
+    /// reader on the wire has matched it, nothing would receive or keep what it writes, so
+    /// messages are neither encoded nor written (counted as `unread`). Copying a 128³ frame
+    /// into CDR and into RustDDS's cache was two thirds of a robot node's time.
+    skip_unread: bool,
+    /// Readers on the wire it has matched, from its publication-matched events, drained by
+    /// [`Demand::poll`] at every tick (at most 50 ms): a reader that appears receives from
+    /// the next poll on, as if it had joined then.
+    readers: AtomicI32,
+}
+
+impl WireWriter {
+    fn new(raw: RawWriter, type_name: &str, qos: TopicQos) -> Arc<Self> {
+        Arc::new(Self {
+            guid: rustdds::RTPSEntity::guid(&raw),
+            raw: Mutex::new(raw),
+            skip_unread: is_bulk(type_name) && !qos.transient_local,
+            readers: AtomicI32::new(0),
+        })
+    }
+
+    fn lock(&self) -> MutexGuard<'_, RawWriter> {
+        self.raw.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// Whether a message written now would reach no reader nor be kept for one.
+    fn unread(&self) -> bool {
+        self.skip_unread && self.readers.load(Ordering::Relaxed) <= 0
+    }
+
+    /// Takes the writer's pending status events: how many readers it has matched.
+    fn poll_readers(&self) {
+        // A writer busy writing: its events wait for the next poll.
+        if let Ok(raw) = self.raw.try_lock() {
+            while let Some(st) = raw.try_recv_status() {
+                if let DataWriterStatus::PublicationMatched { current, .. } = st {
+                    self.readers.store(current.count(), Ordering::Relaxed);
+                }
+            }
+        }
+    }
+}
 /// A reader of serialised messages.
 pub type RawReader = SimpleDataReader<RawCdr, RawCdrAdapter>;
 
@@ -386,6 +433,9 @@ pub struct TransportStatus {
     pub undecodable: BTreeMap<String, u64>,
     /// Messages written to the wire.
     pub sent: BTreeMap<String, u64>,
+    /// Messages of large volatile topics not written because no reader on the wire had
+    /// matched their writer (nothing would have received or kept them).
+    pub unread: BTreeMap<String, u64>,
     /// Messages that could not be written (and why, the first few).
     pub send_errors: BTreeMap<String, u64>,
     /// Publishers seen on an input topic with another type (DDS does not match them, so
@@ -482,7 +532,7 @@ enum SendError {
 
 /// Writes a node's messages to DDS on the thread that publishes them.
 struct DdsOut {
-    writers: BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    writers: BTreeMap<String, Arc<WireWriter>>,
     status: Arc<Mutex<TransportStatus>>,
 }
 
@@ -491,12 +541,17 @@ impl DdsOut {
         let Some(w) = self.writers.get(&*m.topic) else {
             return;
         };
+        if w.unread() {
+            let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
+            *st.unread.entry(m.topic.to_string()).or_default() += 1;
+            return;
+        }
         let r = m
             .payload
             .encode()
             .map_err(SendError::from)
             .and_then(|bytes| {
-                write_stamped(&w.lock().unwrap_or_else(|p| p.into_inner()), bytes)
+                write_stamped(&w.lock(), bytes)
                     .map_err(SendError::from)
             });
         let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
@@ -594,7 +649,7 @@ fn start_realtime_io(
                 for t in &outputs {
                     let qos = TopicQos::for_type(t.type_name);
                     let w = participant.writer(&t.topic, t.type_name, qos)?;
-                    writers.insert(t.topic.clone(), Arc::new(Mutex::new(w)));
+                    writers.insert(t.topic.clone(), WireWriter::new(w, t.type_name, qos));
                 }
                 let mut readers = Vec::new();
                 for t in &inputs {
@@ -857,10 +912,14 @@ pub fn run_nodes(
     let io = node_wires(&nodes, &transport, &plan, &writers, opts)?;
     let watched = watched_publications(&plan, &io.realtime, &writers.main);
     let exec = Executor::start(nodes, &plan.unit_options, io.wires, opts.tick)?;
-    let mut demand = Demand {
+    let mut demand = Demand::new(
         watched,
-        readers: HashMap::new(),
-    };
+        writers
+            .main
+            .values()
+            .chain(io.realtime.iter().flat_map(|r| r.own.writers.values()))
+            .cloned(),
+    );
     demand.poll(&exec);
     let injector = exec.injector();
     let ros_nodes = start_ros_nodes(&transport, specs, &plan, &exec)?;
@@ -1032,7 +1091,7 @@ struct Writers {
     /// The writer of `/diagnostics`, on the main participant.
     diagnostics: RawWriter,
     /// The writers of the outputs, by topic.
-    main: BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    main: BTreeMap<String, Arc<WireWriter>>,
     /// The participant of the large outputs, if there are any.
     bulk_participant: Option<Arc<Participant>>,
 }
@@ -1058,9 +1117,10 @@ impl Writers {
                     Some(b) if is_bulk(t.type_name) => b,
                     _ => &transport.participant,
                 };
-                let w = p.writer(&t.topic, t.type_name, TopicQos::for_type(t.type_name))?;
+                let qos = TopicQos::for_type(t.type_name);
+                let w = p.writer(&t.topic, t.type_name, qos)?;
                 tracing::info!(topic = t.topic, ty = t.type_name, "writing to the wire");
-                Ok((t.topic.clone(), Arc::new(Mutex::new(w))))
+                Ok((t.topic.clone(), WireWriter::new(w, t.type_name, qos)))
             })
             .collect::<Result<_, LiveError>>()?;
         let diagnostics = transport.participant.writer(
@@ -1162,7 +1222,7 @@ fn node_wires(
 fn watched_publications(
     plan: &Plan,
     realtime: &[RealtimeIo],
-    main_writers: &BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    main_writers: &BTreeMap<String, Arc<WireWriter>>,
 ) -> Vec<Watched> {
     let local_read: BTreeSet<&str> = plan
         .graph
@@ -1184,11 +1244,7 @@ fn watched_publications(
             let writer = own
                 .and_then(|w| w.get(&p.topic))
                 .or_else(|| main_writers.get(&p.topic))
-                .map(|w| {
-                    let id =
-                        rustdds::RTPSEntity::guid(&*w.lock().unwrap_or_else(|e| e.into_inner()));
-                    (id, w.clone())
-                });
+                .cloned();
             watched.push(Watched {
                 node: i,
                 topic: p.topic.clone(),
@@ -1307,8 +1363,7 @@ fn announce_graph(
         for p in pubs {
             let own = rt.and_then(|io| io.own.writers.get(&p.topic));
             if let Some(w) = own.or_else(|| writers.main.get(&p.topic)) {
-                let id = rustdds::RTPSEntity::guid(&*w.lock().unwrap_or_else(|e| e.into_inner()));
-                graph.add_writer(owner, id);
+                graph.add_writer(owner, w.guid);
             }
         }
         for s in subs {
@@ -1338,7 +1393,7 @@ struct Running {
     ros_nodes: Vec<ros2_client::Node>,
     realtime: Vec<RealtimeIo>,
     bulk_threads: Vec<std::thread::JoinHandle<()>>,
-    main_writers: BTreeMap<String, Arc<Mutex<RawWriter>>>,
+    main_writers: BTreeMap<String, Arc<WireWriter>>,
     bulk_participant: Option<Arc<Participant>>,
     transport: Transport,
     /// Whether the allocator is tuned for a long run (not beside a real-time node).
@@ -1401,10 +1456,7 @@ impl Running {
             .chain(realtime.iter().flat_map(|io| io.own.writers.values()))
         {
             // Reliable samples are resent until acknowledged; give readers a moment.
-            let _ = w
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .wait_for_acknowledgments(Duration::from_secs(2));
+            let _ = w.lock().wait_for_acknowledgments(Duration::from_secs(2));
         }
         let summary = LiveSummary {
             transport: coordinator.transport(&runs),
@@ -1464,7 +1516,7 @@ fn finish_nodes(exec: Executor, shutdown: &Arc<Shutdown>) -> BTreeMap<String, No
 struct Watched {
     node: usize,
     topic: String,
-    writer: Option<(rustdds::GUID, Arc<Mutex<RawWriter>>)>,
+    writer: Option<Arc<WireWriter>>,
     /// What the node was last told (every publication is read until it is told otherwise).
     said: bool,
 }
@@ -1476,31 +1528,26 @@ struct Watched {
 /// panics): the count comes from each writer's publication-matched events, drained here.
 struct Demand {
     watched: Vec<Watched>,
-    /// Readers on the wire each writer has matched (nodes publishing one topic share it).
-    readers: HashMap<rustdds::GUID, i32>,
+    /// Every writer of the wire, each once (nodes publishing one topic share it).
+    writers: Vec<Arc<WireWriter>>,
 }
 
 impl Demand {
+    fn new(watched: Vec<Watched>, writers: impl IntoIterator<Item = Arc<WireWriter>>) -> Self {
+        let mut seen = BTreeSet::new();
+        let writers = writers.into_iter().filter(|w| seen.insert(w.guid)).collect();
+        Demand { watched, writers }
+    }
+
     fn poll(&mut self, exec: &Executor) {
-        let mut drained = BTreeSet::new();
-        for (id, wr) in self.watched.iter().filter_map(|w| w.writer.as_ref()) {
-            if !drained.insert(*id) {
-                continue;
-            }
-            // A writer busy writing: its events wait for the next poll.
-            if let Ok(wr) = wr.try_lock() {
-                while let Some(st) = wr.try_recv_status() {
-                    if let DataWriterStatus::PublicationMatched { current, .. } = st {
-                        self.readers.insert(*id, current.count());
-                    }
-                }
-            }
+        for w in &self.writers {
+            w.poll_readers();
         }
         for w in &mut self.watched {
             let read = w
                 .writer
                 .as_ref()
-                .is_some_and(|(id, _)| self.readers.get(id).is_some_and(|&n| n > 0));
+                .is_some_and(|wr| wr.readers.load(Ordering::Relaxed) > 0);
             if read != w.said && exec.demand(w.node, &w.topic, read) {
                 tracing::info!(topic = w.topic, read, "readers on the wire");
                 w.said = read;

@@ -461,3 +461,74 @@ fn parameters_are_read_and_set_over_the_ros_parameter_services() {
     assert_eq!(unsafe { libc::kill(pid as i32, libc::SIGTERM) }, 0);
     launch.wait(&l_log);
 }
+
+/// A large volatile output nobody on the wire reads is neither encoded nor written (counted
+/// as `unread`), and one a reader subscribes to is written whole: the robot cell's launch
+/// publishes its arm's and its gripper's frames; only the gripper's are recorded.
+#[test]
+fn frames_nobody_reads_on_the_wire_are_not_written_and_frames_read_are() {
+    let d = tempfile::tempdir().unwrap();
+    let dom = domain(3);
+    let cfg = root().join("launch_configs/robot_cell.yaml");
+    let cfg = cfg.to_str().unwrap();
+    let bag = root().join("bags/robot-cell-32.mcap");
+    let rec = d.path().join("gripper.mcap");
+    let summary = d.path().join("summary.json");
+    let (l_log, r_log, p_log) = (
+        d.path().join("launch.log"),
+        d.path().join("record.log"),
+        d.path().join("play.log"),
+    );
+    let launch = Proc::start(
+        "launch",
+        &dom,
+        &[
+            "launch",
+            cfg,
+            "--duration",
+            "14",
+            "--summary",
+            summary.to_str().unwrap(),
+        ],
+        &l_log,
+    );
+    let gripper = "/robot/gripper/occupancy";
+    let record = Proc::start(
+        "record",
+        &dom,
+        &[
+            "record",
+            gripper,
+            "--out",
+            rec.to_str().unwrap(),
+            "--duration",
+            "15",
+        ],
+        &r_log,
+    );
+    std::thread::sleep(Duration::from_secs(2));
+    // Time for the launch and the recorder to discover each other and the player.
+    let play = Proc::start(
+        "play",
+        &dom,
+        &["play", bag.to_str().unwrap(), "--wait", "6"],
+        &p_log,
+    );
+    play.wait(&p_log);
+    launch.wait(&l_log);
+    record.wait(&r_log);
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let t = &s["transport"];
+    let arm = "/robot/arm/occupancy";
+    assert!(t["sent"].get(arm).is_none(), "{s}");
+    assert!(t["unread"][arm].as_u64() >= Some(30), "{s}");
+    let sent = t["sent"][gripper].as_u64().unwrap_or(0);
+    assert!(sent >= 30, "{s}");
+    assert!(t["unread"].get(gripper).is_none(), "{s}");
+    let recorded = messages(&rec, gripper).len() as u64;
+    assert!(
+        recorded >= 1 && recorded <= sent,
+        "{recorded} recorded, {sent} sent: {s}"
+    );
+}

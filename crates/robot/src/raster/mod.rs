@@ -151,6 +151,35 @@ impl Rasterizer {
         &self.data
     }
 
+    /// Copies the last frame's data into `out`, touching only what changed when `out` holds
+    /// a frame this rasteriser copied there before.
+    ///
+    /// `written` says which spans of `out` may be non-zero: pass the spans returned by the
+    /// previous call with this `out` (or any spans, with an `out` of the wrong length or an
+    /// empty one, which is then filled from scratch). On return `out` equals
+    /// [`data`](Self::data) and `written` holds its spans. For `percent` only the rows the
+    /// two frames cover are written (a robot covers a small part of its lattice); `bits`
+    /// copies the whole frame.
+    pub fn copy_into(&self, out: &mut Vec<u8>, written: &mut Vec<(usize, usize)>) {
+        let n = self.data.len();
+        if self.encoding == Encoding::Bits || out.len() != n {
+            out.clear();
+            out.extend_from_slice(&self.data);
+            written.clear();
+            written.push((0, n));
+            return;
+        }
+        for &(a, b) in written.iter() {
+            out[a..b].fill(0);
+        }
+        written.clear();
+        for &(base, lo, hi) in &self.dirty {
+            let span = (base + lo, base + hi + 1);
+            out[span.0..span.1].copy_from_slice(&self.data[span.0..span.1]);
+            written.push(span);
+        }
+    }
+
     /// Rasterises the links of `body`, posed by `poses` (from
     /// [`Kinematics::forward`](crate::Kinematics::forward) on `robot`), into
     /// [`data`](Self::data).

@@ -618,3 +618,26 @@ fn bad_lattices_and_poses_are_values_not_panics() {
         );
     }
 }
+
+#[test]
+fn a_frame_copied_into_the_last_frames_buffer_equals_the_frame() {
+    let r = robot(&one_link(&collision(
+        [0.0; 3],
+        [0.3, -0.2, 0.5],
+        r#"<cylinder radius="0.08" length="0.3"/>"#,
+    )));
+    for encoding in [Encoding::Percent, Encoding::Bits] {
+        let mut raster = Rasterizer::new(lattice(), encoding, RasterOptions::default());
+        let (mut out, mut written) = (Vec::new(), Vec::new());
+        let mut poses = LinkPoses::new();
+        // The body moves across the lattice and out of it, then back: every voxel a frame
+        // wrote must be cleared in the next copy unless that frame covers it again.
+        for step in [0.0, 0.1, 0.25, 0.6, 2.0, 0.05, -0.2] {
+            let base = BasePose::from_array([step, -step / 2.0, 0.0, 0.0, 0.0, step]);
+            r.kinematics().forward(&[], &base, &mut poses);
+            raster.rasterize(&r, &r.whole_body(), &poses);
+            raster.copy_into(&mut out, &mut written);
+            assert_eq!(out, raster.data(), "{encoding:?} at step {step}");
+        }
+    }
+}
