@@ -29,6 +29,13 @@ impl BitRows {
         self.words.resize(self.wpr * ny * nz, 0);
     }
 
+    /// Sets every bit set in `other`, a frame of the same size.
+    pub(crate) fn or_from(&mut self, other: &BitRows) {
+        for (w, o) in self.words.iter_mut().zip(&other.words) {
+            *w |= o;
+        }
+    }
+
     pub(crate) fn size(&self) -> [usize; 3] {
         [self.nx, self.ny, self.nz]
     }

@@ -116,6 +116,7 @@ pub struct CloudOptions {
     dilate_m: f64,
     fill: Fill,
     transform: Option<RigidTransform>,
+    parallel: bool,
 }
 
 impl Default for CloudOptions {
@@ -125,6 +126,7 @@ impl Default for CloudOptions {
             dilate_m: 0.0,
             fill: Fill::None,
             transform: None,
+            parallel: true,
         }
     }
 }
@@ -160,7 +162,20 @@ impl CloudOptions {
         self.transform = transform;
         self
     }
+
+    /// Whether a cloud of at least [`PARALLEL_POINTS`] points is split in two halves
+    /// marked at once on rayon's pool (on by default; the frame is the same either way).
+    /// Not with `min_points` above 1, whose counts are kept in one array.
+    pub fn parallel(mut self, on: bool) -> Self {
+        self.parallel = on;
+        self
+    }
 }
+
+/// The least points of a cloud split over two threads: below it, the second thread's
+/// frame (cleared, then OR-ed in: two passes over the lattice's bits) costs more than it
+/// saves.
+pub const PARALLEL_POINTS: u64 = 1 << 17;
 
 /// What one cloud held and gave.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -319,6 +334,8 @@ pub struct CloudRasterizer {
     limits: Limits,
     rows: BitRows,
     spare: BitRows,
+    /// The second half's marks of a cloud split over two threads.
+    half: BitRows,
     counts: Vec<u8>,
     scratch: Vec<u64>,
 }
@@ -378,6 +395,13 @@ impl CloudRasterizer {
         if radius > 0.0 {
             work = work.saturating_add(lattice.row_bytes());
         }
+        let parallel = opts.parallel
+            && !counting
+            && layout.points >= PARALLEL_POINTS
+            && rayon::current_num_threads() > 1;
+        if parallel {
+            work = work.saturating_add(lattice.row_bytes());
+        }
         lattice.check(&self.limits, encoding, work)?;
 
         self.rows.reset(lattice.size());
@@ -385,35 +409,60 @@ impl CloudRasterizer {
             self.counts.clear();
             self.counts.resize(voxels as usize, 0);
         }
-        let mut marker = Marker {
+        let reach = Reach {
+            dilate2: if radius > 0.0 {
+                let r = radius * (1.0 + 1e-9);
+                r * r
+            } else {
+                0.0
+            },
+            fill: opts.fill,
+        };
+        let marker = |rows, counts| Marker {
             origin: lattice.origin(),
             inv_res: 1.0 / lattice.resolution(),
             n: lattice.size().map(|n| n as usize),
-            rows: &mut self.rows,
-            counts: if counting {
+            rows,
+            counts,
+            min_points: opts.min_points,
+            transform: opts.transform,
+            reach,
+            stats: CloudStats::default(),
+        };
+        let all = layout.points as usize;
+        let counted = if parallel {
+            self.half.reset(lattice.size());
+            let (mut a, mut b) = (marker(&mut self.rows, None), marker(&mut self.half, None));
+            let mid = all / 2;
+            rayon::join(
+                || a.run(&layout, cloud.data, 0..mid),
+                || b.run(&layout, cloud.data, mid..all),
+            );
+            let (sa, sb) = (a.stats, b.stats);
+            self.rows.or_from(&self.half);
+            [
+                sa.nonfinite + sb.nonfinite,
+                sa.outside + sb.outside,
+                sa.margin_points + sb.margin_points,
+            ]
+        } else {
+            let counts = if counting {
                 Some(&mut self.counts[..])
             } else {
                 None
-            },
-            min_points: opts.min_points,
-            transform: opts.transform,
-            reach: Reach {
-                dilate2: if radius > 0.0 {
-                    let r = radius * (1.0 + 1e-9);
-                    r * r
-                } else {
-                    0.0
-                },
-                fill: opts.fill,
-            },
-            stats: CloudStats {
-                points: layout.points,
-                trailing_bytes: layout.trailing,
-                ..Default::default()
-            },
+            };
+            let mut m = marker(&mut self.rows, counts);
+            m.run(&layout, cloud.data, 0..all);
+            [m.stats.nonfinite, m.stats.outside, m.stats.margin_points]
         };
-        marker.run(&layout, cloud.data);
-        let mut stats = marker.stats;
+        let mut stats = CloudStats {
+            points: layout.points,
+            trailing_bytes: layout.trailing,
+            nonfinite: counted[0],
+            outside: counted[1],
+            margin_points: counted[2],
+            ..Default::default()
+        };
         stats.marked_voxels = self.rows.count_ones();
 
         if radius > 0.0 {

@@ -6,6 +6,8 @@
 //! general path. Points outside the lattice only bump a counter, unless a
 //! margin or column rule keeps them (see [`Reach`]).
 
+use std::ops::Range;
+
 use super::layout::{Scalar, XyzLayout};
 use super::{Axis, CloudStats, Fill, Toward};
 use crate::rows::BitRows;
@@ -111,22 +113,22 @@ struct Found {
 }
 
 impl Marker<'_> {
-    /// Marks every point of the cloud.
-    pub(crate) fn run(&mut self, layout: &XyzLayout, data: &[u8]) {
+    /// Marks points `points` of the cloud (numbered row by row, `width` a row).
+    pub(crate) fn run(&mut self, layout: &XyzLayout, data: &[u8], points: Range<usize>) {
         let same = layout.scalars[0] == layout.scalars[1] && layout.scalars[1] == layout.scalars[2];
         match (same, layout.scalars[0], layout.big_endian) {
-            (true, Scalar::F32, false) => self.all::<F32<false>>(layout, data),
-            (true, Scalar::F32, true) => self.all::<F32<true>>(layout, data),
-            (true, Scalar::F64, false) => self.all::<F64<false>>(layout, data),
-            (true, Scalar::F64, true) => self.all::<F64<true>>(layout, data),
-            _ => self.all::<Mixed>(layout, data),
+            (true, Scalar::F32, false) => self.all::<F32<false>>(layout, data, points),
+            (true, Scalar::F32, true) => self.all::<F32<true>>(layout, data, points),
+            (true, Scalar::F64, false) => self.all::<F64<false>>(layout, data, points),
+            (true, Scalar::F64, true) => self.all::<F64<true>>(layout, data, points),
+            _ => self.all::<Mixed>(layout, data, points),
         }
     }
 
-    fn all<R: ReadXyz>(&mut self, layout: &XyzLayout, data: &[u8]) {
+    fn all<R: ReadXyz>(&mut self, layout: &XyzLayout, data: &[u8], points: Range<usize>) {
         match self.transform {
-            Some(t) => self.batches::<R, true>(layout, data, t),
-            None => self.batches::<R, false>(layout, data, RigidTransform::identity()),
+            Some(t) => self.batches::<R, true>(layout, data, points, t),
+            None => self.batches::<R, false>(layout, data, points, RigidTransform::identity()),
         }
     }
 
@@ -134,12 +136,13 @@ impl Marker<'_> {
         &mut self,
         layout: &XyzLayout,
         data: &[u8],
+        points: Range<usize>,
         t: RigidTransform,
     ) {
         let off = layout.offsets;
         let step = layout.point_step;
-        let row_len = layout.width * step;
-        if row_len == 0 {
+        let width = layout.width;
+        if width == 0 || step == 0 || points.is_empty() {
             return;
         }
         let mut found = Found {
@@ -153,8 +156,13 @@ impl Marker<'_> {
         let [nx, ny, nz] = self.n;
         let nf = [nx as f64, ny as f64, nz as f64];
         let top = [nx as i32 - 1, ny as i32 - 1, nz as i32 - 1];
-        for r in 0..layout.height {
-            let row = &data[r * layout.row_step..r * layout.row_step + row_len];
+        let rows = points.start / width..points.end.div_ceil(width).min(layout.height);
+        for r in rows {
+            // This row's points within `points`.
+            let first = points.start.saturating_sub(r * width);
+            let end = (points.end - r * width).min(width);
+            let at = r * layout.row_step;
+            let row = &data[at + first * step..at + end * step];
             for batch in row.chunks(BATCH * step) {
                 // 1. Decode.
                 let mut n = 0;

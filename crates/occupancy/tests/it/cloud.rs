@@ -428,3 +428,46 @@ fn an_empty_cloud_gives_an_empty_frame() {
     assert_eq!(pct, vec![0; 27]);
     assert_eq!(stats.points, 0);
 }
+
+#[test]
+fn a_large_cloud_split_over_two_threads_gives_the_frame_and_counts_of_one() {
+    // Three rows of a padded organised cloud: the halves split inside the middle row.
+    let (height, width) = (3u32, 100_003u32);
+    assert!(u64::from(height * width) >= chronotope_occupancy::cloud::PARALLEL_POINTS);
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut unit = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let points: Vec<[f64; 3]> = (0..height * width)
+        .map(|i| match i % 97 {
+            0 => [f64::NAN, 0.1, 0.1],
+            1 => [unit() * 3.0 - 1.0, 0.2, 0.2], // often outside, some within the margin
+            _ => [unit() * 0.62, unit() * 0.5, unit() * 0.35],
+        })
+        .collect();
+    let layout = Layout {
+        height,
+        row_pad: 12,
+        ..Layout::plain()
+    };
+    let e = encode(&points, &layout);
+    let lattice = Lattice::new([0.0, 0.0, 0.0], 0.01, [61, 50, 33]).unwrap();
+    let turn = RigidTransform::from_quaternion([0.0, 0.0, 0.0871557, 0.9961947], [0.01, 0.0, 0.0])
+        .unwrap();
+    for opts in [
+        CloudOptions::new(),
+        CloudOptions::new().dilate_m(0.02),
+        CloudOptions::new().fill(Fill::down_to_floor()),
+        CloudOptions::new().transform(Some(turn)),
+    ] {
+        for enc in [Encoding::Bits, Encoding::Percent] {
+            let two = rasterize(&e, &lattice, enc, opts);
+            let one = rasterize(&e, &lattice, enc, opts.parallel(false));
+            assert!(two.1.nonfinite > 0 && two.1.outside > 0 && two.1.marked_voxels > 0);
+            assert_eq!(two, one, "{opts:?} {enc:?}");
+        }
+    }
+}
