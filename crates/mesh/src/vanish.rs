@@ -91,13 +91,22 @@ pub fn motion(a: &OccupancyGrid, b: &OccupancyGrid) -> Motion {
 /// The least `d` (at most [`MAX_DISPLACEMENT`]) such that every voxel of `this` lies within
 /// `d` voxels of one of `other`: `other` dilated until it holds `this`.
 fn reach(rows: &Rows, this: &[u64], other: &[u64], scratch: &mut [u64], grown: &mut [u64]) -> u16 {
+    // Both frames are empty outside the box `rows` spans, and so is every dilation of
+    // them within it: each pass below reads and writes the box only.
     let mut cur: Vec<u64> = other.to_vec();
     for d in 1..=MAX_DISPLACEMENT {
         dilate(rows, &cur, scratch, grown);
-        if this.iter().zip(grown.iter()).all(|(t, g)| t & !g == 0) {
+        if rows.spans().all(|s| {
+            this[s.clone()]
+                .iter()
+                .zip(&grown[s])
+                .all(|(t, g)| t & !g == 0)
+        }) {
             return d;
         }
-        cur.copy_from_slice(grown);
+        for s in rows.spans() {
+            cur[s.clone()].copy_from_slice(&grown[s]);
+        }
     }
     MAX_DISPLACEMENT
 }
@@ -237,6 +246,11 @@ impl Rows {
     fn row(&self, y: usize, z: usize) -> usize {
         (y + self.py * z) * self.words
     }
+
+    /// The words of the box's rows: per z, its rows y0..=y1 lie side by side.
+    fn spans(&self) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+        (self.z.0..=self.z.1).map(|z| self.row(self.y.0, z)..self.row(self.y.1, z) + self.words)
+    }
 }
 
 /// The voxels of `this` whose part has no voxel of `other` within one voxel.
@@ -253,15 +267,19 @@ fn ends(
     if this.iter().zip(&reached).all(|(t, r)| t == r) {
         return vec![0; this.len()];
     }
-    // Grown through this frame's voxels, a word at a time, then voxel by voxel.
+    // Grown through this frame's voxels, a word at a time, then voxel by voxel (within the
+    // box `rows` spans: nothing of either frame lies outside it).
     let mut settled = false;
     for _ in 0..WORD_STEPS {
         dilate(rows, &reached, scratch, grown);
         let mut changed = false;
-        for ((r, g), t) in reached.iter_mut().zip(grown.iter()).zip(this) {
-            let next = g & t;
-            changed |= next != *r;
-            *r = next;
+        for s in rows.spans() {
+            let (reached, grown, this) = (&mut reached[s.clone()], &grown[s.clone()], &this[s]);
+            for ((r, g), t) in reached.iter_mut().zip(grown).zip(this) {
+                let next = g & t;
+                changed |= next != *r;
+                *r = next;
+            }
         }
         if !changed {
             settled = true;
@@ -275,10 +293,13 @@ fn ends(
 }
 
 /// `out` = `src` dilated by one voxel on every axis (26-neighbourhood), over the rows
-/// `rows` spans; `scratch` holds the rows dilated along x.
+/// `rows` spans (outside them `out` is left as it is: zero, as `src` is there); `scratch`
+/// holds the rows dilated along x.
 fn dilate(rows: &Rows, src: &[u64], scratch: &mut [u64], out: &mut [u64]) {
     let w = rows.words;
-    out.fill(0);
+    for s in rows.spans() {
+        out[s].fill(0);
+    }
     for z in rows.z.0..=rows.z.1 {
         for y in rows.y.0..=rows.y.1 {
             let r = rows.row(y, z);
@@ -487,6 +508,63 @@ mod tests {
         assert_eq!(m.displacement, 10);
         assert_eq!(m.vanishing, Some(v));
         // Whole-body test of before (no voxel in common) would miss this: they share the base.
+    }
+
+    /// The frames' Hausdorff distance (Chebyshev), voxel by voxel.
+    fn brute_displacement(a: &[[u32; 3]], b: &[[u32; 3]]) -> u16 {
+        let one_way = |p: &[[u32; 3]], q: &[[u32; 3]]| {
+            p.iter()
+                .map(|u| {
+                    q.iter()
+                        .map(|v| (0..3).map(|k| u[k].abs_diff(v[k])).max().unwrap())
+                        .min()
+                        .unwrap()
+                })
+                .max()
+                .unwrap()
+        };
+        (one_way(a, b).max(one_way(b, a)).max(1) as u16).min(MAX_DISPLACEMENT)
+    }
+
+    #[test]
+    fn the_displacement_is_the_frames_hausdorff_distance() {
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |n: u32| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state % u64::from(n)) as u32
+        };
+        for _ in 0..60 {
+            let boxes = |next: &mut dyn FnMut(u32) -> u32| -> Vec<([u32; 3], [u32; 3])> {
+                (0..1 + next(3))
+                    .map(|_| {
+                        let lo = [next(60), next(40), next(30)];
+                        (lo, lo.map(|c| c + next(4)))
+                    })
+                    .collect()
+            };
+            let (ba, bb) = (boxes(&mut next), boxes(&mut next));
+            let voxels = |bs: &[([u32; 3], [u32; 3])]| -> Vec<[u32; 3]> {
+                let mut v = Vec::new();
+                for (lo, hi) in bs {
+                    for z in lo[2]..=hi[2] {
+                        for y in lo[1]..=hi[1] {
+                            for x in lo[0]..=hi[0] {
+                                v.push([x, y, z]);
+                            }
+                        }
+                    }
+                }
+                v
+            };
+            let (a, b) = (frame(70, &ba), frame(70, &bb));
+            assert_eq!(
+                motion(&a, &b).displacement,
+                brute_displacement(&voxels(&ba), &voxels(&bb)),
+                "{ba:?} {bb:?}"
+            );
+        }
     }
 
     #[test]
