@@ -25,7 +25,7 @@ pub mod msg;
 pub mod node;
 pub mod sampler;
 pub mod scene;
-pub mod yaml;
+pub use chronotope_yaml as yaml;
 
 /// The message of a caught panic (the checker crate's, which catches them first).
 pub use chronotope_checker::panic_text;

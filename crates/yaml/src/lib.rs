@@ -21,6 +21,7 @@
 //! scalars and flow collections well enough to measure depth and size; serde_yaml_ng then
 //! reports the syntax errors. Messages quoting a user's text shorten it ([`quote`],
 //! [`shorten`]) so that a 300-digit literal or a megabyte of name is never echoed.
+#![warn(missing_docs)]
 
 use std::io::Read;
 use std::path::Path;
@@ -116,8 +117,8 @@ pub const QUOTE_CHARS: usize = 32;
 /// double quotes with control characters escaped.
 ///
 /// ```
-/// assert_eq!(chronotope::yaml::quote("mesher"), "\"mesher\"");
-/// assert_eq!(chronotope::yaml::quote(&"9".repeat(300)).chars().count(), 35);
+/// assert_eq!(chronotope_yaml::quote("mesher"), "\"mesher\"");
+/// assert_eq!(chronotope_yaml::quote(&"9".repeat(300)).chars().count(), 35);
 /// ```
 pub fn quote(s: &str) -> String {
     format!("\"{}\"", cut(s))
