@@ -21,7 +21,7 @@ pub mod fsio;
 pub use chronotope_kernel as kernel;
 pub mod live;
 pub use chronotope_mesh as mesh;
-pub mod msg;
+pub use chronotope_msg as msg;
 pub mod node;
 pub mod sampler;
 pub mod scene;

@@ -34,7 +34,8 @@ pub struct Octomap {
 
 impl RosMessage for Octomap {
     const TYPE_NAME: &'static str = "octomap_msgs/msg/Octomap";
-    const DEFINITION: &'static str = include_str!("../../msgs/deps/octomap_msgs/msg/Octomap.msg");
+    const DEFINITION: &'static str =
+        include_str!("../../../msgs/deps/octomap_msgs/msg/Octomap.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         vec![HEADER, TIME]
     }
@@ -43,7 +44,7 @@ impl RosMessage for Octomap {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{decode_cdr, encode_cdr, Time};
+    use crate::{decode_cdr, encode_cdr, Time};
 
     #[test]
     fn octomap_cdr_round_trip_keeps_signed_bytes() {

@@ -103,8 +103,8 @@ pub struct VoxelGrid {
 
 impl VoxelGrid {
     /// The mesher's view of this frame: its stamp, lattice and data, borrowed.
-    pub fn frame_ref(&self) -> crate::mesh::FrameRef<'_> {
-        crate::mesh::FrameRef {
+    pub fn frame_ref(&self) -> chronotope_mesh::FrameRef<'_> {
+        chronotope_mesh::FrameRef {
             stamp_ns: self.header.stamp.as_nanos(),
             origin: [self.origin.x, self.origin.y, self.origin.z],
             resolution: self.resolution,
@@ -120,8 +120,8 @@ impl VoxelGrid {
     ///
     /// # Errors
     /// [`MeshError::BadStamp`] or [`MeshError::FrameIdChanged`].
-    pub fn message_check(&self, body_frame_id: &str) -> Result<(), crate::mesh::MeshError> {
-        use crate::mesh::MeshError;
+    pub fn message_check(&self, body_frame_id: &str) -> Result<(), chronotope_mesh::MeshError> {
+        use chronotope_mesh::MeshError;
         if self.header.stamp.nanosec >= 1_000_000_000 {
             return Err(MeshError::BadStamp {
                 sec: self.header.stamp.sec,
@@ -131,7 +131,7 @@ impl VoxelGrid {
         if !body_frame_id.is_empty() && self.header.frame_id != body_frame_id {
             return Err(MeshError::FrameIdChanged {
                 expected: body_frame_id.to_owned(),
-                got: crate::mesh::quote(&self.header.frame_id),
+                got: chronotope_mesh::quote(&self.header.frame_id),
             });
         }
         Ok(())
@@ -160,20 +160,20 @@ impl VoxelGrid {
 
 impl super::RosMessage for VoxelGrid {
     const TYPE_NAME: &'static str = "chronotope_msgs/msg/VoxelGrid";
-    const DEFINITION: &'static str = include_str!("../../msgs/msg/VoxelGrid.msg");
+    const DEFINITION: &'static str = include_str!("../../../msgs/msg/VoxelGrid.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         vec![
             (
                 "std_msgs/msg/Header",
-                include_str!("../../msgs/deps/std_msgs/msg/Header.msg"),
+                include_str!("../../../msgs/deps/std_msgs/msg/Header.msg"),
             ),
             (
                 "builtin_interfaces/msg/Time",
-                include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg"),
+                include_str!("../../../msgs/deps/builtin_interfaces/msg/Time.msg"),
             ),
             (
                 "geometry_msgs/msg/Point",
-                include_str!("../../msgs/deps/geometry_msgs/msg/Point.msg"),
+                include_str!("../../../msgs/deps/geometry_msgs/msg/Point.msg"),
             ),
         ]
     }

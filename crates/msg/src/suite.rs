@@ -7,7 +7,7 @@ use std::sync::Arc;
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
 use super::{Header, Point, RosMessage, Time, Vector3};
-use crate::mesh::{GridGeometry, TetMesh};
+use chronotope_mesh::{GridGeometry, TetMesh};
 
 macro_rules! deps {
     ($($name:literal => $path:literal),* $(,)?) => {
@@ -56,7 +56,7 @@ pub struct MeshSlab {
     /// (0: not estimated).
     pub vanish_rate_factor: f32,
     /// How far the body moves between the frames (voxels; see
-    /// [`crate::mesh::Slab::displacement`]); 0 for a cap.
+    /// [`chronotope_mesh::Slab::displacement`]); 0 for a cap.
     pub displacement_voxels: u16,
     /// [`Self::OBSERVED`], [`Self::FILLED`] or [`Self::SPANNED`].
     pub observed: u8,
@@ -80,9 +80,9 @@ impl MeshSlab {
     pub const SPANNED: u8 = 2;
 
     /// Why the piece does not show every contact, if it does not (see
-    /// [`crate::mesh::unsure`]).
-    pub fn unsure(&self) -> Option<crate::mesh::unsure::Unsure> {
-        use crate::mesh::unsure::Unsure;
+    /// [`chronotope_mesh::unsure`]).
+    pub fn unsure(&self) -> Option<chronotope_mesh::unsure::Unsure> {
+        use chronotope_mesh::unsure::Unsure;
         let gap = match self.observed {
             Self::FILLED => Some(Unsure::Filled),
             Self::SPANNED => Some(Unsure::Spanned),
@@ -98,8 +98,8 @@ impl MeshSlab {
     }
 
     /// Sets `vanishes`, `vanish_rate_factor` and `observed` from `unsure`.
-    pub fn set_unsure(&mut self, unsure: Option<crate::mesh::unsure::Unsure>) {
-        use crate::mesh::unsure::Unsure;
+    pub fn set_unsure(&mut self, unsure: Option<chronotope_mesh::unsure::Unsure>) {
+        use chronotope_mesh::unsure::Unsure;
         self.vanishes = false;
         self.vanish_rate_factor = 0.0;
         self.observed = Self::OBSERVED;
@@ -306,12 +306,12 @@ impl<'de> Deserialize<'de> for MeshSlab {
 
 impl RosMessage for MeshSlab {
     const TYPE_NAME: &'static str = "chronotope_msgs/msg/MeshSlab";
-    const DEFINITION: &'static str = include_str!("../../msgs/msg/MeshSlab.msg");
+    const DEFINITION: &'static str = include_str!("../../../msgs/msg/MeshSlab.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         deps![
-            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
-            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
-            "geometry_msgs/msg/Point" => "../../msgs/deps/geometry_msgs/msg/Point.msg",
+            "std_msgs/msg/Header" => "../../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "geometry_msgs/msg/Point" => "../../../msgs/deps/geometry_msgs/msg/Point.msg",
         ]
     }
 }
@@ -357,11 +357,11 @@ impl TetLabels {
 
 impl RosMessage for TetLabels {
     const TYPE_NAME: &'static str = "chronotope_msgs/msg/TetLabels";
-    const DEFINITION: &'static str = include_str!("../../msgs/msg/TetLabels.msg");
+    const DEFINITION: &'static str = include_str!("../../../msgs/msg/TetLabels.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         deps![
-            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
-            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "std_msgs/msg/Header" => "../../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../../msgs/deps/builtin_interfaces/msg/Time.msg",
         ]
     }
 }
@@ -460,13 +460,13 @@ pub struct InterferenceReport {
 
 impl RosMessage for InterferenceReport {
     const TYPE_NAME: &'static str = "chronotope_msgs/msg/InterferenceReport";
-    const DEFINITION: &'static str = include_str!("../../msgs/msg/InterferenceReport.msg");
+    const DEFINITION: &'static str = include_str!("../../../msgs/msg/InterferenceReport.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         deps![
-            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
-            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
-            "chronotope_msgs/msg/BodySummary" => "../../msgs/msg/BodySummary.msg",
-            "chronotope_msgs/msg/PairInterference" => "../../msgs/msg/PairInterference.msg",
+            "std_msgs/msg/Header" => "../../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "chronotope_msgs/msg/BodySummary" => "../../../msgs/msg/BodySummary.msg",
+            "chronotope_msgs/msg/PairInterference" => "../../../msgs/msg/PairInterference.msg",
         ]
     }
 }
@@ -563,11 +563,11 @@ impl ContactEvent {
 
 impl RosMessage for ContactEvent {
     const TYPE_NAME: &'static str = "chronotope_msgs/msg/ContactEvent";
-    const DEFINITION: &'static str = include_str!("../../msgs/msg/ContactEvent.msg");
+    const DEFINITION: &'static str = include_str!("../../../msgs/msg/ContactEvent.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         deps![
-            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
-            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "std_msgs/msg/Header" => "../../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../../msgs/deps/builtin_interfaces/msg/Time.msg",
         ]
     }
 }
@@ -583,14 +583,14 @@ pub struct ResolveSuggestions {
 
 impl RosMessage for ResolveSuggestions {
     const TYPE_NAME: &'static str = "chronotope_msgs/msg/ResolveSuggestions";
-    const DEFINITION: &'static str = include_str!("../../msgs/msg/ResolveSuggestions.msg");
+    const DEFINITION: &'static str = include_str!("../../../msgs/msg/ResolveSuggestions.msg");
     fn dependencies() -> Vec<(&'static str, &'static str)> {
         deps![
-            "std_msgs/msg/Header" => "../../msgs/deps/std_msgs/msg/Header.msg",
-            "builtin_interfaces/msg/Time" => "../../msgs/deps/builtin_interfaces/msg/Time.msg",
-            "chronotope_msgs/msg/ResolveSuggestion" => "../../msgs/msg/ResolveSuggestion.msg",
-            "geometry_msgs/msg/Point" => "../../msgs/deps/geometry_msgs/msg/Point.msg",
-            "geometry_msgs/msg/Vector3" => "../../msgs/deps/geometry_msgs/msg/Vector3.msg",
+            "std_msgs/msg/Header" => "../../../msgs/deps/std_msgs/msg/Header.msg",
+            "builtin_interfaces/msg/Time" => "../../../msgs/deps/builtin_interfaces/msg/Time.msg",
+            "chronotope_msgs/msg/ResolveSuggestion" => "../../../msgs/msg/ResolveSuggestion.msg",
+            "geometry_msgs/msg/Point" => "../../../msgs/deps/geometry_msgs/msg/Point.msg",
+            "geometry_msgs/msg/Vector3" => "../../../msgs/deps/geometry_msgs/msg/Vector3.msg",
         ]
     }
 }

@@ -190,7 +190,7 @@ fn base_type(ty: &str) -> &str {
 /// schema building, not a validator.
 ///
 /// ```
-/// use chronotope::msg::parse_msg_fields;
+/// use chronotope_msg::parse_msg_fields;
 /// let fields = parse_msg_fields("# comment\nuint8 A=1  # one\nfloat64[] xs\n");
 /// assert_eq!(fields.len(), 2);
 /// assert!(fields[0].is_constant);

@@ -190,7 +190,7 @@ impl de::Error for CdrError {
 /// Serialises `msg` as CDR little endian behind the encapsulation header `00 01 00 00`.
 ///
 /// ```
-/// use chronotope::msg::{decode_cdr, encode_cdr, Time};
+/// use chronotope_msg::{decode_cdr, encode_cdr, Time};
 /// let stamp = Time { sec: 1, nanosec: 2 };
 /// let bytes = encode_cdr(&stamp).unwrap();
 /// assert_eq!(bytes, [0, 1, 0, 0, 1, 0, 0, 0, 2, 0, 0, 0]);
@@ -956,7 +956,7 @@ mod tests {
     fn big_endian_body_decodes() {
         // Time { sec: 1, nanosec: 2 } in CDR_BE.
         let bytes = [0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0, 2];
-        let t: crate::msg::Time = decode_cdr(&bytes).unwrap();
+        let t: crate::Time = decode_cdr(&bytes).unwrap();
         assert_eq!((t.sec, t.nanosec), (1, 2));
     }
 

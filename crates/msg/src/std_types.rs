@@ -43,96 +43,96 @@ use super::RosMessage;
 /// `(pkg/msg/Type, .msg text)` of every definition this module refers to (the other
 /// message modules take the shared ones from here).
 pub(super) mod defs {
-    pub(in crate::msg) type Def = (&'static str, &'static str);
+    pub(crate) type Def = (&'static str, &'static str);
 
-    pub(in crate::msg) const TIME: Def = (
+    pub(crate) const TIME: Def = (
         "builtin_interfaces/msg/Time",
-        include_str!("../../msgs/deps/builtin_interfaces/msg/Time.msg"),
+        include_str!("../../../msgs/deps/builtin_interfaces/msg/Time.msg"),
     );
-    pub(in crate::msg) const DURATION: Def = (
+    pub(crate) const DURATION: Def = (
         "builtin_interfaces/msg/Duration",
-        include_str!("../../msgs/deps/builtin_interfaces/msg/Duration.msg"),
+        include_str!("../../../msgs/deps/builtin_interfaces/msg/Duration.msg"),
     );
-    pub(in crate::msg) const HEADER: Def = (
+    pub(crate) const HEADER: Def = (
         "std_msgs/msg/Header",
-        include_str!("../../msgs/deps/std_msgs/msg/Header.msg"),
+        include_str!("../../../msgs/deps/std_msgs/msg/Header.msg"),
     );
     pub(super) const COLOR_RGBA: Def = (
         "std_msgs/msg/ColorRGBA",
-        include_str!("../../msgs/deps/std_msgs/msg/ColorRGBA.msg"),
+        include_str!("../../../msgs/deps/std_msgs/msg/ColorRGBA.msg"),
     );
     pub(super) const POINT: Def = (
         "geometry_msgs/msg/Point",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Point.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/Point.msg"),
     );
-    pub(in crate::msg) const QUATERNION: Def = (
+    pub(crate) const QUATERNION: Def = (
         "geometry_msgs/msg/Quaternion",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Quaternion.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/Quaternion.msg"),
     );
     pub(super) const POSE: Def = (
         "geometry_msgs/msg/Pose",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Pose.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/Pose.msg"),
     );
     pub(super) const POSE_STAMPED: Def = (
         "geometry_msgs/msg/PoseStamped",
-        include_str!("../../msgs/deps/geometry_msgs/msg/PoseStamped.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/PoseStamped.msg"),
     );
-    pub(in crate::msg) const VECTOR3: Def = (
+    pub(crate) const VECTOR3: Def = (
         "geometry_msgs/msg/Vector3",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Vector3.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/Vector3.msg"),
     );
     pub(super) const WRENCH: Def = (
         "geometry_msgs/msg/Wrench",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Wrench.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/Wrench.msg"),
     );
     pub(super) const WRENCH_STAMPED: Def = (
         "geometry_msgs/msg/WrenchStamped",
-        include_str!("../../msgs/deps/geometry_msgs/msg/WrenchStamped.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/WrenchStamped.msg"),
     );
     pub(super) const POINT_FIELD: Def = (
         "sensor_msgs/msg/PointField",
-        include_str!("../../msgs/deps/sensor_msgs/msg/PointField.msg"),
+        include_str!("../../../msgs/deps/sensor_msgs/msg/PointField.msg"),
     );
     pub(super) const POINT_CLOUD2: Def = (
         "sensor_msgs/msg/PointCloud2",
-        include_str!("../../msgs/deps/sensor_msgs/msg/PointCloud2.msg"),
+        include_str!("../../../msgs/deps/sensor_msgs/msg/PointCloud2.msg"),
     );
     pub(super) const COMPRESSED_IMAGE: Def = (
         "sensor_msgs/msg/CompressedImage",
-        include_str!("../../msgs/deps/sensor_msgs/msg/CompressedImage.msg"),
+        include_str!("../../../msgs/deps/sensor_msgs/msg/CompressedImage.msg"),
     );
     pub(super) const UV_COORDINATE: Def = (
         "visualization_msgs/msg/UVCoordinate",
-        include_str!("../../msgs/deps/visualization_msgs/msg/UVCoordinate.msg"),
+        include_str!("../../../msgs/deps/visualization_msgs/msg/UVCoordinate.msg"),
     );
     pub(super) const MESH_FILE: Def = (
         "visualization_msgs/msg/MeshFile",
-        include_str!("../../msgs/deps/visualization_msgs/msg/MeshFile.msg"),
+        include_str!("../../../msgs/deps/visualization_msgs/msg/MeshFile.msg"),
     );
     pub(super) const MARKER: Def = (
         "visualization_msgs/msg/Marker",
-        include_str!("../../msgs/deps/visualization_msgs/msg/Marker.msg"),
+        include_str!("../../../msgs/deps/visualization_msgs/msg/Marker.msg"),
     );
     pub(super) const MARKER_ARRAY: Def = (
         "visualization_msgs/msg/MarkerArray",
-        include_str!("../../msgs/deps/visualization_msgs/msg/MarkerArray.msg"),
+        include_str!("../../../msgs/deps/visualization_msgs/msg/MarkerArray.msg"),
     );
 
     pub(super) const KEY_VALUE: Def = (
         "diagnostic_msgs/msg/KeyValue",
-        include_str!("../../msgs/deps/diagnostic_msgs/msg/KeyValue.msg"),
+        include_str!("../../../msgs/deps/diagnostic_msgs/msg/KeyValue.msg"),
     );
     pub(super) const DIAGNOSTIC_STATUS: Def = (
         "diagnostic_msgs/msg/DiagnosticStatus",
-        include_str!("../../msgs/deps/diagnostic_msgs/msg/DiagnosticStatus.msg"),
+        include_str!("../../../msgs/deps/diagnostic_msgs/msg/DiagnosticStatus.msg"),
     );
     pub(super) const DIAGNOSTIC_ARRAY: Def = (
         "diagnostic_msgs/msg/DiagnosticArray",
-        include_str!("../../msgs/deps/diagnostic_msgs/msg/DiagnosticArray.msg"),
+        include_str!("../../../msgs/deps/diagnostic_msgs/msg/DiagnosticArray.msg"),
     );
     pub(super) const CLOCK: Def = (
         "rosgraph_msgs/msg/Clock",
-        include_str!("../../msgs/deps/rosgraph_msgs/msg/Clock.msg"),
+        include_str!("../../../msgs/deps/rosgraph_msgs/msg/Clock.msg"),
     );
 
     /// Everything `visualization_msgs/Marker` refers to, directly or not.
@@ -667,7 +667,7 @@ ros_message!(Clock, defs::CLOCK, [defs::TIME]);
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{decode_cdr, encode_cdr, Time};
+    use crate::{decode_cdr, encode_cdr, Time};
 
     fn header(frame_id: &str) -> Header {
         Header {
@@ -685,7 +685,7 @@ mod tests {
         assert_eq!(Pose::default().orientation.w, 1.0);
         assert_eq!(Marker::default().pose.orientation, Quaternion::IDENTITY);
         // The `.msg` default values are exactly these.
-        let defaults: Vec<_> = crate::msg::parse_msg_fields(Quaternion::DEFINITION)
+        let defaults: Vec<_> = crate::parse_msg_fields(Quaternion::DEFINITION)
             .into_iter()
             .map(|f| (f.name, f.value))
             .collect();

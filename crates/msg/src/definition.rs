@@ -275,7 +275,7 @@ fn shorten(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{ros2msg_schema, VoxelGrid};
+    use crate::{ros2msg_schema, VoxelGrid};
 
     fn ours() -> Definition {
         Definition::parse(

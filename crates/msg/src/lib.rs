@@ -3,6 +3,7 @@
 //! The `.msg` files under `msgs/` are the source of truth: every Rust type here carries its
 //! definition text (for MCAP `ros2msg` schemas) and a test checks that the fields match.
 //! Serialisation is CDR (little endian) through serde, as ros2-client does on the wire.
+#![warn(missing_docs)]
 
 mod cdr;
 mod definition;

@@ -25,31 +25,31 @@ mod defs {
 
     pub(super) const STRING: Def = (
         "std_msgs/msg/String",
-        include_str!("../../msgs/deps/std_msgs/msg/String.msg"),
+        include_str!("../../../msgs/deps/std_msgs/msg/String.msg"),
     );
     pub(super) const TRANSFORM: Def = (
         "geometry_msgs/msg/Transform",
-        include_str!("../../msgs/deps/geometry_msgs/msg/Transform.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/Transform.msg"),
     );
     pub(super) const TRANSFORM_STAMPED: Def = (
         "geometry_msgs/msg/TransformStamped",
-        include_str!("../../msgs/deps/geometry_msgs/msg/TransformStamped.msg"),
+        include_str!("../../../msgs/deps/geometry_msgs/msg/TransformStamped.msg"),
     );
     pub(super) const TF_MESSAGE: Def = (
         "tf2_msgs/msg/TFMessage",
-        include_str!("../../msgs/deps/tf2_msgs/msg/TFMessage.msg"),
+        include_str!("../../../msgs/deps/tf2_msgs/msg/TFMessage.msg"),
     );
     pub(super) const JOINT_STATE: Def = (
         "sensor_msgs/msg/JointState",
-        include_str!("../../msgs/deps/sensor_msgs/msg/JointState.msg"),
+        include_str!("../../../msgs/deps/sensor_msgs/msg/JointState.msg"),
     );
     pub(super) const JOINT_TRAJECTORY_POINT: Def = (
         "trajectory_msgs/msg/JointTrajectoryPoint",
-        include_str!("../../msgs/deps/trajectory_msgs/msg/JointTrajectoryPoint.msg"),
+        include_str!("../../../msgs/deps/trajectory_msgs/msg/JointTrajectoryPoint.msg"),
     );
     pub(super) const JOINT_TRAJECTORY: Def = (
         "trajectory_msgs/msg/JointTrajectory",
-        include_str!("../../msgs/deps/trajectory_msgs/msg/JointTrajectory.msg"),
+        include_str!("../../../msgs/deps/trajectory_msgs/msg/JointTrajectory.msg"),
     );
 }
 
