@@ -14,7 +14,7 @@
 
 pub mod bag;
 pub mod bench;
-pub mod carving;
+pub use chronotope_carving as carving;
 pub use chronotope_checker as checker;
 pub mod cli;
 pub mod fsio;

@@ -29,9 +29,9 @@
 //! (seed §4.1, eq. 1). [`exact`] holds the exact swept solid of a translating box, the
 //! oracle of the accuracy benchmark and the tests.
 //!
-//! Nothing here knows of ROS, MCAP or clocks: the carving node (`crate::node::carving`) feeds
+//! Nothing here knows of ROS, MCAP or clocks: the carving node (`chronotope_node::carving`) feeds
 //! poses in and publishes what this module computes.
-
+#![warn(missing_docs)]
 // Indexing the three axes by number reads like the formulas; `!(a <= b)` is deliberate where
 // a NaN must take the refusing branch.
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]

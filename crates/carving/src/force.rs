@@ -18,7 +18,7 @@ pub enum ForceModel {
     /// rate and, up to sampling, of the spacing.
     Volume,
     /// The cut cross-section read off the material in front of the tool
-    /// ([`crate::carving::Workpiece::section_ahead`]: the material in a one-spacing window
+    /// ([`crate::Workpiece::section_ahead`]: the material in a one-spacing window
     /// half a spacing ahead of it along the move, with sub-voxel weights, divided by the
     /// window's length), times the cutting pressure, against the motion. Rate independent
     /// like [`ForceModel::Volume`], and without its stepping (points are removed a layer at

@@ -48,7 +48,6 @@ fn box_points(b: &GridBox) -> u64 {
     box_rows(b) * (b[0].1 - b[0].0 + 1) as u64
 }
 
-
 /// A translation sweep of the tool at one orientation, in world coordinates.
 #[derive(Clone, Copy)]
 pub(crate) struct Sweep {
