@@ -23,7 +23,7 @@ pub mod live;
 pub use chronotope_mesh as mesh;
 pub use chronotope_msg as msg;
 pub mod node;
-pub mod sampler;
+pub use chronotope_sampler as sampler;
 pub mod scene;
 pub use chronotope_yaml as yaml;
 

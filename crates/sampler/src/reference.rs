@@ -375,8 +375,8 @@ fn tent_cdf([a, b, c]: [f64; 3], s: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampler::exact::{sphere_coordinate_cdf, TorusTheta};
-    use crate::sampler::{Body, Shape, ShapeAxis, Wall};
+    use crate::exact::{sphere_coordinate_cdf, TorusTheta};
+    use crate::{Body, Shape, ShapeAxis, Wall};
     use std::sync::Arc;
 
     #[test]

@@ -33,14 +33,14 @@
 use super::field::{Body, Shape, Q};
 use super::figure::{Figure, Wall};
 use super::{SamplerError, SamplerOptions, Scheme};
-use crate::yaml::{number, quote};
+use chronotope_yaml::{number, quote};
 use serde::Deserialize;
 use std::sync::Arc;
 
 /// Most bodies in one scene file.
 pub const MAX_BODIES: usize = 64;
-/// Largest scene file read (bytes): `config_bytes` of [`crate::yaml::CONFIG_LIMITS`].
-pub const MAX_FILE_BYTES: u64 = crate::yaml::CONFIG_LIMITS.max_bytes as u64;
+/// Largest scene file read (bytes): `config_bytes` of [`chronotope_yaml::CONFIG_LIMITS`].
+pub const MAX_FILE_BYTES: u64 = chronotope_yaml::CONFIG_LIMITS.max_bytes as u64;
 /// Most walls in one scene file.
 pub const MAX_WALLS: usize = 64;
 
@@ -63,10 +63,10 @@ pub enum SceneFileError {
         /// Its size.
         bytes: u64,
     },
-    /// Refused before parsing (a limit of [`crate::yaml::CONFIG_LIMITS`], an alias, not a
+    /// Refused before parsing (a limit of [`chronotope_yaml::CONFIG_LIMITS`], an alias, not a
     /// regular file), or not valid YAML for a scene.
     #[error("scene file: {0}")]
-    Yaml(#[from] crate::yaml::YamlError),
+    Yaml(#[from] chronotope_yaml::YamlError),
     /// Valid YAML, invalid scene.
     #[error("scene file: {0}")]
     Invalid(String),
@@ -183,12 +183,15 @@ pub struct ImplicitScene {
 }
 
 impl SceneFile {
-    /// Parses YAML text, checked against [`crate::yaml::CONFIG_LIMITS`] first.
+    /// Parses YAML text, checked against [`chronotope_yaml::CONFIG_LIMITS`] first.
     ///
     /// # Errors
     /// [`SceneFileError::Yaml`].
     pub fn parse(text: &str) -> Result<Self, SceneFileError> {
-        Ok(crate::yaml::from_str(text, &crate::yaml::CONFIG_LIMITS)?)
+        Ok(chronotope_yaml::from_str(
+            text,
+            &chronotope_yaml::CONFIG_LIMITS,
+        )?)
     }
 
     /// Reads and parses a regular file of at most [`MAX_FILE_BYTES`].
@@ -196,7 +199,7 @@ impl SceneFile {
     /// # Errors
     /// [`SceneFileError::Io`], [`SceneFileError::TooLarge`], [`SceneFileError::Yaml`].
     pub fn read(path: &std::path::Path) -> Result<Self, SceneFileError> {
-        use crate::yaml::{read_text, YamlError, CONFIG_LIMITS};
+        use chronotope_yaml::{read_text, YamlError, CONFIG_LIMITS};
         let shown = path.display().to_string();
         let text = read_text(path, &CONFIG_LIMITS).map_err(|e| match e {
             YamlError::Io { source, .. } => SceneFileError::Io {

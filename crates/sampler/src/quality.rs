@@ -522,7 +522,7 @@ pub(crate) fn variance_growth(chains: &[Vec<Q>], d: usize) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sampler::Rng;
+    use crate::Rng;
 
     /// AR(1) chains x_t = φ x_{t-1} + sqrt(1-φ²) ε: τ = (1 + φ)/(1 - φ).
     fn ar1(phi: f64, chains: usize, n: usize, seed: u64) -> Vec<Vec<f64>> {

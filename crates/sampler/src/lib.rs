@@ -39,7 +39,7 @@
 //! and, for the explicit scheme, how far its points lie off the figure.
 //!
 //! ```
-//! use chronotope::sampler::{sample, Body, Figure, SamplerOptions, Shape, Wall};
+//! use chronotope_sampler::{sample, Body, Figure, SamplerOptions, Shape, Wall};
 //! use std::sync::Arc;
 //!
 //! let torus = Body::fixed(Shape::Torus { centre: [0.0; 3], axis: Default::default(), major: 1.0, minor: 0.3 });
@@ -50,7 +50,7 @@
 //! assert!(s.points.iter().all(|q| fig.residual(q) < 1e-8));
 //! println!("ESS of x: {:?}, acceptance {:.2}", s.quality.ess[0], s.quality.acceptance);
 //! ```
-
+#![warn(missing_docs)]
 // `!(x > 0.0)` is meant: it rejects NaN as well as non-positive values. The index loops over
 // M ≤ 3 constraints mirror the formulas' indices (D^{ab}, Cholesky factors).
 #![allow(
@@ -126,13 +126,13 @@ pub const PILOT_CHAINS: usize = 16;
 pub enum SamplerError {
     /// The explicit scheme's `λ = Kα dt` is at or above 2: the constraint force overshoots
     /// and diverges.
-    #[error("explicit scheme unstable: λ = Kαdt = {} ≥ 2 (use λ ≈ 1, a smaller K or dt, or --clamp)", crate::mesh::num(*lambda))]
+    #[error("explicit scheme unstable: λ = Kαdt = {} ≥ 2 (use λ ≈ 1, a smaller K or dt, or --clamp)", chronotope_mesh::num(*lambda))]
     Unstable {
         /// The λ asked for.
         lambda: f64,
     },
     /// A parameter outside its limits.
-    #[error("{name} = {}: expected {expected}", crate::mesh::num(*value))]
+    #[error("{name} = {}: expected {expected}", chronotope_mesh::num(*value))]
     BadParameter {
         /// Which parameter.
         name: &'static str,
