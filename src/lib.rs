@@ -24,7 +24,7 @@ pub use chronotope_mesh as mesh;
 pub use chronotope_msg as msg;
 pub mod node;
 pub use chronotope_sampler as sampler;
-pub mod scene;
+pub use chronotope_scene as scene;
 pub use chronotope_yaml as yaml;
 
 /// The message of a caught panic (the checker crate's, which catches them first).

@@ -12,7 +12,7 @@
 use super::{BodySpec, Keyframe, Motion, Shape, VoxelLattice};
 
 /// The arm's URDF (`scenes/robot-cell/arm6.urdf`).
-pub const ROBOT_CELL_URDF: &str = include_str!("../../scenes/robot-cell/arm6.urdf");
+pub const ROBOT_CELL_URDF: &str = include_str!("../../../scenes/robot-cell/arm6.urdf");
 
 /// The URDF root link's place in `world` (published on `/tf_static`): x, y, z (m).
 pub const ROBOT_CELL_BASE: [f64; 3] = [0.1, 0.0, 0.0];

@@ -18,7 +18,7 @@
 //! ([`Rasterizer`]). Pure library code: no I/O, no ROS or MCAP.
 //!
 //! ```
-//! use chronotope::scene::{build_scene, SceneName, SceneOptions};
+//! use chronotope_scene::{build_scene, SceneName, SceneOptions};
 //!
 //! let opts = SceneOptions::for_scene(SceneName::FourSpheres).grid(16).frames(5);
 //! let scene = build_scene(SceneName::FourSpheres, &opts).unwrap();
@@ -27,6 +27,7 @@
 //! assert_eq!(frame.data.len(), 16 * 16 * 16 / 8);
 //! assert_eq!(scene.stamp_ns(4) - scene.stamp_ns(0), 1_000_000_000);
 //! ```
+#![warn(missing_docs)]
 
 mod body;
 mod four_spheres;
@@ -67,7 +68,7 @@ pub use robot_cell::{
 };
 pub use shape::{Aabb, Axis, Shape};
 
-use crate::msg::{Header, Point, Time, VoxelEncoding, VoxelGrid};
+use chronotope_msg::{Header, Point, Time, VoxelEncoding, VoxelGrid};
 
 /// Smallest accepted grid (voxels per domain edge).
 pub const MIN_GRID: u32 = 4;

@@ -16,7 +16,7 @@
 //!   by one, only the sub-cells the surface passes through are resolved.
 
 use super::{Shape, VoxelLattice};
-use crate::msg::VoxelEncoding;
+use chronotope_msg::VoxelEncoding;
 
 /// Sub-samples per voxel edge for the PERCENT encoding (`8³ = 512` per voxel).
 pub const PERCENT_SUBSAMPLES: u32 = 8;

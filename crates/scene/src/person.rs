@@ -21,7 +21,7 @@
 //! latency); the map at 5 Hz, 50 ms after every other cell frame. Pure library code.
 
 use super::{BodySpec, Keyframe, Motion, Rasterizer, Shape, VoxelLattice};
-use crate::msg::{
+use chronotope_msg::{
     Header, Octomap, Point, PointCloud2, PointField, Quaternion, TFMessage, Time, Transform,
     TransformStamped, Vector3, VoxelEncoding, VoxelGrid,
 };
