@@ -12,12 +12,12 @@
 //! - [`yaml`]: bounded YAML loading for launch configs and scene files.
 #![warn(missing_docs)]
 
-pub mod bag;
+pub use chronotope_bag as bag;
 pub mod bench;
 pub use chronotope_carving as carving;
 pub use chronotope_checker as checker;
 pub mod cli;
-pub mod fsio;
+pub use chronotope_bag::fsio;
 pub use chronotope_kernel as kernel;
 pub mod live;
 pub use chronotope_mesh as mesh;

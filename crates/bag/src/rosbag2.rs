@@ -242,8 +242,8 @@ impl Rosbag2Dir {
             ))
         })?;
         // Bounded before it is parsed: nesting, entries and aliases are measured in one
-        // linear pass, so no file can make the parser slow (crate::yaml).
-        crate::yaml::prescan(&text, &METADATA_LIMITS).map_err(|e| bad(e.to_string()))?;
+        // linear pass, so no file can make the parser slow (chronotope_yaml).
+        chronotope_yaml::prescan(&text, &METADATA_LIMITS).map_err(|e| bad(e.to_string()))?;
         let root: Value = serde_yaml_ng::from_str(&text).map_err(|e| bad(yaml_error(&e)))?;
         let info = root
             .get("rosbag2_bagfile_information")
@@ -267,7 +267,7 @@ impl Rosbag2Dir {
         if storage != "mcap" && storage != "sqlite3" {
             return Err(bad(format!(
                 "storage_identifier is {}; this program reads \"mcap\" and \"sqlite3\"",
-                crate::yaml::quote(&storage)
+                chronotope_yaml::quote(&storage)
             )));
         }
         let format = match field("compression_format") {
@@ -288,8 +288,8 @@ impl Rosbag2Dir {
                 return Err(bad(format!(
                     "compression_mode {} with compression_format {}: this program reads zstd \
                      compression of files or messages",
-                    crate::yaml::quote(m),
-                    crate::yaml::quote(f.unwrap_or(""))
+                    chronotope_yaml::quote(m),
+                    chronotope_yaml::quote(f.unwrap_or(""))
                 )))
             }
         };
@@ -317,7 +317,7 @@ impl Rosbag2Dir {
             let name = Path::new(&p).file_name().ok_or_else(|| {
                 bad(format!(
                     "relative file path {} names no file",
-                    crate::yaml::quote(&p)
+                    chronotope_yaml::quote(&p)
                 ))
             })?;
             files.push(dir.join(name));
@@ -389,10 +389,10 @@ impl Rosbag2Dir {
     }
 }
 
-/// The bounds a `metadata.yaml` must keep before it is parsed (see [`crate::yaml`]): at most
+/// The bounds a `metadata.yaml` must keep before it is parsed (see [`chronotope_yaml`]): at most
 /// [`MAX_METADATA_BYTES`], collections nested at most 32 deep, at most 400 000 entries. The
 /// largest accepted file parses in well under a second.
-pub const METADATA_LIMITS: crate::yaml::YamlLimits = crate::yaml::YamlLimits {
+pub const METADATA_LIMITS: chronotope_yaml::YamlLimits = chronotope_yaml::YamlLimits {
     max_bytes: MAX_METADATA_BYTES as usize,
     max_depth: 32,
     max_entries: 400_000,
@@ -414,11 +414,11 @@ fn yaml_error(e: &serde_yaml_ng::Error) -> String {
             return format!(
                 "{} is a whole number beyond 64 bits{at}; expected a whole number from 0 to \
                  18446744073709551615",
-                crate::yaml::cut(field)
+                chronotope_yaml::cut(field)
             );
         }
     }
-    format!("not valid YAML: {}", crate::yaml::shorten(&text))
+    format!("not valid YAML: {}", chronotope_yaml::shorten(&text))
 }
 
 /// What a YAML value is, for an error naming an unexpected type.
@@ -426,11 +426,11 @@ fn shape(v: &Value) -> String {
     match v {
         Value::Null => "is empty".to_owned(),
         Value::Bool(b) => format!("is {b}"),
-        Value::Number(n) => format!("is the number {}", crate::yaml::cut(&n.to_string())),
-        Value::String(s) => format!("is the string {}", crate::yaml::quote(s)),
+        Value::Number(n) => format!("is the number {}", chronotope_yaml::cut(&n.to_string())),
+        Value::String(s) => format!("is the string {}", chronotope_yaml::quote(s)),
         Value::Sequence(_) => "is a list".to_owned(),
         Value::Mapping(_) => "is a mapping".to_owned(),
-        Value::Tagged(t) => format!("is tagged {}", crate::yaml::quote(&t.tag.to_string())),
+        Value::Tagged(t) => format!("is tagged {}", chronotope_yaml::quote(&t.tag.to_string())),
     }
 }
 

@@ -4,7 +4,7 @@
 use std::fmt;
 use std::path::PathBuf;
 
-use crate::msg::{CdrError, SchemaError};
+use chronotope_msg::{CdrError, SchemaError};
 
 /// Where in an MCAP file a record is.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]

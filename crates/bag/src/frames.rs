@@ -3,7 +3,7 @@
 //! A channel is read as VoxelGrid frames only if everything about it says so: schema name
 //! `chronotope_msgs/msg/VoxelGrid`, schema encoding `ros2msg`, a schema text that describes
 //! this program's type by meaning (the same fields, types, order and nested types, whatever
-//! the layout: [`crate::msg::Definition`]), and message encoding `cdr`. A VoxelGrid channel that fails one of these, and a channel without
+//! the layout: [`chronotope_msg::Definition`]), and message encoding `cdr`. A VoxelGrid channel that fails one of these, and a channel without
 //! a schema, is refused once by name ([`BagError::RefusedChannel`]) and its messages are counted
 //! ([`VoxelFrames::refused`]), never silently dropped. Whether a bag is empty is decided from
 //! its data, never from its Statistics record.
@@ -18,7 +18,7 @@ use super::error::{BagError, FrameError};
 use super::reader::{BagMessage, BagSchema};
 use super::recovery::Recovery;
 use super::source::BagReader;
-use crate::msg::{decode_cdr, ros2msg_schema, Definition, RosMessage, VoxelGrid};
+use chronotope_msg::{decode_cdr, ros2msg_schema, Definition, RosMessage, VoxelGrid};
 
 /// A topic whose messages are not read as VoxelGrid frames, and what that cost.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -217,7 +217,7 @@ fn verdict(schema: Option<&BagSchema>, message_encoding: &str) -> Verdict {
 
 /// `None` if `data` describes our VoxelGrid by meaning (fields, types, order and nested types;
 /// layout, comments, constants' placement and `pkg/msg/Type` spellings aside: see
-/// [`crate::msg::Definition`]), else the first difference.
+/// [`chronotope_msg::Definition`]), else the first difference.
 fn schema_difference(data: &[u8]) -> Option<String> {
     static EXPECTED: OnceLock<Definition> = OnceLock::new();
     let expected = EXPECTED.get_or_init(|| {

@@ -114,7 +114,7 @@ struct Merged {
 /// [fatal](BagError::is_fatal).
 ///
 /// ```no_run
-/// use chronotope::bag::BagReader;
+/// use chronotope_bag::BagReader;
 /// let mut reader = BagReader::open("in.mcap")?; // or a rosbag2 directory
 /// for message in reader.by_ref() {
 ///     match message {
@@ -123,7 +123,7 @@ struct Merged {
 ///     }
 /// }
 /// println!("{} messages lost", reader.recovery().messages_lost);
-/// # Ok::<(), chronotope::bag::BagError>(())
+/// # Ok::<(), chronotope_bag::BagError>(())
 /// ```
 pub struct BagReader {
     path: PathBuf,

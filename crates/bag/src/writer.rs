@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use mcap::records::MessageHeader;
 
 use super::error::BagError;
-use crate::msg::{encapsulation, encode_cdr, try_ros2msg_schema, RosMessage};
+use chronotope_msg::{encapsulation, encode_cdr, try_ros2msg_schema, RosMessage};
 
 /// The QoS profile recorded for every topic: reliable, volatile, keep last 10, durations
 /// infinite, in the YAML rosbag2 stores under the channel metadata key `offered_qos_profiles`.
@@ -145,18 +145,18 @@ struct Topic {
 }
 
 /// Writes a rosbag2 MCAP file: profile `ros2`, one `ros2msg` schema per message type (the
-/// rosbag2 schema text, see [`ros2msg_schema`](crate::msg::ros2msg_schema)), one `cdr` channel
+/// rosbag2 schema text, see [`ros2msg_schema`](chronotope_msg::ros2msg_schema)), one `cdr` channel
 /// per topic with the `offered_qos_profiles` metadata rosbag2 expects, zstd chunks, indexes and
 /// statistics.
 ///
 /// ```no_run
-/// use chronotope::bag::BagWriter;
-/// use chronotope::msg::VoxelGrid;
+/// use chronotope_bag::BagWriter;
+/// use chronotope_msg::VoxelGrid;
 /// let mut bag = BagWriter::create("out.mcap")?;
 /// bag.add_topic::<VoxelGrid>("/a/occupancy")?;
 /// bag.write("/a/occupancy", 1_000_000_000, &VoxelGrid::default())?;
 /// bag.finish()?;
-/// # Ok::<(), chronotope::bag::BagError>(())
+/// # Ok::<(), chronotope_bag::BagError>(())
 /// ```
 ///
 /// The bag takes its name only in [`finish`](Self::finish) (see [`crate::fsio`]): until then

@@ -94,7 +94,7 @@ fn max_decompressed_from_env() -> u64 {
             _ => {
                 tracing::warn!(
                     "{MAX_DECOMPRESSED_ENV}={}: not a number of GiB; using the default {} GiB",
-                    crate::yaml::quote(&v.to_string_lossy()),
+                    chronotope_yaml::quote(&v.to_string_lossy()),
                     DEFAULT_MAX_DECOMPRESSED_FILE_BYTES >> 30
                 );
                 DEFAULT_MAX_DECOMPRESSED_FILE_BYTES
@@ -202,7 +202,7 @@ impl<T: Read + Seek + Send> Source for T {}
 /// [`BagReadOptions::max_record_bytes`] before anything is allocated.
 ///
 /// ```no_run
-/// use chronotope::bag::BagReader;
+/// use chronotope_bag::BagReader;
 /// let mut reader = BagReader::open("in.mcap")?;
 /// for message in reader.by_ref() {
 ///     match message {
@@ -211,7 +211,7 @@ impl<T: Read + Seek + Send> Source for T {}
 ///     }
 /// }
 /// println!("{} messages lost", reader.recovery().messages_lost);
-/// # Ok::<(), chronotope::bag::BagError>(())
+/// # Ok::<(), chronotope_bag::BagError>(())
 /// ```
 pub struct McapReader {
     src: BufReader<Box<dyn Source>>,
@@ -1199,12 +1199,7 @@ impl McapReader {
 
     /// The record at `pos` cannot be framed: skip to the next readable record and say what
     /// was skipped.
-    fn skip_damage(
-        &mut self,
-        pos: u64,
-        opcode: u8,
-        rlen: u64,
-    ) -> Result<Step, BagError> {
+    fn skip_damage(&mut self, pos: u64, opcode: u8, rlen: u64) -> Result<Step, BagError> {
         self.end_awaiting();
         let next = self.resync(pos + 1)?;
         let (kind, what) = if opcode == 0 && rlen == 0 {

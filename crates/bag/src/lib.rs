@@ -4,7 +4,7 @@
 //! The files follow what `ros2 bag record -s mcap` writes (docs/formats.md#bag-files):
 //! header profile `ros2`; one schema per message type, encoding `ros2msg`, named
 //! `pkg/msg/Type`, holding the rosbag2 concatenated `.msg` text
-//! ([`ros2msg_schema`](crate::msg::ros2msg_schema)); one channel per topic with message
+//! ([`ros2msg_schema`](chronotope_msg::ros2msg_schema)); one channel per topic with message
 //! encoding `cdr` and the `offered_qos_profiles` metadata; messages as CDR with the
 //! encapsulation header; chunks, indexes and statistics as the `mcap` crate writes them.
 //! The Python readers `rosbags` and `mcap-ros2-support` read them
@@ -18,9 +18,11 @@
 //! as far as their structure allows, through the summary and chunk indexes when they are
 //! intact, by scanning for the next record when they are not; [`BagReader::recovery`] says
 //! what was lost (`docs/bag-recovery.md`).
+#![warn(missing_docs)]
 
 mod error;
 mod frames;
+pub mod fsio;
 mod reader;
 mod records;
 mod recovery;
