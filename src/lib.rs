@@ -22,7 +22,7 @@ pub use chronotope_kernel as kernel;
 pub mod live;
 pub use chronotope_mesh as mesh;
 pub use chronotope_msg as msg;
-pub mod node;
+pub use chronotope_node as node;
 pub use chronotope_sampler as sampler;
 pub use chronotope_scene as scene;
 pub use chronotope_yaml as yaml;

@@ -1,6 +1,6 @@
 //! The checker node: the mesh pieces of every body in (`mesh_topic`, chronotope_msgs/MeshSlab),
 //! and the bodies' VoxelGrid frames (to measure overlaps and close its windows), checked frame
-//! period by frame period as they arrive (see [`crate::checker::rolling`]). While the streams go
+//! period by frame period as they arrive (see [`chronotope_checker::rolling`]). While the streams go
 //! on it publishes each contact as it begins, goes on and ends (`~/contacts`, ContactEvent),
 //! each slab's labels once final (`~/labels`, TetLabels), the cumulative report whenever an
 //! answer changes (`~/report`), resolve suggestions per contact episode of the movable bodies
@@ -38,18 +38,18 @@ use super::launch::{LaunchError, NodeSpec, Params};
 use super::markers::{body_color, mid_slab_plane, triangle_list_of};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
-use crate::checker::labels::Label;
-use crate::checker::pipeline::CheckPlan;
-use crate::checker::report::{Report, Resolution, Verdict};
-use crate::checker::rolling::{
+use chronotope_checker::labels::Label;
+use chronotope_checker::pipeline::CheckPlan;
+use chronotope_checker::report::{Report, Resolution, Verdict};
+use chronotope_checker::rolling::{
     ContactPhase, Piece, PieceKind, RollingOutput, RollingChecker, RollingConfig, SlabDone,
 };
-use crate::checker::rotate::RotationSpec;
-use crate::mesh::slice::{Slicer, TriMesh};
-use crate::mesh::TetMesh;
-use crate::mesh::GridGeometry;
-use crate::mesh::{MesherOptions, OccupancyGrid};
-use crate::msg::{
+use chronotope_checker::rotate::RotationSpec;
+use chronotope_mesh::slice::{Slicer, TriMesh};
+use chronotope_mesh::TetMesh;
+use chronotope_mesh::GridGeometry;
+use chronotope_mesh::{MesherOptions, OccupancyGrid};
+use chronotope_msg::{
     BodySummary, ColorRGBA, ContactEvent, Header, InterferenceReport, MarkerArray, MeshSlab,
     PairInterference, Point, ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time,
     Vector3, VoxelGrid,
@@ -489,7 +489,7 @@ impl CheckerNode {
             out.push(Message::new(
                 &self.slabs_done_topic,
                 stamp,
-                Payload::Clock(Arc::new(crate::msg::Clock {
+                Payload::Clock(Arc::new(chronotope_msg::Clock {
                     clock: Time::from_nanos(stamp),
                 })),
             ));
@@ -636,7 +636,7 @@ impl MarkerQueue {
 }
 
 /// A slab's t-slice as the markers draw it: the slice, each triangle's tet, and the whole
-/// slice with its flat faces merged ([`crate::mesh::flat`]).
+/// slice with its flat faces merged ([`chronotope_mesh::flat`]).
 #[derive(Debug)]
 struct Drawn {
     mesh: TriMesh,
@@ -724,7 +724,7 @@ impl Node for CheckerMarkers {
     fn subscriptions(&self) -> Vec<TopicRef> {
         vec![TopicRef {
             topic: self.slabs_done_topic.clone(),
-            type_name: crate::msg::Clock::TYPE_NAME,
+            type_name: chronotope_msg::Clock::TYPE_NAME,
         }]
     }
 
@@ -795,7 +795,7 @@ fn slice_slab(d: &SlabDone) -> Drawn {
         Slicer::new(3, mid_slab_plane(u64::from(d.index), d.geometry.scale)).with_sources();
     slicer.add_par(&d.mesh);
     let (mesh, sources) = slicer.finish_with_sources();
-    let (merged, _) = crate::mesh::flat::merge_flat(&mesh, |_| Some(0));
+    let (merged, _) = chronotope_mesh::flat::merge_flat(&mesh, |_| Some(0));
     Drawn {
         mesh,
         sources,
@@ -867,7 +867,7 @@ fn slab_markers(
             continue;
         }
         let (merged, _) =
-            crate::mesh::flat::merge_flat(tri, |t| (label_of(t) == wanted[k]).then_some(0));
+            chronotope_mesh::flat::merge_flat(tri, |t| (label_of(t) == wanted[k]).then_some(0));
         markers.push(triangle_list_of(
             header.clone(),
             &d.body,
@@ -1085,7 +1085,7 @@ impl Node for CheckerNode {
         let optional = [
             (&self.labels_topic, TetLabels::TYPE_NAME),
             (&self.suggestions_topic, ResolveSuggestions::TYPE_NAME),
-            (&slabs_done, crate::msg::Clock::TYPE_NAME),
+            (&slabs_done, chronotope_msg::Clock::TYPE_NAME),
         ];
         for (topic, type_name) in optional {
             p.extend(topic.iter().map(|t| TopicRef {
@@ -1154,7 +1154,7 @@ impl Node for CheckerNode {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::TetMesh;
+    use chronotope_mesh::TetMesh;
 
     fn slab(index: u32, tets: usize) -> SlabDone {
         SlabDone {

@@ -5,6 +5,7 @@
 //! publishes into a vector. It never reads a clock, a file or a socket: the transports do that
 //! (the in-process [`bus::Bus`] for `chronotope replay` and the tests; DDS for live use). A
 //! message a node cannot use is a counted, logged problem in its [`NodeStatus`], never a panic.
+#![warn(missing_docs)]
 
 mod ahead;
 pub mod bus;
@@ -22,7 +23,7 @@ pub mod routes;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-use crate::msg::{
+use chronotope_msg::{
     decode_cdr, encode_cdr, encode_cdr_into, CdrError, Clock, ContactEvent, DiagnosticArray,
     InterferenceReport, JointState, JointTrajectory, Marker, MarkerArray, MeshSlab, Octomap,
     PointCloud2, PoseStamped, ResolveSuggestions, RosMessage, RosString, TFMessage, TetLabels,
@@ -91,7 +92,7 @@ macro_rules! payloads {
                     if type_name == <$ty as RosMessage>::TYPE_NAME {
                         return Some((
                             <$ty as RosMessage>::TYPE_NAME,
-                            crate::msg::ros2msg_schema::<$ty>(),
+                            chronotope_msg::ros2msg_schema::<$ty>(),
                         ));
                     }
                 )*
@@ -103,7 +104,7 @@ macro_rules! payloads {
                 match self {
                     $(Self::$variant(_) => (
                         <$ty as RosMessage>::TYPE_NAME,
-                        crate::msg::ros2msg_schema::<$ty>(),
+                        chronotope_msg::ros2msg_schema::<$ty>(),
                     ),)*
                 }
             }

@@ -12,7 +12,7 @@ pub const MAX_NAME_CHARS: usize = 255;
 
 /// A malformed name.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{what} {}: {why}", crate::yaml::quote(.name))]
+#[error("{what} {}: {why}", chronotope_yaml::quote(.name))]
 pub struct NameError {
     /// What the name is (`node name`, `namespace`, `topic`).
     pub what: &'static str,

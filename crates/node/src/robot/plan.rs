@@ -14,7 +14,7 @@
 use chronotope_robot::trajectory::{Sample, StartState, TrajectoryPoint};
 use chronotope_robot::{JointStateHistory, Kinematics, Stamp, TrajectoryError};
 
-use crate::msg::{Duration, Header, JointTrajectory, JointTrajectoryPoint, Time};
+use chronotope_msg::{Duration, Header, JointTrajectory, JointTrajectoryPoint, Time};
 
 /// A plan being followed.
 #[derive(Debug)]

@@ -296,8 +296,8 @@ impl Bus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{Clock, PoseStamped, RosMessage};
-    use crate::node::{Payload, TopicRef};
+    use crate::{Payload, TopicRef};
+    use chronotope_msg::{Clock, PoseStamped, RosMessage};
     use std::sync::Arc;
 
     fn clock(topic: &str, stamp: i64) -> Message {

@@ -15,10 +15,10 @@ use rayon::prelude::*;
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
 use super::markers::{body_color, mid_slab_plane, triangle_list};
 use super::{Message, Node, NodeStatus, ParamError, Payload, TopicRef};
-use crate::mesh::slice::Slicer;
-use crate::mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
-use crate::mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
-use crate::msg::{Header, Marker, MeshSlab, RosMessage, Time, VoxelGrid};
+use chronotope_mesh::slice::Slicer;
+use chronotope_mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
+use chronotope_mesh::{CapSide, GridGeometry, KeptFrame, MeshError, MesherOptions, Slab, TetMesh};
+use chronotope_msg::{Header, Marker, MeshSlab, RosMessage, Time, VoxelGrid};
 
 struct Body {
     stream: BodyStream,
@@ -32,7 +32,7 @@ struct Body {
 }
 
 impl Body {
-    fn new(opts: MesherOptions) -> Result<Self, crate::mesh::MeshError> {
+    fn new(opts: MesherOptions) -> Result<Self, chronotope_mesh::MeshError> {
         Ok(Self {
             stream: BodyStream::new(opts)?,
             frame_id: String::new(),
@@ -190,7 +190,7 @@ impl Ctx<'_> {
         index: u64,
         stamps: (i64, i64),
         occupied: u64,
-        (unsure, displacement): (Option<crate::mesh::unsure::Unsure>, u16),
+        (unsure, displacement): (Option<chronotope_mesh::unsure::Unsure>, u16),
         mesh: TetMesh,
     ) -> Message {
         let mut m = MeshSlab {

@@ -14,13 +14,17 @@ use super::Node;
 
 /// Which published topics go to the output bag.
 #[derive(Debug, Clone, Default)]
-pub(crate) struct Selection {
+pub struct Selection {
     only: Option<BTreeSet<String>>,
     exclude: BTreeSet<String>,
 }
 
 impl Selection {
-    pub(crate) fn from_spec(spec: &NodeSpec) -> Result<Self, LaunchError> {
+    /// The recorder entry's `topics` and `exclude` parameters.
+    ///
+    /// # Errors
+    /// A bad parameter.
+    pub fn from_spec(spec: &NodeSpec) -> Result<Self, LaunchError> {
         let mut p = Params::of(spec);
         let only = p.topics("topics")?.map(|v| v.into_iter().collect());
         let exclude = p
@@ -32,11 +36,12 @@ impl Selection {
         Ok(Self { only, exclude })
     }
 
-    pub(crate) fn wants(&self, topic: &str) -> bool {
+    /// Whether `topic` goes to the output bag.
+    pub fn wants(&self, topic: &str) -> bool {
         let listed = match &self.only {
             Some(o) => o.contains(topic),
             // Hidden topics (between the parts of one node) only when named.
-            None => !crate::node::is_hidden_topic(topic),
+            None => !crate::is_hidden_topic(topic),
         };
         listed && !self.exclude.contains(topic)
     }
@@ -46,7 +51,7 @@ impl Selection {
 ///
 /// # Errors
 /// A bad parameter or an inconsistent config.
-pub(crate) fn build_nodes(
+pub fn build_nodes(
     config: &LaunchConfig,
     bag_bodies: &[String],
     default_movable_first: bool,
@@ -104,7 +109,7 @@ pub(crate) fn build_nodes(
             if let Some(first) = sorted.first() {
                 spec.params.insert(
                     "movable".into(),
-                    crate::node::launch::ParamValue::StringArray(vec![first.clone()]),
+                    crate::launch::ParamValue::StringArray(vec![first.clone()]),
                 );
             }
         }
@@ -162,8 +167,8 @@ pub(crate) fn build_nodes(
             .map(|c| Box::new(c) as Box<dyn Node>),
     );
     // One topic, one message type: a config that routes a topic to two meanings is refused.
-    let uses = crate::node::routes::topic_uses(config, &nodes);
-    crate::node::routes::check_topic_types(&uses)?;
+    let uses = crate::routes::topic_uses(config, &nodes);
+    crate::routes::check_topic_types(&uses)?;
     let selection = match config.of_kind(NodeKind::Recorder).next() {
         Some(spec) => Selection::from_spec(spec)?,
         None => Selection::default(),

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use chronotope_robot::math::Pose;
 use nalgebra::{Quaternion, Translation3, UnitQuaternion};
 
-use crate::msg::TFMessage;
+use chronotope_msg::TFMessage;
 
 /// Child frames kept (`MAX_TF_FRAMES`): a static tree of a cell has tens.
 pub const MAX_TF_FRAMES: usize = 4096;
@@ -90,7 +90,7 @@ impl StaticTree {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{Quaternion as Q, TransformStamped, Vector3};
+    use chronotope_msg::{Quaternion as Q, TransformStamped, Vector3};
 
     fn t(parent: &str, child: &str, x: f64) -> TransformStamped {
         let mut t = TransformStamped::default();

@@ -42,7 +42,7 @@ use self::plan::Plan;
 use self::tf::StaticTree;
 use super::launch::{LaunchError, NodeSpec};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
-use crate::msg::{
+use chronotope_msg::{
     Header, InterferenceReport, JointState, JointTrajectory, Point, ResolveSuggestion,
     ResolveSuggestions, RosMessage, RosString, TFMessage, Time, VoxelGrid,
 };

@@ -1,8 +1,8 @@
 //! visualization_msgs/Marker helpers: t-slices of 4D meshes as coloured triangle lists.
 
-use crate::mesh::slice::{PlaneValue, Slicer, TriMesh};
-use crate::mesh::{GridGeometry, TetMesh};
-use crate::msg::{ColorRGBA, Header, Marker, Point, Vector3};
+use chronotope_mesh::slice::{PlaneValue, Slicer, TriMesh};
+use chronotope_mesh::{GridGeometry, TetMesh};
+use chronotope_msg::{ColorRGBA, Header, Marker, Point, Vector3};
 
 /// A colour for body `id`, the same on every run (hue from a hash of the name).
 pub fn body_color(id: &str) -> ColorRGBA {

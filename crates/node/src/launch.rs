@@ -24,7 +24,7 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
 use super::names::{node_fqn, resolve_topic, NameError};
-use crate::yaml::{self, YamlError, CONFIG_LIMITS};
+use chronotope_yaml::{self as yaml, YamlError, CONFIG_LIMITS};
 
 /// Most nodes one launch config may start (`nodes_per_launch`). Live, each node is a ROS
 /// node with about 16 DDS endpoints (rosout, parameter events, six parameter services, its
@@ -235,7 +235,7 @@ pub enum LaunchError {
         /// Why.
         source: std::io::Error,
     },
-    /// The text is refused before parsing (a limit of [`crate::yaml::CONFIG_LIMITS`], an
+    /// The text is refused before parsing (a limit of [`chronotope_yaml::CONFIG_LIMITS`], an
     /// alias, not a regular file) or does not parse.
     #[error("{origin}: {source}")]
     Yaml {

@@ -26,7 +26,7 @@
 //! (`occupancy_throttled`).
 //!
 //! A parameter set whose virtual coupling would be unstable is refused at launch
-//! ([`crate::carving::ForceParams::validate`], naming the condition); a force that still
+//! ([`chronotope_carving::ForceParams::validate`], naming the condition); a force that still
 //! comes out non-finite is replaced by the last finite one and counted (`non_finite_force`).
 //!
 //! Bad input never stops the node: a pose with a non-finite position or a zero quaternion, a
@@ -38,12 +38,12 @@ use std::sync::{Arc, Mutex};
 
 use super::launch::{LaunchError, NodeSpec, Params};
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
-use crate::carving::cutout::{Axis, BinaryImage, ImageError};
-use crate::carving::{
+use chronotope_carving::cutout::{Axis, BinaryImage, ImageError};
+use chronotope_carving::{
     CarveError, ForceModel, ForceParams, ForceRenderer, SurfelDelta, Tool, ToolKind, ToolPose,
     Workpiece, SURFEL_BYTES,
 };
-use crate::msg::{
+use chronotope_msg::{
     Header, Point, PointCloud2, PointField, PoseStamped, RosMessage, Time, Vector3, VoxelGrid,
     Wrench, WrenchStamped,
 };
@@ -55,7 +55,7 @@ use crate::msg::{
 pub const MAX_FRAME_BYTES_PER_S: f64 = 512.0 * 1024.0 * 1024.0;
 
 /// A gap between two poses longer than this (ns) is a pause: counted, and integrated by the
-/// force as [`crate::carving::MAX_MOVE_DT_S`] only.
+/// force as [`chronotope_carving::MAX_MOVE_DT_S`] only.
 const PAUSE_NS: i64 = 100_000_000;
 
 /// Why the display part cannot be made ([`CarvingNode::display`]).
@@ -431,7 +431,7 @@ impl CarvingNode {
         out.push(Message::new(
             &self.frame_topic,
             stamp,
-            Payload::Clock(Arc::new(crate::msg::Clock {
+            Payload::Clock(Arc::new(chronotope_msg::Clock {
                 clock: Time::from_nanos(stamp),
             })),
         ));
@@ -555,7 +555,7 @@ impl CarvingNode {
                     "no pose for {gap:.3} s before the pose at {stamp} ns: the force filter \
                      and coupling integrate {} s of it, and one workpiece frame is published \
                      for the pause",
-                    crate::carving::MAX_MOVE_DT_S
+                    chronotope_carving::MAX_MOVE_DT_S
                 ),
             );
         }
@@ -620,7 +620,7 @@ impl Node for CarvingNode {
             if self.has_display {
                 TopicRef {
                     topic: self.frame_topic.clone(),
-                    type_name: crate::msg::Clock::TYPE_NAME,
+                    type_name: chronotope_msg::Clock::TYPE_NAME,
                 }
             } else {
                 TopicRef {
@@ -841,7 +841,7 @@ impl Node for CarvingDisplay {
     fn subscriptions(&self) -> Vec<TopicRef> {
         vec![TopicRef {
             topic: self.frame_topic.clone(),
-            type_name: crate::msg::Clock::TYPE_NAME,
+            type_name: chronotope_msg::Clock::TYPE_NAME,
         }]
     }
 

@@ -136,7 +136,7 @@ pub fn check_bag_types<'a>(
         {
             return Err(LaunchError::TopicTypes {
                 topic: topic.to_owned(),
-                first: format!("the bag carries {}", crate::yaml::cut(schema)),
+                first: format!("the bag carries {}", chronotope_yaml::cut(schema)),
                 second: u.to_string(),
             });
         }

@@ -35,7 +35,7 @@ use chronotope_occupancy::{
 
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
 use super::{Message, Node, NodeStatus, ParamError, Payload, TopicRef};
-use crate::msg::{Header, Octomap, Point, PointCloud2, RosMessage, TFMessage, Time, VoxelGrid};
+use chronotope_msg::{Header, Octomap, Point, PointCloud2, RosMessage, TFMessage, Time, VoxelGrid};
 
 /// Source frames kept waiting for their first cell frame time (with `stamps_from`); an older
 /// one is dropped when a fifth comes (counted as `superseded`).
@@ -303,7 +303,7 @@ impl OccupancyNode {
                     "input_type",
                     format!(
                         "{}: octomap_msgs/msg/Octomap or sensor_msgs/msg/PointCloud2",
-                        crate::yaml::quote(&t)
+                        chronotope_yaml::quote(&t)
                     ),
                 )
             })?,
@@ -387,7 +387,7 @@ impl OccupancyNode {
             Some(other) => {
                 return Err(bad(
                     "encoding",
-                    format!("{}: bits or percent", crate::yaml::quote(other)),
+                    format!("{}: bits or percent", chronotope_yaml::quote(other)),
                 ))
             }
         };
@@ -419,7 +419,7 @@ impl OccupancyNode {
                         "fill_toward",
                         format!(
                             "{}: an axis with its side, -x, +x, -y, +y, -z (the floor) or +z",
-                            crate::yaml::quote(&toward)
+                            chronotope_yaml::quote(&toward)
                         ),
                     )
                 })?;
@@ -428,7 +428,7 @@ impl OccupancyNode {
             Some(other) => {
                 return Err(bad(
                     "fill",
-                    format!("{}: none or columns", crate::yaml::quote(other)),
+                    format!("{}: none or columns", chronotope_yaml::quote(other)),
                 ))
             }
         };
@@ -681,7 +681,7 @@ impl OccupancyNode {
                         format!(
                             "the octree's frame {} is rotated against the lattice's: an octree \
                              is axis-aligned and is only placed by a translation",
-                            crate::yaml::quote(&header.frame_id)
+                            chronotope_yaml::quote(&header.frame_id)
                         ),
                     )),
                     Some(t) => {
@@ -1099,15 +1099,15 @@ enum TfError {
     /// Its parent or child frame is empty, or they are the same frame.
     #[error(
         "a transform from {} to {} names no two frames",
-        crate::yaml::quote(.parent),
-        crate::yaml::quote(.child)
+        chronotope_yaml::quote(.parent),
+        chronotope_yaml::quote(.child)
     )]
     NoTwoFrames { parent: String, child: String },
     /// A non-finite entry, or a quaternion not of unit norm.
     #[error(
         "the transform of {} in {} is not finite or its quaternion is not of unit norm",
-        crate::yaml::quote(.child),
-        crate::yaml::quote(.parent)
+        chronotope_yaml::quote(.child),
+        chronotope_yaml::quote(.parent)
     )]
     NotRigid { child: String, parent: String },
     /// A new frame beyond [`MAX_TF_FRAMES`].
@@ -1116,7 +1116,7 @@ enum TfError {
     /// The chain of parents from `frame` is longer than [`MAX_TF_DEPTH`].
     #[error(
         "the static transforms from {} go on for more than {MAX_TF_DEPTH} frames (a loop?)",
-        crate::yaml::quote(.frame)
+        chronotope_yaml::quote(.frame)
     )]
     TooDeep { frame: String },
     /// The composed transform is not a rigid one.
@@ -1125,8 +1125,8 @@ enum TfError {
     /// No transform heard joins the two frames (and none is given).
     #[error(
         "no transform from {} to the lattice's frame {} is known{}",
-        crate::yaml::quote(.from),
-        crate::yaml::quote(.to),
+        chronotope_yaml::quote(.from),
+        chronotope_yaml::quote(.to),
         match .tf_topic {
             Some(t) => format!(" (none on {t} yet; or give `transform`)"),
             None => " (give `transform`, or `frame_id` so that /tf_static is read)".into(),
@@ -1207,7 +1207,7 @@ impl Rigid {
 }
 
 impl StaticTf {
-    fn insert(&mut self, t: &crate::msg::TransformStamped) -> Result<(), TfError> {
+    fn insert(&mut self, t: &chronotope_msg::TransformStamped) -> Result<(), TfError> {
         let child = t.child_frame_id.trim_start_matches('/').to_owned();
         let parent = t.header.frame_id.trim_start_matches('/').to_owned();
         if child.is_empty() || parent.is_empty() || child == parent {
@@ -1276,8 +1276,8 @@ impl StaticTf {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::PointField;
-    use crate::node::launch::LaunchConfig;
+    use crate::launch::LaunchConfig;
+    use chronotope_msg::PointField;
 
     fn node(params: &str) -> Result<OccupancyNode, LaunchError> {
         let text = format!(
@@ -1442,23 +1442,24 @@ mod tests {
         assert_eq!(n.status.problems["no_transform"], 1);
         // camera in base (+0.1 x), base in world (a quarter turn about z, then +0.2 y).
         let h = std::f64::consts::FRAC_1_SQRT_2;
-        let tf =
-            |parent: &str, child: &str, t: [f64; 3], q: [f64; 4]| crate::msg::TransformStamped {
+        let tf = |parent: &str, child: &str, t: [f64; 3], q: [f64; 4]| {
+            chronotope_msg::TransformStamped {
                 header: Header {
                     stamp: Time::default(),
                     frame_id: parent.into(),
                 },
                 child_frame_id: child.into(),
-                transform: crate::msg::Transform {
-                    translation: crate::msg::Vector3::new(t[0], t[1], t[2]),
-                    rotation: crate::msg::Quaternion {
+                transform: chronotope_msg::Transform {
+                    translation: chronotope_msg::Vector3::new(t[0], t[1], t[2]),
+                    rotation: chronotope_msg::Quaternion {
                         x: q[0],
                         y: q[1],
                         z: q[2],
                         w: q[3],
                     },
                 },
-            };
+            }
+        };
         let m = TFMessage {
             transforms: vec![
                 tf("base", "camera", [0.1, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]),
