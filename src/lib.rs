@@ -19,7 +19,7 @@ pub use chronotope_checker as checker;
 pub mod cli;
 pub use chronotope_bag::fsio;
 pub use chronotope_kernel as kernel;
-pub mod live;
+pub use chronotope_live as live;
 pub use chronotope_mesh as mesh;
 pub use chronotope_msg as msg;
 pub use chronotope_node as node;

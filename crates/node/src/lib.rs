@@ -20,6 +20,10 @@ pub mod occupancy;
 pub mod robot;
 pub mod routes;
 
+/// The message of a caught panic (the checker crate's, which catches them first); the
+/// transports report a node's panic with it.
+pub use chronotope_checker::panic_text;
+
 use std::collections::BTreeMap;
 use std::sync::Arc;
 

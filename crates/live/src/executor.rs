@@ -55,7 +55,7 @@ use crossbeam_channel::{
 use serde::Serialize;
 
 use super::{LagStats, ParamRequest};
-use crate::node::{Message, Node, NodeStatus, ParamError, Payload};
+use chronotope_node::{Message, Node, NodeStatus, ParamError, Payload};
 
 /// Longest a message from one node waits for room in another node's queue, counting only
 /// the time that node does no work, before it is dropped and counted (a non-real-time
@@ -183,7 +183,7 @@ pub enum Input {
 /// How one node runs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct UnitOptions {
-    /// See [`crate::node::launch::ExecutorSpec::realtime`].
+    /// See [`chronotope_node::launch::ExecutorSpec::realtime`].
     pub realtime: bool,
     /// Its queue's capacity in messages.
     pub queue_depth: usize,
@@ -441,7 +441,7 @@ impl Input {
     /// What the input counts against its node's byte budget.
     fn queue_bytes(&self) -> usize {
         match self {
-            Input::Wire(s) => s.bytes.len() + crate::node::MESSAGE_OVERHEAD_BYTES,
+            Input::Wire(s) => s.bytes.len() + chronotope_node::MESSAGE_OVERHEAD_BYTES,
             Input::Local(m, _) => m.payload.queue_bytes(),
             Input::Param(_) | Input::Demand(..) | Input::Finish(_) | Input::Stop => 0,
         }
@@ -716,7 +716,7 @@ impl Unit {
         let r = catch_unwind(AssertUnwindSafe(|| f(node.as_mut(), out)));
         state.set(NodeState::Idle);
         if let Err(p) = r {
-            let text = crate::panic_text(p.as_ref());
+            let text = chronotope_node::panic_text(p.as_ref());
             tracing::error!(
                 node = self.name,
                 "the node panicked and is stopped (the other nodes go on): {text}"
@@ -1196,8 +1196,8 @@ impl Injector {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msg::{Header, PoseStamped, RosMessage, Time};
-    use crate::node::TopicRef;
+    use chronotope_msg::{Header, PoseStamped, RosMessage, Time};
+    use chronotope_node::TopicRef;
 
     /// Reads `input`, republishes every pose on `output`; panics on a pose at `panic_at`.
     struct Relay {
@@ -1380,7 +1380,7 @@ mod tests {
         assert!(t >= 2 && p == t, "live: {t} ticks, {p} polls");
         let (b, _) = relay("/b", "/in", "/out", 0);
         let (ticks, polls) = (b.ticks.clone(), b.polls.clone());
-        let mut bus = crate::node::bus::Bus::new(vec![Box::new(b)]);
+        let mut bus = chronotope_node::bus::Bus::new(vec![Box::new(b)]);
         for k in 0..5 {
             bus.tick(k * 100_000_000, &mut |_| {});
         }
@@ -1453,7 +1453,7 @@ mod tests {
 
     #[test]
     fn wire_samples_over_the_byte_budget_are_dropped_until_the_node_has_handled_what_it_holds() {
-        let each = sample("/in", 0.0).bytes.len() + crate::node::MESSAGE_OVERHEAD_BYTES;
+        let each = sample("/in", 0.0).bytes.len() + chronotope_node::MESSAGE_OVERHEAD_BYTES;
         // Room for three samples, counted until handled: the first is in the handler for
         // 300 ms, two more wait, the rest find the budget full.
         let (mut slow, seen) = relay("/slow", "/in", "/s", 0);

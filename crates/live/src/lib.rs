@@ -10,6 +10,7 @@
 //! bounded queue ([`executor`]: drops counted per node and topic, real-time nodes, faults
 //! isolated). Every second the transport publishes a `diagnostic_msgs/DiagnosticArray` on
 //! `/diagnostics` with each node's counters, problems and CPU use, and its own.
+#![warn(missing_docs)]
 
 pub mod executor;
 pub mod graph;
@@ -28,11 +29,11 @@ use rustdds::{
 };
 use serde::Serialize;
 
-use crate::msg::{
+use chronotope_msg::{
     DiagnosticArray, DiagnosticStatus, Header, KeyValue, RosMessage, TetLabels, Time,
 };
-use crate::node::launch::{NodeSpec, ParamValue, MAX_QUEUE_MB};
-use crate::node::{is_hidden_topic, Message, Node, NodeStatus, ParamError, TopicRef};
+use chronotope_node::launch::{NodeSpec, ParamValue, MAX_QUEUE_MB};
+use chronotope_node::{is_hidden_topic, Message, Node, NodeStatus, ParamError, TopicRef};
 use executor::{Executor, Input, NodeRun, RawSample, UnitOptions, WireOut, DEFAULT_QUEUE_BYTES};
 use graph::GraphAnnouncer;
 use wire::{dds_topic_name, dds_type_name, RawCdr, RawCdrAdapter, TopicQos};
@@ -460,10 +461,10 @@ pub struct LiveSummary {
 /// writer thread instead of writing them itself.
 fn is_bulk(type_name: &str) -> bool {
     [
-        crate::msg::VoxelGrid::TYPE_NAME,
-        crate::msg::PointCloud2::TYPE_NAME,
-        crate::msg::MeshSlab::TYPE_NAME,
-        crate::msg::MarkerArray::TYPE_NAME,
+        chronotope_msg::VoxelGrid::TYPE_NAME,
+        chronotope_msg::PointCloud2::TYPE_NAME,
+        chronotope_msg::MeshSlab::TYPE_NAME,
+        chronotope_msg::MarkerArray::TYPE_NAME,
         TetLabels::TYPE_NAME,
     ]
     .contains(&type_name)
@@ -474,7 +475,7 @@ fn is_bulk(type_name: &str) -> bool {
 enum SendError {
     /// It does not encode as CDR.
     #[error(transparent)]
-    Encode(#[from] crate::msg::CdrError),
+    Encode(#[from] chronotope_msg::CdrError),
     /// The writer refused it.
     #[error(transparent)]
     Write(#[from] rustdds::dds::WriteError<()>),
@@ -734,7 +735,7 @@ fn wire_topics(
     let outputs = publications
         .into_iter()
         .filter(|p| {
-            (p.type_name != crate::msg::MeshSlab::TYPE_NAME && !is_hidden_topic(&p.topic))
+            (p.type_name != chronotope_msg::MeshSlab::TYPE_NAME && !is_hidden_topic(&p.topic))
                 || remote_subscribed.contains(&p.topic)
         })
         .collect();
@@ -1570,7 +1571,7 @@ impl Coordinator {
             },
             status,
         };
-        match crate::msg::encode_cdr(&msg) {
+        match chronotope_msg::encode_cdr(&msg) {
             Ok(bytes) => {
                 if let Err(e) = write_stamped(&self.diagnostics, bytes) {
                     tracing::warn!("/diagnostics not sent: {e}");
@@ -1796,7 +1797,7 @@ mod tests {
     #[test]
     fn a_part_of_a_node_shows_under_its_node() {
         let spec = |fqn: &str| NodeSpec {
-            kind: crate::node::launch::NodeKind::Checker,
+            kind: chronotope_node::launch::NodeKind::Checker,
             fqn: fqn.to_owned(),
             params: BTreeMap::new(),
             remaps: BTreeMap::new(),
@@ -1814,10 +1815,10 @@ mod tests {
 
     #[test]
     fn large_types_are_the_bulk_ones() {
-        assert!(is_bulk(crate::msg::VoxelGrid::TYPE_NAME));
-        assert!(is_bulk(crate::msg::PointCloud2::TYPE_NAME));
-        assert!(is_bulk(crate::msg::MarkerArray::TYPE_NAME));
-        assert!(!is_bulk(crate::msg::WrenchStamped::TYPE_NAME));
-        assert!(!is_bulk(crate::msg::InterferenceReport::TYPE_NAME));
+        assert!(is_bulk(chronotope_msg::VoxelGrid::TYPE_NAME));
+        assert!(is_bulk(chronotope_msg::PointCloud2::TYPE_NAME));
+        assert!(is_bulk(chronotope_msg::MarkerArray::TYPE_NAME));
+        assert!(!is_bulk(chronotope_msg::WrenchStamped::TYPE_NAME));
+        assert!(!is_bulk(chronotope_msg::InterferenceReport::TYPE_NAME));
     }
 }

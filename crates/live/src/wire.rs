@@ -1,7 +1,7 @@
 //! How the suite's messages go on a DDS wire the ROS 2 way: topic and type names, the QoS of
 //! each kind of topic, and serialised messages passed through RustDDS untouched.
 //!
-//! Messages cross the wire as the CDR bytes the suite's own codec ([`crate::msg::cdr`]) writes
+//! Messages cross the wire as the CDR bytes the suite's own codec ([`chronotope_msg::cdr`]) writes
 //! and reads, the same bytes a rosbag2 MCAP stores. RustDDS carries the 4-byte encapsulation
 //! header in its own `SerializedPayload`, so [`RawCdr`] strips it on the way out and puts it
 //! back on the way in. Nothing is decoded in the DDS threads: a sample that does not decode is
@@ -13,7 +13,7 @@ use rustdds::no_key::{Decode, DefaultDecoder, DeserializerAdapter, SerializerAda
 use rustdds::policy::{Durability, History, Reliability};
 use rustdds::{QosPolicies, QosPolicyBuilder, RepresentationIdentifier};
 
-use crate::msg::{
+use chronotope_msg::{
     Clock, ContactEvent, DiagnosticArray, InterferenceReport, JointState, JointTrajectory, Marker,
     MarkerArray, MeshSlab, Octomap, PointCloud2, PoseStamped, ResolveSuggestions, RosMessage,
     RosString, TFMessage, TetLabels, VoxelGrid, WrenchStamped,
