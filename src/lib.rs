@@ -1,15 +1,20 @@
 //! chronotope: space-time (4D) interference checking for robot and machine-tool cells.
 //!
-//! Layers, bottom up (lower layers never import upper ones):
-//! - [`kernel`]: exact integer lattice geometry in R^4 (points, predicates). No ROS, MCAP or tokio.
+//! This crate is the command line ([`cli`]) and the benchmarks it runs ([`bench`]) on the
+//! layer crates, which it re-exports under their module paths. Bottom up (a crate never
+//! imports one above it; ARCHITECTURE.md):
+//! - [`kernel`]: exact integer lattice geometry in R^4 (points, predicates, BVH).
 //! - [`mesh`]: 4D marching hypercubes, rolling slab mesher, caps, slicing, validation.
-//! - [`scene`]: synthetic voxel scenes (machine tool, four spheres).
+//! - [`checker`]: interference labels, intervals, verdicts and verified resolutions.
+//! - [`yaml`]: bounded YAML loading for launch configs and scene files.
+//! - [`carving`]: tool poses to material removed from a surfel workpiece and a force.
 //! - [`sampler`]: stochastic sampling of implicit figures and 4D collision sets
 //!   (docs/methods/sampling.md).
 //! - [`msg`]: ROS 2 message types mirrored from `msgs/`, CDR encoding.
-//! - [`bag`]: rosbag2 MCAP reading and writing.
-//! - [`cli`]: the `chronotope` command line.
-//! - [`yaml`]: bounded YAML loading for launch configs and scene files.
+//! - [`scene`]: synthetic scenes (machine tool, four spheres, robot cell, person) as messages.
+//! - [`bag`]: rosbag2 MCAP and SQLite reading, MCAP writing; [`fsio`], the file I/O under it.
+//! - [`node`]: the sans-I/O nodes, launch configs, the node factory, the in-process bus.
+//! - [`live`]: the nodes on DDS.
 #![warn(missing_docs)]
 
 pub use chronotope_bag as bag;
