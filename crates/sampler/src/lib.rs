@@ -70,9 +70,9 @@ mod walk;
 
 pub use field::{Body, Field, Shape, ShapeAxis, Q};
 pub use figure::{Figure, Wall, MAX_CONSTRAINTS};
-pub use quality::Quality;
+pub use quality::{Adaptation, Quality};
 pub use rng::Rng;
-pub use walk::{Adaptation, Sampler};
+pub use walk::Sampler;
 
 use std::sync::Arc;
 

@@ -19,7 +19,6 @@
 //! memory, with every lag it needs (benchmarks and tests).
 
 use super::field::Q;
-use super::walk::Adaptation;
 use super::Scheme;
 
 /// Lags of samples (not steps) the running estimate looks at.
@@ -28,6 +27,42 @@ pub const ESS_LAGS: usize = 128;
 pub const ESS_CHAINS: usize = 64;
 /// R-hat above which the walkers are said to disagree.
 pub const RHAT_WARNING: f64 = 1.05;
+
+/// The step and thinning a run uses, and how they were found.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Adaptation {
+    /// The time step in use.
+    pub dt: f64,
+    /// The step length it gives, `sqrt(2 α dt (N - M))` (m).
+    pub step_m: f64,
+    /// Whether `dt` was tuned during burn-in.
+    pub dt_tuned: bool,
+    /// Whether `dt` was given (otherwise tuned, or the explicit and projected schemes'
+    /// default [`DEFAULT_DT`](super::DEFAULT_DT)).
+    pub dt_given: bool,
+    /// The acceptance rate it was tuned to.
+    pub target_acceptance: f64,
+    /// The acceptance over the last half of the tuning rounds (NaN when not tuned).
+    pub tuning_acceptance: f64,
+    /// Steps between two samples of one walker.
+    pub thin: usize,
+    /// Whether `thin` was chosen from the burn-in pilot's autocorrelation.
+    pub thin_chosen: bool,
+    /// The thinning the pilot asked for, before any cap. It errs high: over a pilot of n
+    /// steps the walkers' means differ by chance, which adds about 2τ/n to the
+    /// multi-walker autocorrelation at long lags (τ the walk's correlation time).
+    pub thin_wanted: usize,
+    /// Whether `thin` was capped ([`MAX_AUTO_THIN`](super::MAX_AUTO_THIN) or the step budget) below that.
+    pub thin_capped: bool,
+    /// Whether the lag was extrapolated from the decay seen in the pilot rather than seen.
+    pub thin_extrapolated: bool,
+    /// Pilot steps per walker.
+    pub pilot_steps: usize,
+    /// The pilot's autocorrelation at lag `thin`, largest over the coordinates.
+    pub pilot_correlation: f64,
+    /// Start points found on the figure, among which the walkers were spread.
+    pub start_candidates: usize,
+}
 
 /// The quality of one run, printed by `chronotope sample` and written to its JSON summary.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]

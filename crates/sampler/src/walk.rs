@@ -28,7 +28,7 @@
 
 use super::field::Q;
 use super::figure::{axpy, dot, Figure, MAX_CONSTRAINTS};
-use super::quality::{chains_rho, variance_growth, within_rho, EssTracker, Quality};
+use super::quality::{chains_rho, variance_growth, within_rho, Adaptation, EssTracker, Quality};
 use super::rng::Rng;
 use super::{
     LambdaPolicy, SampleStats, SamplerError, SamplerOptions, Scheme, AUTO_THIN_CORRELATION,
@@ -62,42 +62,6 @@ const FIT_CORRELATION: f64 = 0.3;
 struct Walker {
     q: Q,
     rng: Rng,
-}
-
-/// The step and thinning a run uses, and how they were found.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct Adaptation {
-    /// The time step in use.
-    pub dt: f64,
-    /// The step length it gives, `sqrt(2 α dt (N - M))` (m).
-    pub step_m: f64,
-    /// Whether `dt` was tuned during burn-in.
-    pub dt_tuned: bool,
-    /// Whether `dt` was given (otherwise tuned, or the explicit and projected schemes'
-    /// default [`DEFAULT_DT`]).
-    pub dt_given: bool,
-    /// The acceptance rate it was tuned to.
-    pub target_acceptance: f64,
-    /// The acceptance over the last half of the tuning rounds (NaN when not tuned).
-    pub tuning_acceptance: f64,
-    /// Steps between two samples of one walker.
-    pub thin: usize,
-    /// Whether `thin` was chosen from the burn-in pilot's autocorrelation.
-    pub thin_chosen: bool,
-    /// The thinning the pilot asked for, before any cap. It errs high: over a pilot of n
-    /// steps the walkers' means differ by chance, which adds about 2τ/n to the
-    /// multi-walker autocorrelation at long lags (τ the walk's correlation time).
-    pub thin_wanted: usize,
-    /// Whether `thin` was capped ([`MAX_AUTO_THIN`] or the step budget) below that.
-    pub thin_capped: bool,
-    /// Whether the lag was extrapolated from the decay seen in the pilot rather than seen.
-    pub thin_extrapolated: bool,
-    /// Pilot steps per walker.
-    pub pilot_steps: usize,
-    /// The pilot's autocorrelation at lag `thin`, largest over the coordinates.
-    pub pilot_correlation: f64,
-    /// Start points found on the figure, among which the walkers were spread.
-    pub start_candidates: usize,
 }
 
 /// A set of walkers on one figure, ready to draw samples. [`super::sample`] is the one-call
