@@ -1,9 +1,10 @@
 //! The live transport: the suite's sans-I/O nodes on a real DDS wire (RustDDS, with
 //! ros2-client for the ROS side of a node: its presence in the graph, its parameters, rosout).
 //!
-//! Nodes in one process pass messages in memory, on the same [`Bus`] a replay uses; a topic
-//! goes on the wire when something outside may want it. Mesh pieces, the one big message,
-//! cross the wire only when a node that reads them runs in another process.
+//! Nodes in one process pass messages in memory, on the same
+//! [`Bus`](chronotope_node::bus::Bus) a replay uses; a topic goes on the wire when
+//! something outside may want it. Mesh pieces, the one big message, cross the wire only
+//! when a node that reads them runs in another process.
 //!
 //! Threads: RustDDS runs its own event loop; a small tokio runtime drives the readers and
 //! the ros2-client spinners; every node runs on a thread of its own, fed through its own

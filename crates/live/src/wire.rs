@@ -1,11 +1,12 @@
 //! How the suite's messages go on a DDS wire the ROS 2 way: topic and type names, the QoS of
 //! each kind of topic, and serialised messages passed through RustDDS untouched.
 //!
-//! Messages cross the wire as the CDR bytes the suite's own codec ([`chronotope_msg::cdr`]) writes
-//! and reads, the same bytes a rosbag2 MCAP stores. RustDDS carries the 4-byte encapsulation
-//! header in its own `SerializedPayload`, so [`RawCdr`] strips it on the way out and puts it
-//! back on the way in. Nothing is decoded in the DDS threads: a sample that does not decode is
-//! found, counted and logged by the transport that hands it to a node, like a bad bag message.
+//! Messages cross the wire as the CDR bytes the suite's own codec
+//! ([`chronotope_msg::encode_cdr`], [`chronotope_msg::decode_cdr`]) writes and reads, the
+//! same bytes a rosbag2 MCAP stores. RustDDS carries the 4-byte encapsulation header in its
+//! own `SerializedPayload`, so [`RawCdr`] strips it on the way out and puts it back on the
+//! way in. Nothing is decoded in the DDS threads: a sample that does not decode is found,
+//! counted and logged by the transport that hands it to a node, like a bad bag message.
 
 use std::convert::Infallible;
 

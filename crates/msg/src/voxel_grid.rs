@@ -119,7 +119,8 @@ impl VoxelGrid {
     /// (`body_frame_id`; empty before the body's first accepted frame).
     ///
     /// # Errors
-    /// [`MeshError::BadStamp`] or [`MeshError::FrameIdChanged`].
+    /// [`MeshError::BadStamp`](chronotope_mesh::MeshError::BadStamp) or
+    /// [`MeshError::FrameIdChanged`](chronotope_mesh::MeshError::FrameIdChanged).
     pub fn message_check(&self, body_frame_id: &str) -> Result<(), chronotope_mesh::MeshError> {
         use chronotope_mesh::MeshError;
         if self.header.stamp.nanosec >= 1_000_000_000 {
