@@ -1,4 +1,4 @@
-//! The carving model (src/carving): sweeps against the exact swept solid, the workpiece's
+//! The carving model (crates/carving): sweeps against the exact swept solid, the workpiece's
 //! invariants, stiff and extreme cases, forces, cut-outs and images. Small grids only.
 
 use chronotope::carving::cutout::{Axis, BinaryImage, ImageError};

@@ -1,8 +1,9 @@
 //! Whole-body 4D meshes: every slab of a stream welded into one closed mesh with its two
 //! end caps, for consumers that need the body at once (the interference checker).
 
+use super::grid::GridGeometry;
 use super::march::{CapSide, SpatialBounds, TetMesh, Welder};
-use super::mesher::{GridGeometry, MesherOptions, Slab};
+use super::mesher::{MesherOptions, Slab};
 use super::stats::{BodyStats, LateralRef, StatsAccumulator};
 use super::stream::{BodyStream, LossLog, LossSpan};
 use super::unsure::{UnsureLog, UnsureSpan};

@@ -5,6 +5,32 @@
 
 use super::MeshError;
 
+/// The lattice every frame of one body must share.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GridGeometry {
+    /// Min corner of voxel (0,0,0) (m).
+    pub origin: [f64; 3],
+    /// Voxel edge (m).
+    pub resolution: f64,
+    /// Voxels along x, y, z.
+    pub size: [u32; 3],
+    /// Raw encoding.
+    pub encoding: u8,
+    /// Lattice steps per voxel edge and per frame.
+    pub scale: i32,
+}
+
+impl GridGeometry {
+    /// Centre of voxel (0,0,0) (m): lattice point (0,0,0,·).
+    pub fn voxel0_centre(&self) -> [f64; 3] {
+        self.origin.map(|o| o + 0.5 * self.resolution)
+    }
+    /// Metres per lattice step.
+    pub fn step_m(&self) -> f64 {
+        self.resolution / f64::from(self.scale)
+    }
+}
+
 /// How the voxel data of a frame is encoded (mirrors the VoxelGrid `encoding` field).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Encoding {
@@ -306,10 +332,10 @@ impl OccupancyGrid {
 /// `None` if the resolutions differ or the origins are not a whole number of voxels apart.
 pub fn intersect_across(
     a: &OccupancyGrid,
-    ga: &super::mesher::GridGeometry,
+    ga: &GridGeometry,
     b: &OccupancyGrid,
-    gb: &super::mesher::GridGeometry,
-) -> Option<(OccupancyGrid, super::mesher::GridGeometry)> {
+    gb: &GridGeometry,
+) -> Option<(OccupancyGrid, GridGeometry)> {
     if ga == gb {
         return a.intersect(b).map(|g| (g, *ga));
     }
@@ -325,7 +351,7 @@ pub fn intersect_across(
         }
         *o = r as i64;
     }
-    let g = super::mesher::GridGeometry {
+    let g = GridGeometry {
         encoding: 0,
         scale: 2,
         ..*ga
@@ -343,12 +369,12 @@ pub fn intersect_across(
 /// [`intersect_across`] voxel by voxel, `b`'s lattice `off` voxels from `a`'s.
 fn intersect_offset(
     a: &OccupancyGrid,
-    ga: &super::mesher::GridGeometry,
+    ga: &GridGeometry,
     b: &OccupancyGrid,
-    gb: &super::mesher::GridGeometry,
+    gb: &GridGeometry,
     off: [i64; 3],
-    g: super::mesher::GridGeometry,
-) -> Option<(OccupancyGrid, super::mesher::GridGeometry)> {
+    g: GridGeometry,
+) -> Option<(OccupancyGrid, GridGeometry)> {
     let [sx, sy, sz] = ga.size.map(|v| v as usize);
     let [bx, by, bz] = gb.size.map(|v| v as i64);
     let n = sx.checked_mul(sy)?.checked_mul(sz)?;
@@ -539,7 +565,7 @@ mod tests {
             let n = (size[0] * size[1] * size[2]) as usize;
             let percent: Vec<u8> = (0..n).map(|_| (rng.next() % 101) as u8).collect();
             let bits: Vec<u8> = (0..n.div_ceil(8)).map(|_| rng.next() as u8).collect();
-            let geometry = |encoding: u8, scale: i32| super::super::mesher::GridGeometry {
+            let geometry = |encoding: u8, scale: i32| super::GridGeometry {
                 origin: [0.5, -1.0, 0.0],
                 resolution: 0.01,
                 size,

@@ -25,9 +25,9 @@ pub mod unsure;
 pub mod validate;
 pub mod vanish;
 
-pub use grid::{DecodeOptions, Encoding, FrameRef, OccupancyGrid};
+pub use grid::{DecodeOptions, Encoding, FrameRef, GridGeometry, OccupancyGrid};
 pub use march::{CapSide, SlabMarcher, SlabPlacement, TetMesh};
-pub use mesher::{GridGeometry, KeptFrame, Mesher, MesherOptions, Slab};
+pub use mesher::{KeptFrame, Mesher, MesherOptions, Slab};
 
 /// Why a frame (or an option) was refused by the mesher.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

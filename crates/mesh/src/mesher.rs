@@ -3,7 +3,7 @@
 //! for the closing cap), so memory does not grow with the sequence (the marching paper's
 //! §5: docs/methods/marching.md#slab-by-slab).
 
-use super::grid::{DecodeOptions, Encoding, FrameRef, OccupancyGrid};
+use super::grid::{DecodeOptions, Encoding, FrameRef, GridGeometry, OccupancyGrid};
 use super::march::{march_cap, CapSide, SlabMarcher, SlabPlacement, TetMesh};
 use super::table::{table, Table};
 use super::unsure::Unsure;
@@ -34,32 +34,6 @@ impl Default for MesherOptions {
             max_slab_tets: 1 << 24,
             max_fill_tets: 1 << 25,
         }
-    }
-}
-
-/// The lattice every frame of one body must share.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct GridGeometry {
-    /// Min corner of voxel (0,0,0) (m).
-    pub origin: [f64; 3],
-    /// Voxel edge (m).
-    pub resolution: f64,
-    /// Voxels along x, y, z.
-    pub size: [u32; 3],
-    /// Raw encoding.
-    pub encoding: u8,
-    /// Lattice steps per voxel edge and per frame.
-    pub scale: i32,
-}
-
-impl GridGeometry {
-    /// Centre of voxel (0,0,0) (m): lattice point (0,0,0,·).
-    pub fn voxel0_centre(&self) -> [f64; 3] {
-        self.origin.map(|o| o + 0.5 * self.resolution)
-    }
-    /// Metres per lattice step.
-    pub fn step_m(&self) -> f64 {
-        self.resolution / f64::from(self.scale)
     }
 }
 

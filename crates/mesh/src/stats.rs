@@ -40,8 +40,9 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
+use super::grid::GridGeometry;
 use super::march::TetMesh;
-use super::mesher::{GridGeometry, Slab};
+use super::mesher::Slab;
 use super::validate::{
     canonical_tet_faces, canonical_triangle, det4_small_tet, id_bits, pair_by_first_vertex,
     pair_plane_faces, tet_faces, ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,

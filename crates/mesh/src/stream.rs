@@ -236,7 +236,7 @@ impl BodyStream {
     pub fn push_derived(
         &mut self,
         stamp_ns: i64,
-        geometry: super::mesher::GridGeometry,
+        geometry: super::grid::GridGeometry,
         grid: OccupancyGrid,
     ) -> Result<Option<Slab>, MeshError> {
         self.mesher.push_decoded(stamp_ns, geometry, grid)

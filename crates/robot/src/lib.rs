@@ -42,6 +42,7 @@ pub mod math;
 pub mod mesh;
 pub mod raster;
 pub mod robot;
+mod shape;
 pub mod trajectory;
 pub mod urdf;
 

@@ -6,7 +6,7 @@ use crate::limits::Limits;
 use crate::mesh::{
     load_mesh, Closure, Environment, MeshError, PackageResolver, ProcessEnvironment, TriMesh,
 };
-use crate::raster::{Shape, ShapeKind, CYLINDER_PRISM_SIDES};
+use crate::shape::{Shape, ShapeKind, CYLINDER_PRISM_SIDES};
 use crate::urdf::{Geometry, UrdfError, UrdfModel};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};

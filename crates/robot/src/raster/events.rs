@@ -13,8 +13,8 @@
 //! on a silhouette, crosses both sides and cancels). Winding numbers and parities are thus
 //! exact for the snapped mesh, which lies within 2⁻²⁵ voxel of the true one.
 
-use super::shape::Affine;
 use super::surface::{ceil, floor};
+use crate::shape::Affine;
 
 /// Fixed-point bits of the snapped yz coordinates.
 const FIX_BITS: i32 = 24;

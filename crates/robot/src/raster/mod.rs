@@ -32,18 +32,17 @@
 mod bitset;
 mod events;
 mod lattice;
-mod shape;
 mod surface;
 
+pub use crate::shape::{Shape, ShapeKind, CYLINDER_PRISM_SIDES};
 pub use lattice::{bit_at, Encoding, Lattice, LatticeError};
-pub use shape::{Shape, ShapeKind, CYLINDER_PRISM_SIDES};
 pub use surface::MARGIN;
 
 use crate::kinematics::LinkPoses;
 use crate::mesh::{Closure, TriMesh};
 use crate::robot::{Body, Robot};
+use crate::shape::Affine;
 use events::{Convex, Event, Grid, Rule};
-use shape::Affine;
 use surface::Dims;
 
 /// Options of a [`Rasterizer`].
