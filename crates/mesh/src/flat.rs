@@ -217,13 +217,17 @@ fn merge_group(mesh: &TriMesh, tris: &[u32], k: usize, facing: bool) -> Option<V
             .sum::<f64>()
             / 2.0
     };
-    let (mut outers, mut holes): (Vec<Vec<u32>>, Vec<Vec<u32>>) =
-        loops.into_iter().partition(|lp| area(lp) > 0.0);
+    // Each loop's area, found once.
+    let (mut outers, holes): (Vec<(f64, Vec<u32>)>, Vec<(f64, Vec<u32>)>) = loops
+        .into_iter()
+        .map(|lp| (area(&lp), lp))
+        .partition(|(a, _)| *a > 0.0);
     // Each hole joins the smallest outer loop holding its first vertex.
     let mut with_holes: Vec<Vec<u32>> = Vec::new();
-    outers.sort_by(|a, b| area(a).total_cmp(&area(b)));
+    outers.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let outers: Vec<Vec<u32>> = outers.into_iter().map(|(_, o)| o).collect();
     let mut assigned: Vec<Vec<Vec<u32>>> = vec![Vec::new(); outers.len()];
-    for h in holes.drain(..) {
+    for (_, h) in holes {
         let p = xy(h[0]);
         let owner = outers.iter().position(|o| inside(o, p, &xy))?;
         assigned[owner].push(h);

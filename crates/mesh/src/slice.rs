@@ -57,10 +57,29 @@ pub struct TriMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Key {
     Vertex(LatticePoint),
     Edge(LatticePoint, LatticePoint),
+}
+
+impl std::hash::Hash for Key {
+    /// The coordinates two to a word (a vertex two words, an edge four).
+    fn hash<H: std::hash::Hasher>(&self, h: &mut H) {
+        let pair = |a: i32, b: i32| u64::from(a as u32) << 32 | u64::from(b as u32);
+        match self {
+            Key::Vertex(q) => {
+                h.write_u64(pair(q[0], q[1]));
+                h.write_u64(pair(q[2], q[3]));
+            }
+            Key::Edge(a, b) => {
+                h.write_u64(pair(a[0], a[1]));
+                h.write_u64(pair(a[2], a[3]));
+                h.write_u64(pair(b[0], b[1]));
+                h.write_u64(pair(b[2], b[3]));
+            }
+        }
+    }
 }
 
 /// Tets per chunk of [`Slicer::add_par`].
@@ -294,14 +313,13 @@ impl Slicer {
             4
         };
         let normal = outward_normal3(&p, self.axis);
-        let geo: [([i128; 3], i128); 4] = std::array::from_fn(|m| {
-            let (i, j) = pts[m.min(n - 1)];
-            self.point(&p, i, j)
-        });
-        let keys: [(Key, u64); 4] = std::array::from_fn(|m| {
-            let (i, j) = pts[m.min(n - 1)];
-            self.key(&p, &ids, i, j)
-        });
+        let mut geo = [([0i128; 3], 0i128); 4];
+        let mut keys = [(Key::Vertex([0; 4]), 0u64); 4];
+        for m in 0..n {
+            let (i, j) = pts[m];
+            geo[m] = self.point(&p, i, j);
+            keys[m] = self.key(&p, &ids, i, j);
+        }
         let tris: &[[usize; 3]] = if n == 3 {
             &[[0, 1, 2]]
         } else {
@@ -338,11 +356,13 @@ impl Slicer {
             beta = -beta;
             w = -w;
         }
-        let all = [0, 1, 2, 3].map(|c| {
+        // The three coordinates other than k.
+        let coords = [0, 1, 2].map(|m| {
+            let c = if m < k { m } else { m + 1 };
             let (du, dv) = (i128::from(u[c] - p[0][c]), i128::from(v[c] - p[0][c]));
             du * alpha + dv * beta
         });
-        (drop_axis(&all, k), w)
+        (coords, w)
     }
 
     /// The lattice key of the slice point on edge (i, j) of tet `p` (vertex ids `ids`), and
@@ -431,7 +451,45 @@ fn drop_axis<T: Copy>(p: &[T; 4], k: usize) -> [T; 3] {
 /// orient4(a, b, c, d, inside) < 0; its three components other than `axis` (the only ones
 /// [`orientation`] reads).
 fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
-    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i128::from(q[k] - p[0][k]));
+    // N_j = det[u; v; w; e_j] = (-1)^(3+j) times the minor of u, v, w without column j.
+    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
+    let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
+    let keep = |m: usize| if m < axis { m } else { m + 1 };
+    // Below 2^20 every product of three is below 2^60 and the minor within i64.
+    let small = [u, v, w]
+        .iter()
+        .flatten()
+        .all(|x| x.unsigned_abs() < 1 << 20);
+    [0, 1, 2].map(|m| {
+        let j = keep(m);
+        let (a, b, c) = match j {
+            0 => (1, 2, 3),
+            1 => (0, 2, 3),
+            2 => (0, 1, 3),
+            _ => (0, 1, 2),
+        };
+        let minor = if small {
+            i128::from(
+                u[a] * (v[b] * w[c] - v[c] * w[b]) - u[b] * (v[a] * w[c] - v[c] * w[a])
+                    + u[c] * (v[a] * w[b] - v[b] * w[a]),
+            )
+        } else {
+            let (u, v, w) = (u.map(i128::from), v.map(i128::from), w.map(i128::from));
+            u[a] * (v[b] * w[c] - v[c] * w[b]) - u[b] * (v[a] * w[c] - v[c] * w[a])
+                + u[c] * (v[a] * w[b] - v[b] * w[a])
+        };
+        if (3 + j) % 2 == 1 {
+            -minor
+        } else {
+            minor
+        }
+    })
+}
+
+/// [`outward_normal3`] from the full 4D determinant (the reference it is tested against).
+#[cfg(test)]
+fn outward_normal3_by_det4(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
+    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i128::from(q[k]) - i128::from(p[0][k]));
     let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
     let keep = |m: usize| if m < axis { m } else { m + 1 };
     [0, 1, 2].map(|m| {
@@ -441,6 +499,7 @@ fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
     })
 }
 
+#[cfg(test)]
 fn det4(a: &[i128; 4], b: &[i128; 4], c: &[i128; 4], d: &[i128; 4]) -> i128 {
     let s = |i: usize, j: usize| c[i] * d[j] - c[j] * d[i];
     let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
@@ -512,4 +571,33 @@ pub fn write_ply<W: Write>(
         }
     }
     w.flush()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The normal from 3x3 minors (in i64 when small) is the 4D determinant's.
+    #[test]
+    fn normal_by_minors_is_the_determinants() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |r: i64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            ((x % (2 * r as u64 + 1)) as i64 - r) as i32
+        };
+        for round in 0..4000 {
+            // Small coordinates, and now and then large ones (the i128 path).
+            let r = if round % 5 == 0 { 1 << 30 } else { 300 };
+            let p: [LatticePoint; 4] = std::array::from_fn(|_| std::array::from_fn(|_| next(r)));
+            for axis in 0..4 {
+                assert_eq!(
+                    outward_normal3(&p, axis),
+                    outward_normal3_by_det4(&p, axis),
+                    "{p:?} axis {axis}"
+                );
+            }
+        }
+    }
 }
