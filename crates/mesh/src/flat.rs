@@ -16,12 +16,37 @@
 //! the same surface, with its seams, orientation and colours, in far fewer triangles; the
 //! check never reads these triangles.
 
-use super::hash::{fast_map, FastMap as HashMap};
 use super::slice::TriMesh;
 
 /// Most boundary vertices of one merged group (ear clipping is quadratic in them); a larger
 /// group is left as it was.
 const MAX_LOOP_VERTICES: usize = 4096;
+
+/// The plane each triangle of a slice lies in, if it lies in an axis-aligned one: what
+/// [`merge_flat_with`] groups by. Found once per slice (on rayon's pool), it serves every
+/// merge of that slice's triangles (the whole slice, then each labelled part of it).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FlatFaces {
+    /// Per triangle: the axis, the coordinate's bits and whether it faces +axis.
+    planes: Vec<Option<(u8, u64, bool)>>,
+}
+
+impl FlatFaces {
+    /// The planes of the triangles of `mesh`.
+    pub fn of(mesh: &TriMesh) -> Self {
+        use rayon::prelude::*;
+        let planes = mesh
+            .triangles
+            .par_iter()
+            .with_min_len(4096)
+            .map(|t| {
+                let p = t.map(|v| mesh.vertices[v as usize]);
+                flat_axis(&p).map(|(k, facing)| (k as u8, p[0][k].to_bits(), facing))
+            })
+            .collect();
+        Self { planes }
+    }
+}
 
 /// The triangles of `mesh` that `class_of` picks (`Some(class)`, a display class), with the
 /// flat faces of each class merged (see the module documentation): the triangles (vertex
@@ -30,43 +55,61 @@ pub fn merge_flat(
     mesh: &TriMesh,
     class_of: impl Fn(usize) -> Option<u8>,
 ) -> (Vec<[u32; 3]>, Vec<u8>) {
-    // Groups: (axis, coordinate bits, facing +/-, class) -> triangle indices.
-    let mut groups: HashMap<(u8, u64, bool, u8), Vec<u32>> = fast_map();
+    merge_flat_with(mesh, &FlatFaces::of(mesh), class_of)
+}
+
+/// [`merge_flat`] with the planes of the triangles found before (`flats`, of `mesh`); the
+/// groups are merged on rayon's pool (the same triangles in the same order).
+///
+/// # Panics
+/// If `flats` is not of `mesh` (another triangle count).
+pub fn merge_flat_with(
+    mesh: &TriMesh,
+    flats: &FlatFaces,
+    class_of: impl Fn(usize) -> Option<u8>,
+) -> (Vec<[u32; 3]>, Vec<u8>) {
+    use rayon::prelude::*;
+    assert_eq!(
+        flats.planes.len(),
+        mesh.triangles.len(),
+        "the flat faces of another mesh"
+    );
+    // Groups: (axis, coordinate bits, facing +/-, class), each with its triangles in order.
+    let mut flat: Vec<((u8, u64, bool, u8), u32)> = Vec::new();
     let mut out = Vec::new();
     let mut out_class = Vec::new();
-    for (i, t) in mesh.triangles.iter().enumerate() {
+    for (i, (t, plane)) in mesh.triangles.iter().zip(&flats.planes).enumerate() {
         let Some(c) = class_of(i) else {
             continue;
         };
-        let p = t.map(|v| mesh.vertices[v as usize]);
-        match flat_axis(&p) {
-            Some((k, facing)) => groups
-                .entry((k as u8, p[0][k].to_bits(), facing, c))
-                .or_default()
-                .push(i as u32),
+        match *plane {
+            Some((k, bits, facing)) => flat.push(((k, bits, facing, c), i as u32)),
             None => {
                 out.push(*t);
                 out_class.push(c);
             }
         }
     }
-    let mut keys: Vec<_> = groups.keys().copied().collect();
-    keys.sort_unstable();
-    for key in keys {
-        let tris = &groups[&key];
-        let k = usize::from(key.0);
-        let merged = if tris.len() > 2 {
-            merge_group(mesh, tris, k, key.2)
-        } else {
-            None
-        };
-        let before = out.len();
-        match merged {
+    flat.sort_unstable();
+    let groups: Vec<&[((u8, u64, bool, u8), u32)]> = flat.chunk_by(|a, b| a.0 == b.0).collect();
+    let merged: Vec<Option<Vec<[u32; 3]>>> = groups
+        .par_iter()
+        .map(|g| {
+            let key = g[0].0;
+            if g.len() > 2 {
+                let tris: Vec<u32> = g.iter().map(|x| x.1).collect();
+                merge_group(mesh, &tris, usize::from(key.0), key.2)
+            } else {
+                None
+            }
+        })
+        .collect();
+    for (g, m) in groups.iter().zip(merged) {
+        match m {
             Some(m) => out.extend(m),
-            None => out.extend(tris.iter().map(|&i| mesh.triangles[i as usize])),
+            None => out.extend(g.iter().map(|x| mesh.triangles[x.1 as usize])),
         }
-        out_class.resize(out.len(), key.3);
-        debug_assert!(out.len() >= before);
+        out_class.resize(out.len(), g[0].0 .3);
     }
     (out, out_class)
 }
@@ -101,27 +144,32 @@ fn cross2(a: [f64; 2], b: [f64; 2]) -> f64 {
 
 /// The group's triangles merged, or `None` to keep them as they are.
 fn merge_group(mesh: &TriMesh, tris: &[u32], k: usize, facing: bool) -> Option<Vec<[u32; 3]>> {
-    // Boundary: directed edges whose reverse is not in the group, counted with multiplicity.
-    let mut net: HashMap<(u32, u32), i32> = fast_map();
+    // Boundary: directed edges whose reverse is not in the group, counted with multiplicity
+    // (each undirected edge once, +1 along it, -1 against: sorted, then summed).
+    let mut edges: Vec<(u64, i32)> = Vec::with_capacity(3 * tris.len());
     for &i in tris {
         let t = mesh.triangles[i as usize];
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            let (key, s) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
-            *net.entry(key).or_insert(0) += s;
+            let ((a, b), s) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
+            edges.push((u64::from(a) << 32 | u64::from(b), s));
         }
     }
-    let mut next: HashMap<u32, u32> = fast_map();
-    for (&(a, b), &n) in &net {
-        let (from, to) = match n {
-            0 => continue,
-            1 => (a, b),
-            -1 => (b, a),
+    edges.sort_unstable_by_key(|e| e.0);
+    // The boundary edges (from, to), sorted by `from`.
+    let mut next: Vec<(u32, u32)> = Vec::new();
+    for run in edges.chunk_by(|x, y| x.0 == y.0) {
+        let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
+        match run.iter().map(|e| e.1).sum::<i32>() {
+            0 => {}
+            1 => next.push((a, b)),
+            -1 => next.push((b, a)),
             _ => return None,
-        };
-        if next.insert(from, to).is_some() {
-            // Two boundary edges leave one vertex: a pinch; left as it was.
-            return None;
         }
+    }
+    next.sort_unstable();
+    if next.windows(2).any(|w| w[0].0 == w[1].0) {
+        // Two boundary edges leave one vertex: a pinch; left as it was.
+        return None;
     }
     if next.len() > MAX_LOOP_VERTICES {
         return None;
@@ -138,23 +186,22 @@ fn merge_group(mesh: &TriMesh, tris: &[u32], k: usize, facing: bool) -> Option<V
     };
     // Loops, with the middle vertices of straight runs along an axis dropped.
     let mut loops: Vec<Vec<u32>> = Vec::new();
-    let mut seen: HashMap<u32, ()> = fast_map();
-    let mut starts: Vec<u32> = next.keys().copied().collect();
-    starts.sort_unstable();
-    for s in starts {
-        if seen.contains_key(&s) {
+    let mut seen = vec![false; next.len()];
+    for s in 0..next.len() {
+        if seen[s] {
             continue;
         }
         let mut lp = Vec::new();
-        let mut c = s;
+        let mut c = next[s].0;
         loop {
-            if seen.insert(c, ()).is_some() {
+            let at = next.binary_search_by_key(&c, |e| e.0).ok()?;
+            if std::mem::replace(&mut seen[at], true) {
                 break;
             }
             lp.push(c);
-            c = *next.get(&c)?;
+            c = next[at].1;
         }
-        if c != s {
+        if c != next[s].0 {
             return None;
         }
         let lp = drop_straight(&lp, &xy);
@@ -170,13 +217,17 @@ fn merge_group(mesh: &TriMesh, tris: &[u32], k: usize, facing: bool) -> Option<V
             .sum::<f64>()
             / 2.0
     };
-    let (mut outers, mut holes): (Vec<Vec<u32>>, Vec<Vec<u32>>) =
-        loops.into_iter().partition(|lp| area(lp) > 0.0);
+    // Each loop's area, found once.
+    let (mut outers, holes): (Vec<(f64, Vec<u32>)>, Vec<(f64, Vec<u32>)>) = loops
+        .into_iter()
+        .map(|lp| (area(&lp), lp))
+        .partition(|(a, _)| *a > 0.0);
     // Each hole joins the smallest outer loop holding its first vertex.
     let mut with_holes: Vec<Vec<u32>> = Vec::new();
-    outers.sort_by(|a, b| area(a).total_cmp(&area(b)));
+    outers.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let outers: Vec<Vec<u32>> = outers.into_iter().map(|(_, o)| o).collect();
     let mut assigned: Vec<Vec<Vec<u32>>> = vec![Vec::new(); outers.len()];
-    for h in holes.drain(..) {
+    for (_, h) in holes {
         let p = xy(h[0]);
         let owner = outers.iter().position(|o| inside(o, p, &xy))?;
         assigned[owner].push(h);
@@ -397,6 +448,7 @@ fn ear_clip(poly: &[u32], xy: &impl Fn(u32) -> [f64; 2], out: &mut Vec<[u32; 3]>
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::hash::{fast_map, FastMap as HashMap};
 
     /// The total signed area per (axis, plane, facing) and the closedness of a triangle set.
     fn check_same_surface(mesh: &TriMesh, a: &[[u32; 3]], b: &[[u32; 3]]) {

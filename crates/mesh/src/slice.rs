@@ -57,16 +57,40 @@ pub struct TriMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Key {
     Vertex(LatticePoint),
     Edge(LatticePoint, LatticePoint),
+}
+
+impl std::hash::Hash for Key {
+    /// The coordinates two to a word (a vertex two words, an edge four).
+    fn hash<H: std::hash::Hasher>(&self, h: &mut H) {
+        let pair = |a: i32, b: i32| u64::from(a as u32) << 32 | u64::from(b as u32);
+        match self {
+            Key::Vertex(q) => {
+                h.write_u64(pair(q[0], q[1]));
+                h.write_u64(pair(q[2], q[3]));
+            }
+            Key::Edge(a, b) => {
+                h.write_u64(pair(a[0], a[1]));
+                h.write_u64(pair(a[2], a[3]));
+                h.write_u64(pair(b[0], b[1]));
+                h.write_u64(pair(b[2], b[3]));
+            }
+        }
+    }
 }
 
 /// Tets per chunk of [`Slicer::add_par`].
 pub const SLICE_CHUNK_TETS: usize = 1 << 15;
 
 /// Streams tets (from any number of slabs or caps) into one slice.
+///
+/// Each added mesh (or chunk of one) is cut into a [`Part`] whose slice points are keyed by
+/// the mesh's vertex ids (one machine word, cheap to hash), then welded into the slice by
+/// their lattice [`Key`]s, once per point of the part: the same slice, numbered the same
+/// way, as keying every use by lattice points.
 #[derive(Debug)]
 pub struct Slicer {
     axis: usize,
@@ -78,6 +102,42 @@ pub struct Slicer {
     /// `add`ed mesh in order).
     sources: Option<Vec<u32>>,
     tets_seen: u32,
+}
+
+/// The cut of some tets of one mesh: its slice points keyed by the mesh's vertex ids (an
+/// edge by its two ids, an on-plane vertex by its id twice), numbered where each first
+/// occurs, with their lattice keys.
+#[derive(Debug, Default)]
+struct Part {
+    index: FastMap<u64, u32>,
+    keys: Vec<Key>,
+    triangles: Vec<[u32; 3]>,
+    sources: Vec<u32>,
+}
+
+impl Part {
+    fn with_capacity(tets: usize) -> Self {
+        // About one slice point and one triangle per few tets cut.
+        let guess = tets / 8;
+        let mut index = fast_map();
+        index.reserve(guess);
+        Self {
+            index,
+            keys: Vec::with_capacity(guess),
+            triangles: Vec::with_capacity(guess),
+            sources: Vec::new(),
+        }
+    }
+
+    /// The part's number of the slice point `id` (lattice key `key`).
+    #[inline]
+    fn vertex(&mut self, id: u64, key: Key) -> u32 {
+        let next = self.keys.len() as u32;
+        *self.index.entry(id).or_insert_with(|| {
+            self.keys.push(key);
+            next
+        })
+    }
 }
 
 impl Slicer {
@@ -111,6 +171,7 @@ impl Slicer {
     }
 
     /// Side of a vertex: true for "+".
+    #[inline]
     fn plus(&self, p: &LatticePoint) -> bool {
         let v = i64::from(p[self.axis]) * self.c.den;
         if self.on_plane_is_plus {
@@ -129,17 +190,16 @@ impl Slicer {
 
     /// Cuts every tet of `mesh`.
     pub fn add(&mut self, mesh: &TetMesh) {
-        for t in &mesh.tets {
-            let source = self.tets_seen;
-            self.tets_seen = self.tets_seen.wrapping_add(1);
-            self.cut(t.map(|v| mesh.vertices[v as usize]), source);
-        }
+        let first = self.tets_seen;
+        self.tets_seen = first.wrapping_add(mesh.tets.len() as u32);
+        let part = self.cut_part(mesh, &mesh.tets, |j| first.wrapping_add(j as u32));
+        self.weld(part);
     }
 
     /// [`Slicer::add`] on rayon's pool: the tets are cut in chunks of [`SLICE_CHUNK_TETS`],
-    /// each into its own slice, and the chunks' slices joined in order, each slice point
-    /// numbered where it first occurs. The result (vertices, their numbering, triangles,
-    /// sources) is the one `add` gives, whatever the thread count.
+    /// each into its own part, and the parts welded in order, each slice point numbered
+    /// where it first occurs. The result (vertices, their numbering, triangles, sources) is
+    /// the one `add` gives, whatever the thread count.
     pub fn add_par(&mut self, mesh: &TetMesh) {
         let n = mesh.tets.len();
         if rayon::current_num_threads() < 2 || n < 2 * SLICE_CHUNK_TETS {
@@ -147,65 +207,74 @@ impl Slicer {
             return;
         }
         let base = self.tets_seen;
-        let parts: Vec<Slicer> = mesh
+        let this = &*self;
+        let parts: Vec<Part> = mesh
             .tets
             .par_chunks(SLICE_CHUNK_TETS)
             .enumerate()
             .map(|(k, tets)| {
-                let mut part = Slicer {
-                    axis: self.axis,
-                    c: self.c,
-                    on_plane_is_plus: self.on_plane_is_plus,
-                    index: fast_map(),
-                    mesh: TriMesh::default(),
-                    sources: self.sources.as_ref().map(|_| Vec::new()),
-                    tets_seen: 0,
-                };
                 let first = base.wrapping_add((k * SLICE_CHUNK_TETS) as u32);
-                for (j, t) in tets.iter().enumerate() {
-                    let source = first.wrapping_add(j as u32);
-                    part.cut(t.map(|v| mesh.vertices[v as usize]), source);
-                }
-                part
+                this.cut_part(mesh, tets, |j| first.wrapping_add(j as u32))
             })
             .collect();
         self.tets_seen = base.wrapping_add(n as u32);
         for part in parts {
-            // The part's keys by its own numbering (the order it made them in).
-            let mut keys: Vec<(u32, Key)> = part.index.iter().map(|(k, &id)| (id, *k)).collect();
-            keys.sort_unstable_by_key(|x| x.0);
-            let remap: Vec<u32> = keys
-                .into_iter()
-                .zip(&part.mesh.vertices)
-                .map(|((_, key), pos)| {
-                    let next = self.mesh.vertices.len() as u32;
-                    *self.index.entry(key).or_insert_with(|| {
-                        self.mesh.vertices.push(*pos);
-                        next
-                    })
-                })
-                .collect();
-            self.mesh.triangles.extend(
-                part.mesh
-                    .triangles
-                    .iter()
-                    .map(|t| t.map(|v| remap[v as usize])),
-            );
-            if let (Some(all), Some(src)) = (&mut self.sources, part.sources) {
-                all.extend(src);
-            }
+            self.weld(part);
         }
     }
 
     /// Cuts the tets `ids` of `mesh` (sources: the ids).
     pub fn add_some(&mut self, mesh: &TetMesh, ids: &[u32]) {
+        let mut part = Part::with_capacity(ids.len());
         for &i in ids {
-            let t = mesh.tets[i as usize];
-            self.cut(t.map(|v| mesh.vertices[v as usize]), i);
+            self.cut(mesh, mesh.tets[i as usize], i, &mut part);
+        }
+        self.weld(part);
+    }
+
+    /// The tets `tets` of `mesh` cut into a part (the `j`-th tet's source `source(j)`).
+    fn cut_part(&self, mesh: &TetMesh, tets: &[[u32; 4]], source: impl Fn(usize) -> u32) -> Part {
+        let mut part = Part::with_capacity(tets.len());
+        for (j, &t) in tets.iter().enumerate() {
+            self.cut(mesh, t, source(j), &mut part);
+        }
+        part
+    }
+
+    /// Welds `part` into the slice: its points by lattice key, in the part's numbering
+    /// (the order they first occur), its triangles renumbered.
+    fn weld(&mut self, part: Part) {
+        let Part {
+            keys,
+            triangles,
+            sources,
+            ..
+        } = part;
+        let remap: Vec<u32> = keys
+            .into_iter()
+            .map(|key| {
+                let next = self.mesh.vertices.len() as u32;
+                match self.index.entry(key) {
+                    std::collections::hash_map::Entry::Occupied(e) => *e.get(),
+                    std::collections::hash_map::Entry::Vacant(e) => {
+                        e.insert(next);
+                        let pos = position(key, self.axis, self.c);
+                        self.mesh.vertices.push(pos);
+                        next
+                    }
+                }
+            })
+            .collect();
+        self.mesh
+            .triangles
+            .extend(triangles.iter().map(|t| t.map(|v| remap[v as usize])));
+        if let Some(all) = &mut self.sources {
+            all.extend(sources);
         }
     }
 
-    fn cut(&mut self, p: [LatticePoint; 4], source: u32) {
+    fn cut(&self, mesh: &TetMesh, ids: [u32; 4], source: u32, part: &mut Part) {
+        let p = ids.map(|v| mesh.vertices[v as usize]);
         let side = p.map(|q| self.plus(&q));
         let plus = side.iter().filter(|&&s| s).count();
         if plus == 0 || plus == 4 {
@@ -243,15 +312,14 @@ impl Slicer {
             ];
             4
         };
-        let normal = outward_normal(&p);
-        let geo: [([i128; 3], i128); 4] = std::array::from_fn(|m| {
-            let (i, j) = pts[m.min(n - 1)];
-            self.point(&p, i, j)
-        });
-        let keys: [Key; 4] = std::array::from_fn(|m| {
-            let (i, j) = pts[m.min(n - 1)];
-            self.key(&p, i, j)
-        });
+        let normal = outward_normal3(&p, self.axis);
+        let mut geo = [([0i128; 3], 0i128); 4];
+        let mut keys = [(Key::Vertex([0; 4]), 0u64); 4];
+        for m in 0..n {
+            let (i, j) = pts[m];
+            geo[m] = self.point(&p, i, j);
+            keys[m] = self.key(&p, &ids, i, j);
+        }
         let tris: &[[usize; 3]] = if n == 3 {
             &[[0, 1, 2]]
         } else {
@@ -259,15 +327,15 @@ impl Slicer {
         };
         for tri in tris {
             let [a, b, c] = *tri;
-            if keys[a] == keys[b] || keys[b] == keys[c] || keys[a] == keys[c] {
+            if keys[a].0 == keys[b].0 || keys[b].0 == keys[c].0 || keys[a].0 == keys[c].0 {
                 continue;
             }
-            let s = orientation(&geo[a], &geo[b], &geo[c], &normal, self.axis);
+            let s = orientation(&geo[a], &geo[b], &geo[c], &normal);
             let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
-            let ids = ordered.map(|i| self.vertex(keys[i]));
-            self.mesh.triangles.push(ids);
-            if let Some(src) = &mut self.sources {
-                src.push(source);
+            let ids = ordered.map(|i| part.vertex(keys[i].1, keys[i].0));
+            part.triangles.push(ids);
+            if self.sources.is_some() {
+                part.sources.push(source);
             }
         }
     }
@@ -288,42 +356,29 @@ impl Slicer {
             beta = -beta;
             w = -w;
         }
-        let all = [0, 1, 2, 3].map(|c| {
+        // The three coordinates other than k.
+        let coords = [0, 1, 2].map(|m| {
+            let c = if m < k { m } else { m + 1 };
             let (du, dv) = (i128::from(u[c] - p[0][c]), i128::from(v[c] - p[0][c]));
             du * alpha + dv * beta
         });
-        (drop_axis(&all, k), w)
+        (coords, w)
     }
 
-    fn key(&self, p: &[LatticePoint; 4], i: usize, j: usize) -> Key {
+    /// The lattice key of the slice point on edge (i, j) of tet `p` (vertex ids `ids`), and
+    /// its key by vertex ids (the same point of the same mesh has the same one).
+    #[inline]
+    fn key(&self, p: &[LatticePoint; 4], ids: &[u32; 4], i: usize, j: usize) -> (Key, u64) {
         // The ends lie on opposite sides, so at most one of them is on the plane: then the
         // slice point is that vertex itself.
-        for q in [p[i], p[j]] {
+        for (q, id) in [(p[i], ids[i]), (p[j], ids[j])] {
             if i64::from(q[self.axis]) * self.c.den == self.c.num {
-                return Key::Vertex(q);
+                return (Key::Vertex(q), u64::from(id) << 32 | u64::from(id));
             }
         }
         let (a, b) = (p[i].min(p[j]), p[i].max(p[j]));
-        Key::Edge(a, b)
-    }
-
-    fn vertex(&mut self, key: Key) -> u32 {
-        let next = self.mesh.vertices.len() as u32;
-        *self.index.entry(key).or_insert_with(|| {
-            // Exact position from the key (independent of which tet produced it).
-            let pos = match key {
-                Key::Vertex(q) => drop_axis(&q, self.axis).map(f64::from),
-                Key::Edge(a, b) => {
-                    let k = self.axis;
-                    let t = (self.c.num as f64 / self.c.den as f64 - f64::from(a[k]))
-                        / f64::from(b[k] - a[k]);
-                    let (a3, b3) = (drop_axis(&a, k), drop_axis(&b, k));
-                    [0, 1, 2].map(|m| f64::from(a3[m]) + t * f64::from(b3[m] - a3[m]))
-                }
-            };
-            self.mesh.vertices.push(pos);
-            next
-        })
+        let (lo, hi) = (ids[i].min(ids[j]), ids[i].max(ids[j]));
+        (Key::Edge(a, b), u64::from(lo) << 32 | u64::from(hi))
     }
 
     /// The slice. Triangles that occur once in each orientation (a plane containing
@@ -345,12 +400,20 @@ impl Slicer {
                 (k, s, t, src.as_ref().map_or(0, |v| v[i]))
             })
             .collect();
-        keyed.sort_unstable_by_key(|x| (x.0, x.1, x.3));
+        // By (canonical triangle, sign, source), compared as two words.
+        keyed.sort_unstable_by_key(|x| {
+            let (k, s, _, src) = *x;
+            (
+                u64::from(k[0]) << 32 | u64::from(k[1]),
+                u64::from(k[2]) << 33 | u64::from(s > 0) << 32 | u64::from(src),
+            )
+        });
         let mut out = Vec::with_capacity(keyed.len());
-        let mut out_src = Vec::new();
+        let mut out_src = Vec::with_capacity(if src.is_some() { keyed.len() } else { 0 });
         for group in keyed.chunk_by(|a, b| a.0 == b.0) {
-            let plus: Vec<_> = group.iter().filter(|x| x.1 > 0).collect();
-            let minus: Vec<_> = group.iter().filter(|x| x.1 < 0).collect();
+            // Sorted by sign: the "−" ones first, then the "+" ones; as many of each cancel.
+            let m = group.partition_point(|x| x.1 < 0);
+            let (minus, plus) = group.split_at(m);
             let n = plus.len().min(minus.len());
             for x in plus[n..].iter().chain(minus[n..].iter()) {
                 out.push(x.2);
@@ -364,6 +427,20 @@ impl Slicer {
     }
 }
 
+/// The exact position of the slice point `key` on the plane `x_axis = c` (independent of
+/// which tet produced it).
+fn position(key: Key, axis: usize, c: PlaneValue) -> [f64; 3] {
+    match key {
+        Key::Vertex(q) => drop_axis(&q, axis).map(f64::from),
+        Key::Edge(a, b) => {
+            let k = axis;
+            let t = (c.num as f64 / c.den as f64 - f64::from(a[k])) / f64::from(b[k] - a[k]);
+            let (a3, b3) = (drop_axis(&a, k), drop_axis(&b, k));
+            [0, 1, 2].map(|m| f64::from(a3[m]) + t * f64::from(b3[m] - a3[m]))
+        }
+    }
+}
+
 /// The three coordinates other than `k`, in order.
 fn drop_axis<T: Copy>(p: &[T; 4], k: usize) -> [T; 3] {
     let keep = |m: usize| if m < k { m } else { m + 1 };
@@ -371,19 +448,58 @@ fn drop_axis<T: Copy>(p: &[T; 4], k: usize) -> [T; 3] {
 }
 
 /// N with N·x = det[b−a, c−a, d−a, x]: outward for our orientation convention, since
-/// orient4(a, b, c, d, inside) < 0.
-fn outward_normal(p: &[LatticePoint; 4]) -> [i128; 4] {
-    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i128::from(q[k] - p[0][k]));
+/// orient4(a, b, c, d, inside) < 0; its three components other than `axis` (the only ones
+/// [`orientation`] reads).
+fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
+    // N_j = det[u; v; w; e_j] = (-1)^(3+j) times the minor of u, v, w without column j.
+    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
     let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
-    let mut n = [0i128; 4];
-    for (k, nk) in n.iter_mut().enumerate() {
-        let mut e = [0i128; 4];
-        e[k] = 1;
-        *nk = det4(&u, &v, &w, &e);
-    }
-    n
+    let keep = |m: usize| if m < axis { m } else { m + 1 };
+    // Below 2^20 every product of three is below 2^60 and the minor within i64.
+    let small = [u, v, w]
+        .iter()
+        .flatten()
+        .all(|x| x.unsigned_abs() < 1 << 20);
+    [0, 1, 2].map(|m| {
+        let j = keep(m);
+        let (a, b, c) = match j {
+            0 => (1, 2, 3),
+            1 => (0, 2, 3),
+            2 => (0, 1, 3),
+            _ => (0, 1, 2),
+        };
+        let minor = if small {
+            i128::from(
+                u[a] * (v[b] * w[c] - v[c] * w[b]) - u[b] * (v[a] * w[c] - v[c] * w[a])
+                    + u[c] * (v[a] * w[b] - v[b] * w[a]),
+            )
+        } else {
+            let (u, v, w) = (u.map(i128::from), v.map(i128::from), w.map(i128::from));
+            u[a] * (v[b] * w[c] - v[c] * w[b]) - u[b] * (v[a] * w[c] - v[c] * w[a])
+                + u[c] * (v[a] * w[b] - v[b] * w[a])
+        };
+        if (3 + j) % 2 == 1 {
+            -minor
+        } else {
+            minor
+        }
+    })
 }
 
+/// [`outward_normal3`] from the full 4D determinant (the reference it is tested against).
+#[cfg(test)]
+fn outward_normal3_by_det4(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
+    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i128::from(q[k]) - i128::from(p[0][k]));
+    let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
+    let keep = |m: usize| if m < axis { m } else { m + 1 };
+    [0, 1, 2].map(|m| {
+        let mut e = [0i128; 4];
+        e[keep(m)] = 1;
+        det4(&u, &v, &w, &e)
+    })
+}
+
+#[cfg(test)]
 fn det4(a: &[i128; 4], b: &[i128; 4], c: &[i128; 4], d: &[i128; 4]) -> i128 {
     let s = |i: usize, j: usize| c[i] * d[j] - c[j] * d[i];
     let t = |i: usize, j: usize| a[i] * b[j] - a[j] * b[i];
@@ -392,15 +508,14 @@ fn det4(a: &[i128; 4], b: &[i128; 4], c: &[i128; 4], d: &[i128; 4]) -> i128 {
         + t(2, 3) * s(0, 1)
 }
 
-/// Sign of det3[Q−P, R−P, n3] for homogeneous P, Q, R (positive weights).
+/// Sign of det3[Q−P, R−P, n3] for homogeneous P, Q, R (positive weights), `n3` the outward
+/// normal without the cut axis.
 fn orientation(
     p: &([i128; 3], i128),
     q: &([i128; 3], i128),
     r: &([i128; 3], i128),
-    n: &[i128; 4],
-    k: usize,
+    n3: &[i128; 3],
 ) -> i128 {
-    let n3 = drop_axis(n, k);
     let u = [0, 1, 2].map(|i| p.1 * q.0[i] - q.1 * p.0[i]);
     let v = [0, 1, 2].map(|i| p.1 * r.0[i] - r.1 * p.0[i]);
     let c = [
@@ -456,4 +571,33 @@ pub fn write_ply<W: Write>(
         }
     }
     w.flush()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The normal from 3x3 minors (in i64 when small) is the 4D determinant's.
+    #[test]
+    fn normal_by_minors_is_the_determinants() {
+        let mut x = 0x2545_f491_4f6c_dd1du64;
+        let mut next = |r: i64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            ((x % (2 * r as u64 + 1)) as i64 - r) as i32
+        };
+        for round in 0..4000 {
+            // Small coordinates, and now and then large ones (the i128 path).
+            let r = if round % 5 == 0 { 1 << 30 } else { 300 };
+            let p: [LatticePoint; 4] = std::array::from_fn(|_| std::array::from_fn(|_| next(r)));
+            for axis in 0..4 {
+                assert_eq!(
+                    outward_normal3(&p, axis),
+                    outward_normal3_by_det4(&p, axis),
+                    "{p:?} axis {axis}"
+                );
+            }
+        }
+    }
 }

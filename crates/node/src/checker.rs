@@ -42,12 +42,14 @@ use chronotope_checker::labels::Label;
 use chronotope_checker::pipeline::CheckPlan;
 use chronotope_checker::report::{Report, Resolution, Verdict};
 use chronotope_checker::rolling::{
-    ContactPhase, Piece, PieceKind, RollingOutput, RollingChecker, RollingConfig, SlabDone,
+    ContactPhase, Piece, PieceKind, RollingChecker, RollingConfig, RollingOutput, SlabDone,
 };
 use chronotope_checker::rotate::RotationSpec;
+use chronotope_mesh::flat::{merge_flat_with, FlatFaces};
+use chronotope_mesh::hash::WordHasher;
 use chronotope_mesh::slice::{Slicer, TriMesh};
-use chronotope_mesh::TetMesh;
 use chronotope_mesh::GridGeometry;
+use chronotope_mesh::TetMesh;
 use chronotope_mesh::{MesherOptions, OccupancyGrid};
 use chronotope_msg::{
     BodySummary, ColorRGBA, ContactEvent, Header, InterferenceReport, MarkerArray, MeshSlab,
@@ -620,7 +622,11 @@ impl MarkerQueue {
         let slabs: Vec<(String, SlabDone, u64)> = self.slabs.drain(..).collect();
         let one_step = slabs.windows(2).all(|w| w[0].2 == w[1].2);
         if one_step || self.every_slab {
-            return (slabs.into_iter().map(|(f, d, _)| (f, d)).collect(), 0, restart);
+            return (
+                slabs.into_iter().map(|(f, d, _)| (f, d)).collect(),
+                0,
+                restart,
+            );
         }
         let n = slabs.len();
         let mut newest: Vec<(String, SlabDone)> = Vec::new();
@@ -635,12 +641,14 @@ impl MarkerQueue {
     }
 }
 
-/// A slab's t-slice as the markers draw it: the slice, each triangle's tet, and the whole
+/// A slab's t-slice as the markers draw it: the slice, each triangle's tet, the plane of
+/// each flat triangle (found once, for the whole slice and its labelled parts) and the whole
 /// slice with its flat faces merged ([`chronotope_mesh::flat`]).
 #[derive(Debug)]
 struct Drawn {
     mesh: TriMesh,
     sources: Vec<u32>,
+    flats: FlatFaces,
     merged: Vec<[u32; 3]>,
 }
 
@@ -652,8 +660,8 @@ struct Shown {
     geometry: u64,
     /// The slice, with each triangle's tet.
     slice: Arc<Drawn>,
-    /// Per label marker (INSIDE, INTERFERENCE): a hash of its triangles (0: none shown).
-    labels: [u64; 2],
+    /// Per label marker (INSIDE, INTERFERENCE): its triangles in the slice (none: not shown).
+    labels: [Vec<u32>; 2],
 }
 
 /// The checker's markers part (see [`CheckerNode::markers_part`]).
@@ -686,7 +694,10 @@ impl CheckerMarkers {
         }
         // Each slab's geometry hash, and its slice where it is new to its body (bodies in
         // order; a body's later slab compares with its earlier one in this batch).
-        let hashes: Vec<u64> = slabs.par_iter().map(|(_, d)| geometry_hash(&d.mesh)).collect();
+        let hashes: Vec<u64> = slabs
+            .par_iter()
+            .map(|(_, d)| geometry_hash(&d.mesh))
+            .collect();
         let mut last: std::collections::BTreeMap<&str, u64> = self
             .shown
             .iter()
@@ -779,7 +790,7 @@ impl Node for CheckerMarkers {
 /// repeats from slab to slab (the mesher moves its rest slab in time).
 fn geometry_hash(mesh: &TetMesh) -> u64 {
     use std::hash::{Hash, Hasher};
-    let mut h = std::collections::hash_map::DefaultHasher::new();
+    let mut h = WordHasher::default();
     mesh.vertices.len().hash(&mut h);
     for v in &mesh.vertices {
         (v[0], v[1], v[2]).hash(&mut h);
@@ -795,10 +806,12 @@ fn slice_slab(d: &SlabDone) -> Drawn {
         Slicer::new(3, mid_slab_plane(u64::from(d.index), d.geometry.scale)).with_sources();
     slicer.add_par(&d.mesh);
     let (mesh, sources) = slicer.finish_with_sources();
-    let (merged, _) = chronotope_mesh::flat::merge_flat(&mesh, |_| Some(0));
+    let flats = FlatFaces::of(&mesh);
+    let (merged, _) = merge_flat_with(&mesh, &flats, |_| Some(0));
     Drawn {
         mesh,
         sources,
+        flats,
         merged,
     }
 }
@@ -818,7 +831,6 @@ fn slab_markers(
     geometry: u64,
     slice: Option<Arc<Drawn>>,
 ) -> Option<Message> {
-    use std::hash::{Hash, Hasher};
     let g = d.geometry;
     let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
     let header = Header {
@@ -836,17 +848,12 @@ fn slab_markers(
     let label_of = |t: usize| d.worst.get(src[t] as usize).copied().unwrap_or(0);
     let wanted = [Label::Inside as u8, Label::Interference as u8];
     let colors = [INSIDE_COLOR, INTERFERENCE_COLOR];
-    let mut label_hashes = [0u64; 2];
-    for (k, &want) in wanted.iter().enumerate() {
-        let mut h = std::collections::hash_map::DefaultHasher::new();
-        let mut any = false;
-        for t in (0..tri.triangles.len()).filter(|&t| label_of(t) == want) {
-            t.hash(&mut h);
-            any = true;
-        }
-        label_hashes[k] = if any { h.finish() | 1 } else { 0 };
-    }
-    let before = shown.get(&d.body).map(|s| s.labels);
+    let labelled: [Vec<u32>; 2] = wanted.map(|want| {
+        (0..tri.triangles.len() as u32)
+            .filter(|&t| label_of(t as usize) == want)
+            .collect()
+    });
+    let before = shown.get(&d.body).map(|s| &s.labels);
     let mut markers = Vec::new();
     if new_geometry {
         markers.push(triangle_list_of(
@@ -860,14 +867,15 @@ fn slab_markers(
         ));
     }
     for k in 0..2 {
-        let was = before.map_or(0, |b| b[k]);
+        let was = before.map_or(&[][..], |b| &b[k][..]);
         // Redrawn where its triangles changed, and over a new slice (its points moved).
-        let redraw = label_hashes[k] != was || (new_geometry && label_hashes[k] != 0);
+        let redraw = labelled[k] != was || (new_geometry && !labelled[k].is_empty());
         if !redraw {
             continue;
         }
-        let (merged, _) =
-            chronotope_mesh::flat::merge_flat(tri, |t| (label_of(t) == wanted[k]).then_some(0));
+        let (merged, _) = merge_flat_with(tri, &slice.flats, |t| {
+            (label_of(t) == wanted[k]).then_some(0)
+        });
         markers.push(triangle_list_of(
             header.clone(),
             &d.body,
@@ -883,7 +891,7 @@ fn slab_markers(
         Shown {
             geometry,
             slice: slice.clone(),
-            labels: label_hashes,
+            labels: labelled,
         },
     );
     (!markers.is_empty()).then(|| {
@@ -1216,7 +1224,10 @@ mod tests {
         q.push("w", with_body(4, "/a"));
         q.end_step();
         let (newest, skipped, _) = q.take();
-        let got: Vec<(u32, &str)> = newest.iter().map(|(_, d)| (d.index, d.body.as_str())).collect();
+        let got: Vec<(u32, &str)> = newest
+            .iter()
+            .map(|(_, d)| (d.index, d.body.as_str()))
+            .collect();
         assert_eq!(got, [(3, "/b"), (4, "/a")]);
         assert_eq!(skipped, 1);
     }
