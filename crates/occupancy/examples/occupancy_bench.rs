@@ -1,7 +1,7 @@
 //! The benchmark: prints the median and best time of each case over repeated
 //! runs. A cloud of at least `PARALLEL_POINTS` points is marked on two threads
-//! (rayon's pool) unless a case says "one thread": its wall time is the figure,
-//! the calling thread's CPU time then counts only its own half.
+//! (the caller and a scoped thread) unless a case says "one thread": its wall
+//! time is the figure, the calling thread's CPU time then counts its own half.
 //!
 //! ```sh
 //! cargo run --release --example bench            # all cases

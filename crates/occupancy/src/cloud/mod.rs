@@ -163,8 +163,9 @@ impl CloudOptions {
         self
     }
 
-    /// Whether a cloud of at least [`PARALLEL_POINTS`] points is split in two halves
-    /// marked at once on rayon's pool (on by default; the frame is the same either way).
+    /// Whether a cloud of at least [`PARALLEL_POINTS`] points is split in two halves marked
+    /// at once, on the calling thread and a scoped thread (on by default on a machine of
+    /// more than one core; the frame is the same either way).
     /// Not with `min_points` above 1, whose counts are kept in one array.
     pub fn parallel(mut self, on: bool) -> Self {
         self.parallel = on;
@@ -398,7 +399,7 @@ impl CloudRasterizer {
         let parallel = opts.parallel
             && !counting
             && layout.points >= PARALLEL_POINTS
-            && rayon::current_num_threads() > 1;
+            && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
         if parallel {
             work = work.saturating_add(lattice.row_bytes());
         }
@@ -434,10 +435,12 @@ impl CloudRasterizer {
             self.half.reset(lattice.size());
             let (mut a, mut b) = (marker(&mut self.rows, None), marker(&mut self.half, None));
             let mid = all / 2;
-            rayon::join(
-                || a.run(&layout, cloud.data, 0..mid),
-                || b.run(&layout, cloud.data, mid..all),
-            );
+            // The second half on a thread of its own, the first on the caller's: a node's
+            // frame never queues behind other work on a shared pool.
+            std::thread::scope(|scope| {
+                scope.spawn(|| b.run(&layout, cloud.data, mid..all));
+                a.run(&layout, cloud.data, 0..mid);
+            });
             let (sa, sb) = (a.stats, b.stats);
             self.rows.or_from(&self.half);
             [
