@@ -173,6 +173,12 @@ impl CloudOptions {
     }
 }
 
+/// Whether the machine has more than one core (asked once: the answer reads cgroup files).
+fn several_cores() -> bool {
+    static SEVERAL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *SEVERAL.get_or_init(|| std::thread::available_parallelism().is_ok_and(|n| n.get() > 1))
+}
+
 /// The least points of a cloud split over two threads: below it, the second thread's
 /// frame (cleared, then OR-ed in: two passes over the lattice's bits) costs more than it
 /// saves.
@@ -396,10 +402,8 @@ impl CloudRasterizer {
         if radius > 0.0 {
             work = work.saturating_add(lattice.row_bytes());
         }
-        let parallel = opts.parallel
-            && !counting
-            && layout.points >= PARALLEL_POINTS
-            && std::thread::available_parallelism().is_ok_and(|n| n.get() > 1);
+        let parallel =
+            opts.parallel && !counting && layout.points >= PARALLEL_POINTS && several_cores();
         if parallel {
             work = work.saturating_add(lattice.row_bytes());
         }
@@ -437,10 +441,18 @@ impl CloudRasterizer {
             let mid = all / 2;
             // The second half on a thread of its own, the first on the caller's: a node's
             // frame never queues behind other work on a shared pool.
-            std::thread::scope(|scope| {
-                scope.spawn(|| b.run(&layout, cloud.data, mid..all));
+            // A thread that cannot be started (the process's limit) leaves its half to the
+            // caller, after the first.
+            let spawned = std::thread::scope(|scope| {
+                let second = std::thread::Builder::new()
+                    .name("cloud half".into())
+                    .spawn_scoped(scope, || b.run(&layout, cloud.data, mid..all));
                 a.run(&layout, cloud.data, 0..mid);
+                second.is_ok()
             });
+            if !spawned {
+                b.run(&layout, cloud.data, mid..all);
+            }
             let (sa, sb) = (a.stats, b.stats);
             self.rows.or_from(&self.half);
             [
