@@ -46,10 +46,12 @@ pub type RawWriter = DataWriter<RawCdr, RawCdrAdapter>;
 pub struct WireWriter {
     raw: Mutex<RawWriter>,
     guid: rustdds::GUID,
-    /// A volatile writer of a large type (frames, clouds, meshes, markers, labels): while no
-    /// reader on the wire has matched it, nothing would receive or keep what it writes, so
-    /// messages are neither encoded nor written (counted as `unread`). Copying a 128³ frame
-    /// into CDR and into RustDDS's cache was two thirds of a robot node's time.
+    /// A volatile writer of a large type (VoxelGrid frames, mesh pieces; the large types
+    /// kept for late readers, clouds, markers and labels, are transient local and always
+    /// written): while no reader on the wire has matched it, nothing would receive or keep
+    /// what it writes, so messages are neither encoded nor written (counted as `unread`).
+    /// Copying a 128³ frame into CDR and into RustDDS's cache was two thirds of a robot
+    /// node's time.
     skip_unread: bool,
     /// Readers on the wire it has matched, from its publication-matched events, drained by
     /// [`Demand::poll`] at every tick (at most 50 ms): a reader that appears receives from
@@ -88,6 +90,7 @@ impl WireWriter {
         }
     }
 }
+
 /// A reader of serialised messages.
 pub type RawReader = SimpleDataReader<RawCdr, RawCdrAdapter>;
 
@@ -552,10 +555,7 @@ impl DdsOut {
             .payload
             .encode()
             .map_err(SendError::from)
-            .and_then(|bytes| {
-                write_stamped(&w.lock(), bytes)
-                    .map_err(SendError::from)
-            });
+            .and_then(|bytes| write_stamped(&w.lock(), bytes).map_err(SendError::from));
         let mut st = self.status.lock().unwrap_or_else(|p| p.into_inner());
         match r {
             Ok(()) => *st.sent.entry(m.topic.to_string()).or_default() += 1,
@@ -1537,7 +1537,10 @@ struct Demand {
 impl Demand {
     fn new(watched: Vec<Watched>, writers: impl IntoIterator<Item = Arc<WireWriter>>) -> Self {
         let mut seen = BTreeSet::new();
-        let writers = writers.into_iter().filter(|w| seen.insert(w.guid)).collect();
+        let writers = writers
+            .into_iter()
+            .filter(|w| seen.insert(w.guid))
+            .collect();
         Demand { watched, writers }
     }
 
