@@ -739,6 +739,53 @@ fn the_markers_period_slices_one_slab_in_so_many_per_body() {
     }
 }
 
+/// An unsure span that ends while the streams go on is said over by the period that finds it
+/// over, stamped with that period's later frame (as a contact's end is): one frame after the
+/// span's last. The bundled person cell's OctoMap, at half the cell's rate, gives such spans.
+#[test]
+fn an_unsure_span_s_end_is_stamped_with_the_period_that_found_it_over() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let d = tempfile::tempdir().unwrap();
+    let config = LaunchConfig::read(&root.join("launch_configs/person_cell.yaml")).unwrap();
+    let out = d.path().join("out.mcap");
+    replay(
+        &root.join("bags/person-cell-32.mcap"),
+        Some(&config),
+        Some(&out),
+        false,
+    )
+    .unwrap();
+    let ns = |t: &Time| i64::from(t.sec) * 1_000_000_000 + i64::from(t.nanosec);
+    let since = |e: &chronotope::msg::ContactEvent| {
+        (ns(&e.header.stamp) - ns(&e.time_origin)) as f64 * 1e-9
+    };
+    let (mut ended_early, mut last_s) = (0, f64::MIN);
+    let mut events = Vec::new();
+    for m in chronotope::bag::BagReader::open(&out).unwrap() {
+        let m = m.unwrap();
+        if m.topic == "/checker/contacts" {
+            let e: chronotope::msg::ContactEvent = chronotope::msg::decode_cdr(&m.data).unwrap();
+            last_s = last_s.max(since(&e));
+            events.push(e);
+        }
+    }
+    for e in &events {
+        let at_s = since(e);
+        assert!(at_s >= e.end_s - 1e-6, "{at_s} {e:?}");
+        if e.event == chronotope::msg::ContactEvent::UNSURE_END && e.end_s < last_s - 1e-6 {
+            assert!(
+                at_s > e.end_s + 1e-6,
+                "said at its last frame: {at_s} {e:?}"
+            );
+            ended_early += 1;
+        }
+    }
+    assert!(
+        ended_early > 0,
+        "no span ended before the streams did: {events:?}"
+    );
+}
+
 /// A 24³ bag at 1 cm voxels: `/arm/occupancy` is a resting base with a 1-voxel-thin blade that
 /// jumps 6 voxels along x each frame (x = 1, 7, 13, 19, 1, ...: it vanishes between frames
 /// and, from x = 13 to 19, passes through where `/post/occupancy`, a still plate at x = 16,
@@ -831,6 +878,13 @@ fn a_pair_is_called_clear_only_where_both_bodies_are_observed() {
         if m.topic == "/checker/contacts" {
             let e: chronotope::msg::ContactEvent = chronotope::msg::decode_cdr(&m.data).unwrap();
             if e.body_a == "/arm/occupancy" && e.body_b == "/post/occupancy" {
+                let stamp_s =
+                    f64::from(e.header.stamp.sec) + f64::from(e.header.stamp.nanosec) * 1e-9;
+                let origin_s =
+                    f64::from(e.time_origin.sec) + f64::from(e.time_origin.nanosec) * 1e-9;
+                // Stamped with the later frame of the period that found it: here the span
+                // goes on to the streams' end (the last frame, 0.7 s).
+                assert!((stamp_s - origin_s - e.end_s).abs() < 1e-6, "{e:?}");
                 events.push((e.event, e.unsure_reason));
             }
         }

@@ -539,7 +539,11 @@ impl RollingChecker {
                 o.period_ns = o.period_ns.min(period_ns);
             }
             (_, now) => {
-                self.close_unsure(i, out);
+                // Said at the period that found the span over, like a contact's end: the
+                // event's stamp is this period's later frame, not the span's last one.
+                if let Some(o) = self.pairs[i].unsure_open.take() {
+                    out.push(self.unsure_update(i, &o, true, hi));
+                }
                 if let Some((body, why)) = now {
                     let p = &mut self.pairs[i];
                     let open = OpenUnsure {
