@@ -510,18 +510,46 @@ impl RollingChecker {
 }
 
 /// The resolver's pool: as many threads as rayon's, so that a resolution's long sequential
-/// parts never hold up the windows' parallel work and the system shares the cores between
-/// the two.
+/// parts never hold up the windows' parallel work. Its threads run at a lower priority
+/// ([`RESOLVER_NICE`]): contacts are the answer a cell waits for, so the windows, the
+/// meshers and the transport take the cores first and a resolution the time they leave.
 fn resolver_pool() -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(rayon::current_num_threads())
         .thread_name(|i| format!("resolver-{i}"))
+        .start_handler(|_| lower_own_priority(RESOLVER_NICE))
         // A resolution that panics (a bug) must not abort the process, rayon's default:
         // its result channel closes and the checker says so.
         .panic_handler(|p| {
             tracing::error!("a resolution panicked: {}", crate::panic_text(p.as_ref()));
         })
         .build()
+}
+
+/// How much the resolver's threads lower their priority: nice values added (Linux gives a
+/// thread of nice +10 about a tenth of a core's time against a thread of the process's own
+/// nice when both want the core). A live cell's contact events at the start of an episode
+/// waited behind its resolution otherwise: docs/performance.md, "Resolutions yield to the
+/// contacts".
+pub const RESOLVER_NICE: i32 = 10;
+
+/// Lowers the calling thread's scheduling priority by `by` nice values (at most to 19). On
+/// Linux each thread has a nice value of its own; elsewhere, or if the system refuses, the
+/// thread keeps its priority: only the order in which work gets the cores changes, never
+/// what is computed.
+fn lower_own_priority(by: i32) {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: system calls on the calling thread's own id, with no memory passed.
+        unsafe {
+            let tid = libc::gettid() as libc::id_t;
+            // -1 is also a valid nice value: then this lowers from -1, which is as asked.
+            let now = libc::getpriority(libc::PRIO_PROCESS, tid);
+            let _ = libc::setpriority(libc::PRIO_PROCESS, tid, (now + by).min(19));
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = by;
 }
 
 /// A contact episode's resolution, with everything it needs: it runs on the resolver's pool
@@ -933,6 +961,20 @@ mod tests {
         assert_eq!(map.len(), 2);
         assert_eq!(map["a"].body.mesh, later.mesh);
         assert_eq!(map["b"].body.mesh, b1.mesh);
+    }
+
+    /// The resolver's threads run at a lower priority than the thread that made the pool,
+    /// which keeps its own.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_resolver_s_threads_yield_to_the_checker_s() {
+        let nice =
+            || unsafe { libc::getpriority(libc::PRIO_PROCESS, libc::gettid() as libc::id_t) };
+        let mine = nice();
+        let pool = resolver_pool().unwrap();
+        let theirs = pool.install(nice);
+        assert_eq!(theirs, (mine + RESOLVER_NICE).min(19), "mine {mine}");
+        assert_eq!(nice(), mine);
     }
 
     #[test]
