@@ -279,8 +279,11 @@ impl TreeVisitor for LeafRaster<'_> {
 struct MergeFrame {
     key: [u32; 3],
     depth: u32,
-    /// Min keys of the leaf children so far (at depth `depth + 1`).
-    keys: [[u32; 3]; 8],
+    /// Min keys of the leaf children so far (at depth `depth + 1`), one array per axis: a
+    /// child's key arrives as three 4-byte stores, and a `[u32; 3]` copy read them back with
+    /// an 8-byte load that the processor cannot forward from them (a stall per leaf: the
+    /// full 5 cm stream onto 128³ `percent` took 10.8 ms with it, 10.5 ms without).
+    keys: [[u32; 8]; 3],
     /// Bit `i`: leaf child `i` (in arrival order) is occupied.
     occupied: u8,
     n: u8,
@@ -305,7 +308,7 @@ impl<V: TreeVisitor> MergeLeaves<V> {
         let frame = MergeFrame {
             key: [0; 3],
             depth: 0,
-            keys: [[0; 3]; 8],
+            keys: [[0; 8]; 3],
             occupied: 0,
             n: 0,
             whole: true,
@@ -322,7 +325,10 @@ impl<V: TreeVisitor> MergeLeaves<V> {
         let f = &mut self.stack[self.sp - 1];
         // A node has at most 8 children; a stream cannot make it more.
         if f.n < 8 {
-            f.keys[f.n as usize] = key;
+            let n = f.n as usize;
+            f.keys[0][n] = key[0];
+            f.keys[1][n] = key[1];
+            f.keys[2][n] = key[2];
             f.occupied |= u8::from(occupied) << f.n;
             f.n += 1;
         }
@@ -370,8 +376,9 @@ impl<V: TreeVisitor> TreeVisitor for MergeLeaves<V> {
             return;
         }
         for i in 0..n as usize {
+            let keys = &self.stack[self.sp].keys;
             let leaf = OctreeLeaf {
-                key_min: self.stack[self.sp].keys[i],
+                key_min: [keys[0][i], keys[1][i], keys[2][i]],
                 depth: depth + 1,
                 occupied: occupied >> i & 1 == 1,
                 log_odds: None,
