@@ -780,7 +780,7 @@ fn periodic_contacts_are_published_while_the_stream_goes_on() {
         "{pair}"
     );
     // Each contact began while the stream went on (the last one may be found only after the
-    // last frame: its period is checked once what follows it is known).
+    // last frame, if it begins in the caps that close the streams).
     let contacts = live["contacts"].as_array().expect("contacts");
     let begun_streaming = contacts
         .iter()

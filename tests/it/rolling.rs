@@ -330,3 +330,93 @@ fn a_stream_that_stalls_is_taken_as_ended_and_its_partner_goes_on() {
         .max();
     assert!(a_slabs.is_some_and(|i| i >= 3), "{a_slabs:?}");
 }
+
+/// A period's contact is said as soon as both bodies' slab of it is there, not one frame
+/// later when what follows the slabs is known; the labels and what a cap adds where a
+/// stream ends are settled after, and the answer is the full check's, with the bodies in
+/// contact when their streams end (the caps at the last frame cross).
+#[test]
+fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
+    use chronotope::msg::ContactEvent;
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use std::sync::Arc;
+
+    let d = tempfile::tempdir().unwrap();
+    let cfg = two_cubes();
+    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+    let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+    let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    let t0 = 1_000_000_000i64;
+    let mut frames = Vec::new();
+    let mut said: Vec<(u32, ContactEvent)> = Vec::new();
+    let mut labels = 0usize;
+    let mut inputs = Vec::new();
+    let events = |out: &[Message], k: u32, said: &mut Vec<(u32, ContactEvent)>| {
+        for m in out {
+            if let Payload::Contact(e) = &m.payload {
+                said.push((k, (**e).clone()));
+            }
+        }
+    };
+    for k in 0..8u32 {
+        let (a, mut b) = (cube(0, k, t0), cube(6, 0, t0));
+        b.header.stamp = a.header.stamp;
+        let mut pieces = Vec::new();
+        for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
+            let t = g.header.stamp.as_nanos();
+            frames.push((topic, t as u64, g.clone()));
+            let m = Message::new(topic, t, Payload::VoxelGrid(Arc::new(g)));
+            mesher.on_message(&m, &mut pieces);
+            // The checker reads the frames too, for the overlap.
+            inputs.push(m);
+        }
+        let mut out = Vec::new();
+        for m in inputs.drain(..).chain(pieces) {
+            checker.on_message(&m, &mut out);
+        }
+        labels += out
+            .iter()
+            .filter(|m| matches!(m.payload, Payload::TetLabels(_)))
+            .count();
+        events(&out, k, &mut said);
+    }
+    let (mut pieces, mut out) = (Vec::new(), Vec::new());
+    mesher.finish(&mut pieces);
+    for m in &pieces {
+        checker.on_message(m, &mut out);
+    }
+    checker.finish(&mut out);
+    labels += out
+        .iter()
+        .filter(|m| matches!(m.payload, Payload::TetLabels(_)))
+        .count();
+    events(&out, 8, &mut said);
+
+    let begin = said
+        .iter()
+        .find(|(_, e)| e.event == ContactEvent::BEGIN)
+        .expect("the boxes meet");
+    let stamp_frame = (begin.1.header.stamp.as_nanos() - t0) / 100_000_000;
+    assert_eq!(
+        i64::from(begin.0),
+        stamp_frame,
+        "said while the frame of its stamp was handled, not with the next: {said:?}"
+    );
+    assert!(
+        said.iter().any(|(_, e)| e.event == ContactEvent::END),
+        "the contact ends with the streams: {said:?}"
+    );
+    // One labels message per body and slab, each as the full window gives it.
+    assert_eq!(labels, 2 * 7);
+    let full = check_bag(
+        &bag_of(d.path(), "cubes.mcap", &frames),
+        MesherOptions::default(),
+        None,
+    )
+    .unwrap();
+    let rolled = checker.report().expect("a report").clone();
+    assert!(full.pairs[0].interfering);
+    assert_eq!(answers(&rolled), answers(&full));
+}

@@ -48,7 +48,7 @@ impl RollingChecker {
         for i in self.pairs_of(m) {
             let p = &self.pairs[i];
             let done = p
-                .next
+                .undecided_from()
                 .map_or(f64::NEG_INFINITY, |n| self.seconds_of_stamp(n));
             if p.stopped.is_none() {
                 decided = decided.min(done);
@@ -355,7 +355,7 @@ impl RollingChecker {
                     continue;
                 }
                 let done = p
-                    .next
+                    .undecided_from()
                     .map_or(f64::NEG_INFINITY, |n| self.seconds_of_stamp(n));
                 from = from.min(done);
                 for o in p.intervals.iter().rev().chain(p.open.iter()) {
@@ -391,7 +391,7 @@ impl RollingChecker {
             let oldest = pairs
                 .iter()
                 .filter(|p| (p.a == *id || p.b == *id) && p.stopped.is_none())
-                .map(|p| p.next.unwrap_or(i64::MIN))
+                .map(|p| p.undecided_from().unwrap_or(i64::MIN))
                 .min()
                 .unwrap_or(i64::MAX);
             if self.cfg.slabs_done {

@@ -4,9 +4,11 @@
 //! Each body's stream comes as the mesher's pieces (first cap, one lateral slab per frame
 //! period, last cap) and, for the overlap measure and the windows' artificial caps, its
 //! decoded frames. For each pair, the frame period starting at stamp `s` is checked as soon
-//! as both bodies' slabs for it are in, with what follows each of them (the next slab, or
-//! the last cap): see the `period` module for why one slab closed by two caps gives
-//! exactly the labels and crossings of the full check. What a period gives (labels of its
+//! as both bodies' slabs for it are in: see the `period` module for why one slab closed by
+//! two caps gives exactly the labels and crossings of the full check. What follows each
+//! slab (the next slab, or the last cap) may not be known yet; the period's contacts are
+//! said at once all the same, and its labels, with what a last cap there adds, once it is
+//! ([`PendingPeriod`]). What a period gives (labels of its
 //! tets, ranges of overlap, crossing pairs) is folded into the pair's running answer:
 //! label counts, intervals (merged exactly as the full check merges them), closing speeds
 //! at each interval's ends (from the crossings within one frame period of the end), and
@@ -36,8 +38,8 @@ use super::bounds;
 use super::labels::{Label, LabelCounts};
 
 use super::period::{
-    check_window, on_pair_lattice, prepare_window, PreparedWindow, SpatialBox, TakenLabels,
-    WindowBody, WindowResult,
+    check_window, on_pair_lattice, prepare_window, Crossing, PreparedWindow, SpatialBox,
+    TakenLabels, WindowBody, WindowResult,
 };
 use super::{check_pair, CommonLattice, PairResult};
 use super::{origin_offset, CHECKER_FACTOR};
@@ -763,6 +765,31 @@ struct PairRoll {
     unsure_open: Option<OpenUnsure>,
     /// Unsure spans begun so far.
     unsure_count: u64,
+    /// The period checked before what follows its slabs was known, if one is waiting for
+    /// that (see [`PendingPeriod`]).
+    pending: Option<PendingPeriod>,
+}
+
+/// A pair's period checked as soon as both bodies' slabs were there, before it was known
+/// whether either stream ends at the period's later frame (then closed there by a cap).
+///
+/// A lateral tet's labels and crossings do not depend on what follows its slab (see
+/// [`crate::period`]), so the period's contacts and unsure spans are said at once; a cap at
+/// the later frame can only add its own tets, crossings in that time plane, and the ends
+/// of the streams. The labels wait, so that a slab's labels are one message as the full
+/// window gives them: once the next slabs or the ends are known, the pair settles the
+/// period ([`RollingChecker::settle_pending`]) before it goes on.
+#[derive(Debug)]
+struct PendingPeriod {
+    /// The period's two frames.
+    s: i64,
+    hi: i64,
+    /// Its common frame index.
+    k: i64,
+    /// What the window without caps at `hi` gave (`None`: it could not be checked).
+    result: Option<WindowResult>,
+    /// The labels it gave, to be published once settled (if no cap comes).
+    labels: Vec<RollingOutput>,
 }
 
 /// A pair's unsure span that is going on (see [`UnsureUpdate`]).
@@ -929,6 +956,7 @@ impl RollingChecker {
                     unsure: Default::default(),
                     unsure_open: None,
                     unsure_count: 0,
+                    pending: None,
                 })
                 .collect(),
             origin_ns: None,
@@ -1419,7 +1447,7 @@ impl RollingChecker {
     }
 
     /// The window pair `i` would check next, if it is plainly ready: both bodies have their
-    /// slab at the next stamp and what follows it, on one lattice and in one frame. Anything
+    /// slab at the next stamp, on one lattice and in one frame. Anything
     /// less plain is left to [`Self::step`].
     fn ready_window(&self, i: usize) -> Option<(i64, WindowSpec, WindowSpec)> {
         let p = &self.pairs[i];
@@ -1435,12 +1463,10 @@ impl RollingChecker {
         {
             return None;
         }
+        // What follows the slabs need not be known: the window is the one checked before
+        // it is (see [`PendingPeriod`]).
         let (sa, sb) = (a.slabs.get(&s)?, b.slabs.get(&s)?);
-        let hi = sa.hi;
-        let known = |body: &BodyStream, run: u64| {
-            body.slabs.contains_key(&hi) || body.run(run).is_some_and(|r| r.ended())
-        };
-        if sb.hi != hi || !known(a, sa.run) || !known(b, sb.run) || a.frame_id != b.frame_id {
+        if sb.hi != sa.hi || a.frame_id != b.frame_id {
             return None;
         }
         let (ga, gb) = (a.run(sa.run)?.geometry, b.run(sb.run)?.geometry);
@@ -1566,6 +1592,9 @@ impl RollingChecker {
 
     /// Decides one period of pair `i`; `false` if it must wait.
     fn step(&mut self, i: usize, out: &mut Vec<RollingOutput>) -> bool {
+        if self.pairs[i].pending.is_some() {
+            return self.settle_pending(i, out);
+        }
         let finishing = self.finishing;
         let Some(s) = self.next_stamp(i) else {
             return false;
@@ -1648,6 +1677,12 @@ impl RollingChecker {
 }
 
 impl PairRoll {
+    /// The stamp from which its answer may still change: the period waiting to be settled,
+    /// else the next one to decide.
+    fn undecided_from(&self) -> Option<i64> {
+        self.pending.as_ref().map(|x| x.s).or(self.next)
+    }
+
     /// Whether a tet of either body has interfered with the other or lain inside it.
     fn interfering(&self) -> bool {
         let (a, b) = &self.counts;

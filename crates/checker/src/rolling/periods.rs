@@ -9,11 +9,11 @@ use std::sync::Arc;
 use super::{
     add_normals, bounds, check_window, closing_sums, on_pair_lattice, origin_offset,
     prepare_window, report::run_overlap, speed, time_at, union_bounds, CapSide, ContactPhase,
-    ContactUpdate, GridGeometry, HeldSlab, Interval, Label, LabelCounts, Mesher, MesherOptions,
-    OccupancyGrid, OpenUnsure, Overlap, OverlapJob, PreparedWindow, Record, RollingChecker,
-    RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator, TakenLabels, TetMesh,
-    UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR, CONTEXT_SLABS,
-    REBASE_FRAMES,
+    ContactUpdate, Crossing, GridGeometry, HeldSlab, Interval, Label, LabelCounts, Mesher,
+    MesherOptions, OccupancyGrid, OpenUnsure, Overlap, OverlapJob, PendingPeriod, PreparedWindow,
+    Record, RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator,
+    TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR,
+    CONTEXT_SLABS, REBASE_FRAMES,
 };
 
 impl RollingChecker {
@@ -80,7 +80,17 @@ impl RollingChecker {
         // it where either body's stream ends there.
         let hi_t = ((k + 1 - p.base) * p.per) as f64;
         let before_end = p.open.as_ref().is_some_and(|o| o.t.1 < hi_t);
-        let (a, b) = (p.a.clone(), p.b.clone());
+        if before_end {
+            self.close_open(i, out);
+        }
+        self.end_streams(i, s, hi, out);
+        self.finish_speeds(i, false);
+    }
+
+    /// Where either body's stream ends at `hi` (its run closed by a cap there), pair `i`'s
+    /// contact and unsure span going on end with it.
+    pub(super) fn end_streams(&mut self, i: usize, s: i64, hi: i64, out: &mut Vec<RollingOutput>) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
         let ends_here = |id: &str| {
             let body = &self.bodies[id];
             body.slabs
@@ -88,16 +98,12 @@ impl RollingChecker {
                 .and_then(|x| body.run(x.run))
                 .is_some_and(|r| r.last_cap_at(hi).is_some())
         };
-        let stream_ends = ends_here(&a) || ends_here(&b);
-        if before_end || stream_ends {
+        if ends_here(&a) || ends_here(&b) {
             self.close_open(i, out);
-        }
-        // An unsure span goes on no further than a stream: its end is said when the stream
-        // ends, not when the node does.
-        if stream_ends {
+            // An unsure span goes on no further than a stream: its end is said when the
+            // stream ends, not when the node does.
             self.close_unsure(i, out);
         }
-        self.finish_speeds(i, false);
     }
 
     /// What one body's window is made of (owned, so that the pair can be changed while it
@@ -178,7 +184,7 @@ impl RollingChecker {
     }
 
     /// Checks the period of pair `i` starting at `s` where both bodies have a slab; `false`
-    /// if it must wait for what follows a slab or for a frame.
+    /// if it must wait for a frame.
     pub(super) fn window(&mut self, i: usize, s: i64, out: &mut Vec<RollingOutput>) -> bool {
         let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
         let (hi, hb) = (self.bodies[&a].slabs[&s].hi, self.bodies[&b].slabs[&s].hi);
@@ -194,40 +200,11 @@ impl RollingChecker {
             self.problem(out, "time_mismatch", why);
             return false;
         }
-        // What follows each slab must be known: the next slab, or the end of its stream.
-        let known = |me: &Self, id: &str| {
-            let body = &me.bodies[id];
-            body.slabs.contains_key(&hi) || body.run(body.slabs[&s].run).is_some_and(|r| r.ended())
-        };
-        if !known(self, &a) || !known(self, &b) {
-            // Nothing follows a slab while the other body runs far ahead: the stream stalled
-            // (a lost piece or cap). Its run is closed there, so that the pair goes on and
-            // the other body's slabs do not pile up.
-            if self.lead(&a, s).max(self.lead(&b, s)) <= self.cfg.max_lead_frames {
-                return false;
-            }
-            for id in [&a, &b] {
-                if known(self, id) {
-                    continue;
-                }
-                let why = format!(
-                    "{id}: nothing follows its slab at {:.3} s while its partner is more than \
-                     {} slabs ahead (a lost piece or cap); its stream is taken as ended there",
-                    self.seconds_of_stamp(s),
-                    self.cfg.max_lead_frames
-                );
-                self.settle_stats(id);
-                let body = self.bodies.get_mut(id.as_str()).expect("a paired body");
-                let run = body.slabs[&s].run;
-                if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
-                    r.close(None);
-                }
-                self.problem(out, "stream_stalled", why);
-            }
-            if !known(self, &a) || !known(self, &b) {
-                return false;
-            }
-        }
+        // What follows each slab, the next slab or the end of its stream, need not be known:
+        // if it is not, the period is checked now as though both streams go on, and settled
+        // once it is (see `PendingPeriod`).
+        self.close_stalled(&a, &b, s, out);
+        let speculative = !self.follows_known(&a, s, hi) || !self.follows_known(&b, s, hi);
         let geometry = |id: &str| {
             let body = &self.bodies[id];
             body.run(body.slabs[&s].run).map(|r| r.geometry)
@@ -335,6 +312,16 @@ impl RollingChecker {
                     );
                     self.problem(out, "period_unchecked", why);
                     self.advance(i, s, hi, k, out);
+                    if speculative {
+                        // The ends are still said where a stream turns out to end at `hi`.
+                        self.pairs[i].pending = Some(PendingPeriod {
+                            s,
+                            hi,
+                            k,
+                            result: None,
+                            labels: Vec::new(),
+                        });
+                    }
                     return true;
                 }
             }
@@ -345,10 +332,172 @@ impl RollingChecker {
             p.stamps.insert(k, s);
             p.stamps.insert(k + 1, hi);
         }
-        self.fold(i, s, hi, &r, (wa.first_tet, wb.first_tet), out);
+        let starts = (wa.first_tet, wb.first_tet);
+        if speculative {
+            let mut labels = Vec::new();
+            self.fold_counts(i, &r, starts);
+            self.fold_labels(i, s, hi, &r, &mut labels);
+            self.fold_ranges(i, r.ranges.clone(), hi, out);
+            self.note_unsure(i, s, hi, fast, out);
+            self.advance(i, s, hi, k, out);
+            self.pairs[i].pending = Some(PendingPeriod {
+                s,
+                hi,
+                k,
+                result: Some(r),
+                labels,
+            });
+            return true;
+        }
+        self.fold(i, s, hi, &r, starts, out);
         self.note_unsure(i, s, hi, fast, out);
         self.advance(i, s, hi, k, out);
         true
+    }
+
+    /// Whether what follows `id`'s slab at `s` (ending at `hi`) is known: its next slab, or
+    /// the end of its stream.
+    fn follows_known(&self, id: &str, s: i64, hi: i64) -> bool {
+        let body = &self.bodies[id];
+        body.slabs.contains_key(&hi) || body.run(body.slabs[&s].run).is_some_and(|r| r.ended())
+    }
+
+    /// Where nothing follows a body's slab at `s` while the other body runs far ahead, the
+    /// stream stalled (a lost piece or cap): its run is closed there, so that the pair goes
+    /// on and the other body's slabs do not pile up.
+    fn close_stalled(&mut self, a: &str, b: &str, s: i64, out: &mut Vec<RollingOutput>) {
+        if self.lead(a, s).max(self.lead(b, s)) <= self.cfg.max_lead_frames {
+            return;
+        }
+        for id in [a, b] {
+            let hi = self.bodies[id].slabs[&s].hi;
+            if self.follows_known(id, s, hi) {
+                continue;
+            }
+            let why = format!(
+                "{id}: nothing follows its slab at {:.3} s while its partner is more than {} \
+                 slabs ahead (a lost piece or cap); its stream is taken as ended there",
+                self.seconds_of_stamp(s),
+                self.cfg.max_lead_frames
+            );
+            self.settle_stats(id);
+            let body = self.bodies.get_mut(id).expect("a paired body");
+            let run = body.slabs[&s].run;
+            if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
+                r.close(None);
+            }
+            self.problem(out, "stream_stalled", why);
+        }
+    }
+
+    /// Settles pair `i`'s period checked before what follows its slabs was known, once that
+    /// is known (`false` while it is not): its labels as they were where neither stream
+    /// ends at the period's later frame; else the window with the caps there checked, what
+    /// it adds folded in (the caps' labels, their crossings, the overlap they give in that
+    /// time plane) and the streams' ends said, so that the pair's answer is the one the
+    /// full window would have given.
+    pub(super) fn settle_pending(&mut self, i: usize, out: &mut Vec<RollingOutput>) -> bool {
+        let Some((s, hi)) = self.pairs[i].pending.as_ref().map(|x| (x.s, x.hi)) else {
+            return true;
+        };
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        self.close_stalled(&a, &b, s, out);
+        if !self.follows_known(&a, s, hi) || !self.follows_known(&b, s, hi) {
+            return false;
+        }
+        let Some(pending) = self.pairs[i].pending.take() else {
+            return true;
+        };
+        let capped = |me: &Self, id: &str| {
+            let body = &me.bodies[id];
+            body.run(body.slabs[&s].run)
+                .is_some_and(|r| r.last_cap_at(hi).is_some())
+        };
+        if !capped(self, &a) && !capped(self, &b) {
+            out.extend(pending.labels);
+            return true;
+        }
+        let Some(taken) = &pending.result else {
+            // The period could not be checked (said then): the streams' ends alone.
+            self.end_streams(i, s, hi, out);
+            self.finish_speeds(i, false);
+            return true;
+        };
+        match self.capped_window(i, &pending) {
+            Ok((full, starts)) => {
+                self.fold_added(i, hi, taken, &full, starts, out);
+                self.fold_labels(i, s, hi, &full, out);
+            }
+            Err(e) => {
+                let why = format!(
+                    "pair {a} x {b}: the caps that close a stream at {:.3} s cannot be checked: \
+                     {e}; their tets are not labelled (the period's slabs are)",
+                    self.seconds_of_stamp(hi)
+                );
+                self.problem(out, "period_unchecked", why);
+                out.extend(pending.labels);
+            }
+        }
+        self.end_streams(i, s, hi, out);
+        self.finish_speeds(i, false);
+        true
+    }
+
+    /// The full window of a pending period, with the caps at its later frame, checked: its
+    /// result and the positions of the two bodies' first taken tets.
+    fn capped_window(
+        &mut self,
+        i: usize,
+        pending: &PendingPeriod,
+    ) -> Result<(WindowResult, (u64, u64)), CapsUnchecked> {
+        let s = pending.s;
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        let geometry = |id: &str| {
+            let body = &self.bodies[id];
+            body.run(body.slabs[&s].run).map(|r| r.geometry)
+        };
+        let (Some(ga), Some(gb)) = (geometry(&a), geometry(&b)) else {
+            return Err(CapsUnchecked::Gone);
+        };
+        let lattice = pair_lattice(&ga, &gb)?;
+        let (base, per) = (self.pairs[i].base, self.pairs[i].per);
+        let wa = self.window_spec(
+            &a,
+            &b,
+            s,
+            pending.k,
+            (base, per),
+            (lattice.shift_a, lattice.ratio_a),
+        );
+        let wb = self.window_spec(
+            &b,
+            &a,
+            s,
+            pending.k,
+            (base, per),
+            (lattice.shift_b, lattice.ratio_b),
+        );
+        let (Some(wa), Some(wb)) = (wa, wb) else {
+            return Err(CapsUnchecked::Gone);
+        };
+        let starts = (wa.first_tet, wb.first_tet);
+        if apart(&wa, &wb) {
+            let labels = [wa.all_outside(), wb.all_outside()];
+            return Ok((
+                WindowResult {
+                    labels,
+                    ..WindowResult::default()
+                },
+                starts,
+            ));
+        }
+        let result = check_specs((&a, &wa), (&b, &wb), |id, w, partner| {
+            cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
+        });
+        let (r, [pa, pb]) = result?;
+        self.prepared.insert(a, (wa, pa, s));
+        self.prepared.insert(b, (wb, pb, s));
+        Ok((r, starts))
     }
 
     /// How far each body of a pair moves in the period from `s` (voxels), where one moves
@@ -396,32 +545,105 @@ impl RollingChecker {
         starts: (u64, u64),
         out: &mut Vec<RollingOutput>,
     ) {
-        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
+        self.fold_counts(i, r, starts);
+        self.fold_labels(i, s, hi, r, out);
+        self.fold_ranges(i, r.ranges.clone(), hi, out);
+    }
+
+    /// A window's counts and crossings into pair `i`'s figures.
+    pub(super) fn fold_counts(&mut self, i: usize, r: &WindowResult, starts: (u64, u64)) {
+        let p = &mut self.pairs[i];
+        p.checked = true;
+        p.partner_absent = false;
+        p.candidates += r.candidate_pairs;
+        p.crossings += r.crossings.len() as u64;
+        p.undecided += u64::from(r.undecided);
+        for (c, l) in [
+            (&mut p.counts.0, &r.labels[0]),
+            (&mut p.counts.1, &r.labels[1]),
+        ] {
+            c.interference += l.counts.interference;
+            c.inside += l.counts.inside;
+        }
+        for c in &r.crossings {
+            p.records.push_back(record(c, starts));
+        }
+    }
+
+    /// What the full window of a pending period (`full`, with the caps at its later frame)
+    /// adds to the window without them (`taken`, folded already): the caps' counts, the
+    /// crossings and overlap ranges in that time plane. The slabs' tets get the same labels
+    /// and crossings in both (see `PendingPeriod`); what `full` has beyond `taken` is found
+    /// as a difference of multisets, so nothing is counted twice.
+    fn fold_added(
+        &mut self,
+        i: usize,
+        hi: i64,
+        taken: &WindowResult,
+        full: &WindowResult,
+        starts: (u64, u64),
+        out: &mut Vec<RollingOutput>,
+    ) {
         {
             let p = &mut self.pairs[i];
-            p.checked = true;
-            p.partner_absent = false;
-            p.candidates += r.candidate_pairs;
-            p.crossings += r.crossings.len() as u64;
-            p.undecided += u64::from(r.undecided);
-            for (c, l) in [
-                (&mut p.counts.0, &r.labels[0]),
-                (&mut p.counts.1, &r.labels[1]),
+            p.candidates += full.candidate_pairs.saturating_sub(taken.candidate_pairs);
+            p.undecided += u64::from(full.undecided.saturating_sub(taken.undecided));
+            for (c, (f, t)) in [
+                (&mut p.counts.0, (&full.labels[0], &taken.labels[0])),
+                (&mut p.counts.1, (&full.labels[1], &taken.labels[1])),
             ] {
-                c.interference += l.counts.interference;
-                c.inside += l.counts.inside;
+                c.interference += f.counts.interference.saturating_sub(t.counts.interference);
+                c.inside += f.counts.inside.saturating_sub(t.counts.inside);
             }
-            for c in &r.crossings {
-                p.records.push_back(Record {
-                    t: c.t,
-                    tets: (
-                        starts.0 + u64::from(c.tets.0),
-                        starts.1 + u64::from(c.tets.1),
-                    ),
-                    normals: c.normals,
-                });
+            let key = |c: &Crossing| (c.tets, c.t.0.to_bits(), c.t.1.to_bits());
+            let mut had: Vec<_> = taken.crossings.iter().map(key).collect();
+            had.sort_unstable();
+            let mut used = vec![false; had.len()];
+            for c in &full.crossings {
+                let k = key(c);
+                let from = had.partition_point(|x| *x < k);
+                let seen = (from..had.len())
+                    .take_while(|&n| had[n] == k)
+                    .find(|&n| !used[n]);
+                match seen {
+                    Some(n) => used[n] = true,
+                    None => {
+                        p.crossings += 1;
+                        p.records.push_back(record(c, starts));
+                    }
+                }
             }
         }
+        let key = |r: &(f64, f64)| (r.0.to_bits(), r.1.to_bits());
+        let mut had: Vec<_> = taken.ranges.iter().map(key).collect();
+        had.sort_unstable();
+        let mut used = vec![false; had.len()];
+        let mut added = Vec::new();
+        for r in &full.ranges {
+            let k = key(r);
+            let from = had.partition_point(|x| *x < k);
+            match (from..had.len())
+                .take_while(|&n| had[n] == k)
+                .find(|&n| !used[n])
+            {
+                Some(n) => used[n] = true,
+                None => added.push(*r),
+            }
+        }
+        self.fold_ranges(i, added, hi, out);
+    }
+
+    /// A window's labels published (if asked for) and the worst label of each slab tet
+    /// kept for the markers.
+    pub(super) fn fold_labels(
+        &mut self,
+        i: usize,
+        s: i64,
+        hi: i64,
+        r: &WindowResult,
+        out: &mut Vec<RollingOutput>,
+    ) {
+        let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
         for (k, (me, other)) in [(&a, &b), (&b, &a)].into_iter().enumerate() {
             let l = &r.labels[k];
             if self.cfg.labels {
@@ -450,10 +672,20 @@ impl RollingChecker {
                 }
             }
         }
+    }
+
+    /// A window's overlap ranges (checker time) into pair `i`'s contact intervals, with
+    /// the events they give, stamped `hi`.
+    pub(super) fn fold_ranges(
+        &mut self,
+        i: usize,
+        mut ranges: Vec<(f64, f64)>,
+        hi: i64,
+        out: &mut Vec<RollingOutput>,
+    ) {
         // The window's ranges merged (so that a contact begins with all this period gives
         // it, whatever order the walk found them in), then in order: merged into the open
         // interval, or closing it and opening another.
-        let mut ranges = r.ranges.clone();
         ranges.sort_unstable_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
         let mut merged: Vec<(f64, f64)> = Vec::new();
         for (t0, t1) in ranges {
@@ -1335,5 +1567,31 @@ mod tests {
             other.add[1] += 1;
             assert_eq!(other.moved_copy_of(&at(0)), None);
         }
+    }
+}
+
+/// Why the caps that close a pending period could not be checked.
+#[derive(Debug, thiserror::Error)]
+pub(super) enum CapsUnchecked {
+    /// The period's slabs or runs are no longer held.
+    #[error("its slabs are no longer held")]
+    Gone,
+    /// The two bodies' lattices cannot be compared.
+    #[error(transparent)]
+    Lattice(#[from] crate::LatticeMismatch),
+    /// The window could not be prepared.
+    #[error(transparent)]
+    Window(#[from] crate::period::WindowError),
+}
+
+/// A crossing as pair `i` keeps it, its tets numbered from the windows' first taken tets.
+fn record(c: &Crossing, starts: (u64, u64)) -> Record {
+    Record {
+        t: c.t,
+        tets: (
+            starts.0 + u64::from(c.tets.0),
+            starts.1 + u64::from(c.tets.1),
+        ),
+        normals: c.normals,
     }
 }
