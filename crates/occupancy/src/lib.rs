@@ -51,6 +51,6 @@ pub use lattice::{
 };
 pub use octomap::{
     read_leaves, OctomapError, OctomapMsg, OctomapOptions, OctomapRasterizer, OctomapStats,
-    OctreeLeaf, StreamSummary, TreeKind,
+    OctreeLeaf, StreamSummary, TreeKind, PARALLEL_BYTES,
 };
 pub use transform::{RigidTransform, TransformError};

@@ -174,7 +174,7 @@ impl CloudOptions {
 }
 
 /// Whether the machine has more than one core (asked once: the answer reads cgroup files).
-fn several_cores() -> bool {
+pub(crate) fn several_cores() -> bool {
     static SEVERAL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *SEVERAL.get_or_init(|| std::thread::available_parallelism().is_ok_and(|n| n.get() > 1))
 }

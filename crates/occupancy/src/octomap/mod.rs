@@ -30,7 +30,8 @@ use crate::lattice::{Encoding, Lattice, LatticeError, Limits, VoxelFrame, RESOLU
 use crate::rows::BitRows;
 use free::FreeFractions;
 use raster::MergeLeaves;
-use raster::{FineSpans, KeyLattice, LeafRaster};
+use raster::{Batches, FineSpans, KeyLattice, LeafRaster};
+use std::sync::mpsc;
 use stream::{Leaves, ReadSettings, TreeVisitor};
 use thiserror::Error;
 
@@ -94,6 +95,7 @@ pub struct OctomapOptions {
     threshold: f32,
     unknown_occupied: bool,
     allow_trailing_bytes: bool,
+    parallel: bool,
 }
 
 impl Default for OctomapOptions {
@@ -102,6 +104,7 @@ impl Default for OctomapOptions {
             threshold: 0.0,
             unknown_occupied: false,
             allow_trailing_bytes: false,
+            parallel: true,
         }
     }
 }
@@ -140,6 +143,17 @@ impl OctomapOptions {
     /// message is not what its fields say.
     pub fn allow_trailing_bytes(mut self, yes: bool) -> Self {
         self.allow_trailing_bytes = yes;
+        self
+    }
+
+    /// Where free leaves are rasterised (`Percent`, or unknown occupied) and the stream
+    /// is at least [`PARALLEL_BYTES`] long: read the stream on a second thread, which
+    /// hands its leaves over in batches, while the caller's rasterises them (on by
+    /// default, on a machine with more than one core; at most about 3 MB of leaves in
+    /// flight). The frame is the same either way: the leaves are rasterised in the
+    /// stream's order by one thread.
+    pub fn parallel(mut self, on: bool) -> Self {
+        self.parallel = on;
         self
     }
 
@@ -296,6 +310,50 @@ fn visit(
     }
 }
 
+/// The shortest stream (bytes) whose leaves are rasterised on a second thread (see
+/// [`OctomapOptions::parallel`]): below it, starting the thread costs more than it saves.
+pub const PARALLEL_BYTES: usize = 1 << 16;
+
+/// Leaves handed from the reading thread to the rasterising one at a time.
+const BATCH_LEAVES: usize = 8192;
+
+/// Reads the stream on a second thread, which merges sibling leaves of one state and hands
+/// the leaves over in batches (at most 8 in flight), and rasterises them on the caller's,
+/// in the stream's order: `None` if that thread cannot be started (nothing was read then).
+fn read_beside(
+    msg: &OctomapMsg<'_>,
+    options: &OctomapOptions,
+    limits: &Limits,
+    raster: &mut LeafRaster<'_>,
+) -> Option<Result<StreamSummary, OctomapError>> {
+    let (full_tx, full_rx) = mpsc::sync_channel::<Vec<OctreeLeaf>>(8);
+    let (empty_tx, empty_rx) = mpsc::channel::<Vec<OctreeLeaf>>();
+    std::thread::scope(|scope| {
+        let reader = std::thread::Builder::new()
+            .name("octomap reader".into())
+            .spawn_scoped(scope, move || {
+                let mut merging = MergeLeaves::new(Batches::new(full_tx, empty_rx, BATCH_LEAVES));
+                let result = visit(msg, options, limits, &mut merging);
+                merging.inner.flush();
+                result
+            })
+            .ok()?;
+        // Ends when the reader is done and has dropped its sender.
+        for batch in full_rx.iter() {
+            for leaf in &batch {
+                raster.leaf(leaf);
+            }
+            // The reader may be done already: then nobody needs the buffer back.
+            let _ = empty_tx.send(batch);
+        }
+        Some(
+            reader
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+        )
+    })
+}
+
 /// Turns `Octomap` messages into frames, reusing its working buffers.
 ///
 /// ```
@@ -368,7 +426,7 @@ impl OctomapRasterizer {
         }
         let kl = KeyLattice::new(lattice, msg.resolution);
         self.fine.prepare(&kl);
-        let raster = LeafRaster {
+        let mut raster = LeafRaster {
             kl,
             rows: &mut self.rows,
             free: if needs_free {
@@ -380,21 +438,26 @@ impl OctomapRasterizer {
             edge_v: kl.edges_by_depth(),
             fine: &self.fine,
         };
+        let beside = needs_free
+            && self.options.parallel
+            && msg.data.len() >= PARALLEL_BYTES
+            && crate::cloud::several_cores();
+        let read = if beside {
+            read_beside(msg, &self.options, &self.limits, &mut raster)
+        } else {
+            None
+        };
         // Merging siblings of one state pays where free leaves are
         // accumulated; for occupied bits alone it costs more than it saves.
-        let (result, leaves_in) = if needs_free {
-            let mut merging = MergeLeaves::new(raster);
-            (
-                visit(msg, &self.options, &self.limits, &mut merging),
-                merging.inner.leaves_in,
-            )
-        } else {
-            let mut raster = raster;
-            (
-                visit(msg, &self.options, &self.limits, &mut raster),
-                raster.leaves_in,
-            )
+        let result = match read {
+            Some(result) => result,
+            None if needs_free => {
+                let mut merging = MergeLeaves::new(&mut raster);
+                visit(msg, &self.options, &self.limits, &mut merging)
+            }
+            None => visit(msg, &self.options, &self.limits, &mut raster),
         };
+        let leaves_in = raster.leaves_in;
         let summary = match result {
             Ok(summary) => summary,
             Err(e) => {

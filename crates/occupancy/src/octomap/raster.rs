@@ -13,6 +13,7 @@ use super::free::FreeFractions;
 use super::stream::{OctreeLeaf, TreeVisitor, KEY_OFFSET, TREE_DEPTH};
 use crate::lattice::Lattice;
 use crate::rows::BitRows;
+use std::sync::mpsc::{Receiver, SyncSender};
 
 /// Overlaps thinner than this fraction of a voxel edge count as touching faces.
 pub(crate) const SLIVER: f64 = 1e-9;
@@ -387,6 +388,57 @@ impl<V: TreeVisitor> TreeVisitor for MergeLeaves<V> {
         }
         if self.sp > 0 {
             self.stack[self.sp - 1].whole = false;
+        }
+    }
+}
+
+/// Leaves gathered into batches and sent to another thread (which sends the emptied
+/// buffers back, to be filled again).
+pub(crate) struct Batches {
+    buf: Vec<OctreeLeaf>,
+    full: SyncSender<Vec<OctreeLeaf>>,
+    empty: Receiver<Vec<OctreeLeaf>>,
+    size: usize,
+}
+
+impl Batches {
+    pub(crate) fn new(
+        full: SyncSender<Vec<OctreeLeaf>>,
+        empty: Receiver<Vec<OctreeLeaf>>,
+        size: usize,
+    ) -> Self {
+        Batches {
+            buf: Vec::with_capacity(size),
+            full,
+            empty,
+            size: size.max(1),
+        }
+    }
+
+    /// Sends the leaves gathered so far, if any.
+    pub(crate) fn flush(&mut self) {
+        if self.buf.is_empty() {
+            return;
+        }
+        let next = match self.empty.try_recv() {
+            Ok(mut used) => {
+                used.clear();
+                used
+            }
+            Err(_) => Vec::with_capacity(self.size),
+        };
+        let batch = std::mem::replace(&mut self.buf, next);
+        // The receiver only goes away if its thread panicked; that panic is what counts.
+        let _ = self.full.send(batch);
+    }
+}
+
+impl TreeVisitor for Batches {
+    #[inline(always)]
+    fn leaf(&mut self, leaf: &OctreeLeaf) {
+        self.buf.push(*leaf);
+        if self.buf.len() >= self.size {
+            self.flush();
         }
     }
 }

@@ -62,6 +62,21 @@ pub(crate) trait TreeVisitor {
     fn leave(&mut self) {}
 }
 
+impl<V: TreeVisitor + ?Sized> TreeVisitor for &mut V {
+    #[inline(always)]
+    fn leaf(&mut self, leaf: &OctreeLeaf) {
+        (**self).leaf(leaf)
+    }
+    #[inline(always)]
+    fn enter(&mut self, key: [u32; 3], depth: u32) {
+        (**self).enter(key, depth)
+    }
+    #[inline(always)]
+    fn leave(&mut self) {
+        (**self).leave()
+    }
+}
+
 /// A closure as a visitor of leaves alone.
 pub(crate) struct Leaves<F>(pub F);
 

@@ -3,7 +3,7 @@
 use crate::octree_writer::{self as w, Tree};
 use chronotope_occupancy::{
     read_leaves, Encoding, Lattice, Limits, OctomapMsg, OctomapOptions, OctomapRasterizer,
-    VoxelFrame, PERCENT_UNKNOWN,
+    VoxelFrame, PARALLEL_BYTES, PERCENT_UNKNOWN,
 };
 use proptest::prelude::*;
 
@@ -690,5 +690,64 @@ fn a_lattice_spanning_more_cells_than_the_span_table_still_finds_fine_leaves() {
             OctomapOptions::new(),
         );
         assert_eq!((pct[0], pct[12], pct[1]), (100, 100, 255));
+    }
+}
+
+/// A stream long enough to be read on a second thread while the caller rasterises its
+/// leaves gives the frame and figures that one thread gives, in both streams and on an
+/// unaligned lattice (where the order of the sums would show).
+#[test]
+fn a_stream_read_beside_its_rasterisation_gives_the_same_frame() {
+    let res = 0.05;
+    let mut tree = None;
+    let mut x = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    for _ in 0..40_000 {
+        let r = next();
+        let key = [0, 1, 2].map(|a| K0 - 64 + (r >> (a * 8) & 127) as u32);
+        let value = ((r >> 32) % 9) as f32 * 0.25 - 1.0;
+        w::insert(&mut tree, key, 16, value);
+    }
+    // Coarser free leaves around: the merged ones and the partial overlaps.
+    for i in 0..64u32 {
+        let key = [K0 + 64 + (i % 4) * 16, K0 + (i / 4 % 4) * 16, K0 - 64 + (i / 16) * 16];
+        w::insert(&mut tree, key, 12, -2.0);
+    }
+    let lattice = Lattice::new([-3.3, -3.1, -3.2], 0.0781, [80, 80, 72]).unwrap();
+    for binary in [false, true] {
+        let data = if binary {
+            w::binary(&tree, 0.0)
+        } else {
+            w::full(&tree, &[])
+        };
+        if !binary {
+            assert!(data.len() >= PARALLEL_BYTES, "{} bytes", data.len());
+        }
+        let msg = OctomapMsg {
+            binary,
+            id: "OcTree",
+            resolution: res,
+            data: &data,
+        };
+        for (enc, unknown) in [(Encoding::Percent, false), (Encoding::Bits, true)] {
+            let frame = |parallel: bool| {
+                let opts = OctomapOptions::new()
+                    .unknown_occupied(unknown)
+                    .parallel(parallel);
+                let mut raster = OctomapRasterizer::new(opts);
+                let mut frame = VoxelFrame::new();
+                let stats = raster.rasterize(&msg, &lattice, enc, &mut frame).unwrap();
+                (stats, frame.take_data())
+            };
+            let (one, two) = (frame(false), frame(true));
+            assert_eq!(one.0, two.0, "binary {binary} {enc:?}");
+            assert!(one.1 == two.1, "binary {binary} {enc:?}: the frames differ");
+            assert!(one.0.leaves_in_lattice > 1000, "{:?}", one.0);
+        }
     }
 }
