@@ -1418,6 +1418,11 @@ impl RollingChecker {
         }
         self.pump(out);
         for i in 0..self.pairs.len() {
+            // Every stream has ended, so every pending period was settled above; were one
+            // not, it would keep the labels it had rather than lose them.
+            if let Some(p) = self.pairs[i].pending.take() {
+                out.extend(p.labels);
+            }
             self.close_open(i, out);
             self.close_unsure(i, out);
             self.finish_speeds(i, true);

@@ -357,9 +357,13 @@ impl RollingChecker {
 
     /// Whether what follows `id`'s slab at `s` (ending at `hi`) is known: its next slab, or
     /// the end of its stream.
+    /// (A slab no longer held has nothing left to wait for.)
     fn follows_known(&self, id: &str, s: i64, hi: i64) -> bool {
         let body = &self.bodies[id];
-        body.slabs.contains_key(&hi) || body.run(body.slabs[&s].run).is_some_and(|r| r.ended())
+        let Some(slab) = body.slabs.get(&s) else {
+            return true;
+        };
+        body.slabs.contains_key(&hi) || body.run(slab.run).is_some_and(|r| r.ended())
     }
 
     /// Where nothing follows a body's slab at `s` while the other body runs far ahead, the
@@ -370,7 +374,9 @@ impl RollingChecker {
             return;
         }
         for id in [a, b] {
-            let hi = self.bodies[id].slabs[&s].hi;
+            let Some(hi) = self.bodies[id].slabs.get(&s).map(|x| x.hi) else {
+                continue;
+            };
             if self.follows_known(id, s, hi) {
                 continue;
             }
@@ -382,8 +388,8 @@ impl RollingChecker {
             );
             self.settle_stats(id);
             let body = self.bodies.get_mut(id).expect("a paired body");
-            let run = body.slabs[&s].run;
-            if let Some(r) = body.runs.iter_mut().find(|r| r.id == run) {
+            let run = body.slabs.get(&s).map(|x| x.run);
+            if let Some(r) = body.runs.iter_mut().find(|r| Some(r.id) == run) {
                 r.close(None);
             }
             self.problem(out, "stream_stalled", why);
@@ -410,7 +416,9 @@ impl RollingChecker {
         };
         let capped = |me: &Self, id: &str| {
             let body = &me.bodies[id];
-            body.run(body.slabs[&s].run)
+            body.slabs
+                .get(&s)
+                .and_then(|x| body.run(x.run))
                 .is_some_and(|r| r.last_cap_at(hi).is_some())
         };
         if !capped(self, &a) && !capped(self, &b) {
@@ -454,7 +462,7 @@ impl RollingChecker {
         let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
         let geometry = |id: &str| {
             let body = &self.bodies[id];
-            body.run(body.slabs[&s].run).map(|r| r.geometry)
+            body.run(body.slabs.get(&s)?.run).map(|r| r.geometry)
         };
         let (Some(ga), Some(gb)) = (geometry(&a), geometry(&b)) else {
             return Err(CapsUnchecked::Gone);
