@@ -311,7 +311,7 @@ impl CheckerNode {
         self.emit(rolled, out);
     }
 
-    fn on_frame(&mut self, topic: &str, g: &VoxelGrid, out: &mut Vec<Message>) {
+    fn on_frame(&mut self, topic: &str, g: &Arc<VoxelGrid>, out: &mut Vec<Message>) {
         if !self.bodies.contains(topic) {
             return;
         }
@@ -321,28 +321,31 @@ impl CheckerNode {
         if g.message_check("").is_err() {
             return;
         }
-        if let Ok(grid) = OccupancyGrid::decode(&g.frame_ref(), &self.opts.decode) {
-            let geometry = GridGeometry {
-                origin: [g.origin.x, g.origin.y, g.origin.z],
-                resolution: g.resolution,
-                size: [g.size_x, g.size_y, g.size_z],
-                encoding: g.encoding,
-                scale: if g.encoding == VoxelGrid::ENCODING_PERCENT {
-                    self.opts.percent_scale
-                } else {
-                    2
-                },
-            };
-            let mut rolled = Vec::new();
-            self.engine.on_frame(
-                topic,
-                g.header.stamp.as_nanos(),
-                geometry,
-                grid,
-                &mut rolled,
-            );
-            self.emit(rolled, out);
-        }
+        // Decoded on the pool, off this thread (a 128³ PERCENT frame takes milliseconds),
+        // by the time a window needs it; a frame that does not decode counts as not received.
+        let geometry = GridGeometry {
+            origin: [g.origin.x, g.origin.y, g.origin.z],
+            resolution: g.resolution,
+            size: [g.size_x, g.size_y, g.size_z],
+            encoding: g.encoding,
+            scale: if g.encoding == VoxelGrid::ENCODING_PERCENT {
+                self.opts.percent_scale
+            } else {
+                2
+            },
+        };
+        let expected_bytes = decoded_bytes(g);
+        let (frame, opts) = (Arc::clone(g), self.opts.decode.clone());
+        let mut rolled = Vec::new();
+        self.engine.on_frame_with(
+            topic,
+            g.header.stamp.as_nanos(),
+            geometry,
+            expected_bytes,
+            Box::new(move || OccupancyGrid::decode(&frame.frame_ref(), &opts).ok()),
+            &mut rolled,
+        );
+        self.emit(rolled, out);
     }
 
     fn header(&self, stamp_ns: i64) -> Header {
@@ -1157,6 +1160,19 @@ impl Node for CheckerNode {
     fn rank(&self) -> u8 {
         3
     }
+}
+
+/// The heap bytes a frame takes decoded (`OccupancyGrid`: padded bit rows, and padded
+/// values for PERCENT), from its fields alone.
+fn decoded_bytes(g: &VoxelGrid) -> u64 {
+    let [px, py, pz] = [g.size_x, g.size_y, g.size_z].map(|n| u64::from(n) + 2);
+    let bits = (px / 64 + 1) * py * pz * 8;
+    let values = if g.encoding == VoxelGrid::ENCODING_PERCENT {
+        px * py * pz
+    } else {
+        0
+    };
+    bits + values
 }
 
 #[cfg(test)]

@@ -597,11 +597,78 @@ const REST_KEPT_SLABS: u32 = 32;
 /// Default of [`RollingConfig::max_frame_bytes`]: 1 GiB of decoded frames per body.
 pub const DEFAULT_MAX_FRAME_BYTES: u64 = 1 << 30;
 
-/// A decoded frame of a body and the lattice it came on.
+/// A frame of a body and the lattice it came on.
 #[derive(Debug, Clone)]
 struct KeptGrid {
     geometry: GridGeometry,
-    grid: Arc<OccupancyGrid>,
+    grid: LazyGrid,
+}
+
+/// How a frame is decoded, when the checker is given it undecoded
+/// ([`RollingChecker::on_frame_with`]).
+pub type DecodeFrame = Box<dyn FnOnce() -> Option<OccupancyGrid> + Send>;
+
+/// A frame decoded on rayon's pool as soon as it comes, or by whoever needs it first,
+/// whichever comes first (the other then waits for it, never for a job that has not
+/// started: no pool thread waits for the pool).
+#[derive(Clone)]
+struct LazyGrid(Arc<LazyInner>);
+
+struct LazyInner {
+    grid: std::sync::OnceLock<Option<Arc<OccupancyGrid>>>,
+    decode: std::sync::Mutex<Option<DecodeFrame>>,
+    /// The decoded frame's heap bytes, as expected before it is decoded.
+    expected_bytes: u64,
+}
+
+impl std::fmt::Debug for LazyGrid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LazyGrid")
+            .field("decoded", &self.0.grid.get().is_some())
+            .field("expected_bytes", &self.0.expected_bytes)
+            .finish()
+    }
+}
+
+impl LazyGrid {
+    fn ready(grid: OccupancyGrid) -> Self {
+        let bytes = grid.heap_bytes();
+        let cell = std::sync::OnceLock::new();
+        let _ = cell.set(Some(Arc::new(grid)));
+        LazyGrid(Arc::new(LazyInner {
+            grid: cell,
+            decode: std::sync::Mutex::new(None),
+            expected_bytes: bytes,
+        }))
+    }
+
+    fn later(decode: DecodeFrame, expected_bytes: u64) -> Self {
+        LazyGrid(Arc::new(LazyInner {
+            grid: std::sync::OnceLock::new(),
+            decode: std::sync::Mutex::new(Some(decode)),
+            expected_bytes,
+        }))
+    }
+
+    /// The decoded frame (`None` if it does not decode).
+    fn get(&self) -> Option<Arc<OccupancyGrid>> {
+        self.0
+            .grid
+            .get_or_init(|| {
+                let decode = self.0.decode.lock().ok()?.take()?;
+                decode().map(Arc::new)
+            })
+            .clone()
+    }
+
+    /// Heap bytes it takes (or will, decoded).
+    fn heap_bytes(&self) -> u64 {
+        match self.0.grid.get() {
+            Some(Some(g)) => g.heap_bytes(),
+            Some(None) => 0,
+            None => self.0.expected_bytes,
+        }
+    }
 }
 
 impl BodyStream {
@@ -612,19 +679,19 @@ impl BodyStream {
     fn frame_at(&self, stamp: i64, g: &GridGeometry) -> Option<Arc<OccupancyGrid>> {
         if let Some(k) = self.frames.get(&stamp) {
             if k.geometry == *g {
-                return Some(k.grid.clone());
+                if let Some(grid) = k.grid.get() {
+                    return Some(grid);
+                }
             }
         }
+        let on_g = |k: &KeptGrid| (k.geometry == *g).then(|| k.grid.get()).flatten();
         let below = self
             .frames
             .range(..stamp)
             .rev()
-            .find(|(_, k)| k.geometry == *g)?;
-        let above = self
-            .frames
-            .range(stamp + 1..)
-            .find(|(_, k)| k.geometry == *g)?;
-        below.1.grid.union(&above.1.grid).map(Arc::new)
+            .find_map(|(_, k)| on_g(k))?;
+        let above = self.frames.range(stamp + 1..).find_map(|(_, k)| on_g(k))?;
+        below.union(&above).map(Arc::new)
     }
 
     fn current(&self) -> Option<&Run> {
@@ -1028,8 +1095,35 @@ impl RollingChecker {
         // The first frame at a stamp is the one a mesher keeps (a repeated stamp is refused).
         b.frames.entry(stamp_ns).or_insert(KeptGrid {
             geometry,
-            grid: Arc::new(grid),
+            grid: LazyGrid::ready(grid),
         });
+        self.pump(out);
+    }
+
+    /// [`Self::on_frame`] with the frame still encoded: `decode` runs on rayon's pool at
+    /// once (off the caller's thread), or where the frame is first needed if that comes
+    /// sooner. `expected_bytes` is the decoded frame's heap size (for the frames' memory
+    /// limit until it is decoded). A frame that does not decode counts as not received.
+    pub fn on_frame_with(
+        &mut self,
+        body: &str,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        expected_bytes: u64,
+        decode: DecodeFrame,
+        out: &mut Vec<RollingOutput>,
+    ) {
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        if let std::collections::btree_map::Entry::Vacant(e) = b.frames.entry(stamp_ns) {
+            let grid = LazyGrid::later(decode, expected_bytes);
+            let early = grid.clone();
+            rayon::spawn(move || {
+                early.get();
+            });
+            e.insert(KeptGrid { geometry, grid });
+        }
         self.pump(out);
     }
 
