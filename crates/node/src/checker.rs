@@ -335,7 +335,7 @@ impl CheckerNode {
             },
         };
         let expected_bytes = decoded_bytes(g);
-        let (frame, opts) = (Arc::clone(g), self.opts.decode.clone());
+        let (frame, opts) = (Arc::clone(g), self.opts.decode);
         let mut rolled = Vec::new();
         self.engine.on_frame_with(
             topic,

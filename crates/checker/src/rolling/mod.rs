@@ -8,7 +8,7 @@
 //! two caps gives exactly the labels and crossings of the full check. What follows each
 //! slab (the next slab, or the last cap) may not be known yet; the period's contacts are
 //! said at once all the same, and its labels, with what a last cap there adds, once it is
-//! ([`PendingPeriod`]). What a period gives (labels of its
+//! (`PendingPeriod`). What a period gives (labels of its
 //! tets, ranges of overlap, crossing pairs) is folded into the pair's running answer:
 //! label counts, intervals (merged exactly as the full check merges them), closing speeds
 //! at each interval's ends (from the crossings within one frame period of the end), and
