@@ -1119,8 +1119,10 @@ impl RollingChecker {
         if let std::collections::btree_map::Entry::Vacant(e) = b.frames.entry(stamp_ns) {
             let grid = LazyGrid::later(decode, expected_bytes);
             let early = grid.clone();
+            // A panic in a job rayon spawned would abort the process: caught, the frame
+            // then counts as not decoded (whoever needs it next finds no decoder left).
             rayon::spawn(move || {
-                early.get();
+                let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| early.get()));
             });
             e.insert(KeptGrid { geometry, grid });
         }
