@@ -50,7 +50,7 @@ use chronotope_mesh::hash::WordHasher;
 use chronotope_mesh::slice::{Slicer, TriMesh};
 use chronotope_mesh::GridGeometry;
 use chronotope_mesh::TetMesh;
-use chronotope_mesh::{MesherOptions, OccupancyGrid};
+use chronotope_mesh::{Encoding, MesherOptions, OccupancyGrid};
 use chronotope_msg::{
     BodySummary, ColorRGBA, ContactEvent, Header, InterferenceReport, MarkerArray, MeshSlab,
     PairInterference, Point, ResolveSuggestion, ResolveSuggestions, RosMessage, TetLabels, Time,
@@ -334,7 +334,13 @@ impl CheckerNode {
                 2
             },
         };
-        let expected_bytes = decoded_bytes(g);
+        let encoding = if g.encoding == VoxelGrid::ENCODING_PERCENT {
+            Encoding::Percent
+        } else {
+            Encoding::Bits
+        };
+        let expected_bytes =
+            chronotope_mesh::grid::decoded_bytes([g.size_x, g.size_y, g.size_z], encoding);
         let (frame, opts) = (Arc::clone(g), self.opts.decode);
         let mut rolled = Vec::new();
         self.engine.on_frame_with(
@@ -1160,19 +1166,6 @@ impl Node for CheckerNode {
     fn rank(&self) -> u8 {
         3
     }
-}
-
-/// The heap bytes a frame takes decoded (`OccupancyGrid`: padded bit rows, and padded
-/// values for PERCENT), from its fields alone.
-fn decoded_bytes(g: &VoxelGrid) -> u64 {
-    let [px, py, pz] = [g.size_x, g.size_y, g.size_z].map(|n| u64::from(n) + 2);
-    let bits = (px / 64 + 1) * py * pz * 8;
-    let values = if g.encoding == VoxelGrid::ENCODING_PERCENT {
-        px * py * pz
-    } else {
-        0
-    };
-    bits + values
 }
 
 #[cfg(test)]

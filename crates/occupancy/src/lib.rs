@@ -54,3 +54,10 @@ pub use octomap::{
     OctreeLeaf, StreamSummary, TreeKind, PARALLEL_BYTES,
 };
 pub use transform::{RigidTransform, TransformError};
+
+/// Whether the machine has more than one core, for the rasterisers' second threads (asked
+/// once: the answer reads cgroup files).
+pub(crate) fn several_cores() -> bool {
+    static SEVERAL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *SEVERAL.get_or_init(|| std::thread::available_parallelism().is_ok_and(|n| n.get() > 1))
+}

@@ -617,7 +617,7 @@ struct LazyGrid(Arc<LazyInner>);
 struct LazyInner {
     grid: std::sync::OnceLock<Option<Arc<OccupancyGrid>>>,
     decode: std::sync::Mutex<Option<DecodeFrame>>,
-    /// The decoded frame's heap bytes, as expected before it is decoded.
+    /// A bound of the decoded frame's heap bytes, counted until it is decoded.
     expected_bytes: u64,
 }
 
@@ -1089,21 +1089,20 @@ impl RollingChecker {
         grid: OccupancyGrid,
         out: &mut Vec<RollingOutput>,
     ) {
-        let Some(b) = self.bodies.get_mut(body) else {
-            return;
-        };
-        // The first frame at a stamp is the one a mesher keeps (a repeated stamp is refused).
-        b.frames.entry(stamp_ns).or_insert(KeptGrid {
-            geometry,
-            grid: LazyGrid::ready(grid),
-        });
-        self.pump(out);
+        if self
+            .keep_frame(body, stamp_ns, geometry, LazyGrid::ready(grid))
+            .is_some()
+        {
+            self.pump(out);
+        }
     }
 
     /// [`Self::on_frame`] with the frame still encoded: `decode` runs on rayon's pool at
     /// once (off the caller's thread), or where the frame is first needed if that comes
-    /// sooner. `expected_bytes` is the decoded frame's heap size (for the frames' memory
-    /// limit until it is decoded). A frame that does not decode counts as not received.
+    /// sooner. `expected_bytes` bounds the decoded frame's heap size (it counts toward the
+    /// frames' memory limit until the frame is decoded; e.g.
+    /// [`chronotope_mesh::grid::decoded_bytes`]). A frame that does not decode counts as not
+    /// received.
     pub fn on_frame_with(
         &mut self,
         body: &str,
@@ -1113,20 +1112,38 @@ impl RollingChecker {
         decode: DecodeFrame,
         out: &mut Vec<RollingOutput>,
     ) {
-        let Some(b) = self.bodies.get_mut(body) else {
+        let grid = LazyGrid::later(decode, expected_bytes);
+        let Some(kept) = self.keep_frame(body, stamp_ns, geometry, grid.clone()) else {
             return;
         };
-        if let std::collections::btree_map::Entry::Vacant(e) = b.frames.entry(stamp_ns) {
-            let grid = LazyGrid::later(decode, expected_bytes);
-            let early = grid.clone();
+        if kept {
             // A panic in a job rayon spawned would abort the process: caught, the frame
             // then counts as not decoded (whoever needs it next finds no decoder left).
             rayon::spawn(move || {
-                let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| early.get()));
+                let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| grid.get()));
             });
-            e.insert(KeptGrid { geometry, grid });
         }
         self.pump(out);
+    }
+
+    /// Keeps `grid` as `body`'s frame at `stamp_ns`: `None` if the body is unknown, `false`
+    /// (and dropped) if it has a frame there, the first being the one a mesher keeps (a
+    /// repeated stamp is refused).
+    fn keep_frame(
+        &mut self,
+        body: &str,
+        stamp_ns: i64,
+        geometry: GridGeometry,
+        grid: LazyGrid,
+    ) -> Option<bool> {
+        let b = self.bodies.get_mut(body)?;
+        Some(match b.frames.entry(stamp_ns) {
+            std::collections::btree_map::Entry::Vacant(e) => {
+                e.insert(KeptGrid { geometry, grid });
+                true
+            }
+            std::collections::btree_map::Entry::Occupied(_) => false,
+        })
     }
 
     /// Also reports `body`, which is in no pair (a lone body): its pieces are taken for its
@@ -1565,9 +1582,9 @@ impl RollingChecker {
             return None;
         }
         // What follows the slabs need not be known: the window is the one checked before
-        // it is (see [`PendingPeriod`]).
+        // it is (see `PendingPeriod`).
         let (sa, sb) = (a.slabs.get(&s)?, b.slabs.get(&s)?);
-        if sb.hi != sa.hi || a.frame_id != b.frame_id {
+        if sb.hi != sa.hi || a.frame_id != b.frame_id || !self.period_ready(&p.a, &p.b, s, sa.hi) {
             return None;
         }
         let (ga, gb) = (a.run(sa.run)?.geometry, b.run(sb.run)?.geometry);
@@ -1579,22 +1596,9 @@ impl RollingChecker {
         } else {
             p.base
         };
-        let wa = self.window_spec(
-            &p.a,
-            &p.b,
-            s,
-            k,
-            (base, per),
-            (lattice.shift_a, lattice.ratio_a),
-        )?;
-        let wb = self.window_spec(
-            &p.b,
-            &p.a,
-            s,
-            k,
-            (base, per),
-            (lattice.shift_b, lattice.ratio_b),
-        )?;
+        let (Some(wa), Some(wb)) = self.window_specs(i, s, k, (base, per), &lattice) else {
+            return None;
+        };
         (!apart(&wa, &wb)).then_some((s, wa, wb))
     }
 

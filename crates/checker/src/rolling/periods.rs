@@ -204,6 +204,9 @@ impl RollingChecker {
         // if it is not, the period is checked now as though both streams go on, and settled
         // once it is (see `PendingPeriod`).
         self.close_stalled(&a, &b, s, out);
+        if !self.period_ready(&a, &b, s, hi) {
+            return false;
+        }
         let speculative = !self.follows_known(&a, s, hi) || !self.follows_known(&b, s, hi);
         let geometry = |id: &str| {
             let body = &self.bodies[id];
@@ -244,24 +247,7 @@ impl RollingChecker {
                 p.base
             }
         };
-        let specs = (
-            self.window_spec(
-                &a,
-                &b,
-                s,
-                k,
-                (base, per),
-                (lattice.shift_a, lattice.ratio_a),
-            ),
-            self.window_spec(
-                &b,
-                &a,
-                s,
-                k,
-                (base, per),
-                (lattice.shift_b, lattice.ratio_b),
-            ),
-        );
+        let specs = self.window_specs(i, s, k, (base, per), &lattice);
         self.rebase(i, base, per);
         let (Some(wa), Some(wb)) = specs else {
             // A frame for a cap has not come (yet).
@@ -282,48 +268,34 @@ impl RollingChecker {
             return true;
         };
         let fast = self.fast_near(&a, &b, s);
-        let r = if apart(&wa, &wb) {
-            // Boxes apart in space: no tet meets the other body, every one is outside.
-            WindowResult {
-                labels: [wa.all_outside(), wb.all_outside()],
-                ..WindowResult::default()
-            }
-        } else {
-            let ahead = self.prefetched.iter().position(|x| {
+        let ahead = self
+            .prefetched
+            .iter()
+            .position(|x| {
                 x.pair == i && x.s == s && x.specs.0.same_as(&wa) && x.specs.1.same_as(&wb)
-            });
-            let result = match ahead {
-                Some(n) => self.prefetched.swap_remove(n).result,
-                None => check_specs((&a, &wa), (&b, &wb), |id, w, partner| {
-                    cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
-                }),
-            };
-            match result {
-                Ok((r, [pa, pb])) => {
-                    self.prepared.insert(a.clone(), (wa.clone(), pa, s));
-                    self.prepared.insert(b.clone(), (wb.clone(), pb, s));
-                    r
+            })
+            .map(|n| self.prefetched.swap_remove(n).result);
+        let r = match self.check_windows((&a, &wa), (&b, &wb), s, ahead) {
+            Ok(r) => r,
+            Err(e) => {
+                let why = format!(
+                    "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
+                    self.seconds_of_stamp(s),
+                    self.seconds_of_stamp(hi)
+                );
+                self.problem(out, "period_unchecked", why);
+                self.advance(i, s, hi, k, out);
+                if speculative {
+                    // The ends are still said where a stream turns out to end at `hi`.
+                    self.pairs[i].pending = Some(PendingPeriod {
+                        s,
+                        hi,
+                        k,
+                        result: None,
+                        labels: Vec::new(),
+                    });
                 }
-                Err(e) => {
-                    let why = format!(
-                        "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
-                        self.seconds_of_stamp(s),
-                        self.seconds_of_stamp(hi)
-                    );
-                    self.problem(out, "period_unchecked", why);
-                    self.advance(i, s, hi, k, out);
-                    if speculative {
-                        // The ends are still said where a stream turns out to end at `hi`.
-                        self.pairs[i].pending = Some(PendingPeriod {
-                            s,
-                            hi,
-                            k,
-                            result: None,
-                            labels: Vec::new(),
-                        });
-                    }
-                    return true;
-                }
+                return true;
             }
         };
         self.overlap_push(i, s, hi);
@@ -353,6 +325,20 @@ impl RollingChecker {
         self.note_unsure(i, s, hi, fast, out);
         self.advance(i, s, hi, k, out);
         true
+    }
+
+    /// Whether the period of bodies `a` and `b` from `s` to `hi` (both slabs in) can be
+    /// checked: what follows both slabs is known, or, checked before it is, both bodies'
+    /// frames at `hi` are in. The overlap is measured from the frames at the period's
+    /// stamps, and a frame comes on its own topic: live, a slab can come before the frame
+    /// at its later stamp. The period then waits for that frame (or, if it never comes,
+    /// for what follows the slabs).
+    pub(super) fn period_ready(&self, a: &str, b: &str, s: i64, hi: i64) -> bool {
+        let known = self.follows_known(a, s, hi) && self.follows_known(b, s, hi);
+        known
+            || [a, b]
+                .iter()
+                .all(|id| self.bodies[*id].frames.contains_key(&hi))
     }
 
     /// Whether what follows `id`'s slab at `s` (ending at `hi`) is known: its next slab, or
@@ -469,43 +455,58 @@ impl RollingChecker {
         };
         let lattice = pair_lattice(&ga, &gb)?;
         let (base, per) = (self.pairs[i].base, self.pairs[i].per);
-        let wa = self.window_spec(
-            &a,
-            &b,
-            s,
-            pending.k,
-            (base, per),
-            (lattice.shift_a, lattice.ratio_a),
-        );
-        let wb = self.window_spec(
-            &b,
-            &a,
-            s,
-            pending.k,
-            (base, per),
-            (lattice.shift_b, lattice.ratio_b),
-        );
-        let (Some(wa), Some(wb)) = (wa, wb) else {
+        let (Some(wa), Some(wb)) = self.window_specs(i, s, pending.k, (base, per), &lattice) else {
             return Err(CapsUnchecked::Gone);
         };
-        let starts = (wa.first_tet, wb.first_tet);
-        if apart(&wa, &wb) {
-            let labels = [wa.all_outside(), wb.all_outside()];
-            return Ok((
-                WindowResult {
-                    labels,
-                    ..WindowResult::default()
-                },
-                starts,
-            ));
+        let r = self.check_windows((&a, &wa), (&b, &wb), s, None)?;
+        Ok((r, (wa.first_tet, wb.first_tet)))
+    }
+
+    /// Both bodies' windows of pair `i`'s period at `s` (common index `k`) on their pair
+    /// lattice (see [`Self::window_spec`]).
+    pub(super) fn window_specs(
+        &self,
+        i: usize,
+        s: i64,
+        k: i64,
+        (base, per): (i64, i64),
+        lattice: &PairLattice,
+    ) -> (Option<WindowSpec>, Option<WindowSpec>) {
+        let (a, b) = (&self.pairs[i].a, &self.pairs[i].b);
+        let spec = |me: &str, other: &str, shift, ratio| {
+            self.window_spec(me, other, s, k, (base, per), (shift, ratio))
+        };
+        (
+            spec(a, b, lattice.shift_a, lattice.ratio_a),
+            spec(b, a, lattice.shift_b, lattice.ratio_b),
+        )
+    }
+
+    /// Checks two bodies' windows of the period at `s`, or takes the result checked ahead
+    /// (`ahead`), and keeps both preparations for the next windows. Windows whose boxes are
+    /// apart in space are not walked: no tet meets the other body, every one is outside.
+    fn check_windows(
+        &mut self,
+        (a, wa): (&str, &WindowSpec),
+        (b, wb): (&str, &WindowSpec),
+        s: i64,
+        ahead: Option<WindowChecked>,
+    ) -> Result<WindowResult, crate::period::WindowError> {
+        if apart(wa, wb) {
+            return Ok(WindowResult {
+                labels: [wa.all_outside(), wb.all_outside()],
+                ..WindowResult::default()
+            });
         }
-        let result = check_specs((&a, &wa), (&b, &wb), |id, w, partner| {
-            cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
+        let result = ahead.unwrap_or_else(|| {
+            check_specs((a, wa), (b, wb), |id, w, partner| {
+                cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
+            })
         });
         let (r, [pa, pb]) = result?;
-        self.prepared.insert(a, (wa, pa, s));
-        self.prepared.insert(b, (wb, pb, s));
-        Ok((r, starts))
+        self.prepared.insert(a.to_owned(), (wa.clone(), pa, s));
+        self.prepared.insert(b.to_owned(), (wb.clone(), pb, s));
+        Ok(r)
     }
 
     /// How far each body of a pair moves in the period from `s` (voxels), where one moves
@@ -604,40 +605,16 @@ impl RollingChecker {
                 c.inside += f.counts.inside.saturating_sub(t.counts.inside);
             }
             let key = |c: &Crossing| (c.tets, c.t.0.to_bits(), c.t.1.to_bits());
-            let mut had: Vec<_> = taken.crossings.iter().map(key).collect();
-            had.sort_unstable();
-            let mut used = vec![false; had.len()];
-            for c in &full.crossings {
-                let k = key(c);
-                let from = had.partition_point(|x| *x < k);
-                let seen = (from..had.len())
-                    .take_while(|&n| had[n] == k)
-                    .find(|&n| !used[n]);
-                match seen {
-                    Some(n) => used[n] = true,
-                    None => {
-                        p.crossings += 1;
-                        p.records.push_back(record(c, starts));
-                    }
-                }
+            for c in beyond(&taken.crossings, &full.crossings, key) {
+                p.crossings += 1;
+                p.records.push_back(record(c, starts));
             }
         }
         let key = |r: &(f64, f64)| (r.0.to_bits(), r.1.to_bits());
-        let mut had: Vec<_> = taken.ranges.iter().map(key).collect();
-        had.sort_unstable();
-        let mut used = vec![false; had.len()];
-        let mut added = Vec::new();
-        for r in &full.ranges {
-            let k = key(r);
-            let from = had.partition_point(|x| *x < k);
-            match (from..had.len())
-                .take_while(|&n| had[n] == k)
-                .find(|&n| !used[n])
-            {
-                Some(n) => used[n] = true,
-                None => added.push(*r),
-            }
-        }
+        let added = beyond(&taken.ranges, &full.ranges, key)
+            .into_iter()
+            .copied()
+            .collect();
         self.fold_ranges(i, added, hi, out);
     }
 
@@ -1576,6 +1553,30 @@ mod tests {
             assert_eq!(other.moved_copy_of(&at(0)), None);
         }
     }
+}
+
+/// The items of `full` beyond those of `taken`, as multisets by `key` (an item of `full`
+/// is matched with one of `taken` at most once), in `full`'s order.
+fn beyond<'a, T, K: Ord>(taken: &[T], full: &'a [T], key: impl Fn(&T) -> K) -> Vec<&'a T> {
+    let mut had: Vec<K> = taken.iter().map(&key).collect();
+    had.sort_unstable();
+    let mut used = vec![false; had.len()];
+    full.iter()
+        .filter(|x| {
+            let k = key(x);
+            let from = had.partition_point(|h| *h < k);
+            let seen = (from..had.len())
+                .take_while(|&n| had[n] == k)
+                .find(|&n| !used[n]);
+            match seen {
+                Some(n) => {
+                    used[n] = true;
+                    false
+                }
+                None => true,
+            }
+        })
+        .collect()
 }
 
 /// Why the caps that close a pending period could not be checked.

@@ -173,12 +173,6 @@ impl CloudOptions {
     }
 }
 
-/// Whether the machine has more than one core (asked once: the answer reads cgroup files).
-pub(crate) fn several_cores() -> bool {
-    static SEVERAL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    *SEVERAL.get_or_init(|| std::thread::available_parallelism().is_ok_and(|n| n.get() > 1))
-}
-
 /// The least points of a cloud split over two threads: below it, the second thread's
 /// frame (cleared, then OR-ed in: two passes over the lattice's bits) costs more than it
 /// saves.
@@ -402,8 +396,10 @@ impl CloudRasterizer {
         if radius > 0.0 {
             work = work.saturating_add(lattice.row_bytes());
         }
-        let parallel =
-            opts.parallel && !counting && layout.points >= PARALLEL_POINTS && several_cores();
+        let parallel = opts.parallel
+            && !counting
+            && layout.points >= PARALLEL_POINTS
+            && crate::several_cores();
         if parallel {
             work = work.saturating_add(lattice.row_bytes());
         }

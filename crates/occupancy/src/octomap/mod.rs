@@ -441,7 +441,7 @@ impl OctomapRasterizer {
         let beside = needs_free
             && self.options.parallel
             && msg.data.len() >= PARALLEL_BYTES
-            && crate::cloud::several_cores();
+            && crate::several_cores();
         let read = if beside {
             read_beside(msg, &self.options, &self.limits, &mut raster)
         } else {
