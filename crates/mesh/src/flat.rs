@@ -74,8 +74,9 @@ pub fn merge_flat_with(
         mesh.triangles.len(),
         "the flat faces of another mesh"
     );
-    // Groups: (axis, coordinate bits, facing +/-, class), each with its triangles in order.
-    let mut flat: Vec<((u8, u64, bool, u8), u32)> = Vec::new();
+    // Groups: (axis, coordinate bits, facing +/-, class), each with its triangles in order:
+    // sorted as one packed key (axis, bits, facing, class, triangle) from the high bits.
+    let mut flat: Vec<u128> = Vec::new();
     let mut out = Vec::new();
     let mut out_class = Vec::new();
     for (i, (t, plane)) in mesh.triangles.iter().zip(&flats.planes).enumerate() {
@@ -83,7 +84,13 @@ pub fn merge_flat_with(
             continue;
         };
         match *plane {
-            Some((k, bits, facing)) => flat.push(((k, bits, facing, c), i as u32)),
+            Some((k, bits, facing)) => flat.push(
+                u128::from(k) << 105
+                    | u128::from(bits) << 41
+                    | u128::from(facing) << 40
+                    | u128::from(c) << 32
+                    | i as u128,
+            ),
             None => {
                 out.push(*t);
                 out_class.push(c);
@@ -91,14 +98,16 @@ pub fn merge_flat_with(
         }
     }
     flat.sort_unstable();
-    let groups: Vec<&[((u8, u64, bool, u8), u32)]> = flat.chunk_by(|a, b| a.0 == b.0).collect();
+    let group = |x: &u128| x >> 32;
+    let triangle = |x: &u128| *x as u32;
+    let groups: Vec<&[u128]> = flat.chunk_by(|a, b| group(a) == group(b)).collect();
     let merged: Vec<Option<Vec<[u32; 3]>>> = groups
         .par_iter()
         .map(|g| {
-            let key = g[0].0;
+            let key = g[0];
             if g.len() > 2 {
-                let tris: Vec<u32> = g.iter().map(|x| x.1).collect();
-                merge_group(mesh, &tris, usize::from(key.0), key.2)
+                let tris: Vec<u32> = g.iter().map(triangle).collect();
+                merge_group(mesh, &tris, (key >> 105) as usize, key >> 40 & 1 == 1)
             } else {
                 None
             }
@@ -107,9 +116,9 @@ pub fn merge_flat_with(
     for (g, m) in groups.iter().zip(merged) {
         match m {
             Some(m) => out.extend(m),
-            None => out.extend(g.iter().map(|x| mesh.triangles[x.1 as usize])),
+            None => out.extend(g.iter().map(|x| mesh.triangles[triangle(x) as usize])),
         }
-        out_class.resize(out.len(), g[0].0 .3);
+        out_class.resize(out.len(), (g[0] >> 32) as u8);
     }
     (out, out_class)
 }
@@ -145,21 +154,30 @@ fn cross2(a: [f64; 2], b: [f64; 2]) -> f64 {
 /// The group's triangles merged, or `None` to keep them as they are.
 fn merge_group(mesh: &TriMesh, tris: &[u32], k: usize, facing: bool) -> Option<Vec<[u32; 3]>> {
     // Boundary: directed edges whose reverse is not in the group, counted with multiplicity
-    // (each undirected edge once, +1 along it, -1 against: sorted, then summed).
-    let mut edges: Vec<(u64, i32)> = Vec::with_capacity(3 * tris.len());
+    // (each undirected edge once, +1 along it, -1 against: sorted, then summed), each as
+    // one word: the smaller id, the larger, and a bit for the direction (so ids below 2^31;
+    // a slice with more vertices is not merged).
+    if mesh.vertices.len() > 1 << 31 {
+        return None;
+    }
+    let mut edges: Vec<u64> = Vec::with_capacity(3 * tris.len());
     for &i in tris {
         let t = mesh.triangles[i as usize];
         for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
-            let ((a, b), s) = if a < b { ((a, b), 1) } else { ((b, a), -1) };
-            edges.push((u64::from(a) << 32 | u64::from(b), s));
+            let (lo, hi) = (a.min(b), a.max(b));
+            edges.push(u64::from(lo) << 33 | u64::from(hi) << 1 | u64::from(a < b));
         }
     }
-    edges.sort_unstable_by_key(|e| e.0);
+    edges.sort_unstable();
     // The boundary edges (from, to), sorted by `from`.
     let mut next: Vec<(u32, u32)> = Vec::new();
-    for run in edges.chunk_by(|x, y| x.0 == y.0) {
-        let (a, b) = ((run[0].0 >> 32) as u32, run[0].0 as u32);
-        match run.iter().map(|e| e.1).sum::<i32>() {
+    for run in edges.chunk_by(|x, y| x >> 1 == y >> 1) {
+        let (a, b) = ((run[0] >> 33) as u32, (run[0] >> 1) as u32);
+        match run
+            .iter()
+            .map(|e| if e & 1 == 1 { 1 } else { -1 })
+            .sum::<i32>()
+        {
             0 => {}
             1 => next.push((a, b)),
             -1 => next.push((b, a)),

@@ -382,7 +382,14 @@ impl Slicer {
     }
 
     /// The slice. Triangles that occur once in each orientation (a plane containing
-    /// lateral triangles of the mesh cuts a zero-volume sheet there) cancel.
+    /// lateral triangles of the mesh cuts a zero-volume sheet there) cancel. A plane
+    /// through no lattice point (its coordinate not a whole number of lattice steps) holds
+    /// no vertex: each triangle of its slice is cut from one tet, on edges that together
+    /// meet all four of the tet's vertices, so two triangles alike would come from two tets
+    /// on the same four vertices, which the mesher never makes (such a slice is a closed
+    /// 2-manifold: tests/it/mesh_closed.rs checks it on random meshes). Nothing cancels
+    /// there, and its triangles are kept as they were cut, in tet order, without the sort
+    /// that finds the ones that would.
     pub fn finish(self) -> TriMesh {
         self.finish_with_sources().0
     }
@@ -390,8 +397,11 @@ impl Slicer {
     /// [`Slicer::finish`], with the source tet of each triangle (empty unless made
     /// [`Slicer::with_sources`]).
     pub fn finish_with_sources(mut self) -> (TriMesh, Vec<u32>) {
-        let tris = std::mem::take(&mut self.mesh.triangles);
         let src = self.sources.take();
+        if self.c.num % self.c.den != 0 {
+            return (self.mesh, src.unwrap_or_default());
+        }
+        let tris = std::mem::take(&mut self.mesh.triangles);
         let mut keyed: Vec<([u32; 3], i8, [u32; 3], u32)> = tris
             .into_iter()
             .enumerate()
