@@ -10,8 +10,10 @@
 //! the other) and, for a plane through no mesh vertex, a 2-manifold; a plane through
 //! vertices can cut where two sheets of the 4D boundary cross (a saddle), and there an edge
 //! may carry four triangles. Keys are global, so slabs can be sliced one at a time as they stream and the
-//! pieces weld. Triangles are oriented outward of the 3D section, decided exactly from the
-//! tet's 4D normal with integer arithmetic.
+//! pieces weld. Triangles are oriented outward of the 3D section, decided exactly: by which
+//! of the tet's vertices lie on which side of the plane and the order they come in (a sign
+//! the tet's 4D normal would give, proved in `cut_orientation` and tested against the
+//! integer determinant), the normal itself only telling a tet of no volume.
 //!
 //! If the plane only touches the body (c is the body's lowest coordinate along the axis,
 //! e.g. t at its first frame), the "+" rule yields nothing; [`Slicer::finish`] reports that
@@ -283,6 +285,8 @@ impl Slicer {
         // Slice points in cyclic order around the polygon (no allocation: a triangle or a
         // quad, in fixed arrays).
         let mut pts = [(0usize, 0usize); 4];
+        // The polygon's orientation, from the sides alone (see [`cut_orientation`]).
+        let turn;
         let n = if plus == 1 || plus == 3 {
             let lone = (0..4).find(|&i| side[i] == (plus == 1)).unwrap_or(0);
             let mut n = 0;
@@ -290,6 +294,7 @@ impl Slicer {
                 pts[n] = (lone, i);
                 n += 1;
             }
+            turn = cut_orientation([lone, pts[0].1, pts[1].1, pts[2].1], plus == 3, self.axis);
             3
         } else {
             let (mut pos, mut neg) = ([0usize; 2], [0usize; 2]);
@@ -310,14 +315,19 @@ impl Slicer {
                 (neg[1], pos[1]),
                 (neg[1], pos[0]),
             ];
+            turn = cut_orientation([neg[0], pos[0], pos[1], neg[1]], true, self.axis);
             4
         };
-        let normal = outward_normal3(&p, self.axis);
-        let mut geo = [([0i128; 3], 0i128); 4];
+        // A tet of no volume (its normal without the cut axis zero) has no orientation:
+        // the exact test says zero, and its triangles are taken reversed, as before.
+        let s = if outward_normal3(&p, self.axis) == [0; 3] {
+            0
+        } else {
+            turn
+        };
         let mut keys = [(Key::Vertex([0; 4]), 0u64); 4];
         for m in 0..n {
             let (i, j) = pts[m];
-            geo[m] = self.point(&p, i, j);
             keys[m] = self.key(&p, &ids, i, j);
         }
         let tris: &[[usize; 3]] = if n == 3 {
@@ -330,7 +340,6 @@ impl Slicer {
             if keys[a].0 == keys[b].0 || keys[b].0 == keys[c].0 || keys[a].0 == keys[c].0 {
                 continue;
             }
-            let s = orientation(&geo[a], &geo[b], &geo[c], &normal);
             let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
             let ids = ordered.map(|i| part.vertex(keys[i].1, keys[i].0));
             part.triangles.push(ids);
@@ -338,31 +347,6 @@ impl Slicer {
                 part.sources.push(source);
             }
         }
-    }
-
-    /// The slice point on edge (i, j) of tet `p`, homogeneous: (coordinates·w, w), w > 0,
-    /// relative to the tet's first vertex to keep numbers small.
-    fn point(&self, p: &[LatticePoint; 4], i: usize, j: usize) -> ([i128; 3], i128) {
-        let k = self.axis;
-        let (u, v) = (p[i], p[j]);
-        let den = i128::from(self.c.den);
-        let num = i128::from(self.c.num);
-        let (uk, vk) = (i128::from(u[k]), i128::from(v[k]));
-        // P = (u·(v_k·den − num) + v·(num − u_k·den)) / (den·(v_k − u_k)).
-        let (mut alpha, mut beta) = (vk * den - num, num - uk * den);
-        let mut w = alpha + beta;
-        if w < 0 {
-            alpha = -alpha;
-            beta = -beta;
-            w = -w;
-        }
-        // The three coordinates other than k.
-        let coords = [0, 1, 2].map(|m| {
-            let c = if m < k { m } else { m + 1 };
-            let (du, dv) = (i128::from(u[c] - p[0][c]), i128::from(v[c] - p[0][c]));
-            du * alpha + dv * beta
-        });
-        (coords, w)
     }
 
     /// The lattice key of the slice point on edge (i, j) of tet `p` (vertex ids `ids`), and
@@ -518,8 +502,41 @@ fn det4(a: &[i128; 4], b: &[i128; 4], c: &[i128; 4], d: &[i128; 4]) -> i128 {
         + t(2, 3) * s(0, 1)
 }
 
+/// The sign of det3[Q−P, R−P, n3] ([`orientation`]) for the cut polygon of a tet of
+/// volume, in the polygon's cycle order, from which vertices lie on which side alone.
+///
+/// `order` lists the tet's four vertex positions (0..4) so that the polygon is cut from
+/// the first vertex towards the others in order (a triangle: the lone vertex, then the other
+/// three ascending; a quad: the first "−" vertex, the two "+" ones ascending, the second "−"
+/// one), and `first_below` says whether that first vertex lies on the "−" side. The sign is
+/// `sgn(order) · (−1)^axis`, negated when the first vertex lies on the "+" side.
+///
+/// Why: let N be the tet's outward normal for the vertex order `order` (N·x = det[v1, v2,
+/// v3, x] for its edge vectors v_j from the first vertex; another order multiplies N by that
+/// order's sign). det3[Q−P, R−P, n3] is (−1)^(axis+1) det4[Q−P, R−P, N, e_axis]. For a lone
+/// first vertex at height h below the plane, the cut points are p0 + λ_j v_j with λ_j > 0,
+/// and writing e_axis = Σ α_j v_j + βN gives det4[Q−P, R−P, N, e_axis] = −|N|² λ1λ2λ3
+/// (Σ_j α_j (v_j)_axis) / h = −|N|² λ1λ2λ3 (1 − N_axis²/|N|²) / h, negative (N is not
+/// along the axis for a tet the plane cuts); above the plane h changes sign. The quad is a
+/// convex cycle, so its two triangles turn alike, and the determinant vanishes for no tet of
+/// volume cut that way: one configuration fixes its sign. The unit tests compare this with
+/// [`orientation`] on random tets.
+fn cut_orientation(order: [usize; 4], first_below: bool, axis: usize) -> i128 {
+    let inversions = (0..4)
+        .flat_map(|i| (i + 1..4).map(move |j| (i, j)))
+        .filter(|&(i, j)| order[i] > order[j])
+        .count();
+    let sign = if (inversions + axis) % 2 == 0 { 1 } else { -1 };
+    if first_below {
+        sign
+    } else {
+        -sign
+    }
+}
+
 /// Sign of det3[Q−P, R−P, n3] for homogeneous P, Q, R (positive weights), `n3` the outward
-/// normal without the cut axis.
+/// normal without the cut axis (the exact test [`cut_orientation`] is checked against).
+#[cfg(test)]
 fn orientation(
     p: &([i128; 3], i128),
     q: &([i128; 3], i128),
@@ -586,6 +603,100 @@ pub fn write_ply<W: Write>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The slice point `key` on the plane `x_axis = c`, homogeneous ((coordinates·w, w),
+    /// w > 0) relative to `origin`, computed exactly.
+    fn exact_point(
+        key: Key,
+        origin: &LatticePoint,
+        axis: usize,
+        c: PlaneValue,
+    ) -> ([i128; 3], i128) {
+        let rel = |q: &LatticePoint| {
+            drop_axis(
+                &[0, 1, 2, 3].map(|m| i128::from(q[m]) - i128::from(origin[m])),
+                axis,
+            )
+        };
+        match key {
+            Key::Vertex(q) => (rel(&q), 1),
+            Key::Edge(u, v) => {
+                let (den, num) = (i128::from(c.den), i128::from(c.num));
+                let (mut alpha, mut beta) = (
+                    i128::from(v[axis]) * den - num,
+                    num - i128::from(u[axis]) * den,
+                );
+                if alpha + beta < 0 {
+                    alpha = -alpha;
+                    beta = -beta;
+                }
+                let (ru, rv) = (rel(&u), rel(&v));
+                (
+                    [0, 1, 2].map(|m| ru[m] * alpha + rv[m] * beta),
+                    alpha + beta,
+                )
+            }
+        }
+    }
+
+    /// Every triangle the cut makes of a tet of volume turns as the exact test says
+    /// (det3[Q−P, R−P, n3] > 0, the points computed exactly), for random tets small and
+    /// large, every axis, planes through lattice points and between them, and on-plane
+    /// vertices counted on either side.
+    #[test]
+    fn the_cut_turns_as_the_exact_test_says() {
+        let mut x = 0x9e37_79b9_7f4a_7c15u64;
+        let mut next = |r: i64| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            ((x % (2 * r as u64 + 1)) as i64 - r) as i32
+        };
+        let (mut checked, mut flat) = (0, 0);
+        for round in 0..40_000 {
+            let r = if round % 7 == 0 { 256 } else { 4 };
+            let p: [LatticePoint; 4] = std::array::from_fn(|_| std::array::from_fn(|_| next(r)));
+            let axis = round % 4;
+            let scale = i64::from(r.min(8));
+            let c = if round % 3 == 0 {
+                PlaneValue::lattice(i64::from(next(scale as i64)))
+            } else {
+                PlaneValue {
+                    num: i64::from(next(scale as i64 * 1024)),
+                    den: 1024,
+                }
+            };
+            let mesh = TetMesh {
+                vertices: p.to_vec(),
+                tets: vec![[0, 1, 2, 3]],
+            };
+            let n3 = outward_normal3(&p, axis);
+            for below in [false, true] {
+                let mut slicer = Slicer::new(axis, c);
+                if below {
+                    slicer = slicer.on_plane_below();
+                }
+                let mut part = Part::with_capacity(1);
+                slicer.cut(&mesh, [0, 1, 2, 3], 0, &mut part);
+                for t in &part.triangles {
+                    if n3 == [0; 3] {
+                        flat += 1;
+                        continue;
+                    }
+                    let g = t.map(|v| exact_point(part.keys[v as usize], &p[0], axis, c));
+                    assert!(
+                        orientation(&g[0], &g[1], &g[2], &n3) > 0,
+                        "tet {p:?} axis {axis} plane {c:?} below {below}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(
+            checked > 10_000,
+            "only {checked} triangles checked ({flat} flat)"
+        );
+    }
 
     /// The normal from 3x3 minors (in i64 when small) is the 4D determinant's.
     #[test]
