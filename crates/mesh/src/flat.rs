@@ -257,19 +257,29 @@ fn merge_group(mesh: &TriMesh, tris: &[u32], k: usize, facing: bool) -> Option<V
     for poly in with_holes {
         ear_clip(&poly, &xy, &mut out)?;
     }
-    // The same area, or nothing changes.
+    if out.len() >= tris.len() {
+        return None;
+    }
+    // The same area, or nothing changes. The group's triangles' area is the sum over its
+    // boundary edges (every inner edge cancels: Green's theorem, term by term), taken
+    // around one of its vertices to keep the products small.
     let tri_area = |t: &[u32; 3]| {
         cross2(
             [xy(t[1])[0] - xy(t[0])[0], xy(t[1])[1] - xy(t[0])[1]],
             [xy(t[2])[0] - xy(t[0])[0], xy(t[2])[1] - xy(t[0])[1]],
         ) / 2.0
     };
-    let before: f64 = tris
+    let o = next.first().map_or([0.0; 2], |e| xy(e.0));
+    let before: f64 = next
         .iter()
-        .map(|&i| tri_area(&mesh.triangles[i as usize]))
-        .sum();
+        .map(|&(a, b)| {
+            let (a, b) = (xy(a), xy(b));
+            cross2([a[0] - o[0], a[1] - o[1]], [b[0] - o[0], b[1] - o[1]])
+        })
+        .sum::<f64>()
+        / 2.0;
     let after: f64 = out.iter().map(tri_area).sum();
-    if (before - after).abs() > 1e-9 * before.abs().max(1.0) || out.len() >= tris.len() {
+    if (before - after).abs() > 1e-9 * before.abs().max(1.0) {
         return None;
     }
     Some(out)
