@@ -645,24 +645,18 @@ mod tests {
     /// vertices counted on either side.
     #[test]
     fn the_cut_turns_as_the_exact_test_says() {
-        let mut x = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = |r: i64| {
-            x ^= x << 13;
-            x ^= x >> 7;
-            x ^= x << 17;
-            ((x % (2 * r as u64 + 1)) as i64 - r) as i32
-        };
+        let mut rng = chronotope_kernel::intersect::test_rng::Rng(0x9e37_79b9_7f4a_7c15);
         let (mut checked, mut flat) = (0, 0);
         for round in 0..40_000 {
             let r = if round % 7 == 0 { 256 } else { 4 };
-            let p: [LatticePoint; 4] = std::array::from_fn(|_| std::array::from_fn(|_| next(r)));
+            let p: [LatticePoint; 4] = rng.tet(-r, r);
             let axis = round % 4;
             let scale = i64::from(r.min(8));
             let c = if round % 3 == 0 {
-                PlaneValue::lattice(i64::from(next(scale as i64)))
+                PlaneValue::lattice(rng.range(-scale, scale))
             } else {
                 PlaneValue {
-                    num: i64::from(next(scale as i64 * 1024)),
+                    num: rng.range(-scale * 1024, scale * 1024),
                     den: 1024,
                 }
             };
