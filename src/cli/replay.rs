@@ -132,34 +132,85 @@ pub fn default_robot_config(robot: &BagRobot, first_body: &str) -> LaunchConfig 
     LaunchConfig::parse(&text, "default config").expect("the default robot config parses")
 }
 
+/// Messages handed to the output bag's thread and not yet written, at most (each holds its
+/// payload by reference count; the nodes keep most of them anyway).
+const OUTPUT_QUEUE_MESSAGES: usize = 256;
+
+/// The output bag, written on a thread of its own (serialising and compressing beside the
+/// nodes), in the order the messages were recorded.
 struct Output {
-    writer: BagWriter,
     selection: Selection,
-    counts: OutputCounts,
-    error: Option<crate::bag::BagError>,
-    /// One serialisation buffer for every message (grown to the largest once).
-    bytes: Vec<u8>,
+    /// `None` once the writer has stopped (an error, found when it is joined).
+    queue: Option<std::sync::mpsc::SyncSender<Message>>,
+    writer: std::thread::JoinHandle<Result<OutputCounts, crate::bag::BagError>>,
 }
 
 impl Output {
     /// An output bag at `path` of what `selection` takes.
     fn create(path: &Path, selection: Selection) -> Result<Self, crate::bag::BagError> {
-        Ok(Self {
+        let mut bag = BagWriting {
             writer: BagWriter::create_with(
                 path,
                 crate::bag::BagWriteOptions::new().derived("replay"),
             )?,
-            selection,
             counts: OutputCounts::default(),
-            error: None,
             bytes: Vec::new(),
+        };
+        let (queue, inbox) = std::sync::mpsc::sync_channel::<Message>(OUTPUT_QUEUE_MESSAGES);
+        let writer = std::thread::Builder::new()
+            .name("output bag".into())
+            .spawn(move || {
+                for m in inbox {
+                    bag.record(&m)?;
+                }
+                bag.writer.finish()?;
+                Ok(bag.counts)
+            })
+            .map_err(|source| crate::bag::BagError::Io {
+                path: path.to_path_buf(),
+                action: "cannot start a thread to write",
+                source,
+            })?;
+        Ok(Self {
+            selection,
+            queue: Some(queue),
+            writer,
         })
     }
 
+    /// Hands `m` to the writer if the selection takes it.
     fn record(&mut self, m: &Message) {
-        if self.error.is_some() || !self.selection.wants(&m.topic) {
+        if !self.selection.wants(&m.topic) {
             return;
         }
+        if let Some(q) = &self.queue {
+            if q.send(m.clone()).is_err() {
+                // The writer stopped on an error; it is reported when the bag is finished.
+                self.queue = None;
+            }
+        }
+    }
+
+    /// Waits for the writer to write everything and finish the bag.
+    fn finish(mut self) -> Result<OutputCounts, crate::bag::BagError> {
+        self.queue = None;
+        match self.writer.join() {
+            Ok(r) => r,
+            Err(panic) => std::panic::resume_unwind(panic),
+        }
+    }
+}
+
+/// The output bag's writer, on its thread.
+struct BagWriting {
+    writer: BagWriter,
+    counts: OutputCounts,
+    /// One serialisation buffer for every message (grown to the largest once).
+    bytes: Vec<u8>,
+}
+
+impl BagWriting {
+    fn record(&mut self, m: &Message) -> Result<(), crate::bag::BagError> {
         let r = (|| {
             // A topic is added (its schema text built) once, at its first message.
             if !self.counts.topics.contains_key(&*m.topic) {
@@ -176,10 +227,9 @@ impl Output {
             self.writer
                 .write_cdr(&m.topic, m.stamp_ns.max(0) as u64, &self.bytes)
         })();
-        match r {
-            Ok(()) => *self.counts.topics.entry(m.topic.to_string()).or_default() += 1,
-            Err(e) => self.error = Some(e),
-        }
+        r?;
+        *self.counts.topics.entry(m.topic.to_string()).or_default() += 1;
+        Ok(())
     }
 }
 
@@ -284,6 +334,10 @@ const REPLAY_TICK_NS: i64 = 100_000_000;
 /// this many bodies): a node reading only the bag works on them meanwhile.
 const AHEAD_INPUTS_MAX: usize = 16;
 
+/// Replies of a node run behind awaited at once, at most: the messages published after the
+/// oldest are held back until it comes.
+const BEHIND_REPLIES_MAX: usize = 8;
+
 /// Replays `bag` through the nodes of `config` (the default config if `None`).
 ///
 /// # Errors
@@ -309,6 +363,9 @@ pub fn replay(
     // The mesher (any node reading only the bag) works a frame of each body ahead of the
     // checker, on a thread of its own; the output is the same message for message.
     bus.run_ahead(bodies.topics.len().clamp(1, AHEAD_INPUTS_MAX));
+    // The markers part (any node whose outputs only the output bag reads, and that agrees)
+    // draws behind the checker, on a thread of its own; again the same messages in order.
+    bus.run_behind(BEHIND_REPLIES_MAX);
     let bar = progress_bar(progress);
     let (mut input, misrouted) = deliver_bag(bag, &mut bus, &mut output, &bar)?;
     let counts = finish(&mut bus, output, misrouted, &mut input, &bar)?;
@@ -606,11 +663,7 @@ fn finish(
     }
     let mut counts = OutputCounts::default();
     if let Some(o) = output {
-        if let Some(e) = o.error {
-            return Err(e.into());
-        }
-        counts = o.counts;
-        o.writer.finish()?;
+        counts = o.finish()?;
     }
     Ok(counts)
 }

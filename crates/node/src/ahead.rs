@@ -25,8 +25,8 @@ pub(crate) enum Event {
 }
 
 /// What the node published for one event, and its status after.
-struct Reply {
-    out: Vec<Message>,
+pub(crate) struct Reply {
+    pub out: Vec<Message>,
     status: NodeStatus,
 }
 
@@ -58,20 +58,35 @@ impl Feed {
 }
 
 /// The node's stand-in on the bus while it runs on its own thread: each handler takes the
-/// node's reply to the event the bus announced for that turn.
+/// node's reply to the event the bus announced for that turn. A node run behind (see
+/// [`AheadNode::start_behind`]) is only handed its events; the bus takes the replies.
 pub(crate) struct AheadNode {
     name: String,
     publications: Vec<TopicRef>,
     rank: u8,
     status: NodeStatus,
     feed: Feed,
-    replies: mpsc::Receiver<Reply>,
+    /// The node's replies; `None` for a node run behind (the bus holds them).
+    replies: Option<mpsc::Receiver<Reply>>,
     worker: Option<JoinHandle<Box<dyn Node>>>,
     /// The node, back from its thread once it has finished.
     home: Option<Box<dyn Node>>,
 }
 
 impl AheadNode {
+    /// Moves `node` onto a thread of its own, run behind: its stand-in hands it each event
+    /// in the event's turn and returns at once; the node's replies, one per event in order,
+    /// come on the receiver returned. The stand-in's status is the node's as it started
+    /// until the node has finished.
+    pub fn start_behind(node: Box<dyn Node>) -> (Self, mpsc::Receiver<Reply>) {
+        let (mut stand_in, _) = Self::start(node);
+        let replies = stand_in
+            .replies
+            .take()
+            .expect("a node just started has its replies");
+        (stand_in, replies)
+    }
+
     /// Moves `node` onto a thread of its own; returns its stand-in and its feed.
     pub fn start(node: Box<dyn Node>) -> (Self, Feed) {
         let (events, inbox) = mpsc::channel::<Event>();
@@ -122,7 +137,7 @@ impl AheadNode {
                 rank,
                 status,
                 feed: mine,
-                replies,
+                replies: Some(replies),
                 worker: Some(worker),
                 home: None,
             },
@@ -131,8 +146,13 @@ impl AheadNode {
     }
 
     /// Takes the node's reply to its next event and pushes what it published; `event` is
-    /// handed over first if the bus did not announce it.
+    /// handed over first if the bus did not announce it. A node run behind is only handed
+    /// the event.
     fn take(&mut self, event: impl FnOnce() -> Event, out: &mut Vec<Message>) {
+        if self.replies.is_none() {
+            let _ = self.feed.events.send(event());
+            return;
+        }
         if self.feed.owed.load(Ordering::Relaxed) == 0 {
             self.feed.send(event());
         }
@@ -141,7 +161,10 @@ impl AheadNode {
 
     /// Takes the node's reply to the oldest event it was handed.
     fn take_reply(&mut self, out: &mut Vec<Message>) {
-        let reply = self.replies.recv();
+        let Some(replies) = &self.replies else {
+            return;
+        };
+        let reply = replies.recv();
         self.feed.owed.fetch_sub(1, Ordering::Relaxed);
         match reply {
             Ok(r) => {
@@ -157,6 +180,19 @@ impl AheadNode {
                     }
                 }
                 panic!("node {} run ahead stopped answering", self.name);
+            }
+        }
+    }
+}
+
+impl AheadNode {
+    /// Waits for the node's thread to end and takes the node home; raises its panic if it
+    /// panicked.
+    pub(crate) fn join(&mut self) {
+        if let Some(w) = self.worker.take() {
+            match w.join() {
+                Ok(node) => self.home = Some(node),
+                Err(panic) => std::panic::resume_unwind(panic),
             }
         }
     }
@@ -188,6 +224,13 @@ impl Node for AheadNode {
         if self.home.is_some() {
             return;
         }
+        if self.replies.is_none() {
+            // Run behind: its last reply, like every other, is the bus's to take; the node
+            // comes home once it has answered everything (or raises its panic here).
+            let _ = self.feed.events.send(Event::Finish);
+            self.join();
+            return;
+        }
         // Replies the bus did not take go out first (there are none: the bus runs every
         // input it announced before its nodes finish).
         while self.feed.owed.load(Ordering::Relaxed) > 0 {
@@ -195,12 +238,7 @@ impl Node for AheadNode {
         }
         self.feed.send(Event::Finish);
         self.take_reply(out);
-        if let Some(w) = self.worker.take() {
-            match w.join() {
-                Ok(node) => self.home = Some(node),
-                Err(panic) => std::panic::resume_unwind(panic),
-            }
-        }
+        self.join();
     }
     fn status(&self) -> &NodeStatus {
         match &self.home {

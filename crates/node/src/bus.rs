@@ -9,11 +9,19 @@
 //! ([`Bus::run_ahead`]): it is handed each input as the input is put on the bus
 //! ([`Bus::put`]), while the bus still delivers up to `depth` inputs before it. What it
 //! publishes is taken in the input's turn, so the messages and their order are the same.
+//!
+//! A node whose publications no node of the bus reads (the checker's markers part) can be
+//! run behind on a thread of its own ([`Bus::run_behind`]): it is handed each input in its
+//! turn and the bus goes on; what it publishes is given to the sink where its turn put it,
+//! the messages after it held back until it has answered. Again the messages and their
+//! order are the same.
 
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::time::{Duration, Instant};
 
-use super::ahead::{AheadNode, Event, Feed};
+use std::sync::mpsc;
+
+use super::ahead::{AheadNode, Event, Feed, Reply};
 use super::{Message, Node, NodeStatus, ParamError};
 
 /// Nodes wired by topic.
@@ -27,6 +35,21 @@ pub struct Bus {
     /// Inputs put on the bus and not yet delivered (at most `depth`).
     waiting: VecDeque<Step>,
     depth: usize,
+    /// The nodes run behind, by index: their replies, one per event handed over.
+    behind: BTreeMap<usize, mpsc::Receiver<Reply>>,
+    /// What was published, in delivery order, held back from the sink behind a reply of a
+    /// node run behind.
+    held: VecDeque<Held>,
+    /// Replies awaited in `held`, and how many may be before the bus waits for the oldest.
+    awaited: usize,
+    behind_max: usize,
+}
+
+/// A message held back from the sink, or the place of a node's reply.
+enum Held {
+    Message(Message),
+    /// The reply of node `i` (run behind) to its oldest event not answered.
+    Reply(usize),
 }
 
 /// An input waiting for its turn.
@@ -63,6 +86,101 @@ impl Bus {
             feeds: Vec::new(),
             waiting: VecDeque::new(),
             depth: 0,
+            behind: BTreeMap::new(),
+            held: VecDeque::new(),
+            awaited: 0,
+            behind_max: 0,
+        }
+    }
+
+    /// Runs behind, each on a thread of its own, the nodes whose publications no node of
+    /// the bus reads and that agree to it ([`Node::run_behind`]): each is handed its inputs
+    /// in their turn and the bus goes on; what it publishes reaches the sink where its turn
+    /// put it, the messages published after held back until it has. At most `max` replies
+    /// are awaited (then the bus waits for the oldest), which bounds what is held back.
+    /// Call it after [`Bus::set_demand`] and before the first input. Returns the nodes'
+    /// names.
+    ///
+    /// The messages published, and their order, are those of the bus without it.
+    pub fn run_behind(&mut self, max: usize) -> Vec<String> {
+        if max == 0 || !self.behind.is_empty() {
+            return Vec::new();
+        }
+        self.behind_max = max;
+        let mut names = Vec::new();
+        let nodes = std::mem::take(&mut self.nodes);
+        for (i, mut node) in nodes.into_iter().enumerate() {
+            let read_here = node
+                .publications()
+                .iter()
+                .any(|p| self.routes.contains_key(&p.topic));
+            if node.subscriptions().is_empty() || read_here || !node.run_behind() {
+                self.nodes.push(node);
+                continue;
+            }
+            names.push(node.name().to_string());
+            let (stand_in, replies) = AheadNode::start_behind(node);
+            self.nodes.push(Box::new(stand_in));
+            self.behind.insert(i, replies);
+        }
+        names
+    }
+
+    /// Gives `m` to the sink, or holds it back behind a reply awaited.
+    fn emit(&mut self, m: &Message, sink: &mut impl FnMut(&Message)) {
+        if self.held.is_empty() {
+            sink(m);
+        } else {
+            self.held.push_back(Held::Message(m.clone()));
+        }
+    }
+
+    /// Node `i` (run behind) was handed an event: its reply goes here in the sink's order.
+    fn await_reply(&mut self, i: usize, sink: &mut impl FnMut(&Message)) {
+        self.held.push_back(Held::Reply(i));
+        self.awaited += 1;
+        self.release(self.behind_max, sink);
+    }
+
+    /// Gives the sink what is no longer held back, waiting for replies while more than
+    /// `keep` are awaited.
+    fn release(&mut self, keep: usize, sink: &mut impl FnMut(&Message)) {
+        while let Some(front) = self.held.front() {
+            let i = match front {
+                Held::Reply(i) => *i,
+                Held::Message(_) => {
+                    if let Some(Held::Message(m)) = self.held.pop_front() {
+                        sink(&m);
+                    }
+                    continue;
+                }
+            };
+            let replies = &self.behind[&i];
+            let reply = if self.awaited > keep {
+                let t = Instant::now();
+                let r = replies.recv().ok();
+                self.busy[i] += t.elapsed();
+                r
+            } else {
+                match replies.try_recv() {
+                    Ok(r) => Some(r),
+                    Err(mpsc::TryRecvError::Empty) => return,
+                    Err(mpsc::TryRecvError::Disconnected) => None,
+                }
+            };
+            let Some(reply) = reply else {
+                // Its thread is gone: the node panicked. Raise the panic here, as the node's
+                // handler would have on the bus's thread.
+                let mut none = Vec::new();
+                self.nodes[i].finish(&mut none);
+                panic!("node {} run behind stopped answering", self.nodes[i].name());
+            };
+            self.held.pop_front();
+            self.awaited -= 1;
+            // Nobody on the bus reads them: they only reach the sink, in their place.
+            for m in &reply.out {
+                sink(m);
+            }
         }
     }
 
@@ -132,6 +250,7 @@ impl Bus {
                 None => break,
             }
         }
+        self.release(self.behind_max, sink);
         misrouted
     }
 
@@ -173,18 +292,26 @@ impl Bus {
         let mut misrouted = self.flush(sink);
         self.announce(&Step::Message(msg.clone()));
         misrouted.extend(self.deliver_now(msg, sink));
+        self.release(self.behind_max, sink);
         misrouted
     }
 
     /// [`Bus::deliver`] in the input's turn (announced to the nodes run ahead).
     fn deliver_now(&mut self, msg: Message, sink: &mut impl FnMut(&Message)) -> Vec<Misrouted> {
         let mut misrouted = Vec::new();
-        let mut queue = VecDeque::from([msg]);
+        let mut queue = VecDeque::from([Held::Message(msg)]);
         let mut first = true;
         let mut out = Vec::new();
-        while let Some(m) = queue.pop_front() {
+        while let Some(next) = queue.pop_front() {
+            let m = match next {
+                Held::Message(m) => m,
+                Held::Reply(i) => {
+                    self.await_reply(i, sink);
+                    continue;
+                }
+            };
             if !first {
-                sink(&m);
+                self.emit(&m, sink);
             }
             first = false;
             if let Some(subs) = self.routes.get(&*m.topic) {
@@ -200,7 +327,11 @@ impl Bus {
                     let t = Instant::now();
                     self.nodes[i].on_message(&m, &mut out);
                     self.busy[i] += t.elapsed();
-                    queue.extend(out.drain(..));
+                    if self.behind.contains_key(&i) {
+                        queue.push_back(Held::Reply(i));
+                    } else {
+                        queue.extend(out.drain(..).map(Held::Message));
+                    }
                 }
             }
         }
@@ -218,12 +349,16 @@ impl Bus {
             let t = Instant::now();
             self.nodes[i].finish(&mut out);
             self.busy[i] += t.elapsed();
+            if self.behind.contains_key(&i) {
+                self.await_reply(i, sink);
+            }
             for m in out {
-                sink(&m);
+                self.emit(&m, sink);
                 // Delivered to subscribers; `deliver` does not pass its own input to `sink`.
                 misrouted.extend(self.deliver_now(m, sink));
             }
         }
+        self.release(0, sink);
         misrouted
     }
 
@@ -233,6 +368,7 @@ impl Bus {
         let mut misrouted = self.flush(sink);
         self.announce(&Step::Tick(now_ns));
         misrouted.extend(self.tick_now(now_ns, sink));
+        self.release(self.behind_max, sink);
         misrouted
     }
 
@@ -244,8 +380,11 @@ impl Bus {
             let t = Instant::now();
             self.nodes[i].on_tick(now_ns, &mut out);
             self.busy[i] += t.elapsed();
+            if self.behind.contains_key(&i) {
+                self.await_reply(i, sink);
+            }
             for m in out {
-                sink(&m);
+                self.emit(&m, sink);
                 misrouted.extend(self.deliver_now(m, sink));
             }
         }
@@ -316,6 +455,8 @@ mod tests {
         panic_at: Option<i64>,
         /// Subscriptions to `input` (the bus delivers a message once per subscription).
         copies: usize,
+        /// Agrees to run behind.
+        behind: bool,
         status: NodeStatus,
     }
 
@@ -329,6 +470,7 @@ mod tests {
                 sleep_us: 0,
                 panic_at: None,
                 copies: 1,
+                behind: false,
                 status: NodeStatus::default(),
             })
         }
@@ -387,6 +529,9 @@ mod tests {
         fn rank(&self) -> u8 {
             0
         }
+        fn run_behind(&mut self) -> bool {
+            self.behind
+        }
     }
 
     /// Two nodes reading only `/in` (both run ahead; the second subscribes twice, so it
@@ -427,10 +572,23 @@ mod tests {
 
     /// Every message published, in order, with the misrouted count and the final statuses.
     fn run(depth: Option<usize>, sleep_us: u64) -> (Vec<(String, i64)>, usize, Vec<u64>) {
-        let mut bus = Bus::new(nodes(sleep_us));
+        run_with(nodes(sleep_us), depth, None)
+    }
+
+    /// [`run`] of `nodes`, with up to `behind` replies awaited from nodes run behind.
+    fn run_with(
+        nodes: Vec<Box<dyn Node>>,
+        depth: Option<usize>,
+        behind: Option<usize>,
+    ) -> (Vec<(String, i64)>, usize, Vec<u64>) {
+        let mut bus = Bus::new(nodes);
         let ahead = depth.map(|d| bus.run_ahead(d)).unwrap_or_default();
         if depth.is_some_and(|d| d > 0) {
             assert_eq!(ahead, ["/source", "/other"]);
+        }
+        if let Some(max) = behind {
+            let names = bus.run_behind(max);
+            assert_eq!(names, if max > 0 { vec!["/after"] } else { vec![] });
         }
         let mut seen = Vec::new();
         let mut sink = |m: &Message| seen.push((m.topic.to_string(), m.stamp_ns));
@@ -463,6 +621,64 @@ mod tests {
                 assert_eq!(run(Some(depth), sleep_us), plain, "depth {depth}");
             }
         }
+    }
+
+    /// [`nodes`] with `/after` (whose output nobody on the bus reads) agreeing to run
+    /// behind, and sleeping a little per message.
+    fn nodes_behind(sleep_us: u64) -> Vec<Box<dyn Node>> {
+        let mut n = nodes(0);
+        let mut after = Counter::boxed("/after", "/mid", "/out");
+        after.behind = true;
+        after.sleep_us = sleep_us;
+        n[2] = after;
+        n
+    }
+
+    #[test]
+    fn a_node_run_behind_publishes_the_same_messages_in_the_same_order() {
+        let plain = run(None, 0);
+        // Only a node that agrees, and whose outputs nobody on the bus reads, runs behind.
+        assert!(Bus::new(nodes(0)).run_behind(4).is_empty());
+        let mut reads_after = nodes_behind(0);
+        reads_after.push(Counter::boxed("/last", "/out", "/end"));
+        assert!(Bus::new(reads_after).run_behind(4).is_empty());
+        for depth in [None, Some(0), Some(3)] {
+            for max in [0, 1, 2, 7, 100] {
+                for sleep_us in [0, 300] {
+                    assert_eq!(
+                        run_with(nodes_behind(sleep_us), depth, Some(max)),
+                        plain,
+                        "depth {depth:?}, max {max}, sleep {sleep_us} µs"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_node_that_panics_behind_panics_on_the_bus() {
+        let mut n = nodes_behind(100);
+        let after = Counter {
+            panic_at: Some(5),
+            behind: true,
+            ..*Counter::boxed("/after", "/mid", "/out")
+        };
+        n[2] = Box::new(after);
+        let mut bus = Bus::new(n);
+        assert_eq!(bus.run_behind(3), ["/after"]);
+        let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            for k in 0..40 {
+                bus.put(clock("/in", k), &mut |_| {});
+            }
+            bus.finish(&mut |_| {});
+        }));
+        let panic = r.expect_err("the node's panic reaches the bus");
+        let text = panic
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| panic.downcast_ref::<&str>().copied())
+            .unwrap_or_default();
+        assert!(text.contains("/after fails on purpose"), "{text}");
     }
 
     #[test]

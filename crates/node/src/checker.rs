@@ -572,6 +572,7 @@ impl CheckerNode {
             slabs_done_topic: self.slabs_done_topic.clone(),
             markers_topic: topic,
             queue,
+            nudges: 0,
             status: NodeStatus::default(),
         })
     }
@@ -595,6 +596,10 @@ pub struct MarkerQueue {
     restart: bool,
     /// Draw every slab even when behind (`markers_every_slab`).
     every_slab: bool,
+    /// The markers part runs behind the checker on an in-process bus (a replay): each
+    /// nudge takes exactly the slabs of its step, and nothing is dropped (the bus bounds
+    /// how many steps wait).
+    behind: bool,
 }
 
 impl MarkerQueue {
@@ -607,7 +612,7 @@ impl MarkerQueue {
         self.tets += d.mesh.tets.len();
         self.slabs.push_back((frame_id.to_owned(), d, self.step));
         let mut dropped = 0;
-        while self.tets > MARKER_QUEUE_TETS && self.slabs.len() > 1 {
+        while !self.behind && self.tets > MARKER_QUEUE_TETS && self.slabs.len() > 1 {
             if let Some((_, old, _)) = self.slabs.pop_front() {
                 self.tets -= old.mesh.tets.len();
                 dropped += 1;
@@ -625,10 +630,17 @@ impl MarkerQueue {
     /// part has fallen behind: a display wants the latest state, not a queue, so only each
     /// body's newest slab is kept (with `true`, and how many were passed over). A replay,
     /// whose parts run in turn, takes one step at a time and draws every slab.
-    fn take(&mut self) -> (Vec<(String, SlabDone)>, u64, bool) {
-        self.tets = 0;
+    ///
+    /// Run behind, the part takes the slabs of steps up to `through` only (those its nudges
+    /// so far announced; the checker may have queued the next step's already).
+    fn take(&mut self, through: Option<u64>) -> (Vec<(String, SlabDone)>, u64, bool) {
         let restart = std::mem::take(&mut self.restart);
-        let slabs: Vec<(String, SlabDone, u64)> = self.slabs.drain(..).collect();
+        let n = match through {
+            Some(step) if self.behind => self.slabs.iter().take_while(|x| x.2 <= step).count(),
+            _ => self.slabs.len(),
+        };
+        let slabs: Vec<(String, SlabDone, u64)> = self.slabs.drain(..n).collect();
+        self.tets -= slabs.iter().map(|x| x.1.mesh.tets.len()).sum::<usize>();
         let one_step = slabs.windows(2).all(|w| w[0].2 == w[1].2);
         if one_step || self.every_slab {
             return (
@@ -681,14 +693,22 @@ pub struct CheckerMarkers {
     slabs_done_topic: String,
     markers_topic: String,
     queue: Arc<Mutex<MarkerQueue>>,
+    /// The checker's nudges handled so far (`~/_slabs_done`, one per step that queued
+    /// slabs): run behind, the part takes the slabs of those steps.
+    nudges: u64,
     status: NodeStatus,
 }
 
 impl CheckerMarkers {
     /// Draws the queued slabs, in queue order: each body's markers only where they changed
     /// (see [`slab_markers`]); the slabs whose geometry changed are sliced on rayon's pool.
-    fn publish(&mut self, out: &mut Vec<Message>) {
-        let (slabs, skipped, restart) = self.queue.lock().map(|mut q| q.take()).unwrap_or_default();
+    /// Run behind, only the slabs of the steps up to `through` (`None`: all).
+    fn publish(&mut self, through: Option<u64>, out: &mut Vec<Message>) {
+        let (slabs, skipped, restart) = self
+            .queue
+            .lock()
+            .map(|mut q| q.take(through))
+            .unwrap_or_default();
         if restart {
             self.shown.clear();
         }
@@ -758,7 +778,18 @@ impl Node for CheckerMarkers {
     fn on_message(&mut self, msg: &Message, out: &mut Vec<Message>) {
         let _ = msg;
         self.status.received += 1;
-        self.publish(out);
+        self.publish(Some(self.nudges), out);
+        self.nudges += 1;
+    }
+
+    fn run_behind(&mut self) -> bool {
+        // Each nudge then takes its own step's slabs, whenever it is handled; nothing is
+        // dropped or coalesced (the bus bounds the steps waiting), so what is drawn is what
+        // drawing in turn draws.
+        if let Ok(mut q) = self.queue.lock() {
+            q.behind = true;
+        }
+        true
     }
 
     fn set_demand(&mut self, topic: &str, read: bool) {
@@ -771,7 +802,7 @@ impl Node for CheckerMarkers {
             }
             q.unread = !read;
             if !read {
-                q.take();
+                q.take(None);
             }
         }
     }
@@ -779,11 +810,12 @@ impl Node for CheckerMarkers {
     fn on_messages(&mut self, msgs: &[Message], out: &mut Vec<Message>) {
         // Several nudges waiting: the queue holds all their slabs; one pass takes them.
         self.status.received += msgs.len() as u64;
-        self.publish(out);
+        self.nudges += msgs.len() as u64;
+        self.publish(self.nudges.checked_sub(1), out);
     }
 
     fn finish(&mut self, out: &mut Vec<Message>) {
-        self.publish(out);
+        self.publish(None, out);
     }
 
     fn status(&self) -> &NodeStatus {
@@ -1204,11 +1236,11 @@ mod tests {
         assert_eq!(q.push("w", slab(3, third)), 1);
         // A slab over the limit on its own still waits (the newest is never dropped).
         assert_eq!(q.push("w", slab(4, MARKER_QUEUE_TETS + 1)), 3);
-        let (left, skipped, _) = q.take();
+        let (left, skipped, _) = q.take(None);
         assert_eq!((left.len(), skipped), (1, 0));
         assert_eq!(left[0].1.index, 4);
         assert_eq!(left[0].0, "w");
-        assert!(q.take().0.is_empty());
+        assert!(q.take(None).0.is_empty());
     }
 
     #[test]
@@ -1223,7 +1255,7 @@ mod tests {
         q.push("w", with_body(0, "/a"));
         q.push("w", with_body(1, "/a"));
         q.end_step();
-        let (all, skipped, _) = q.take();
+        let (all, skipped, _) = q.take(None);
         assert_eq!((all.len(), skipped), (2, 0));
         // Three steps queued before the part takes them: the newest of each body.
         for (i, b) in [(2, "/a"), (3, "/b")] {
@@ -1232,12 +1264,33 @@ mod tests {
         }
         q.push("w", with_body(4, "/a"));
         q.end_step();
-        let (newest, skipped, _) = q.take();
+        let (newest, skipped, _) = q.take(None);
         let got: Vec<(u32, &str)> = newest
             .iter()
             .map(|(_, d)| (d.index, d.body.as_str()))
             .collect();
         assert_eq!(got, [(3, "/b"), (4, "/a")]);
         assert_eq!(skipped, 1);
+    }
+
+    #[test]
+    fn a_markers_part_run_behind_takes_each_nudges_step_whole_and_drops_nothing() {
+        let mut q = MarkerQueue {
+            behind: true,
+            ..MarkerQueue::default()
+        };
+        let half = MARKER_QUEUE_TETS / 2;
+        // Step 0 and step 1 queued before the part handles the first nudge, over the limit.
+        assert_eq!(q.push("w", slab(0, half)), 0);
+        assert_eq!(q.push("w", slab(1, half)), 0);
+        q.end_step();
+        assert_eq!(q.push("w", slab(2, half)), 0);
+        let index = |v: &[(String, SlabDone)]| v.iter().map(|x| x.1.index).collect::<Vec<_>>();
+        let (first, skipped, _) = q.take(Some(0));
+        assert_eq!((index(&first), skipped), (vec![0, 1], 0));
+        q.end_step();
+        let (second, skipped, _) = q.take(Some(1));
+        assert_eq!((index(&second), skipped), (vec![2], 0));
+        assert_eq!(q.tets, 0);
     }
 }

@@ -407,6 +407,17 @@ pub trait Node: Send + std::any::Any {
     fn set_demand(&mut self, topic: &str, read: bool) {
         let _ = (topic, read);
     }
+    /// Asked once by the in-process bus, before the first input, of a node whose
+    /// publications no other node of the bus reads: may it run on a thread of its own,
+    /// behind the nodes it reads (handed each input in its turn, its outputs taken later
+    /// and recorded where its turn put them; see
+    /// [`Bus::run_behind`](bus::Bus::run_behind))? A node that shares state with another
+    /// node says yes only once it has made that state safe to read late (the checker's
+    /// markers part then takes, for each nudge, exactly the slabs queued before it). The
+    /// default says no.
+    fn run_behind(&mut self) -> bool {
+        false
+    }
     /// Counters and problems.
     fn status(&self) -> &NodeStatus;
     /// Position in the pipeline: nodes finish in increasing rank, so what one publishes on
