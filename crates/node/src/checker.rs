@@ -573,6 +573,7 @@ impl CheckerNode {
             markers_topic: topic,
             queue,
             nudges: 0,
+            pool: MarkersPool::Unmade,
             status: NodeStatus::default(),
         })
     }
@@ -696,13 +697,62 @@ pub struct CheckerMarkers {
     /// The checker's nudges handled so far (`~/_slabs_done`, one per step that queued
     /// slabs): run behind, the part takes the slabs of those steps.
     nudges: u64,
+    /// Where the slabs are sliced: live, a pool of the part's own whose threads run at a
+    /// lower priority ([`MARKERS_NICE`]), made at the first slabs; run behind on a replay's
+    /// bus, rayon's pool (a replay's time is the sum of all the work).
+    pool: MarkersPool,
     status: NodeStatus,
+}
+
+/// How much the live markers part's pool lowers its threads' priority (nice values added):
+/// a display is the first thing a cell can wait for. Sliced on rayon's pool, a display
+/// reading the markers held up the mesher's frames on the same cores (lag p99 about a
+/// second at 30 Hz with the markers at 5 Hz on a 2-core machine, 50 ms without a display);
+/// at a lower priority the meshers and the check take the cores first and the markers the
+/// time they leave, coalescing to each body's newest slab when behind.
+pub const MARKERS_NICE: i32 = 10;
+
+/// The markers part's pool (see [`CheckerMarkers`]).
+enum MarkersPool {
+    /// Not made yet (live, before the first slabs).
+    Unmade,
+    /// Its own, at a lower priority.
+    Own(rayon::ThreadPool),
+    /// Rayon's: run behind, or the own pool could not be made.
+    Global,
+}
+
+impl MarkersPool {
+    /// Runs `work` on the pool, making it first if needed.
+    fn install<R: Send>(&mut self, work: impl FnOnce() -> R + Send) -> R {
+        if matches!(self, Self::Unmade) {
+            let made = rayon::ThreadPoolBuilder::new()
+                .num_threads(rayon::current_num_threads())
+                .thread_name(|i| format!("markers-{i}"))
+                .start_handler(|_| chronotope_checker::rolling::lower_own_priority(MARKERS_NICE))
+                .build();
+            *self = match made {
+                Ok(p) => Self::Own(p),
+                Err(e) => {
+                    tracing::warn!(
+                        "markers: no pool of their own ({e}); drawing on the shared one"
+                    );
+                    Self::Global
+                }
+            };
+        }
+        match self {
+            Self::Own(p) => p.install(work),
+            _ => work(),
+        }
+    }
 }
 
 impl CheckerMarkers {
     /// Draws the queued slabs, in queue order: each body's markers only where they changed
-    /// (see [`slab_markers`]); the slabs whose geometry changed are sliced on rayon's pool.
-    /// Run behind, only the slabs of the steps up to `through` (`None`: all).
+    /// (see [`slab_markers`]); the slabs whose geometry changed are sliced in parallel, on
+    /// the part's pool. Run behind, only the slabs of the steps up to `through` (`None`:
+    /// all).
     fn publish(&mut self, through: Option<u64>, out: &mut Vec<Message>) {
         let (slabs, skipped, restart) = self
             .queue
@@ -721,35 +771,49 @@ impl CheckerMarkers {
                         .to_owned()
                 });
         }
-        // Each slab's geometry hash, and its slice where it is new to its body (bodies in
-        // order; a body's later slab compares with its earlier one in this batch).
-        let hashes: Vec<u64> = slabs
-            .par_iter()
-            .map(|(_, d)| geometry_hash(&d.mesh))
-            .collect();
-        let mut last: std::collections::BTreeMap<&str, u64> = self
-            .shown
-            .iter()
-            .map(|(b, s)| (b.as_str(), s.geometry))
-            .collect();
-        let new: Vec<bool> = slabs
-            .iter()
-            .zip(&hashes)
-            .map(|((_, d), &h)| last.insert(d.body.as_str(), h) != Some(h))
-            .collect();
-        let slices: Vec<Option<Arc<Drawn>>> = slabs
-            .par_iter()
-            .zip(&new)
-            .map(|((_, d), &is_new)| is_new.then(|| Arc::new(slice_slab(d))))
-            .collect();
-        let topic = self.markers_topic.as_str();
-        for (((f, d), h), slice) in slabs.iter().zip(hashes).zip(slices) {
-            if let Some(m) = slab_markers(&mut self.shown, f, topic, d, h, slice) {
-                self.status.published += 1;
-                out.push(m);
-            }
+        if slabs.is_empty() {
+            return;
         }
+        let (shown, topic) = (&mut self.shown, self.markers_topic.as_str());
+        let drawn = self.pool.install(|| draw(shown, topic, &slabs));
+        self.status.published += drawn.len() as u64;
+        out.extend(drawn);
     }
+}
+
+/// The markers of `slabs` (with their frame ids), in order, where they changed from what
+/// `shown` holds (updated).
+fn draw(
+    shown: &mut std::collections::BTreeMap<String, Shown>,
+    topic: &str,
+    slabs: &[(String, SlabDone)],
+) -> Vec<Message> {
+    // Each slab's geometry hash, and its slice where it is new to its body (bodies in
+    // order; a body's later slab compares with its earlier one in this batch).
+    let hashes: Vec<u64> = slabs
+        .par_iter()
+        .map(|(_, d)| geometry_hash(&d.mesh))
+        .collect();
+    let mut last: std::collections::BTreeMap<&str, u64> = shown
+        .iter()
+        .map(|(b, s)| (b.as_str(), s.geometry))
+        .collect();
+    let new: Vec<bool> = slabs
+        .iter()
+        .zip(&hashes)
+        .map(|((_, d), &h)| last.insert(d.body.as_str(), h) != Some(h))
+        .collect();
+    let slices: Vec<Option<Arc<Drawn>>> = slabs
+        .par_iter()
+        .zip(&new)
+        .map(|((_, d), &is_new)| is_new.then(|| Arc::new(slice_slab(d))))
+        .collect();
+    slabs
+        .iter()
+        .zip(hashes)
+        .zip(slices)
+        .filter_map(|(((f, d), h), slice)| slab_markers(shown, f, topic, d, h, slice))
+        .collect()
 }
 
 impl Node for CheckerMarkers {
@@ -789,6 +853,7 @@ impl Node for CheckerMarkers {
         if let Ok(mut q) = self.queue.lock() {
             q.behind = true;
         }
+        self.pool = MarkersPool::Global;
         true
     }
 
@@ -1271,6 +1336,26 @@ mod tests {
             .collect();
         assert_eq!(got, [(3, "/b"), (4, "/a")]);
         assert_eq!(skipped, 1);
+    }
+
+    /// The live markers part's pool runs at a lower priority than the thread that drew on
+    /// it, which keeps its own; run behind, it draws on rayon's pool.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn the_live_markers_pool_yields_to_the_check() {
+        // The calling thread's nice value (field 19 of its stat, after the name).
+        let nice = || -> i32 {
+            let stat = std::fs::read_to_string("/proc/thread-self/stat").unwrap();
+            let after_name = &stat[stat.rfind(')').unwrap() + 2..];
+            after_name.split(' ').nth(16).unwrap().parse().unwrap()
+        };
+        let mine = nice();
+        let mut pool = MarkersPool::Unmade;
+        let theirs = pool.install(nice);
+        assert!(matches!(pool, MarkersPool::Own(_)));
+        assert_eq!(theirs, (mine + MARKERS_NICE).min(19), "mine {mine}");
+        assert_eq!(nice(), mine);
+        assert_eq!(MarkersPool::Global.install(nice), mine);
     }
 
     #[test]

@@ -536,8 +536,8 @@ pub const RESOLVER_NICE: i32 = 10;
 /// Lowers the calling thread's scheduling priority by `by` nice values (at most to 19). On
 /// Linux each thread has a nice value of its own; elsewhere, or if the system refuses, the
 /// thread keeps its priority: only the order in which work gets the cores changes, never
-/// what is computed.
-fn lower_own_priority(by: i32) {
+/// what is computed. (Also the live markers part's pool: a display yields to the check.)
+pub fn lower_own_priority(by: i32) {
     #[cfg(target_os = "linux")]
     {
         // SAFETY: system calls on the calling thread's own id, with no memory passed.

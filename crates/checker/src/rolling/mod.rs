@@ -55,6 +55,7 @@ use chronotope_mesh::unsure::{UnsureLog, UnsureSpan};
 use chronotope_mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
 
 mod episodes;
+pub use episodes::{lower_own_priority, RESOLVER_NICE};
 mod periods;
 mod report;
 
