@@ -320,11 +320,11 @@ impl Slicer {
         };
         // A tet of no volume (its normal without the cut axis zero) has no orientation:
         // the exact test says zero, and its triangles are taken reversed, as before.
-        let s = if outward_normal3(&p, self.axis) == [0; 3] {
-            0
-        } else {
-            turn
-        };
+        let s = if has_normal3(&p, self.axis) { turn } else { 0 };
+        // Two corners of the polygon share a key only where a vertex lies on the plane, or
+        // two vertices coincide (a tet of no volume): a plane through no lattice point and
+        // a tet of volume need not compare them.
+        let distinct = s != 0 && self.c.num % self.c.den != 0;
         let mut keys = [(Key::Vertex([0; 4]), 0u64); 4];
         for m in 0..n {
             let (i, j) = pts[m];
@@ -337,7 +337,9 @@ impl Slicer {
         };
         for tri in tris {
             let [a, b, c] = *tri;
-            if keys[a].0 == keys[b].0 || keys[b].0 == keys[c].0 || keys[a].0 == keys[c].0 {
+            if !distinct
+                && (keys[a].0 == keys[b].0 || keys[b].0 == keys[c].0 || keys[a].0 == keys[c].0)
+            {
                 continue;
             }
             let ordered = if s > 0 { [a, b, c] } else { [a, c, b] };
@@ -478,6 +480,33 @@ fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
             minor
         }
     })
+}
+
+/// Whether [`outward_normal3`] is not zero, its components found one at a time up to the
+/// first that is not (most tets stop at the first).
+fn has_normal3(p: &[LatticePoint; 4], axis: usize) -> bool {
+    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
+    let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
+    // Below 2^20 every product of three is below 2^60 and the minor within i64.
+    let small = [u, v, w]
+        .iter()
+        .flatten()
+        .all(|x| x.unsigned_abs() < 1 << 20);
+    if !small {
+        return outward_normal3(p, axis) != [0; 3];
+    }
+    // The minor of u, v, w without column j (its sign does not matter here).
+    let minor = |j: usize| {
+        let (a, b, c) = match j {
+            0 => (1, 2, 3),
+            1 => (0, 2, 3),
+            2 => (0, 1, 3),
+            _ => (0, 1, 2),
+        };
+        u[a] * (v[b] * w[c] - v[c] * w[b]) - u[b] * (v[a] * w[c] - v[c] * w[a])
+            + u[c] * (v[a] * w[b] - v[b] * w[a])
+    };
+    (0..4).filter(|&j| j != axis).any(|j| minor(j) != 0)
 }
 
 /// [`outward_normal3`] from the full 4D determinant (the reference it is tested against).
@@ -714,5 +743,36 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn a_normal_is_found_where_the_minors_give_one() {
+        let mut rng = chronotope_kernel::intersect::test_rng::Rng(0x2545_f491_4f6c_dd1d);
+        let (mut flat, mut solid) = (0, 0);
+        for round in 0..20_000 {
+            // Coordinates in -1..=1 often give tets of no volume (coincident, collinear or
+            // coplanar vertices); now and then large ones (the i128 path).
+            let r = match round % 7 {
+                0 => 1 << 29,
+                1..=3 => 1,
+                _ => 3,
+            };
+            let mut p: [LatticePoint; 4] =
+                std::array::from_fn(|_| std::array::from_fn(|_| rng.range(-r, r) as i32));
+            if round % 11 == 0 {
+                // The fourth vertex in the plane of the other three.
+                p[3] = std::array::from_fn(|k| p[1][k] + p[2][k] - p[0][k]);
+            }
+            for axis in 0..4 {
+                let expected = outward_normal3(&p, axis) != [0; 3];
+                assert_eq!(has_normal3(&p, axis), expected, "{p:?} axis {axis}");
+                if expected {
+                    solid += 1;
+                } else {
+                    flat += 1;
+                }
+            }
+        }
+        assert!(flat > 1000 && solid > 1000, "{flat} {solid}");
     }
 }
