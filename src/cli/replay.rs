@@ -133,8 +133,9 @@ pub fn default_robot_config(robot: &BagRobot, first_body: &str) -> LaunchConfig 
 }
 
 /// Messages handed to the output bag's thread and not yet written, at most (each holds its
-/// payload by reference count; the nodes keep most of them anyway).
-const OUTPUT_QUEUE_MESSAGES: usize = 256;
+/// payload by reference count; a few frame periods' messages: the writer keeps up, and a
+/// slow disk holds the replay back instead of its memory growing).
+const OUTPUT_QUEUE_MESSAGES: usize = 64;
 
 /// The output bag, written on a thread of its own (serialising and compressing beside the
 /// nodes), in the order the messages were recorded.
