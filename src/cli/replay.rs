@@ -142,7 +142,7 @@ const OUTPUT_QUEUE_MESSAGES: usize = 64;
 struct Output {
     selection: Selection,
     /// `None` once the writer has stopped (an error, found when it is joined).
-    queue: Option<std::sync::mpsc::SyncSender<Message>>,
+    queue: Option<std::sync::mpsc::SyncSender<ToWrite>>,
     writer: std::thread::JoinHandle<Result<OutputCounts, crate::bag::BagError>>,
 }
 
@@ -157,14 +157,21 @@ impl Output {
             counts: OutputCounts::default(),
             bytes: Vec::new(),
         };
-        let (queue, inbox) = std::sync::mpsc::sync_channel::<Message>(OUTPUT_QUEUE_MESSAGES);
+        let (queue, inbox) = std::sync::mpsc::sync_channel::<ToWrite>(OUTPUT_QUEUE_MESSAGES);
         let writer = std::thread::Builder::new()
             .name("output bag".into())
             .spawn(move || {
                 for m in inbox {
-                    bag.record(&m)?;
+                    match m {
+                        ToWrite::Message(m) => bag.record(&m)?,
+                        ToWrite::Finish => {
+                            bag.writer.finish()?;
+                            return Ok(bag.counts);
+                        }
+                    }
                 }
-                bag.writer.finish()?;
+                // The replay stopped on an error: the bag is left unfinished, as it was
+                // before it had a thread of its own.
                 Ok(bag.counts)
             })
             .map_err(|source| crate::bag::BagError::Io {
@@ -185,7 +192,7 @@ impl Output {
             return;
         }
         if let Some(q) = &self.queue {
-            if q.send(m.clone()).is_err() {
+            if q.send(ToWrite::Message(m.clone())).is_err() {
                 // The writer stopped on an error; it is reported when the bag is finished.
                 self.queue = None;
             }
@@ -194,12 +201,22 @@ impl Output {
 
     /// Waits for the writer to write everything and finish the bag.
     fn finish(mut self) -> Result<OutputCounts, crate::bag::BagError> {
-        self.queue = None;
+        if let Some(q) = self.queue.take() {
+            // A writer that stopped on an error says so when joined.
+            let _ = q.send(ToWrite::Finish);
+        }
         match self.writer.join() {
             Ok(r) => r,
             Err(panic) => std::panic::resume_unwind(panic),
         }
     }
+}
+
+/// What the output bag's thread is handed.
+enum ToWrite {
+    Message(Message),
+    /// Every message is in: finish the bag.
+    Finish,
 }
 
 /// The output bag's writer, on its thread.

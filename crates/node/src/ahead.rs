@@ -79,7 +79,7 @@ impl AheadNode {
     /// come on the receiver returned. The stand-in's status is the node's as it started
     /// until the node has finished.
     pub fn start_behind(node: Box<dyn Node>) -> (Self, mpsc::Receiver<Reply>) {
-        let (mut stand_in, _) = Self::start(node);
+        let (mut stand_in, _) = Self::start_as(node, "behind");
         let replies = stand_in
             .replies
             .take()
@@ -89,6 +89,11 @@ impl AheadNode {
 
     /// Moves `node` onto a thread of its own; returns its stand-in and its feed.
     pub fn start(node: Box<dyn Node>) -> (Self, Feed) {
+        Self::start_as(node, "ahead")
+    }
+
+    /// [`AheadNode::start`], the thread named `how` and the node's name (15 characters).
+    fn start_as(node: Box<dyn Node>, how: &str) -> (Self, Feed) {
         let (events, inbox) = mpsc::channel::<Event>();
         let (outbox, replies) = mpsc::channel::<Reply>();
         let name = node.name().to_string();
@@ -97,7 +102,7 @@ impl AheadNode {
         let rank = node.rank();
         let status = node.status().clone();
         let worker = std::thread::Builder::new()
-            .name(format!("ahead{name}").chars().take(15).collect())
+            .name(format!("{how}{name}").chars().take(15).collect())
             .spawn(move || {
                 let mut node = node;
                 // Ends when the bus is gone (every sender dropped) or after `Finish`.
@@ -183,9 +188,7 @@ impl AheadNode {
             }
         }
     }
-}
 
-impl AheadNode {
     /// Waits for the node's thread to end and takes the node home; raises its panic if it
     /// panicked.
     pub(crate) fn join(&mut self) {

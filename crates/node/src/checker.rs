@@ -629,11 +629,11 @@ impl MarkerQueue {
 
     /// The slabs to draw, in order. When they come from several checker steps the markers
     /// part has fallen behind: a display wants the latest state, not a queue, so only each
-    /// body's newest slab is kept (with `true`, and how many were passed over). A replay,
-    /// whose parts run in turn, takes one step at a time and draws every slab.
+    /// body's newest slab is kept (with `true`, and how many were passed over).
     ///
-    /// Run behind, the part takes the slabs of steps up to `through` only (those its nudges
-    /// so far announced; the checker may have queued the next step's already).
+    /// Run behind (a replay), the part takes the slabs of steps up to `through` only (those
+    /// its nudges so far announced; the checker may have queued the next step's already):
+    /// one step at a time, every slab drawn.
     fn take(&mut self, through: Option<u64>) -> (Vec<(String, SlabDone)>, u64, bool) {
         let restart = std::mem::take(&mut self.restart);
         let n = match through {

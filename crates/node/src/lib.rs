@@ -413,8 +413,8 @@ pub trait Node: Send + std::any::Any {
     /// and recorded where its turn put them; see
     /// [`Bus::run_behind`](bus::Bus::run_behind))? A node that shares state with another
     /// node says yes only once it has made that state safe to read late (the checker's
-    /// markers part then takes, for each nudge, exactly the slabs queued before it). The
-    /// default says no.
+    /// markers part then takes, for each nudge, exactly the slabs of the checker step that
+    /// sent it). The default says no.
     fn run_behind(&mut self) -> bool {
         false
     }
