@@ -229,23 +229,20 @@ struct BagWriting {
 
 impl BagWriting {
     fn record(&mut self, m: &Message) -> Result<(), crate::bag::BagError> {
-        let r = (|| {
-            // A topic is added (its schema text built) once, at its first message.
-            if !self.counts.topics.contains_key(&*m.topic) {
-                let (ty, schema) = m.payload.schema();
-                self.writer.add_topic_with_schema(&m.topic, ty, &schema)?;
-            }
-            m.payload
-                .encode_into(&mut self.bytes)
-                .map_err(|source| crate::bag::BagError::Cdr {
-                    path: self.writer.path().to_path_buf(),
-                    topic: m.topic.to_string(),
-                    source,
-                })?;
-            self.writer
-                .write_cdr(&m.topic, m.stamp_ns.max(0) as u64, &self.bytes)
-        })();
-        r?;
+        // A topic is added (its schema text built) once, at its first message.
+        if !self.counts.topics.contains_key(&*m.topic) {
+            let (ty, schema) = m.payload.schema();
+            self.writer.add_topic_with_schema(&m.topic, ty, &schema)?;
+        }
+        m.payload
+            .encode_into(&mut self.bytes)
+            .map_err(|source| crate::bag::BagError::Cdr {
+                path: self.writer.path().to_path_buf(),
+                topic: m.topic.to_string(),
+                source,
+            })?;
+        self.writer
+            .write_cdr(&m.topic, m.stamp_ns.max(0) as u64, &self.bytes)?;
         *self.counts.topics.entry(m.topic.to_string()).or_default() += 1;
         Ok(())
     }

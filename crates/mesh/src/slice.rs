@@ -444,20 +444,18 @@ fn drop_axis<T: Copy>(p: &[T; 4], k: usize) -> [T; 3] {
 }
 
 /// N with N·x = det[b−a, c−a, d−a, x]: outward for our orientation convention, since
-/// orient4(a, b, c, d, inside) < 0; its three components other than `axis` (the only ones
-/// [`orientation`] reads).
-fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
+/// orient4(a, b, c, d, inside) < 0; its three components other than `axis`, in order, each
+/// computed when asked (so [`has_normal3`] can stop at the first not zero).
+fn normal3_components(p: &[LatticePoint; 4], axis: usize) -> impl Iterator<Item = i128> {
     // N_j = det[u; v; w; e_j] = (-1)^(3+j) times the minor of u, v, w without column j.
     let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
     let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
-    let keep = |m: usize| if m < axis { m } else { m + 1 };
     // Below 2^20 every product of three is below 2^60 and the minor within i64.
     let small = [u, v, w]
         .iter()
         .flatten()
         .all(|x| x.unsigned_abs() < 1 << 20);
-    [0, 1, 2].map(|m| {
-        let j = keep(m);
+    (0..4).filter(move |&j| j != axis).map(move |j| {
         let (a, b, c) = match j {
             0 => (1, 2, 3),
             1 => (0, 2, 3),
@@ -482,31 +480,17 @@ fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
     })
 }
 
-/// Whether [`outward_normal3`] is not zero, its components found one at a time up to the
-/// first that is not (most tets stop at the first).
+/// The three components of N other than `axis` ([`normal3_components`]) at once.
+#[cfg(test)]
+fn outward_normal3(p: &[LatticePoint; 4], axis: usize) -> [i128; 3] {
+    let mut n = normal3_components(p, axis);
+    [0; 3].map(|_| n.next().unwrap_or(0))
+}
+
+/// Whether N has a component other than `axis` that is not zero: found one at a time, up
+/// to the first that is not (most tets stop at the first).
 fn has_normal3(p: &[LatticePoint; 4], axis: usize) -> bool {
-    let d = |q: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
-    let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
-    // Below 2^20 every product of three is below 2^60 and the minor within i64.
-    let small = [u, v, w]
-        .iter()
-        .flatten()
-        .all(|x| x.unsigned_abs() < 1 << 20);
-    if !small {
-        return outward_normal3(p, axis) != [0; 3];
-    }
-    // The minor of u, v, w without column j (its sign does not matter here).
-    let minor = |j: usize| {
-        let (a, b, c) = match j {
-            0 => (1, 2, 3),
-            1 => (0, 2, 3),
-            2 => (0, 1, 3),
-            _ => (0, 1, 2),
-        };
-        u[a] * (v[b] * w[c] - v[c] * w[b]) - u[b] * (v[a] * w[c] - v[c] * w[a])
-            + u[c] * (v[a] * w[b] - v[b] * w[a])
-    };
-    (0..4).filter(|&j| j != axis).any(|j| minor(j) != 0)
+    normal3_components(p, axis).any(|c| c != 0)
 }
 
 /// [`outward_normal3`] from the full 4D determinant (the reference it is tested against).
@@ -764,7 +748,7 @@ mod tests {
                 p[3] = std::array::from_fn(|k| p[1][k] + p[2][k] - p[0][k]);
             }
             for axis in 0..4 {
-                let expected = outward_normal3(&p, axis) != [0; 3];
+                let expected = outward_normal3_by_det4(&p, axis) != [0; 3];
                 assert_eq!(has_normal3(&p, axis), expected, "{p:?} axis {axis}");
                 if expected {
                     solid += 1;
