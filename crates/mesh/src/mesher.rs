@@ -128,10 +128,14 @@ fn march(
         iso: opts.decode.iso_percent,
     };
     let limit = opts.max_slab_tets;
-    if !marcher.march(table, &prev.grid, grid, at, limit, &mut mesh) {
+    // How the body moved does not depend on the slab's tets: measured beside the marching.
+    let (marched, motion) = rayon::join(
+        || marcher.march(table, &prev.grid, grid, at, limit, &mut mesh),
+        || super::vanish::motion(&prev.grid, grid),
+    );
+    if !marched {
         return Err(MeshError::SlabTooComplex { limit });
     }
-    let motion = super::vanish::motion(&prev.grid, grid);
     let unsure = motion.vanishing.map(|v| Unsure::Vanishes {
         rate_factor: v.rate_factor,
     });
