@@ -107,9 +107,9 @@ pub struct OccupancyGrid {
     pub words: usize,
     /// Bit rows, row index `y + py·z` (padded), bit x (padded).
     pub bits: Vec<u64>,
-    /// Percent values in padded layout `x + px·(y + py·z)`, for graded frames; unknown is
-    /// already mapped to 100 or 0.
-    pub values: Option<Vec<u8>>,
+    /// Percent values of graded frames, by padded row (see [`Values`]); unknown is already
+    /// mapped to 100 or 0.
+    pub values: Option<Values>,
     /// Number of occupied voxels.
     pub occupied: u64,
     /// PERCENT voxels whose value was outside the domain (101..=254) and was read as 100
@@ -117,10 +117,77 @@ pub struct OccupancyGrid {
     pub clamped: u64,
 }
 
+/// The percent values of a graded frame, one padded row (`px` values) at a time: only the
+/// rows holding a value above zero are stored (most of a robot's or a person's frame is
+/// empty, and its empty rows are then neither written nor zeroed nor compared). Stored rows
+/// come in row order, so two equal grids have equal `Values`.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Values {
+    /// Padded row length.
+    px: usize,
+    /// For each padded row `y + py·z`: 0 if all its values are 0, else 1 + its place among
+    /// the stored rows.
+    rows: Vec<u32>,
+    /// The stored rows, `px` values each.
+    data: Vec<u8>,
+}
+
+impl Values {
+    /// No row stored yet, for `rows` padded rows of `px` values.
+    fn empty(px: usize, rows: usize) -> Self {
+        Self {
+            px,
+            rows: vec![0; rows],
+            data: Vec::new(),
+        }
+    }
+
+    /// The values of padded row `r` (`None`: all 0).
+    #[inline]
+    pub fn row(&self, r: usize) -> Option<&[u8]> {
+        match self.rows[r] {
+            0 => None,
+            k => Some(&self.data[(k as usize - 1) * self.px..][..self.px]),
+        }
+    }
+
+    /// Value `x` of padded row `r`.
+    #[inline]
+    fn get(&self, x: usize, r: usize) -> u8 {
+        match self.rows[r] {
+            0 => 0,
+            k => self.data[(k as usize - 1) * self.px + x],
+        }
+    }
+
+    /// Stores row `r` (rows must come in order) if a value of it is above 0; returns it to
+    /// be written, or `None` if the row is kept as zeros. `fill` writes the row and says
+    /// whether any value is above 0.
+    fn push_row(&mut self, r: usize, fill: impl FnOnce(&mut [u8]) -> bool) -> bool {
+        let start = self.data.len();
+        self.data.resize(start + self.px, 0);
+        if fill(&mut self.data[start..]) {
+            // A row count past u32 would need more than 16 GiB of rows; such a frame is
+            // refused by its memory limit long before (and kept as zeros if not).
+            if let Ok(k) = u32::try_from(start / self.px + 1) {
+                self.rows[r] = k;
+                return true;
+            }
+        }
+        self.data.truncate(start);
+        false
+    }
+
+    /// Heap bytes.
+    fn heap_bytes(&self) -> usize {
+        self.rows.len() * 4 + self.data.len()
+    }
+}
+
 impl OccupancyGrid {
     /// Heap bytes the decoded frame takes.
     pub fn heap_bytes(&self) -> u64 {
-        (self.bits.len() * 8 + self.values.as_ref().map_or(0, Vec::len)) as u64
+        (self.bits.len() * 8 + self.values.as_ref().map_or(0, Values::heap_bytes)) as u64
     }
 
     /// Decodes a frame after checking its fields.
@@ -200,36 +267,42 @@ impl OccupancyGrid {
                 }
             }
             Encoding::Percent => {
-                let mut v = vec![0u8; padded[0] * padded[1] * padded[2]];
+                let mut v = Values::empty(padded[0], padded[1] * padded[2]);
                 let unknown = if opts.unknown_occupied { 100 } else { 0 };
                 for z in 0..sz {
                     for y in 0..sy {
                         let src = &f.data[sx * (y + sy * z)..][..sx];
                         // An empty row (most of a robot's or a person's frame) leaves its
-                        // values and bits zero, untouched (nor their pages faulted in);
-                        // with an iso level of 0 every voxel is occupied, so it is read.
+                        // values and bits zero, untouched; with an iso level of 0 every
+                        // voxel is occupied, so it is read.
                         if opts.iso_percent > 0 && src.iter().fold(0u8, |a, &b| a | b) == 0 {
                             continue;
                         }
-                        let base = padded[0] * ((y + 1) + padded[1] * (z + 1)) + 1;
-                        let row = &mut bits[words * ((y + 1) + padded[1] * (z + 1))..][..words];
-                        let dst = &mut v[base..base + sx];
-                        // Branch-free, so that both loops vectorise: the values (unknown
-                        // as asked, above 100 clamped), then the occupancy 64 voxels at a
-                        // time, voxel x at bit x + 1 of the row.
-                        for (d, &raw) in dst.iter_mut().zip(src) {
-                            clamped += u64::from(raw > 100 && raw != 255);
-                            *d = if raw == 255 { unknown } else { raw.min(100) };
-                        }
-                        for (c, chunk) in dst.chunks(64).enumerate() {
-                            let mut m = 0u64;
-                            for (i, &val) in chunk.iter().enumerate() {
-                                m |= u64::from(val >= opts.iso_percent) << i;
+                        let r = (y + 1) + padded[1] * (z + 1);
+                        let row = &mut bits[words * r..][..words];
+                        let fill = |dst: &mut [u8]| {
+                            let dst = &mut dst[1..1 + sx];
+                            // Branch-free, so that both loops vectorise: the values
+                            // (unknown as asked, above 100 clamped), then the occupancy 64
+                            // voxels at a time, voxel x at bit x + 1 of the row.
+                            let mut any = 0u8;
+                            for (d, &raw) in dst.iter_mut().zip(src) {
+                                clamped += u64::from(raw > 100 && raw != 255);
+                                *d = if raw == 255 { unknown } else { raw.min(100) };
+                                any |= *d;
                             }
-                            occupied += u64::from(m.count_ones());
-                            row[c] |= m << 1;
-                            row[c + 1] |= m >> 63;
-                        }
+                            for (c, chunk) in dst.chunks(64).enumerate() {
+                                let mut m = 0u64;
+                                for (i, &val) in chunk.iter().enumerate() {
+                                    m |= u64::from(val >= opts.iso_percent) << i;
+                                }
+                                occupied += u64::from(m.count_ones());
+                                row[c] |= m << 1;
+                                row[c + 1] |= m >> 63;
+                            }
+                            any != 0
+                        };
+                        v.push_row(r, fill);
                     }
                 }
                 values = Some(v);
@@ -269,7 +342,26 @@ impl OccupancyGrid {
         }
         let mut g = self.combine_bits(other, bit)?;
         g.values = match (&self.values, &other.values) {
-            (Some(a), Some(b)) => Some(a.iter().zip(b).map(|(x, y)| value(*x, *y)).collect()),
+            (Some(a), Some(b)) => {
+                let mut v = Values::empty(a.px, a.rows.len());
+                let zeros = vec![0u8; a.px];
+                for r in 0..a.rows.len() {
+                    let (ra, rb) = (a.row(r), b.row(r));
+                    if ra.is_none() && rb.is_none() {
+                        continue;
+                    }
+                    let (ra, rb) = (ra.unwrap_or(&zeros), rb.unwrap_or(&zeros));
+                    v.push_row(r, |dst| {
+                        let mut any = 0u8;
+                        for ((d, &x), &y) in dst.iter_mut().zip(ra).zip(rb) {
+                            *d = value(x, y);
+                            any |= *d;
+                        }
+                        any != 0
+                    });
+                }
+                Some(v)
+            }
             _ => None,
         };
         Some(g)
@@ -318,7 +410,7 @@ impl OccupancyGrid {
     #[inline]
     pub fn value(&self, x: usize, y: usize, z: usize) -> u8 {
         match &self.values {
-            Some(v) => v[x + self.padded[0] * (y + self.padded[1] * z)],
+            Some(v) => v.get(x, y + self.padded[1] * z),
             None => 100 * u8::from(self.get(x, y, z)),
         }
     }
@@ -423,9 +515,10 @@ pub fn decoded_bytes(size: [u32; 3], encoding: Encoding) -> u64 {
     let words = px / 64 + 2;
     let rows = py.saturating_mul(pz);
     let bits = rows.saturating_mul(words).saturating_mul(8);
+    // At most every row stored, and each row's place.
     let values = match encoding {
         Encoding::Bits => 0,
-        Encoding::Percent => px.saturating_mul(rows),
+        Encoding::Percent => px.saturating_add(4).saturating_mul(rows),
     };
     // Two z-layers of 7 edge slots of u32 in the marcher, plus the touched lists.
     let cache = px.saturating_mul(py).saturating_mul(2 * 7 * 4 * 2);
@@ -552,6 +645,62 @@ mod tests {
                 }
                 assert_eq!(g.occupied, occupied, "{size:?}, iso {iso}");
                 assert_eq!(g.clamped, clamped, "{size:?}, iso {iso}");
+            }
+        }
+    }
+
+    /// Two PERCENT frames with empty rows (some only after unknown is mapped to 0): their
+    /// union and intersection hold, voxel by voxel, the larger and the smaller value; a
+    /// grid equals the one decoded from the same values written another way.
+    #[test]
+    fn percent_rows_combine_and_compare_voxel_by_voxel() {
+        let mut rng = chronotope_kernel::intersect::test_rng::Rng(0x510e_527f_ade6_82d1);
+        let opts = DecodeOptions {
+            unknown_occupied: false,
+            ..DecodeOptions::default()
+        };
+        for size in [[70u32, 5, 4], [1, 3, 2], [129, 2, 3]] {
+            let [sx, sy, sz] = size.map(|v| v as usize);
+            let n = sx * sy * sz;
+            // Rows empty, unknown only, or random over 0..=100.
+            let frame_data = |rng: &mut chronotope_kernel::intersect::test_rng::Rng| -> Vec<u8> {
+                let kinds: Vec<u64> = (0..sy * sz).map(|_| rng.next() % 3).collect();
+                (0..n)
+                    .map(|i| match kinds[i / sx] {
+                        0 => 0,
+                        1 => 255,
+                        _ => (rng.next() % 101) as u8,
+                    })
+                    .collect()
+            };
+            let decode = |data: &[u8]| {
+                let f = FrameRef {
+                    stamp_ns: 0,
+                    origin: [0.0; 3],
+                    resolution: 0.01,
+                    size,
+                    encoding: 1,
+                    data,
+                };
+                OccupancyGrid::decode(&f, &opts).unwrap()
+            };
+            for _ in 0..20 {
+                let (da, db) = (frame_data(&mut rng), frame_data(&mut rng));
+                let (a, b) = (decode(&da), decode(&db));
+                let (u, i) = (a.union(&b).unwrap(), a.intersect(&b).unwrap());
+                let mapped = |raw: u8| if raw == 255 { 0 } else { raw };
+                for k in 0..n {
+                    let (x, y, z) = (k % sx + 1, k / sx % sy + 1, k / (sx * sy) + 1);
+                    let (va, vb) = (mapped(da[k]), mapped(db[k]));
+                    assert_eq!(a.value(x, y, z), va);
+                    assert_eq!(u.value(x, y, z), va.max(vb), "union, voxel {k} of {size:?}");
+                    assert_eq!(i.value(x, y, z), va.min(vb), "intersection, voxel {k}");
+                    assert_eq!(i.get(x, y, z), va.min(vb) >= 50, "voxel {k}");
+                }
+                // Unknown read as 0 is a 0 written as such.
+                let zeros: Vec<u8> = da.iter().map(|&r| mapped(r)).collect();
+                assert_eq!(decode(&zeros), a, "{size:?}");
+                assert!(a.heap_bytes() <= super::decoded_bytes(size, Encoding::Percent));
             }
         }
     }

@@ -25,7 +25,7 @@ pub mod unsure;
 pub mod validate;
 pub mod vanish;
 
-pub use grid::{DecodeOptions, Encoding, FrameRef, GridGeometry, OccupancyGrid};
+pub use grid::{DecodeOptions, Encoding, FrameRef, GridGeometry, OccupancyGrid, Values};
 pub use march::{CapSide, SlabMarcher, SlabPlacement, TetMesh};
 pub use mesher::{KeptFrame, Mesher, MesherOptions, Slab};
 
