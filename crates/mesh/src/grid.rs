@@ -160,9 +160,8 @@ impl Values {
         }
     }
 
-    /// Stores row `r` (rows must come in order) if a value of it is above 0; returns it to
-    /// be written, or `None` if the row is kept as zeros. `fill` writes the row and says
-    /// whether any value is above 0.
+    /// Row `r` (rows come in order), written by `fill`, which says whether a value of it is
+    /// above 0: stored if one is (`true`), else left as zeros (`false`).
     fn push_row(&mut self, r: usize, fill: impl FnOnce(&mut [u8]) -> bool) -> bool {
         let start = self.data.len();
         self.data.resize(start + self.px, 0);

@@ -14,8 +14,9 @@
 //! The test works on the frames' bit rows inside the box both frames' occupied voxels
 //! span (copied side by side, a word of 64 voxels at a time): the other frame dilated by one
 //! voxel marks the voxels of this frame that carry on; this frame's 26-connected parts are
-//! found from its runs of occupied voxels (a run joins the runs of the next rows and planes
-//! that it overlaps, widened by one voxel), and a part none of whose runs carries on ends.
+//! found from its runs of occupied voxels along x (a run joins each run of the rows beside
+//! it, in its plane and the next, that it overlaps once widened by one voxel), and a part
+//! none of whose runs carries on ends.
 //! Nothing outside the box matters: a dilation cut at the box's edge holds every voxel of
 //! the box the whole dilation holds (the straight Chebyshev path between two voxels stays
 //! in their box), and the parts are parts of one frame.
@@ -230,8 +231,8 @@ impl Region {
             for y in 0..py {
                 let r = (y + py * z) * w;
                 let mut any = false;
-                for (i, (x, y)) in a.bits[r..r + w].iter().zip(&b.bits[r..r + w]).enumerate() {
-                    if (x | y) != 0 {
+                for (i, (wa, wb)) in a.bits[r..r + w].iter().zip(&b.bits[r..r + w]).enumerate() {
+                    if (wa | wb) != 0 {
                         any = true;
                         w0 = w0.min(i);
                         w1 = w1.max(i);
