@@ -590,6 +590,18 @@ mod tests {
         }
     }
 
+    /// A PERCENT frame of `size` voxels of 1 cm at the origin.
+    fn percent_frame(size: [u32; 3], data: &[u8]) -> FrameRef<'_> {
+        FrameRef {
+            stamp_ns: 0,
+            origin: [0.0; 3],
+            resolution: 0.01,
+            size,
+            encoding: 1,
+            data,
+        }
+    }
+
     /// PERCENT frames with empty rows decode as voxel by voxel: values (unknown and
     /// out-of-range ones mapped), bits at the iso level, counts; at iso levels 0 and 50.
     #[test]
@@ -615,15 +627,7 @@ mod tests {
                     unknown_occupied,
                     ..DecodeOptions::default()
                 };
-                let f = FrameRef {
-                    stamp_ns: 0,
-                    origin: [0.0; 3],
-                    resolution: 0.01,
-                    size,
-                    encoding: 1,
-                    data: &data,
-                };
-                let g = OccupancyGrid::decode(&f, &opts).unwrap();
+                let g = OccupancyGrid::decode(&percent_frame(size, &data), &opts).unwrap();
                 let (mut occupied, mut clamped) = (0, 0);
                 for (i, &raw) in data.iter().enumerate() {
                     let (x, y, z) = (i % sx, i / sx % sy, i / (sx * sy));
@@ -672,17 +676,8 @@ mod tests {
                     })
                     .collect()
             };
-            let decode = |data: &[u8]| {
-                let f = FrameRef {
-                    stamp_ns: 0,
-                    origin: [0.0; 3],
-                    resolution: 0.01,
-                    size,
-                    encoding: 1,
-                    data,
-                };
-                OccupancyGrid::decode(&f, &opts).unwrap()
-            };
+            let decode =
+                |data: &[u8]| OccupancyGrid::decode(&percent_frame(size, data), &opts).unwrap();
             for _ in 0..20 {
                 let (da, db) = (frame_data(&mut rng), frame_data(&mut rng));
                 let (a, b) = (decode(&da), decode(&db));

@@ -64,14 +64,16 @@ pub fn motion(a: &OccupancyGrid, b: &OccupancyGrid) -> Motion {
         displacement: 1,
         vanishing: None,
     };
-    let Some(pair) = Pair::of(a, b) else {
+    let Some(mut pair) = Pair::of(a, b) else {
         return at_most_one;
     };
-    let mut scratch = Scratch::new(pair.region.len());
     let displacement = pair
         .region
-        .reach(&pair.a, &pair.b_dilated, &mut scratch)
-        .max(pair.region.reach(&pair.b, &pair.a_dilated, &mut scratch));
+        .reach(&pair.a, &pair.b_dilated, &mut pair.scratch)
+        .max(
+            pair.region
+                .reach(&pair.b, &pair.a_dilated, &mut pair.scratch),
+        );
     Motion {
         displacement,
         vanishing: pair.vanishing(),
@@ -85,13 +87,14 @@ pub fn vanishing(a: &OccupancyGrid, b: &OccupancyGrid) -> Option<Vanishing> {
 }
 
 /// Two frames that do not join everywhere, in the box of their occupied voxels, each with
-/// its dilation by one voxel.
+/// its dilation by one voxel, and the buffers of further dilations.
 struct Pair {
     region: Region,
     a: Vec<u64>,
     b: Vec<u64>,
     a_dilated: Vec<u64>,
     b_dilated: Vec<u64>,
+    scratch: Scratch,
 }
 
 impl Pair {
@@ -119,6 +122,7 @@ impl Pair {
             b: fb,
             a_dilated,
             b_dilated,
+            scratch,
         })
     }
 
