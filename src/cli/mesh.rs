@@ -359,7 +359,7 @@ fn body_worker(
     let occ_last = mesher.last_frame().map_or(0, |f| f.grid.occupied);
     let stats = acc.finish(
         mesher.frames(),
-        first_cap.as_ref().map(|c| (c, occ_first)),
+        first_cap.as_ref().map(|c| (c.tets.len() as u64, occ_first)),
         last_cap.as_ref().map(|c| (c, occ_last)),
     );
     BodyResult {

@@ -262,7 +262,7 @@ fn streaming_validation_catches_damaged_meshes() {
             }
             let st = acc.finish(
                 4,
-                r.first_cap.as_ref().map(|c| (c, 0)),
+                r.first_cap.as_ref().map(|c| (c.tets.len() as u64, 0)),
                 r.last_cap.as_ref().map(|c| (c, 0)),
             );
             assert!(
@@ -290,7 +290,7 @@ fn damage_only_the_time_planes_can_see_is_caught() {
         acc.add_slab(s, r.first_cap.as_ref());
     }
     assert!(!acc
-        .finish(4, r.first_cap.as_ref().map(|c| (c, 0)), None)
+        .finish(4, r.first_cap.as_ref().map(|c| (c.tets.len() as u64, 0)), None)
         .closed
         .is_closed());
     // A vertex of the upper plane moved within the plane: pairing inside the slab still
@@ -311,7 +311,7 @@ fn damage_only_the_time_planes_can_see_is_caught() {
     }
     let st = acc.finish(
         4,
-        r.first_cap.as_ref().map(|c| (c, 0)),
+        r.first_cap.as_ref().map(|c| (c.tets.len() as u64, 0)),
         r.last_cap.as_ref().map(|c| (c, 0)),
     );
     assert!(!st.closed.is_closed(), "{:?}", st.closed);

@@ -127,7 +127,9 @@ impl BodyGluer {
     ) -> BodyMesh {
         self.body.stats = self.acc.finish(
             frames,
-            self.first_cap.as_ref().map(|(c, o)| (c, *o)),
+            self.first_cap
+                .as_ref()
+                .map(|(c, o)| (c.tets.len() as u64, *o)),
             self.last_cap.as_ref().map(|(c, o)| (c, *o)),
         );
         self.body.stamps_ns = stamps_ns;

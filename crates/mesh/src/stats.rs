@@ -530,13 +530,13 @@ impl StatsAccumulator {
         c.misoriented += r.misoriented;
     }
 
-    /// Closes the stream: `first_cap` / `last_cap` are the caps of the first and last
-    /// frames with their number of occupied voxels (interior cap vertices). `frames` is the
-    /// number of accepted frames.
+    /// Closes the stream: `first_cap` is the number of tets of the first frame's cap (checked
+    /// with the first slab), `last_cap` the cap of the last frame, each with their number of
+    /// occupied voxels (interior cap vertices). `frames` is the number of accepted frames.
     pub fn finish(
         mut self,
         frames: u64,
-        first_cap: Option<(&TetMesh, u64)>,
+        first_cap: Option<(u64, u64)>,
         last_cap: Option<(&TetMesh, u64)>,
     ) -> BodyStats {
         self.stats.frames = frames;
@@ -550,8 +550,9 @@ impl StatsAccumulator {
                 // No closing cap (not built): the last upper plane stays open.
                 None => self.merge(pair_plane_faces(prev.to_vec())),
             }
-            for (cap, occupied) in [first_cap, last_cap].into_iter().flatten() {
-                self.stats.tets += cap.tets.len() as u64;
+            let last_cap = last_cap.map(|(cap, occupied)| (cap.tets.len() as u64, occupied));
+            for (tets, occupied) in [first_cap, last_cap].into_iter().flatten() {
+                self.stats.tets += tets;
                 self.lateral_vertices += occupied;
             }
             self.stats.vertices = self.lateral_vertices - self.shared_vertices;
@@ -953,7 +954,7 @@ mod tests {
                 for s in &slabs {
                     acc.add_lateral_in_chunks(s.lateral_ref(), opening, chunk, None);
                 }
-                let st = acc.finish(4, opening.map(|c| (c, 0)), None);
+                let st = acc.finish(4, opening.map(|c| (c.tets.len() as u64, 0)), None);
                 (
                     st.closed,
                     st.tets,
@@ -1138,8 +1139,8 @@ mod tests {
             let expected: &[usize] = if defect { &[1, 2, 6] } else { &[1, 2, 5, 6] };
             assert_eq!(copies, expected, "defect {defect}");
             let (a, b) = (
-                figures(scan.finish(9, Some((&cap, 0)), Some((&end, 0)))),
-                figures(shared.finish(9, Some((&cap, 0)), Some((&end, 0)))),
+                figures(scan.finish(9, Some((cap.tets.len() as u64, 0)), Some((&end, 0)))),
+                figures(shared.finish(9, Some((cap.tets.len() as u64, 0)), Some((&end, 0)))),
             );
             assert_eq!(a, b, "defect {defect}");
             assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
@@ -1187,8 +1188,8 @@ mod tests {
                 assert!(moved >= 2, "{moved} copies moved in space");
             }
             let (a, b) = (
-                figures(scan.finish(11, Some((&cap, 0)), Some((&end, 0)))),
-                figures(shared.finish(11, Some((&cap, 0)), Some((&end, 0)))),
+                figures(scan.finish(11, Some((cap.tets.len() as u64, 0)), Some((&end, 0)))),
+                figures(shared.finish(11, Some((cap.tets.len() as u64, 0)), Some((&end, 0)))),
             );
             assert_eq!(a, b, "defect {defect}");
             assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);

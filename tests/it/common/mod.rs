@@ -93,7 +93,7 @@ pub fn run_with(frames: &[TestFrame], size: [u32; 3], resolution: f64, opts: Mes
     let occ_last = m.last_frame().map(|f| f.grid.occupied).unwrap_or(0);
     let stats = acc.finish(
         m.frames(),
-        first_cap.as_ref().map(|c| (c, occ_first)),
+        first_cap.as_ref().map(|c| (c.tets.len() as u64, occ_first)),
         last_cap.as_ref().map(|c| (c, occ_last)),
     );
     Run {

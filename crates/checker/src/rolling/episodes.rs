@@ -465,6 +465,22 @@ impl RollingChecker {
             }
         }
         self.cut_horizon(&oldest_of);
+        self.release_opening_caps();
+    }
+
+    /// A run's opening cap closes the windows and horizons that begin at its first frame,
+    /// which begin at a kept slab: once its first slab has come and is no longer kept,
+    /// only the cap's count of tets stays (a cap fills the body's volume: at 128³, megabytes
+    /// a body for the whole run otherwise).
+    fn release_opening_caps(&mut self) {
+        for b in self.bodies.values_mut() {
+            for r in &mut b.runs {
+                let first_kept = b.slabs.get(&r.first_stamp).is_some_and(|x| x.run == r.id);
+                if r.next_index > r.first_index && !first_kept && !r.first_cap.tets.is_empty() {
+                    r.first_cap = Arc::default();
+                }
+            }
+        }
     }
 
     /// Drops the oldest slabs kept for resolutions alone (those before what every pair

@@ -297,8 +297,11 @@ struct Run {
     geometry: GridGeometry,
     /// Stamp of its first frame.
     first_stamp: i64,
-    /// The cap closing it below, at its first frame (empty if it began mid-stream).
+    /// The cap closing it below, at its first frame (empty if it began mid-stream, and once
+    /// its first slab is no longer kept: see [`RollingChecker::release_opening_caps`]).
     first_cap: Arc<TetMesh>,
+    /// Tets of that cap.
+    first_cap_tets: u64,
     /// Occupied voxels of its first frame (the first cap's interior vertices).
     first_occupied: u64,
     /// Stamp of the latest frame (the last slab's upper one).
@@ -340,6 +343,7 @@ impl Run {
             id,
             geometry: p.geometry,
             first_stamp: p.stamps_ns.0,
+            first_cap_tets: first_cap.tets.len() as u64,
             first_cap,
             first_occupied,
             frontier: p.stamps_ns.0,
@@ -359,6 +363,7 @@ impl Run {
             geometry: self.geometry,
             first_stamp: self.first_stamp,
             first_cap: self.first_cap.clone(),
+            first_cap_tets: self.first_cap_tets,
             first_occupied: self.first_occupied,
             frontier: self.frontier,
             first_index: self.first_index,
@@ -386,7 +391,7 @@ impl Run {
         let closing = Closing {
             acc: std::mem::take(&mut self.acc),
             frames: self.frames(),
-            first: (self.first_cap.clone(), self.first_occupied),
+            first: (self.first_cap_tets, self.first_occupied),
             last: cap.clone(),
         };
         self.end = Some((self.frontier, cap));
@@ -408,24 +413,20 @@ impl Run {
     }
 }
 
-/// An ended run's statistics, to be finished: its accumulator, frames, and first and last
-/// caps with their occupied voxels.
+/// An ended run's statistics, to be finished: its accumulator, frames, its first cap's tets
+/// and the last cap, each with their occupied voxels.
 #[derive(Debug)]
 struct Closing {
     acc: StatsAccumulator,
     frames: u64,
-    first: (Arc<TetMesh>, u64),
+    first: (u64, u64),
     last: Option<(Arc<TetMesh>, u64)>,
 }
 
 impl Closing {
     fn finish(self) -> BodyStats {
         let last = self.last.as_ref().map(|(c, o)| (c.as_ref(), *o));
-        self.acc.finish(
-            self.frames,
-            Some((self.first.0.as_ref(), self.first.1)),
-            last,
-        )
+        self.acc.finish(self.frames, Some(self.first), last)
     }
 }
 
@@ -762,8 +763,6 @@ struct Overlap {
     mesher: Option<Mesher>,
     /// The intersection mesh's statistics so far: its hypervolume is the overlap.
     acc: StatsAccumulator,
-    /// The intersection's cap at the run's first frame.
-    first_cap: Option<TetMesh>,
     /// Sums of the intersection mesh's normals' spatial and temporal parts so far, in
     /// lattice units: the overlap's error bound (`run_overlap`).
     sums: (f64, f64),

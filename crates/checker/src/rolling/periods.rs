@@ -32,7 +32,7 @@ impl RollingChecker {
             let r = b.run(run);
             let cap_start = r
                 .filter(|r| r.first_stamp == s)
-                .map(|r| r.first_cap.tets.len());
+                .map(|r| r.first_cap_tets as usize);
             let cap_end = r.and_then(|r| r.last_cap_at(hi)).map(|c| c.tets.len());
             let n = cap_start.unwrap_or(0) + lateral + cap_end.unwrap_or(0);
             let p = &self.pairs[i];
@@ -940,7 +940,6 @@ impl RollingChecker {
                     ov.closed.1 += b;
                     ov.mesher = None;
                     ov.acc = StatsAccumulator::default();
-                    ov.first_cap = None;
                     ov.sums = (0.0, 0.0);
                     ov.closed_sums = None;
                     ov.last_pushed = None;
@@ -1034,15 +1033,15 @@ fn feed_overlap(
                     (ov.stamps.0, stamp, ov.stamps.2 + 1)
                 };
                 if let Some(slab) = slab {
-                    if slab.index == 0 {
-                        let cap = m.first_frame().and_then(|k| m.cap(k, CapSide::Low));
-                        if let Some(cap) = &cap {
-                            ov.sums = add_normals(ov.sums, cap);
-                        }
-                        ov.first_cap = cap;
+                    // The intersection's cap at the run's first frame: checked with its
+                    // first slab, counted in its normals, and not kept.
+                    let first_cap = (slab.index == 0)
+                        .then(|| m.first_frame().and_then(|k| m.cap(k, CapSide::Low)))
+                        .flatten();
+                    if let Some(cap) = &first_cap {
+                        ov.sums = add_normals(ov.sums, cap);
                     }
-                    ov.acc
-                        .add_lateral(slab.lateral_ref(), ov.first_cap.as_ref());
+                    ov.acc.add_lateral(slab.lateral_ref(), first_cap.as_ref());
                     ov.sums = add_normals(ov.sums, &slab.mesh);
                 }
                 // The run as it would close now, at this frame.
@@ -1359,6 +1358,114 @@ mod tests {
             add,
             first_tet: 0,
             bounds: slabs[lo as usize].spatial_bounds(),
+        }
+    }
+
+    /// A run lets its opening cap go once its first slab is no longer kept, keeping only
+    /// the cap's count of tets; the run's figures at its end are still those of its whole
+    /// mesh welded in one piece (`BodyGluer`).
+    #[test]
+    fn a_run_lets_its_opening_cap_go_with_its_first_slab() {
+        let ball = |cx: i32| {
+            move |k: u32, x: i32, y: i32, z: i32| {
+                let x = x - cx - (k as i32 / 4);
+                x * x + (y - 4).pow(2) + (z - 4).pow(2) <= 6
+            }
+        };
+        let plan = CheckPlan {
+            pairs: Some(vec![("/a".into(), "/b".into())]),
+            movable: Vec::new(),
+            time_scale: None,
+            frame_ids: Default::default(),
+            rotation: Default::default(),
+        };
+        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let frames = 12;
+        let mut glued = Vec::new();
+        let mut pieces: Vec<Vec<Piece>> = Vec::new();
+        for (body, cx) in [("/a", 3), ("/b", 14)] {
+            let (m, slabs) = chronotope_mesh::mesher::test_stream([20, 9, 9], frames, ball(cx));
+            let (first, last) = (m.first_frame().unwrap(), m.last_frame().unwrap());
+            let cap = m.cap(first, CapSide::Low).unwrap();
+            let end = m.cap(last, CapSide::High).unwrap();
+            let geometry = slabs[0].geometry;
+            let piece = |kind, index, stamps_ns, occupied, mesh: &TetMesh| Piece {
+                body: body.into(),
+                kind,
+                index,
+                stamps_ns,
+                geometry,
+                occupied,
+                unsure: None,
+                displacement: 0,
+                mesh: Arc::new(mesh.clone()),
+                frame_id: String::new(),
+            };
+            let mut g = chronotope_mesh::glue::BodyGluer::new();
+            g.first_cap(&cap, first.grid.occupied);
+            let mut ps = vec![piece(
+                PieceKind::CapStart,
+                0,
+                (first.stamp_ns, first.stamp_ns),
+                first.grid.occupied,
+                &cap,
+            )];
+            // The ball's frames all hold as many voxels.
+            assert_eq!(first.grid.occupied, last.grid.occupied);
+            for s in &slabs {
+                g.lateral(s.lateral_ref(), None);
+                ps.push(piece(
+                    PieceKind::Lateral,
+                    s.index as u32,
+                    (s.stamp_lo_ns, s.stamp_hi_ns),
+                    last.grid.occupied,
+                    &s.mesh,
+                ));
+            }
+            g.last_cap(&end, last.grid.occupied);
+            ps.push(piece(
+                PieceKind::CapEnd,
+                last.index as u32,
+                (last.stamp_ns, last.stamp_ns),
+                last.grid.occupied,
+                &end,
+            ));
+            glued.push((
+                cap.tets.len(),
+                g.finish(u64::from(frames), Vec::new(), None),
+            ));
+            pieces.push(ps);
+        }
+        let mut out = Vec::new();
+        for j in 0..pieces[0].len() {
+            for ps in &pieces {
+                c.on_piece(ps[j].clone(), &mut out);
+            }
+            if j == pieces[0].len() - 2 {
+                // Every slab in: the first ones are decided and gone.
+                c.settle_all_stats();
+                for (body, (cap_tets, _)) in ["/a", "/b"].into_iter().zip(&glued) {
+                    let b = &c.bodies[body];
+                    let r = &b.runs[0];
+                    assert!(!b.slabs.contains_key(&r.first_stamp), "{body}");
+                    assert!(
+                        r.first_cap.tets.is_empty(),
+                        "{body}: its opening cap let go"
+                    );
+                    assert_eq!(r.first_cap_tets, *cap_tets as u64, "{body}");
+                }
+            }
+        }
+        c.finish(&mut out);
+        for (body, (_, whole)) in ["/a", "/b"].into_iter().zip(&glued) {
+            let b = &c.bodies[body];
+            let st = b.runs.iter().find_map(|r| r.stats.as_ref());
+            let (tets, closed) = match st {
+                Some(st) => (st.tets, st.closed.is_closed()),
+                None => (b.totals.tets, b.totals.closed),
+            };
+            assert!(whole.stats.closed.is_closed());
+            assert_eq!((tets, closed), (whole.stats.tets, true), "{body}");
         }
     }
 
