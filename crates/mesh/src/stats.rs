@@ -511,7 +511,7 @@ impl StatsAccumulator {
         plane_hash: PlaneHash,
     ) {
         let all = faces.faces + plane.len() as u64;
-        if faces.signed.wrapping_add(plane_hash.signed) == 0 && all % 2 == 0 {
+        if faces.signed.wrapping_add(plane_hash.signed) == 0 && all.is_multiple_of(2) {
             // Its interior faces in pairs and its boundary paired with the plane: as many
             // triangles as half of all.
             self.stats.closed.triangles += all / 2;
