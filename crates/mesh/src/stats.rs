@@ -1025,8 +1025,8 @@ mod tests {
 
     /// A cap is checked by one hash of all its faces against the plane it closes: on a closed
     /// stream the report is the exact pairing's of the whole welded mesh, and so it is for a
-    /// first or last cap with a tet missing, a tet turned over, a tet twice, or no tets (sent
-    /// to the exact pairing).
+    /// first or last cap with a tet missing, a tet turned over, or no tets (sent to the exact
+    /// pairing); one with a tet twice is found open too.
     #[test]
     fn caps_checked_by_their_faces_hash_report_what_pairing_the_whole_mesh_finds() {
         let (slabs, cap, end) = capped_stream([9, 8, 7], 4, |k, x, y, z| {
