@@ -565,7 +565,7 @@ fn live_nodes_answer_a_cyclone_peer_as_the_offline_replay_does() {
     let t_offline = t.elapsed();
 
     // A domain of our own, so that parallel runs and other tests do not meet.
-    let domain = (150 + std::process::id() % 50).to_string();
+    let domain = crate::domains::domain(6);
     let mut launch_child = launch_on(&launch, &domain, "45");
 
     let json = dir.path().join("cyclone.json");
@@ -685,7 +685,7 @@ fn occupancy_nodes_read_a_cyclone_peers_cloud_and_octomap_as_the_replay_does() {
         String::from_utf8_lossy(&out.stderr)
     );
     let off = offline(&offline_bag);
-    let domain = (200 + std::process::id() % 30).to_string();
+    let domain = crate::domains::domain(7);
     let mut launch_child = launch_on(&launch, &domain, "60");
     let json = dir.path().join("cyclone.json");
     let mut peer = peer_command(&bag, &json, &domain);
@@ -761,7 +761,7 @@ fn periodic_contacts_are_published_while_the_stream_goes_on() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let domain = (100 + std::process::id() % 50).to_string();
+    let domain = crate::domains::domain(8);
     let config = Path::new(root).join("launch_configs/periodic.yaml");
     let mut launch = launch_on(&config, &domain, "90");
     let json = dir.path().join("periodic.json");

@@ -55,13 +55,10 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// A domain id for test `k`, apart from the other test files' (tests/it/live.rs, cyclone.rs use
-/// 20-199) and, most of the time, from other test processes'.
+/// A domain id for test `k` (0-1), its own in this process (see [`crate::domains`]).
 fn domain(k: u32) -> String {
-    (200 + (std::process::id() % 16) * 2 + k).to_string()
+    crate::domains::domain(4 + k)
 }
-
-
 
 /// `chronotope ARGS` on `domain` from the repository root (the config's cut-out images are
 /// found from there), its log in `log`.

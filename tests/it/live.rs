@@ -17,9 +17,9 @@ fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// A domain id for test `k`, different from other test processes' most of the time.
+/// A domain id for test `k` (0-3), its own in this process (see [`crate::domains`]).
 fn domain(k: u32) -> String {
-    (20 + (std::process::id() % 40) * 4 + k).to_string()
+    crate::domains::domain(k)
 }
 
 /// A child process killed if the test fails before it ends.

@@ -3,6 +3,7 @@
 //! `cargo test --test it golden::` (and so on).
 
 mod common;
+mod domains;
 mod pyenv;
 
 mod bag_recovery;
