@@ -1340,6 +1340,18 @@ mod tests {
         )
     }
 
+    /// A rolling checker of the pair `/a`, `/b` with the default options.
+    fn checker_of_a_and_b() -> RollingChecker {
+        let plan = CheckPlan {
+            pairs: Some(vec![("/a".into(), "/b".into())]),
+            movable: Vec::new(),
+            time_scale: None,
+            frame_ids: Default::default(),
+            rotation: Default::default(),
+        };
+        RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default())
+    }
+
     fn spec(
         (slabs, geometry): &(Vec<Arc<TetMesh>>, GridGeometry),
         lo: u32,
@@ -1372,14 +1384,7 @@ mod tests {
                 x * x + (y - 4).pow(2) + (z - 4).pow(2) <= 6
             }
         };
-        let plan = CheckPlan {
-            pairs: Some(vec![("/a".into(), "/b".into())]),
-            movable: Vec::new(),
-            time_scale: None,
-            frame_ids: Default::default(),
-            rotation: Default::default(),
-        };
-        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let mut c = checker_of_a_and_b();
         let frames = 12;
         let mut glued = Vec::new();
         let mut pieces: Vec<Vec<Piece>> = Vec::new();
@@ -1474,14 +1479,7 @@ mod tests {
     #[test]
     fn a_piece_naming_a_vertex_past_its_table_is_refused() {
         let (slabs, geometry) = slabs();
-        let plan = CheckPlan {
-            pairs: Some(vec![("/a".into(), "/b".into())]),
-            movable: Vec::new(),
-            time_scale: None,
-            frame_ids: Default::default(),
-            rotation: Default::default(),
-        };
-        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let mut c = checker_of_a_and_b();
         let piece = |mesh: TetMesh| Piece {
             body: "/a".into(),
             kind: PieceKind::CapStart,
