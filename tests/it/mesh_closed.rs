@@ -3,7 +3,7 @@
 
 use crate::common;
 
-use chronotope::mesh::slice::{slice_mesh, PlaneValue};
+use chronotope::mesh::slice::{slice_mesh, PlaneValue, Slicer};
 use chronotope::mesh::validate::{check_closed, hypervolume24, pair_faces};
 use chronotope::mesh::{DecodeOptions, FrameRef, OccupancyGrid};
 use common::*;
@@ -154,13 +154,27 @@ fn slice_at_a_frame_time_reproduces_that_frame() {
         .map(|i| (i.wrapping_mul(2654435761) >> 13) as u8)
         .collect();
     for encoding in [0u8, 1] {
-        let frames = random_frames(size, 4, encoding, &bits);
+        // Frames 1 and 2 repeat as 2 and 3, 5 and 6: the body rests, and the mesher moves
+        // its rest slab in time instead of marching.
+        let mut frames = random_frames(size, 5, encoding, &bits);
+        for k in [2, 5] {
+            let again = TestFrame {
+                stamp_ns: 0,
+                encoding,
+                data: frames[k - 1].data.clone(),
+            };
+            frames.insert(k, again);
+        }
+        for (j, f) in frames.iter_mut().enumerate() {
+            f.stamp_ns = 1_000 + 37 * j as i64 * (j as i64 + 3);
+        }
         let r = run(&frames, size, 0.1);
         let g = glued(&r);
         let gr = grids(&frames, size);
         let scale = r.slabs[0].geometry.scale;
         for (k, grid) in gr.iter().enumerate() {
-            let s = slice_mesh(&[&g], 3, PlaneValue::lattice(i64::from(scale) * k as i64));
+            let plane = PlaneValue::lattice(i64::from(scale) * k as i64);
+            let s = slice_mesh(&[&g], 3, plane);
             // The frame's surface: boundary faces of its cap.
             let mut cap = chronotope::mesh::TetMesh::default();
             let at = chronotope::mesh::SlabPlacement {
@@ -185,6 +199,22 @@ fn slice_at_a_frame_time_reproduces_that_frame() {
             want.sort();
             got.sort();
             assert_eq!(got, want, "encoding {encoding}, frame {k}");
+            // What the markers draw of a slab: the slab alone, sliced at its later frame,
+            // gives that frame too (marched or moved in time).
+            if k > 0 {
+                let slab = &r.slabs[k - 1];
+                assert_eq!(slab.index as usize, k - 1);
+                let mut slicer = Slicer::new(3, plane);
+                slicer.add(&slab.mesh);
+                let s = slicer.finish();
+                let mut alone: Vec<[[i64; 3]; 3]> = s
+                    .triangles
+                    .iter()
+                    .map(|t| canonical_rot(t.map(|v| s.vertices[v as usize].map(|c| c as i64))))
+                    .collect();
+                alone.sort();
+                assert_eq!(alone, want, "encoding {encoding}, slab {} alone", k - 1);
+            }
         }
     }
 }

@@ -665,6 +665,86 @@ fn a_replay_builds_no_markers_or_labels_that_nothing_reads() {
     assert_eq!(answer(&partial), answer(&recorded));
 }
 
+/// What the checker's markers show of a body is the body at a frame it recorded: each id-0
+/// triangle list (the body's slice, flat faces merged) encloses the volume of the frame at
+/// its stamp, as the mesher's 3D marching of that frame (the cap it would close the stream
+/// with there) has it, for the moving spindle and the table and fixture (at rest between
+/// steps).
+#[test]
+fn the_markers_show_each_body_as_the_frame_at_their_stamp() {
+    use chronotope::mesh::{CapSide, Mesher, MesherOptions};
+    use chronotope::msg::{decode_cdr, Marker, MarkerArray};
+    let d = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bag = root.join("bags/machine-tool-32-bits.mcap");
+    let cfg_text = std::fs::read_to_string(root.join("launch_configs/machine_tool.yaml")).unwrap();
+    let cfg = LaunchConfig::parse(&cfg_text, "machine_tool.yaml").unwrap();
+    let out = d.path().join("out.mcap");
+    replay(&bag, Some(&cfg), Some(&out), false).unwrap();
+    // Each body's frames by stamp, with the volume its 3D marching encloses (m³).
+    let mut volume: std::collections::BTreeMap<(String, i64), f64> = Default::default();
+    for m in chronotope::bag::BagReader::open(&bag).unwrap() {
+        let m = m.unwrap();
+        let Ok(g) = decode_cdr::<VoxelGrid>(&m.data) else {
+            continue;
+        };
+        let mut mesher = Mesher::new(MesherOptions::default()).unwrap();
+        mesher.push(&g.frame_ref()).unwrap();
+        let step = mesher.geometry().unwrap().step_m();
+        let cap = mesher
+            .cap(mesher.last_frame().unwrap(), CapSide::High)
+            .unwrap();
+        let sixfold: i128 = cap
+            .tets
+            .iter()
+            .map(|t| {
+                let p = t.map(|v| cap.vertices[v as usize].map(i128::from));
+                let e = |k: usize| [0, 1, 2].map(|c| p[k][c] - p[0][c]);
+                let (a, b, c) = (e(1), e(2), e(3));
+                (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                    + a[2] * (b[0] * c[1] - b[1] * c[0]))
+                    .abs()
+            })
+            .sum();
+        let v = sixfold as f64 / 6.0 * step.powi(3);
+        volume.insert((m.topic.clone(), g.header.stamp.as_nanos()), v);
+    }
+    let mut seen = std::collections::BTreeSet::new();
+    for m in chronotope::bag::BagReader::open(&out).unwrap() {
+        let m = m.unwrap();
+        if m.topic != "/checker/markers" {
+            continue;
+        }
+        let a: MarkerArray = decode_cdr(&m.data).unwrap();
+        for mk in a.markers.iter().filter(|mk| mk.id == 0) {
+            let key = (mk.ns.clone(), mk.header.stamp.as_nanos());
+            let want = *volume
+                .get(&key)
+                .unwrap_or_else(|| panic!("{key:?}: no frame of that body at that stamp"));
+            let got = if mk.action == Marker::DELETE {
+                0.0
+            } else {
+                // Enclosed volume by the divergence theorem (the surface is closed).
+                mk.points
+                    .chunks_exact(3)
+                    .map(|t| {
+                        let (p, q, r) = (&t[0], &t[1], &t[2]);
+                        p.x * (q.y * r.z - q.z * r.y) - p.y * (q.x * r.z - q.z * r.x)
+                            + p.z * (q.x * r.y - q.y * r.x)
+                    })
+                    .sum::<f64>()
+                    / 6.0
+            };
+            assert!(
+                (got - want).abs() <= 1e-9 * want.max(1e-6),
+                "{key:?}: the marker encloses {got} m³, the frame {want} m³"
+            );
+            seen.insert(mk.ns.clone());
+        }
+    }
+    assert_eq!(seen.len(), 3, "every body drawn: {seen:?}");
+}
+
 /// `markers_period_s` is a display rate: a body's slab starting less than that after the
 /// last one sliced gets no markers, decided on the stamps; labels, contacts and the report
 /// are those of every slab.
@@ -695,7 +775,7 @@ fn the_markers_period_slices_one_slab_in_so_many_per_body() {
     // labels changed, so at most one marker array per body and slab.
     let drawn = all.output.topics["/checker/markers"];
     assert!(drawn > 0 && drawn <= bodies * slabs_per_body, "{drawn}");
-    // The slabs each marker array draws, by its stamp (the slab's middle).
+    // The slabs each marker array draws, by its stamp (the slab's later frame).
     let first_frame = all.report.time_origin_ns;
     let slabs_drawn = |name: &str| -> Vec<i64> {
         let mut ks = Vec::new();
@@ -706,8 +786,8 @@ fn the_markers_period_slices_one_slab_in_so_many_per_body() {
             }
             let a: chronotope::msg::MarkerArray = chronotope::msg::decode_cdr(&m.data).unwrap();
             for mk in a.markers {
-                let t = mk.header.stamp.as_nanos() - first_frame - 50_000_000;
-                assert_eq!(t % 100_000_000, 0, "a marker at the middle of a slab");
+                let t = mk.header.stamp.as_nanos() - first_frame - 100_000_000;
+                assert_eq!(t % 100_000_000, 0, "a marker at a slab's later frame");
                 ks.push(t / 100_000_000);
             }
         }

@@ -172,17 +172,6 @@ impl Slicer {
         self
     }
 
-    /// Side of a vertex: true for "+".
-    #[inline]
-    fn plus(&self, p: &LatticePoint) -> bool {
-        let v = i64::from(p[self.axis]) * self.c.den;
-        if self.on_plane_is_plus {
-            v >= self.c.num
-        } else {
-            v > self.c.num
-        }
-    }
-
     /// The same slicer, also recording which tet each triangle comes from (see
     /// [`Slicer::finish_with_sources`]).
     pub fn with_sources(mut self) -> Self {
@@ -277,7 +266,29 @@ impl Slicer {
 
     fn cut(&self, mesh: &TetMesh, ids: [u32; 4], source: u32, part: &mut Part) {
         let p = ids.map(|v| mesh.vertices[v as usize]);
-        let side = p.map(|q| self.plus(&q));
+        // Where each vertex lies: below, on or above the plane.
+        let rel = p.map(|q| (i64::from(q[self.axis]) * self.c.den).cmp(&self.c.num));
+        let count = |o: std::cmp::Ordering| rel.iter().filter(|&&r| r == o).count();
+        let (below, on, above) = (
+            count(std::cmp::Ordering::Less),
+            count(std::cmp::Ordering::Equal),
+            count(std::cmp::Ordering::Greater),
+        );
+        // The polygon's corners lie on the edges from the "−" vertices to the "+" ones: one
+        // key per vertex on the plane (all its edges meet there) and one per edge from below
+        // to above, so at most `on + below·above` distinct keys. Fewer than three make no
+        // triangle of any area: a tet touching the plane at a vertex or an edge, as most of
+        // a slab's tets do at a frame plane, is passed over before its keys are made.
+        if on + below * above < 3 {
+            return;
+        }
+        let side = rel.map(|r| {
+            if self.on_plane_is_plus {
+                r.is_ge()
+            } else {
+                r.is_gt()
+            }
+        });
         let plus = side.iter().filter(|&&s| s).count();
         if plus == 0 || plus == 4 {
             return;

@@ -4,8 +4,8 @@
 //! on it publishes each contact as it begins, goes on and ends (`~/contacts`, ContactEvent),
 //! each slab's labels once final (`~/labels`, TetLabels), the cumulative report whenever an
 //! answer changes (`~/report`), resolve suggestions per contact episode of the movable bodies
-//! (`~/suggestions`) and, if asked, each body's t-slice coloured by label per frame period
-//! (`~/markers`).
+//! (`~/suggestions`) and, if asked, each body's t-slice at each frame period's later frame,
+//! coloured by label (`~/markers`).
 //!
 //! Parameters: `pairs` (string array, each `"BODY_A BODY_B"`; default: every pair of the
 //! bodies the transport names), `movable` (string array, default none: no resolution),
@@ -35,7 +35,7 @@ use std::sync::{Arc, Mutex};
 use rayon::prelude::*;
 
 use super::launch::{LaunchError, NodeSpec, Params};
-use super::markers::{body_color, mid_slab_plane, triangle_list_of};
+use super::markers::{body_color, slab_end_plane, triangle_list_of};
 use super::mesher::mesher_options;
 use super::{Message, Node, NodeStatus, Payload, TopicRef};
 use chronotope_checker::labels::Label;
@@ -905,11 +905,12 @@ fn geometry_hash(mesh: &TetMesh) -> u64 {
     h.finish()
 }
 
-/// The slab's t-slice a little after its middle, with each triangle's tet (the tets are cut
-/// on rayon's pool: the same slice), and its flat faces merged for display.
+/// The slab's t-slice at its later frame ([`slab_end_plane`]: the faces of its tets in that
+/// plane), with each triangle's tet (the tets are scanned on rayon's pool: the same slice),
+/// and its flat faces merged for display.
 fn slice_slab(d: &SlabDone) -> Drawn {
     let mut slicer =
-        Slicer::new(3, mid_slab_plane(u64::from(d.index), d.geometry.scale)).with_sources();
+        Slicer::new(3, slab_end_plane(u64::from(d.index), d.geometry.scale)).with_sources();
     slicer.add_par(&d.mesh);
     let (mesh, sources) = slicer.finish_with_sources();
     let flats = FlatFaces::of(&mesh);
@@ -924,7 +925,8 @@ fn slice_slab(d: &SlabDone) -> Drawn {
 
 /// The markers of slab `d` where they changed, as one MarkerArray (`None`: nothing changed).
 /// A body has three markers, kept until replaced (persistent, as rviz2 and Foxglove keep
-/// them): id 0 its whole t-slice in its own colour, translucent; id 1 the triangles INSIDE
+/// them), stamped with the slab's later frame, the instant they show: id 0 the body's
+/// t-slice there in its own colour, translucent; id 1 the triangles INSIDE
 /// another body (orange) and id 2 those that INTERFERE (red), drawn over it. The slice is
 /// published when the body's geometry changes (`slice` is then the new one); the label
 /// markers when their triangles change (a DELETE when they have none left); a body at rest
@@ -938,7 +940,8 @@ fn slab_markers(
     slice: Option<Arc<Drawn>>,
 ) -> Option<Message> {
     let g = d.geometry;
-    let stamp = d.stamps_ns.0 + (d.stamps_ns.1 - d.stamps_ns.0) / 2;
+    // The instant drawn: the slab's later frame.
+    let stamp = d.stamps_ns.1;
     let header = Header {
         stamp: Time::from_nanos(stamp),
         frame_id: frame_id.to_owned(),

@@ -1,7 +1,7 @@
 //! visualization_msgs/Marker helpers: t-slices of 4D meshes as coloured triangle lists.
 
-use chronotope_mesh::slice::{PlaneValue, Slicer, TriMesh};
-use chronotope_mesh::{GridGeometry, TetMesh};
+use chronotope_mesh::slice::{PlaneValue, TriMesh};
+use chronotope_mesh::GridGeometry;
 use chronotope_msg::{ColorRGBA, Header, Marker, Point, Vector3};
 
 /// A colour for body `id`, the same on every run (hue from a hash of the name).
@@ -29,24 +29,14 @@ fn hsv(h: f32, s: f32, v: f32) -> (f32, f32, f32) {
     (r + m, g + m, b + m)
 }
 
-/// The plane a little after the middle of slab `index` (lattice units of `scale` per frame):
-/// off every lattice vertex, so the slice is a clean 2-manifold.
-pub fn mid_slab_plane(index: u64, scale: i32) -> PlaneValue {
-    let base = i64::from(scale) * index as i64;
-    PlaneValue {
-        num: 1024 * base + 512 * i64::from(scale) + 1,
-        den: 1024,
-    }
-}
-
-/// Slices `parts` at time plane `c`; also returns, per triangle, the index of the tet it came
-/// from (counted over `parts` in order).
-pub fn slice_with_sources(parts: &[&TetMesh], c: PlaneValue) -> (TriMesh, Vec<u32>) {
-    let mut s = Slicer::new(3, c).with_sources();
-    for p in parts {
-        s.add_par(p);
-    }
-    s.finish_with_sources()
+/// The time plane of slab `index`'s later frame (lattice units of `scale` per frame): what
+/// the markers draw of a slab is the body at that frame, the newest the slab knows. Sliced
+/// there, a slab gives the faces of its tets that lie in the plane, which are the frame's
+/// own surface (its 3D marching; the slice of a frame time reproduces the frame,
+/// `tests/it/mesh_closed.rs`); no tet is cut, so the slice has no points of its own and
+/// about a quarter of the triangles a plane through the slab's middle gives.
+pub fn slab_end_plane(index: u64, scale: i32) -> PlaneValue {
+    PlaneValue::lattice(i64::from(scale).saturating_mul((index as i64).saturating_add(1)))
 }
 
 /// Lattice units of `g` (x, y, z of a slice) to metres.

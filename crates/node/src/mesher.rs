@@ -1,6 +1,6 @@
 //! The mesher node: one VoxelGrid topic per body in, the pieces of each body's closed 4D mesh
 //! out (`~/mesh_slabs`, chronotope_msgs/MeshSlab) as frames arrive, and optionally a t-slice
-//! of each slab as a TRIANGLE_LIST marker (`~/slices`).
+//! of each slab at its later frame as a TRIANGLE_LIST marker (`~/slices`).
 //!
 //! Parameters: `bodies` (string array, the VoxelGrid topics to mesh; required unless the
 //! transport supplies the default), `iso_percent` (int, 1..=100), `unknown_occupied` (bool),
@@ -13,7 +13,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::launch::{LaunchError, NodeSpec, ParamValue, Params};
-use super::markers::{body_color, mid_slab_plane, triangle_list};
+use super::markers::{body_color, slab_end_plane, triangle_list};
 use super::{Message, Node, NodeStatus, ParamError, Payload, TopicRef};
 use chronotope_mesh::slice::Slicer;
 use chronotope_mesh::stream::{Accepted, BodyStream, LossKind, LossLog};
@@ -272,12 +272,11 @@ impl Ctx<'_> {
 
     fn slice_marker(&self, body: &str, b: &Body, slab: &Slab) -> Option<Message> {
         let topic = self.slice_topic?;
-        // As `slice_with_sources`, with the tets cut on rayon's pool (the same slice).
-        let mut slicer =
-            Slicer::new(3, mid_slab_plane(slab.index, slab.geometry.scale)).with_sources();
+        // The body at the slab's later frame, as the checker's markers draw it.
+        let mut slicer = Slicer::new(3, slab_end_plane(slab.index, slab.geometry.scale));
         slicer.add_par(&slab.mesh);
-        let (tri, _) = slicer.finish_with_sources();
-        let stamp = slab.stamp_lo_ns + (slab.stamp_hi_ns - slab.stamp_lo_ns) / 2;
+        let tri = slicer.finish();
+        let stamp = slab.stamp_hi_ns;
         let header = Header {
             stamp: Time::from_nanos(stamp),
             frame_id: b.frame_id.clone(),
