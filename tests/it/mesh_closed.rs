@@ -320,7 +320,11 @@ fn damage_only_the_time_planes_can_see_is_caught() {
         acc.add_slab(s, r.first_cap.as_ref());
     }
     assert!(!acc
-        .finish(4, r.first_cap.as_ref().map(|c| (c.tets.len() as u64, 0)), None)
+        .finish(
+            4,
+            r.first_cap.as_ref().map(|c| (c.tets.len() as u64, 0)),
+            None
+        )
         .closed
         .is_closed());
     // A vertex of the upper plane moved within the plane: pairing inside the slab still
