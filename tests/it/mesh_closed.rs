@@ -202,14 +202,8 @@ fn slice_at_a_frame_time_reproduces_that_frame() {
                 &mut cap,
             );
             let mut want = boundary_triangles(&cap);
-            let mut got: Vec<[[i64; 3]; 3]> = s
-                .triangles
-                .iter()
-                .map(|t| canonical_rot(t.map(|v| s.vertices[v as usize].map(|c| c as i64))))
-                .collect();
             want.sort();
-            got.sort();
-            assert_eq!(got, want, "encoding {encoding}, frame {k}");
+            assert_eq!(sorted_triangles(&s), want, "encoding {encoding}, frame {k}");
             // What the markers draw of a slab: the slab alone, sliced at its later frame,
             // gives that frame too (marched or moved in time).
             if k > 0 {
@@ -217,17 +211,22 @@ fn slice_at_a_frame_time_reproduces_that_frame() {
                 assert_eq!(slab.index as usize, k - 1);
                 let mut slicer = Slicer::new(3, plane);
                 slicer.add(&slab.mesh);
-                let s = slicer.finish();
-                let mut alone: Vec<[[i64; 3]; 3]> = s
-                    .triangles
-                    .iter()
-                    .map(|t| canonical_rot(t.map(|v| s.vertices[v as usize].map(|c| c as i64))))
-                    .collect();
-                alone.sort();
+                let alone = sorted_triangles(&slicer.finish());
                 assert_eq!(alone, want, "encoding {encoding}, slab {} alone", k - 1);
             }
         }
     }
+}
+
+/// A slice's triangles by their corners, each rotated by [`canonical_rot`], sorted.
+fn sorted_triangles(s: &chronotope::mesh::slice::TriMesh) -> Vec<[[i64; 3]; 3]> {
+    let mut t: Vec<[[i64; 3]; 3]> = s
+        .triangles
+        .iter()
+        .map(|t| canonical_rot(t.map(|v| s.vertices[v as usize].map(|c| c as i64))))
+        .collect();
+    t.sort();
+    t
 }
 
 /// Rotates a triangle so its smallest point is first (keeps orientation).

@@ -18,6 +18,14 @@ fn last_report(msgs: &[chronotope::node::Message]) -> Option<chronotope::msg::In
     })
 }
 
+/// A bundled bag and the text of a bundled launch config (`bags/BAG`,
+/// `launch_configs/CONFIG`).
+fn bundled(bag: &str, config: &str) -> (PathBuf, String) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let text = std::fs::read_to_string(root.join("launch_configs").join(config)).unwrap();
+    (root.join("bags").join(bag), text)
+}
+
 /// A mesher of /a and /b and a checker of the pair.
 const PAIR_CONFIG: &str = "launch:\n\
     - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
@@ -608,9 +616,7 @@ fn the_report_is_republished_when_the_streams_end_without_any_contact() {
 #[test]
 fn a_replay_builds_no_markers_or_labels_that_nothing_reads() {
     let d = tempfile::tempdir().unwrap();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let bag = root.join("bags/four-spheres-32-bits.mcap");
-    let cfg_text = std::fs::read_to_string(root.join("launch_configs/four_spheres.yaml")).unwrap();
+    let (bag, cfg_text) = bundled("four-spheres-32-bits.mcap", "four_spheres.yaml");
     let cfg = LaunchConfig::parse(&cfg_text, "four_spheres.yaml").unwrap();
     let all = d.path().join("all.mcap");
     let recorded = replay(&bag, Some(&cfg), Some(&all), false).unwrap();
@@ -675,9 +681,7 @@ fn the_markers_show_each_body_as_the_frame_at_their_stamp() {
     use chronotope::mesh::{CapSide, Mesher, MesherOptions};
     use chronotope::msg::{decode_cdr, Marker, MarkerArray};
     let d = tempfile::tempdir().unwrap();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let bag = root.join("bags/machine-tool-32-bits.mcap");
-    let cfg_text = std::fs::read_to_string(root.join("launch_configs/machine_tool.yaml")).unwrap();
+    let (bag, cfg_text) = bundled("machine-tool-32-bits.mcap", "machine_tool.yaml");
     let cfg = LaunchConfig::parse(&cfg_text, "machine_tool.yaml").unwrap();
     let out = d.path().join("out.mcap");
     replay(&bag, Some(&cfg), Some(&out), false).unwrap();
@@ -751,9 +755,7 @@ fn the_markers_show_each_body_as_the_frame_at_their_stamp() {
 #[test]
 fn the_markers_period_slices_one_slab_in_so_many_per_body() {
     let d = tempfile::tempdir().unwrap();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let bag = root.join("bags/machine-tool-32-bits.mcap");
-    let cfg_text = std::fs::read_to_string(root.join("launch_configs/machine_tool.yaml")).unwrap();
+    let (bag, cfg_text) = bundled("machine-tool-32-bits.mcap", "machine_tool.yaml");
     let every = LaunchConfig::parse(&cfg_text, "machine_tool.yaml").unwrap();
     let line = "    - {name: markers, value: true}\n";
     assert!(cfg_text.contains(line));
@@ -1014,9 +1016,7 @@ fn a_pair_is_called_clear_only_where_both_bodies_are_observed() {
 #[test]
 fn the_rotation_parameters_reach_the_rotation_suggestion() {
     let d = tempfile::tempdir().unwrap();
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let bag = root.join("bags/machine-tool-32-bits.mcap");
-    let cfg_text = std::fs::read_to_string(root.join("launch_configs/machine_tool.yaml")).unwrap();
+    let (bag, cfg_text) = bundled("machine-tool-32-bits.mcap", "machine_tool.yaml");
     let line = "    - {name: markers, value: true}\n";
     assert!(cfg_text.contains(line));
     let with = |params: &str| {
