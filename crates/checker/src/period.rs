@@ -425,6 +425,24 @@ pub struct WindowResult {
     pub undecided: u32,
 }
 
+impl WindowResult {
+    /// The same result for the two windows moved `dt` in checker time (and by one vector
+    /// in space): the same labels, every range moved. Exact for the ranges of INSIDE tets
+    /// (integers); a crossing's range is rounded, so a result with crossings is moved
+    /// only up to that rounding.
+    pub fn moved_in_time(&self, dt: i64) -> Self {
+        let dt = dt as f64;
+        let mut r = self.clone();
+        for x in &mut r.ranges {
+            *x = (x.0 + dt, x.1 + dt);
+        }
+        for c in &mut r.crossings {
+            c.t = (c.t.0 + dt, c.t.1 + dt);
+        }
+        r
+    }
+}
+
 /// Checks two prepared window bodies and keeps what their taken tets get.
 pub fn check_window(a: &PreparedWindow, b: &PreparedWindow) -> WindowResult {
     let all = walk(&a.body, &b.body, false);

@@ -102,6 +102,10 @@ pub struct RollingConfig {
     /// checker's own thread. Results are taken oldest first, so the answers and their order
     /// never depend on it; only when they are published does.
     pub resolve_in_flight: usize,
+    /// How many periods back a pair's new window is compared with the windows it checked,
+    /// to take a result moved instead of checking again (see [`KeptWindow`]); 0 checks
+    /// every window. Their slabs are those the statistics keep for the same periods.
+    pub kept_windows: usize,
 }
 
 impl Default for RollingConfig {
@@ -117,6 +121,7 @@ impl Default for RollingConfig {
             max_horizon_tets: 1_500_000,
             max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
             resolve_in_flight: 1,
+            kept_windows: 4,
         }
     }
 }
@@ -835,6 +840,27 @@ struct PairRoll {
     /// The period checked before what follows its slabs was known, if one is waiting for
     /// that (see [`PendingPeriod`]).
     pending: Option<PendingPeriod>,
+    /// The windows checked in the last [`RollingConfig::kept_windows`] periods whose result
+    /// a later period of the pair can take moved (see [`KeptWindow`]), oldest first.
+    kept: VecDeque<KeptWindow>,
+    /// Periods whose windows were taken moved from a kept one.
+    taken_moved: u64,
+}
+
+/// A window of a pair as checked, kept so that a later period whose two windows are both
+/// this one's moved by the same lattice vector (two bodies at rest, or at rest again after
+/// stepping together by whole voxels: [`WindowSpec::moved_copy_of`], compared exactly)
+/// takes its result moved instead of being walked and labelled again: a cell at rest costs
+/// its meshing, not its check. Kept only for a result that moves exactly: no crossings
+/// (their time ranges are rounded) and nothing left undecided; its labels are then the
+/// geometry's own, and a lattice vector moves the geometry with them. Comparing a window
+/// with the kept ones costs a pass over their vertices and tets at most.
+#[derive(Debug)]
+struct KeptWindow {
+    /// The pair's period index of the window.
+    k: i64,
+    specs: (WindowSpec, WindowSpec),
+    result: WindowResult,
 }
 
 /// A pair's period checked as soon as both bodies' slabs were there, before it was known
@@ -1024,6 +1050,8 @@ impl RollingChecker {
                     unsure_open: None,
                     unsure_count: 0,
                     pending: None,
+                    kept: VecDeque::new(),
+                    taken_moved: 0,
                 })
                 .collect(),
             origin_ns: None,
@@ -1539,9 +1567,25 @@ impl RollingChecker {
             self.close_open(i, out);
             self.close_unsure(i, out);
             self.finish_speeds(i, true);
+            let p = &self.pairs[i];
+            tracing::debug!(
+                "pair {} x {}: {} periods taken moved from a kept window",
+                p.a,
+                p.b,
+                p.taken_moved
+            );
         }
         self.prune(out);
         self.join_resolutions(out);
+    }
+
+    /// Periods of each pair (by their ids) whose result was taken moved from an earlier
+    /// window instead of being checked (see [`KeptWindow`]).
+    pub fn taken_moved(&self) -> Vec<(&str, &str, u64)> {
+        self.pairs
+            .iter()
+            .map(|p| (p.a.as_str(), p.b.as_str(), p.taken_moved))
+            .collect()
     }
 
     /// Decides every period that can be decided, then drops what nothing needs any more.
@@ -1599,7 +1643,8 @@ impl RollingChecker {
         let (Some(wa), Some(wb)) = self.window_specs(i, s, k, (base, per), &lattice) else {
             return None;
         };
-        (!apart(&wa, &wb)).then_some((s, wa, wb))
+        // A window the pair has checked before, moved, is not checked again.
+        (!apart(&wa, &wb) && self.repeated(i, k, &wa, &wb).is_none()).then_some((s, wa, wb))
     }
 
     /// The windows ready for checking at the start of a pump, checked on rayon's pool, if

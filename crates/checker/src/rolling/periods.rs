@@ -9,11 +9,11 @@ use std::sync::Arc;
 use super::{
     add_normals, bounds, check_window, closing_sums, on_pair_lattice, origin_offset,
     prepare_window, report::run_overlap, speed, time_at, union_bounds, CapSide, ContactPhase,
-    ContactUpdate, Crossing, GridGeometry, HeldSlab, Interval, Label, LabelCounts, Mesher,
-    MesherOptions, OccupancyGrid, OpenUnsure, Overlap, OverlapJob, PendingPeriod, PreparedWindow,
-    Record, RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator,
-    TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR,
-    CONTEXT_SLABS, REBASE_FRAMES,
+    ContactUpdate, Crossing, GridGeometry, HeldSlab, Interval, KeptWindow, Label, LabelCounts,
+    Mesher, MesherOptions, OccupancyGrid, OpenUnsure, Overlap, OverlapJob, PendingPeriod,
+    PreparedWindow, Record, RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox,
+    StatsAccumulator, TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult,
+    CHECKER_FACTOR, CONTEXT_SLABS, REBASE_FRAMES,
 };
 
 impl RollingChecker {
@@ -268,15 +268,30 @@ impl RollingChecker {
             return true;
         };
         let fast = self.fast_near(&a, &b, s);
-        let ahead = self
-            .prefetched
-            .iter()
-            .position(|x| {
-                x.pair == i && x.s == s && x.specs.0.same_as(&wa) && x.specs.1.same_as(&wb)
-            })
-            .map(|n| self.prefetched.swap_remove(n).result);
-        let r = match self.check_windows((&a, &wa), (&b, &wb), s, ahead) {
-            Ok(r) => r,
+        let repeated = (!apart(&wa, &wb))
+            .then(|| self.repeated(i, k, &wa, &wb))
+            .flatten();
+        let checked = match repeated {
+            Some(r) => {
+                self.pairs[i].taken_moved += 1;
+                Ok(r)
+            }
+            None => {
+                let ahead = self
+                    .prefetched
+                    .iter()
+                    .position(|x| {
+                        x.pair == i && x.s == s && x.specs.0.same_as(&wa) && x.specs.1.same_as(&wb)
+                    })
+                    .map(|n| self.prefetched.swap_remove(n).result);
+                self.check_windows((&a, &wa), (&b, &wb), s, ahead)
+            }
+        };
+        let r = match checked {
+            Ok(r) => {
+                self.keep_window(i, k, &wa, &wb, &r);
+                r
+            }
             Err(e) => {
                 let why = format!(
                     "pair {a} x {b}: the period {:.3}-{:.3} s cannot be checked: {e}",
@@ -480,6 +495,60 @@ impl RollingChecker {
             spec(a, b, lattice.shift_a, lattice.ratio_a),
             spec(b, a, lattice.shift_b, lattice.ratio_b),
         )
+    }
+
+    /// The result of pair `i`'s windows `wa` and `wb` of its period `k` as one the pair kept,
+    /// moved, if both are that window's moved copies by the same vector (see
+    /// [`KeptWindow`]).
+    pub(super) fn repeated(
+        &self,
+        i: usize,
+        k: i64,
+        wa: &WindowSpec,
+        wb: &WindowSpec,
+    ) -> Option<WindowResult> {
+        let most = self.cfg.kept_windows as i64;
+        self.pairs[i]
+            .kept
+            .iter()
+            .rev()
+            .take_while(|w| k - w.k <= most)
+            .find_map(|w| {
+                let d = wa.moved_copy_of(&w.specs.0)?;
+                (wb.moved_copy_of(&w.specs.1)? == d).then(|| w.result.moved_in_time(d[3]))
+            })
+    }
+
+    /// Keeps pair `i`'s windows `wa` and `wb` of its period `k` with their result `r` for the
+    /// periods after, if the result moves exactly (see [`KeptWindow`]); lets go of those too
+    /// old to serve the next period.
+    fn keep_window(
+        &mut self,
+        i: usize,
+        k: i64,
+        wa: &WindowSpec,
+        wb: &WindowSpec,
+        r: &WindowResult,
+    ) {
+        let most = self.cfg.kept_windows as i64;
+        let kept = &mut self.pairs[i].kept;
+        kept.retain(|w| k - w.k < most);
+        // Windows apart in space are not walked: nothing to keep.
+        let plain = |w: &WindowSpec| w.low.is_none() && w.high.is_none();
+        if most == 0
+            || !r.crossings.is_empty()
+            || r.undecided > 0
+            || !plain(wa)
+            || !plain(wb)
+            || apart(wa, wb)
+        {
+            return;
+        }
+        kept.push_back(KeptWindow {
+            k,
+            specs: (wa.clone(), wb.clone()),
+            result: r.clone(),
+        });
     }
 
     /// Checks two bodies' windows of the period at `s`, or takes the result checked ahead
@@ -1657,6 +1726,111 @@ mod tests {
             other.add[1] += 1;
             assert_eq!(other.moved_copy_of(&at(0)), None);
         }
+    }
+
+    /// The pieces of body `body` over `frames` frames of a 14 × 10 × 10 lattice (voxels
+    /// where `occ(k, x, y, z)`): first cap, slabs, last cap.
+    fn pieces_of(body: &str, frames: u32, occ: impl Fn(u32, i32, i32, i32) -> bool) -> Vec<Piece> {
+        let (m, slabs) = chronotope_mesh::mesher::test_stream([14, 10, 10], frames, occ);
+        let (first, last) = (m.first_frame().unwrap(), m.last_frame().unwrap());
+        let geometry = slabs[0].geometry;
+        let piece = |kind, index, stamps_ns, occupied, mesh: TetMesh| Piece {
+            body: body.into(),
+            kind,
+            index,
+            stamps_ns,
+            geometry,
+            occupied,
+            unsure: None,
+            displacement: 0,
+            mesh: Arc::new(mesh),
+            frame_id: String::new(),
+        };
+        let mut out = vec![piece(
+            PieceKind::CapStart,
+            0,
+            (first.stamp_ns, first.stamp_ns),
+            first.grid.occupied,
+            m.cap(first, CapSide::Low).unwrap(),
+        )];
+        for s in slabs {
+            out.push(piece(
+                PieceKind::Lateral,
+                s.index as u32,
+                (s.stamp_lo_ns, s.stamp_hi_ns),
+                last.grid.occupied,
+                s.mesh,
+            ));
+        }
+        out.push(piece(
+            PieceKind::CapEnd,
+            last.index as u32,
+            (last.stamp_ns, last.stamp_ns),
+            last.grid.occupied,
+            m.cap(last, CapSide::High).unwrap(),
+        ));
+        out
+    }
+
+    /// Two bodies at rest, one inside the other (its tets INSIDE, no crossing), then both
+    /// one voxel on and at rest there; the inner one jumps out (apart for a period) and back
+    /// to where it was, and rests there. The periods at rest are taken from the windows
+    /// kept before them, moved (the rests at the second place from the first, the last ones
+    /// from before the jump), and everything the checker says is what it says when it
+    /// checks every window: labels, contacts (the second starts at the jump back) and the
+    /// report.
+    #[test]
+    fn periods_at_rest_are_taken_moved_and_answer_as_checked_ones() {
+        let step = |k: u32| i32::from(k >= 4);
+        let inner = move |k: u32, x: i32, y: i32, z: i32| {
+            let x = x - step(k) - if (8..10).contains(&k) { 6 } else { 0 };
+            (4..6).contains(&x) && (4..6).contains(&y) && (4..6).contains(&z)
+        };
+        let outer = move |k: u32, x: i32, y: i32, z: i32| {
+            let x = x - step(k);
+            (2..8).contains(&x) && (2..8).contains(&y) && (2..8).contains(&z)
+        };
+        let frames = 14;
+        let (a, b) = (
+            pieces_of("/a", frames, inner),
+            pieces_of("/b", frames, outer),
+        );
+        let run = |kept_windows: usize| {
+            let plan = CheckPlan {
+                pairs: Some(vec![("/a".into(), "/b".into())]),
+                movable: Vec::new(),
+                time_scale: None,
+                frame_ids: Default::default(),
+                rotation: Default::default(),
+            };
+            let cfg = RollingConfig {
+                kept_windows,
+                ..RollingConfig::default()
+            };
+            let mut c = RollingChecker::new(plan, MesherOptions::default(), cfg);
+            let mut out = Vec::new();
+            for (x, y) in a.iter().zip(&b) {
+                c.on_piece(x.clone(), &mut out);
+                c.on_piece(y.clone(), &mut out);
+            }
+            c.finish(&mut out);
+            let moved = c.taken_moved()[0].2;
+            let r = c.report();
+            let p = &r.pairs[0];
+            // The inner body INSIDE the outer from the start, and again after the jump.
+            assert!(p.labels.a.inside > 0 && p.labels.a.interference > 0);
+            assert_eq!(p.intervals_s.len(), 2);
+            assert_eq!(p.intervals_s[0][0], 0.0);
+            (format!("{out:?}\n{:?}\n{:?}", r.pairs, r.bodies), moved)
+        };
+        let (checked, none) = run(0);
+        let (taken, moved) = run(4);
+        assert_eq!(none, 0);
+        // Period 2 (from 1; period 0's window holds the opening cap, so it is not kept),
+        // 4-6 (at rest after the step, the first from period 2 moved one voxel) and 10-11
+        // (back after the jump: from period 6); period 12's window holds the closing cap.
+        assert_eq!(moved, 6);
+        assert_eq!(taken, checked);
     }
 }
 
