@@ -269,7 +269,10 @@ impl RollingChecker {
         };
         let fast = self.fast_near(&a, &b, s);
         let repeated = (!apart(&wa, &wb))
-            .then(|| self.repeated(i, k, &wa, &wb))
+            .then(|| {
+                self.repeated(i, k, &wa, &wb)
+                    .map(|(w, dt)| w.result.moved_in_time(dt))
+            })
             .flatten();
         let checked = match repeated {
             Some(r) => {
@@ -497,16 +500,16 @@ impl RollingChecker {
         )
     }
 
-    /// The result of pair `i`'s windows `wa` and `wb` of its period `k` as one the pair kept,
-    /// moved, if both are that window's moved copies by the same vector (see
-    /// [`KeptWindow`]).
+    /// The window pair `i` kept of which its windows `wa` and `wb` of its period `k` are both
+    /// the moved copies by one vector, if one is, with that vector's time (see
+    /// [`KeptWindow`]): the result is then the kept one moved by it.
     pub(super) fn repeated(
         &self,
         i: usize,
         k: i64,
         wa: &WindowSpec,
         wb: &WindowSpec,
-    ) -> Option<WindowResult> {
+    ) -> Option<(&KeptWindow, i64)> {
         let most = self.cfg.kept_windows as i64;
         self.pairs[i]
             .kept
@@ -515,7 +518,7 @@ impl RollingChecker {
             .take_while(|w| k - w.k <= most)
             .find_map(|w| {
                 let d = wa.moved_copy_of(&w.specs.0)?;
-                (wb.moved_copy_of(&w.specs.1)? == d).then(|| w.result.moved_in_time(d[3]))
+                (wb.moved_copy_of(&w.specs.1)? == d).then_some((w, d[3]))
             })
     }
 
