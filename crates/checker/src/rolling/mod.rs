@@ -104,7 +104,8 @@ pub struct RollingConfig {
     pub resolve_in_flight: usize,
     /// How many periods back a pair's new window is compared with the windows it checked,
     /// to take a result moved instead of checking again (see [`KeptWindow`]); 0 checks
-    /// every window. Their slabs are those the statistics keep for the same periods.
+    /// every window. The windows hold their slabs: at most this many per body and pair, most
+    /// often still held for the statistics or as context.
     pub kept_windows: usize,
 }
 

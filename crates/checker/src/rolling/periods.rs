@@ -536,7 +536,8 @@ impl RollingChecker {
         let most = self.cfg.kept_windows as i64;
         let kept = &mut self.pairs[i].kept;
         kept.retain(|w| k - w.k < most);
-        // Windows apart in space are not walked: nothing to keep.
+        // Only a result that moves exactly (no crossing, nothing undecided, no real cap), of
+        // windows that were walked (those apart in space cost nothing to answer again).
         let plain = |w: &WindowSpec| w.low.is_none() && w.high.is_none();
         if most == 0
             || !r.crossings.is_empty()
