@@ -26,13 +26,14 @@
 //! are paired exactly only when they do not (the same blind spot as for a slab's interior
 //! faces). `validate::check_closed`, which the tests run on whole meshes, always pairs exactly.
 //!
-//! A slab that is one of the latest few (`RECENT_SLABS`, 4) moved by whole periods in time
-//! and whole lattice steps in space, compared exactly, adds that slab's figures again
-//! without a scan: its interior faces pair as that slab's did, its planes' triangles are
-//! that slab's moved (hashed again when moved in space), and its hypervolume is the same
-//! (moved in space, only when the slab copied is closed: its two planes then bound, and the
-//! hypervolume of a closed slab does not depend on where it lies). A body at rest, or one
-//! stepping by whole voxels, is scanned once per step.
+//! A slab that is one of the latest few distinct ones (`RECENT_SLABS`, 4; a rest counts
+//! once) moved by whole periods in time and whole lattice steps in space, compared exactly,
+//! adds that slab's figures again without a scan: its interior faces pair as that slab's
+//! did, its planes' triangles are that slab's moved (hashed again when moved in space), and
+//! its hypervolume is the same (moved in space, only when the slab copied is closed: its two
+//! planes then bound, and the hypervolume of a closed slab does not depend on where it
+//! lies). A body at rest is scanned once; one stepping by whole voxels at a steady pace
+//! about once: its step slabs and its rests after a step are the earlier ones moved.
 //!
 //! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
 //! physical time scale (frame periods may differ). The upper cap's contribution to the
@@ -156,8 +157,9 @@ pub struct StatsAccumulator {
 }
 
 /// How many of the latest slabs a new one is compared with (see
-/// [`StatsAccumulator::add_lateral_shared`]). A table stepping by whole voxels now and then
-/// repeats its step slab a few periods later, moved.
+/// [`StatsAccumulator::add_lateral_shared`]); a rest, however long, holds one place (its
+/// latest slab). A table stepping by whole voxels now and then repeats its step slab after
+/// its next rest, moved.
 const RECENT_SLABS: usize = 4;
 
 /// One of the latest slabs (see [`StatsAccumulator::recent`]): its tets, index and lattice
@@ -316,6 +318,12 @@ impl StatsAccumulator {
             slab.geometry,
             slab.stamps_ns.1 - slab.stamps_ns.0,
         );
+        // The newest slab one period on stands for the rest from here: it takes that slab's
+        // place, so that a rest of any length holds one place, and a body stepping every
+        // few periods still finds its last step slab among the latest.
+        if at_rest {
+            self.recent.pop_back();
+        }
         self.remember(Recent {
             mesh: shared.clone(),
             index: slab.index,
@@ -1145,6 +1153,44 @@ mod tests {
             assert_eq!(a, b, "defect {defect}");
             assert_eq!(a.0.is_closed(), !defect, "{:?}", a.0);
         }
+    }
+
+    /// A body stepping by whole voxels every sixth period, at rest between steps: each step
+    /// slab is the one before it moved (one voxel, six periods: the rest between holds one
+    /// place among the latest slabs), and so is each first slab at rest after a step (the
+    /// last one before the step moved), all added as copies with a scan's figures.
+    #[test]
+    fn a_step_slab_after_a_rest_is_the_step_before_it_moved() {
+        let place = |k: u32| (k / 6) as i32;
+        let frames = 20;
+        let (slabs, cap, end) = capped_stream([16, 9, 8], frames, |k, x, y, z| {
+            let x = x - place(k);
+            (2..5).contains(&x) && (2..6).contains(&y) && (2..5).contains(&z)
+        });
+        let meshes: Vec<Arc<TetMesh>> = slabs.iter().map(|s| Arc::new(s.mesh.clone())).collect();
+        let mut scan = StatsAccumulator::new();
+        let mut shared = StatsAccumulator::new();
+        for (s, m) in slabs.iter().zip(&meshes) {
+            let lateral = LateralRef {
+                mesh: m,
+                ..s.lateral_ref()
+            };
+            scan.add_lateral(lateral, Some(&cap));
+            shared.add_lateral_shared(lateral, Some(&cap), m);
+        }
+        // Slabs 0-4, 6-10, 12-16 and 18 at rest; 5, 11 and 17 step. Moved in time only:
+        // 1-4, 7-10, 13-16; moved in space too: 6, 12 and 18 (from 4, 10, 16) and the step
+        // slabs 11 and 17 (from 5 and 11).
+        assert_eq!(shared.copies(), [12, 5]);
+        let last = (
+            u64::from(frames),
+            Some((cap.tets.len() as u64, 0)),
+            Some((&end, 0)),
+        );
+        assert_eq!(
+            figures(scan.finish(last.0, last.1, last.2)),
+            figures(shared.finish(last.0, last.1, last.2))
+        );
     }
 
     /// A body stepping by whole voxels every third period: its slabs at rest after a step
