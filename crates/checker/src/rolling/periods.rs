@@ -1462,54 +1462,26 @@ mod tests {
         let mut glued = Vec::new();
         let mut pieces: Vec<Vec<Piece>> = Vec::new();
         for (body, cx) in [("/a", 3), ("/b", 14)] {
-            let (m, slabs) = chronotope_mesh::mesher::test_stream([20, 9, 9], frames, ball(cx));
-            let (first, last) = (m.first_frame().unwrap(), m.last_frame().unwrap());
-            let cap = m.cap(first, CapSide::Low).unwrap();
-            let end = m.cap(last, CapSide::High).unwrap();
-            let geometry = slabs[0].geometry;
-            let piece = |kind, index, stamps_ns, occupied, mesh: &TetMesh| Piece {
-                body: body.into(),
-                kind,
-                index,
-                stamps_ns,
-                geometry,
-                occupied,
-                unsure: None,
-                displacement: 0,
-                mesh: Arc::new(mesh.clone()),
-                frame_id: String::new(),
-            };
-            let mut g = chronotope_mesh::glue::BodyGluer::new();
-            g.first_cap(&cap, first.grid.occupied);
-            let mut ps = vec![piece(
-                PieceKind::CapStart,
-                0,
-                (first.stamp_ns, first.stamp_ns),
-                first.grid.occupied,
-                &cap,
-            )];
+            let ps = pieces_of(body, [20, 9, 9], frames, ball(cx));
+            let (cap, end) = (&ps[0], &ps[ps.len() - 1]);
             // The ball's frames all hold as many voxels.
-            assert_eq!(first.grid.occupied, last.grid.occupied);
-            for s in &slabs {
-                g.lateral(s.lateral_ref(), None);
-                ps.push(piece(
-                    PieceKind::Lateral,
-                    s.index as u32,
-                    (s.stamp_lo_ns, s.stamp_hi_ns),
-                    last.grid.occupied,
-                    &s.mesh,
-                ));
+            assert_eq!(cap.occupied, end.occupied);
+            let mut g = chronotope_mesh::glue::BodyGluer::new();
+            g.first_cap(&cap.mesh, cap.occupied);
+            for p in &ps[1..ps.len() - 1] {
+                let lateral = chronotope_mesh::stats::LateralRef {
+                    index: u64::from(p.index),
+                    stamps_ns: p.stamps_ns,
+                    geometry: &p.geometry,
+                    mesh: &p.mesh,
+                    unsure: p.unsure,
+                    displacement: p.displacement,
+                };
+                g.lateral(lateral, None);
             }
-            g.last_cap(&end, last.grid.occupied);
-            ps.push(piece(
-                PieceKind::CapEnd,
-                last.index as u32,
-                (last.stamp_ns, last.stamp_ns),
-                last.grid.occupied,
-                &end,
-            ));
+            g.last_cap(&end.mesh, end.occupied);
             glued.push((
-                cap.tets.len(),
+                cap.mesh.tets.len(),
                 g.finish(u64::from(frames), Vec::new(), None),
             ));
             pieces.push(ps);
@@ -1732,10 +1704,16 @@ mod tests {
         }
     }
 
-    /// The pieces of body `body` over `frames` frames of a 14 × 10 × 10 lattice (voxels
-    /// where `occ(k, x, y, z)`): first cap, slabs, last cap.
-    fn pieces_of(body: &str, frames: u32, occ: impl Fn(u32, i32, i32, i32) -> bool) -> Vec<Piece> {
-        let (m, slabs) = chronotope_mesh::mesher::test_stream([14, 10, 10], frames, occ);
+    /// The pieces of body `body` over `frames` frames of a `size` lattice (voxels where
+    /// `occ(k, x, y, z)`): first cap, slabs (each with the last frame's voxel count), last
+    /// cap.
+    fn pieces_of(
+        body: &str,
+        size: [u32; 3],
+        frames: u32,
+        occ: impl Fn(u32, i32, i32, i32) -> bool,
+    ) -> Vec<Piece> {
+        let (m, slabs) = chronotope_mesh::mesher::test_stream(size, frames, occ);
         let (first, last) = (m.first_frame().unwrap(), m.last_frame().unwrap());
         let geometry = slabs[0].geometry;
         let piece = |kind, index, stamps_ns, occupied, mesh: TetMesh| Piece {
@@ -1796,8 +1774,8 @@ mod tests {
         };
         let frames = 14;
         let (a, b) = (
-            pieces_of("/a", frames, inner),
-            pieces_of("/b", frames, outer),
+            pieces_of("/a", [14, 10, 10], frames, inner),
+            pieces_of("/b", [14, 10, 10], frames, outer),
         );
         let run = |kept_windows: usize| {
             let plan = CheckPlan {
