@@ -420,3 +420,106 @@ fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
     assert!(full.pairs[0].interfering);
     assert_eq!(answers(&rolled), answers(&full));
 }
+
+/// Live, a contact event goes out with its period's check: it waits neither for the
+/// statistics of the pieces being added nor for the pair's overlap being measured (both on
+/// rayon's pool), and says the pair's overlap before its period, which the report had
+/// after the period before; the report follows once the pool is through, at the node's
+/// next tick. Run on a pool of one thread, which never idles while the node handles a
+/// message: what the checker spawns stays queued until something waits for it.
+#[test]
+fn live_contact_events_wait_for_nothing_on_the_pool() {
+    use chronotope::msg::ContactEvent;
+    use chronotope::node::checker::CheckerNode;
+    use chronotope::node::mesher::MesherNode;
+    use chronotope::node::{Message, Node, Payload};
+    use std::sync::Arc;
+
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    pool.install(|| {
+        let cfg = two_cubes();
+        let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+        let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+        let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+        // A live transport polls its nodes with each tick.
+        let mut out = Vec::new();
+        checker.poll(&mut out);
+        assert!(out.is_empty());
+        let t0 = 1_000_000_000i64;
+        // The pair's overlap in the latest report, after each step.
+        let mut reported: Vec<f64> = Vec::new();
+        let (mut contacts, mut steps_with_events, mut held_back) = (0, 0, 0);
+        for k in 0..8u32 {
+            let (a, mut b) = (cube(0, k, t0), cube(6, 0, t0));
+            b.header.stamp = a.header.stamp;
+            let mut inputs = Vec::new();
+            let mut pieces = Vec::new();
+            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
+                let t = g.header.stamp.as_nanos();
+                let m = Message::new(topic, t, Payload::VoxelGrid(Arc::new(g)));
+                mesher.on_message(&m, &mut pieces);
+                inputs.push(m);
+            }
+            let mut out = Vec::new();
+            for m in inputs.drain(..).chain(pieces) {
+                checker.on_message(&m, &mut out);
+            }
+            let events: Vec<&ContactEvent> = out
+                .iter()
+                .filter_map(|m| match &m.payload {
+                    Payload::Contact(e) => Some(&**e),
+                    _ => None,
+                })
+                .collect();
+            let report_now = out.iter().any(|m| matches!(m.payload, Payload::Report(_)));
+            for e in &events {
+                contacts += 1;
+                if e.event == ContactEvent::BEGIN {
+                    assert!(e.first_contact_s.is_finite(), "{e:?}");
+                }
+                // The overlap before the event's period: the report's after the step
+                // before (one period a step here).
+                let before = reported.last().copied().unwrap_or(0.0);
+                assert_eq!(
+                    e.overlap_hypervolume_m3s.to_bits(),
+                    before.to_bits(),
+                    "step {k}: {e:?}"
+                );
+            }
+            if !events.is_empty() {
+                steps_with_events += 1;
+                held_back += usize::from(!report_now);
+            }
+            // The tick: the report, waiting for the pool.
+            let mut ticked = Vec::new();
+            checker.poll(&mut ticked);
+            let latest = out
+                .iter()
+                .chain(&ticked)
+                .rev()
+                .find_map(|m| match &m.payload {
+                    Payload::Report(r) => Some(r.pairs[0].overlap_hypervolume_m3s),
+                    _ => None,
+                });
+            if !events.is_empty() {
+                assert!(latest.is_some(), "step {k}: a contact changes the report");
+            }
+            reported.push(latest.unwrap_or_else(|| reported.last().copied().unwrap_or(0.0)));
+        }
+        assert!(contacts >= 3, "{contacts} contact events");
+        // Nothing ran the statistics or the overlap while the node handled the pieces:
+        // every step's events went out before its report, which waited for them.
+        assert!(
+            steps_with_events >= 3,
+            "{steps_with_events} steps with events"
+        );
+        assert_eq!(held_back, steps_with_events);
+        assert!(
+            reported.last().is_some_and(|&v| v > 0.0),
+            "the boxes overlap: {reported:?}"
+        );
+    });
+}

@@ -80,6 +80,9 @@ pub struct CheckerNode {
     latest_ns: i64,
     /// An answer changed since the report was last published.
     dirty: bool,
+    /// Live: steps since the report was left for the statistics it waits for (see
+    /// [`CheckerNode::publish_report_if_changed`]).
+    report_waited: u32,
     /// Episodes resolved so far, and when the suggestions were last published (the report
     /// keeps a bounded number of resolutions, so their count stops telling).
     resolved: (u64, u64),
@@ -238,6 +241,7 @@ impl CheckerNode {
             frame_id: String::new(),
             latest_ns: 0,
             dirty: false,
+            report_waited: 0,
             resolved: (0, 0),
             markers_queue: markers.then(|| {
                 Arc::new(Mutex::new(MarkerQueue {
@@ -363,9 +367,18 @@ impl CheckerNode {
 
     /// Publishes what the rolling checker gave, then the report if an answer changed.
     fn emit(&mut self, rolled: Vec<RollingOutput>, out: &mut Vec<Message>) {
+        self.emit_then_report(rolled, false, out);
+    }
+
+    /// [`Self::emit`]; with `final_report` the report is published now, whatever it waits
+    /// for.
+    fn emit_then_report(
+        &mut self,
+        rolled: Vec<RollingOutput>,
+        final_report: bool,
+        out: &mut Vec<Message>,
+    ) {
         let before = out.len();
-        // The answer after this step, built once for its contact events and its report.
-        let mut report: Option<Report> = None;
         // The newest stamp of the slabs queued for the markers part in this step.
         let mut queued: Option<i64> = None;
         for r in rolled {
@@ -422,12 +435,11 @@ impl CheckerNode {
                 }
                 RollingOutput::Contact(c) => {
                     self.dirty = true;
-                    let report = report.get_or_insert_with(|| self.engine.report());
-                    let pair = report.pairs.iter().find(|p| p.a == c.a && p.b == c.b);
-                    let time_origin = Time::from_nanos(report.time_origin_ns);
-                    let first_contact_s = nan_if_none(pair.and_then(|p| p.first_contact_s));
+                    let fields = self.engine.contact_fields(&c.a, &c.b);
+                    let time_origin = Time::from_nanos(fields.map_or(0, |f| f.time_origin_ns));
+                    let first_contact_s = nan_if_none(fields.and_then(|f| f.first_contact_s));
                     let overlap_hypervolume_m3s =
-                        nan_if_none(pair.and_then(|p| p.overlap_hypervolume_m3s));
+                        nan_if_none(fields.and_then(|f| f.overlap_hypervolume_m3s));
                     let m = ContactEvent {
                         header: self.header(c.stamp_ns),
                         body_a: c.a,
@@ -455,8 +467,7 @@ impl CheckerNode {
                 }
                 RollingOutput::Unsure(u) => {
                     self.dirty = true;
-                    let report = report.get_or_insert_with(|| self.engine.report());
-                    let pair = report.pairs.iter().find(|p| p.a == u.a && p.b == u.b);
+                    let fields = self.engine.contact_fields(&u.a, &u.b);
                     let m = ContactEvent {
                         header: self.header(u.stamp_ns),
                         body_a: u.a,
@@ -467,14 +478,14 @@ impl CheckerNode {
                             ContactEvent::UNSURE_BEGIN
                         },
                         contact_index: u.index,
-                        time_origin: Time::from_nanos(report.time_origin_ns),
+                        time_origin: Time::from_nanos(fields.map_or(0, |f| f.time_origin_ns)),
                         start_s: u.span.span_s[0],
                         end_s: u.span.span_s[1],
                         start_error_bound_s: f64::NAN,
                         end_error_bound_s: f64::NAN,
-                        first_contact_s: nan_if_none(pair.and_then(|p| p.first_contact_s)),
+                        first_contact_s: nan_if_none(fields.and_then(|f| f.first_contact_s)),
                         overlap_hypervolume_m3s: nan_if_none(
-                            pair.and_then(|p| p.overlap_hypervolume_m3s),
+                            fields.and_then(|f| f.overlap_hypervolume_m3s),
                         ),
                         unsure_reason: u.span.line(),
                     };
@@ -505,16 +516,35 @@ impl CheckerNode {
                 })),
             ));
         }
-        if self.dirty {
-            let report = report.unwrap_or_else(|| self.engine.report());
-            self.publish_report(report, out);
-        }
+        self.publish_report_if_changed(final_report, out);
         self.status.published += (out.len() - before) as u64;
+    }
+
+    /// Publishes the report if an answer changed since it was last published. The report
+    /// waits for the statistics of the pieces being added on the pool (its bodies' tets,
+    /// closedness, hypervolume); the contact events never do. Live, a report that would
+    /// wait is left to a later step, or to the next tick ([`Node::poll`], which comes once the
+    /// node has caught up with its input), so that the step's contact events go out first;
+    /// after [`REPORT_WAIT`] steps without a tick it waits. A replay publishes it in the step
+    /// that changed it, so that what it records does not depend on how fast the pool ran.
+    fn publish_report_if_changed(&mut self, now: bool, out: &mut Vec<Message>) {
+        if !self.dirty {
+            return;
+        }
+        if self.live && !now && self.engine.statistics_pending() {
+            self.report_waited += 1;
+            if self.report_waited < REPORT_WAIT {
+                return;
+            }
+        }
+        let report = self.engine.report();
+        self.publish_report(report, out);
     }
 
     /// The report (the engine's answer now), and the suggestions if there are new ones.
     fn publish_report(&mut self, report: Report, out: &mut Vec<Message>) {
         self.dirty = false;
+        self.report_waited = 0;
         let stamp = self.latest_ns;
         let voxel = report.pairs.first().map_or(0.0, |p| p.voxel_size_m);
         out.push(Message::new(
@@ -1012,6 +1042,12 @@ fn slab_markers(
     })
 }
 
+/// Live, the most steps a changed report is left waiting for the statistics being added
+/// before it is published anyway (waiting for them then), when no tick comes between them
+/// (a node behind its input): at 30 frames a second about half a second of a cell's
+/// messages.
+const REPORT_WAIT: u32 = 16;
+
 fn nan_if_none(v: Option<f64>) -> f64 {
     v.unwrap_or(f64::NAN)
 }
@@ -1243,6 +1279,11 @@ impl Node for CheckerNode {
     fn poll(&mut self, out: &mut Vec<Message>) {
         self.live = true;
         self.poll_resolutions(out);
+        // A tick comes when the node has caught up with its input: waiting for the
+        // statistics here holds back no event.
+        let before = out.len();
+        self.publish_report_if_changed(true, out);
+        self.status.published += (out.len() - before) as u64;
     }
 
     fn set_demand(&mut self, topic: &str, read: bool) {
@@ -1256,7 +1297,7 @@ impl Node for CheckerNode {
         let mut rolled = Vec::new();
         self.engine.finish(&mut rolled);
         self.dirty = true;
-        self.emit(rolled, out);
+        self.emit_then_report(rolled, true, out);
     }
 
     fn status(&self) -> &NodeStatus {

@@ -58,6 +58,7 @@ mod episodes;
 pub use episodes::{lower_own_priority, RESOLVER_NICE};
 mod periods;
 mod report;
+pub use report::ContactFields;
 
 use episodes::ResolveOutcome;
 use periods::{apart, cached, check_specs, pair_lattice, prepare_spec, WindowChecked, WindowSpec};
@@ -493,20 +494,63 @@ struct BodyStream {
     stats_job: Option<StatsJob>,
 }
 
-/// A piece's statistics being added on the pool (or an ended run's being finished): its
-/// run, and where the outcome (or the job's panic) comes back.
+/// Work on rayon's pool whose outcome the checker takes back later: where the outcome (or
+/// the work's panic) comes back, and whether it has.
+pub(super) struct PoolJob<T> {
+    /// (In a mutex only so that the checker can be shared with the pool's windows.)
+    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<T>>>,
+    /// Set once the outcome is sent: taking it back then does not wait.
+    finished: Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl<T> PoolJob<T> {
+    /// Whether the outcome is in (taking it back does not wait).
+    fn finished(&self) -> bool {
+        self.finished.load(std::sync::atomic::Ordering::Acquire)
+    }
+}
+
+impl<T> std::fmt::Debug for PoolJob<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PoolJob")
+            .field("finished", &self.finished())
+            .finish()
+    }
+}
+
+impl<T: Send + 'static> PoolJob<T> {
+    /// `work` spawned on the pool.
+    pub(super) fn spawn(work: impl FnOnce() -> T + Send + 'static) -> Self {
+        let (tx, done) = std::sync::mpsc::channel();
+        let finished = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let flag = Arc::clone(&finished);
+        rayon::spawn(move || {
+            let _ = tx.send(std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)));
+            flag.store(true, std::sync::atomic::Ordering::Release);
+        });
+        Self {
+            done: std::sync::Mutex::new(done),
+            finished,
+        }
+    }
+
+    /// The outcome, waited for (helping the pool meanwhile when on it); `None` if the work
+    /// was lost.
+    fn wait(self) -> Option<std::thread::Result<T>> {
+        let done = self
+            .done
+            .into_inner()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        wait_on_pool(&done)
+    }
+}
+
+/// A piece's statistics being added on the pool (or an ended run's being finished), and
+/// its run.
 #[derive(Debug)]
 struct StatsJob {
     run: u64,
-    /// (In a mutex only so that the checker can be shared with the pool's windows.)
-    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<StatsDone>>>,
-}
-
-/// A pair's overlap fed on rayon's pool ([`RollingChecker::overlap_push`]).
-#[derive(Debug)]
-struct OverlapJob {
-    /// (In a mutex only so that the checker can be shared with the pool's windows.)
-    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<Overlap>>>,
+    job: PoolJob<StatsDone>,
 }
 
 /// What a [`StatsJob`] gives back.
@@ -819,7 +863,11 @@ struct PairRoll {
     /// The overlap hypervolume measured so far.
     overlap: Overlap,
     /// The overlap being fed on rayon's pool, if it is (then `overlap` is a stand-in).
-    overlap_job: Option<OverlapJob>,
+    overlap_job: Option<PoolJob<Overlap>>,
+    /// The overlap so far and its bound (`None`: not measurable) through the start of the
+    /// latest period whose overlap was fed (everything once the inputs ended): what its
+    /// contact events say, without waiting for the pool ([`RollingChecker::contact_fields`]).
+    overlap_known: Option<(f64, f64)>,
     /// Why the pair is no longer checked (its bodies on lattices that cannot be compared,
     /// in different frames, ...), once it is not: said once, in the report.
     stopped: Option<String>,
@@ -1042,6 +1090,7 @@ impl RollingChecker {
                     records: VecDeque::new(),
                     overlap: Overlap::default(),
                     overlap_job: None,
+                    overlap_known: Some((0.0, 0.0)),
                     stopped: None,
                     per: 0,
                     checked: false,
@@ -1241,13 +1290,9 @@ impl RollingChecker {
                 (run, Box::new(add))
             }
         };
-        let (tx, done) = std::sync::mpsc::channel();
-        rayon::spawn(move || {
-            let _ = tx.send(std::panic::catch_unwind(std::panic::AssertUnwindSafe(job)));
-        });
         b.stats_job = Some(StatsJob {
             run,
-            done: std::sync::Mutex::new(done),
+            job: PoolJob::spawn(job),
         });
         self.prefetched = self.prefetch(1);
         self.pump_prefetched(out);
@@ -1261,12 +1306,8 @@ impl RollingChecker {
         let Some(job) = b.stats_job.take() else {
             return;
         };
-        let done = job
-            .done
-            .into_inner()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
         let run = b.runs.iter_mut().find(|r| r.id == job.run);
-        let (acc, at_rest) = match wait_on_pool(&done) {
+        let (acc, at_rest) = match job.job.wait() {
             Some(Ok(StatsDone::Added(acc, at_rest))) => (acc, at_rest),
             Some(Ok(StatsDone::Finished(stats))) => {
                 if let Some(r) = run {
@@ -1297,11 +1338,7 @@ impl RollingChecker {
         let Some(job) = self.pairs.get_mut(i).and_then(|p| p.overlap_job.take()) else {
             return;
         };
-        let done = job
-            .done
-            .into_inner()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        match wait_on_pool(&done) {
+        match job.wait() {
             Some(Ok(ov)) => self.pairs[i].overlap = ov,
             Some(Err(panic)) => std::panic::resume_unwind(panic),
             None => panic!("pair {i}: its overlap was lost"),
@@ -1552,6 +1589,9 @@ impl RollingChecker {
     /// decided with what there is, every open contact closed.
     pub fn finish(&mut self, out: &mut Vec<RollingOutput>) {
         self.settle_all_stats();
+        for i in 0..self.pairs.len() {
+            self.pairs[i].overlap_known = report::pair_overlap(&self.pairs[i]);
+        }
         self.finishing = true;
         for b in self.bodies.values_mut() {
             if let Some(r) = b.runs.last_mut() {

@@ -8,12 +8,14 @@ use std::sync::Arc;
 
 use super::{
     add_normals, bounds, check_window, closing_sums, on_pair_lattice, origin_offset,
-    prepare_window, report::run_overlap, speed, time_at, union_bounds, CapSide, ContactPhase,
-    ContactUpdate, Crossing, GridGeometry, HeldSlab, Interval, KeptWindow, Label, LabelCounts,
-    Mesher, MesherOptions, OccupancyGrid, OpenUnsure, Overlap, OverlapJob, PendingPeriod,
-    PreparedWindow, Record, RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox,
-    StatsAccumulator, TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult,
-    CHECKER_FACTOR, CONTEXT_SLABS, REBASE_FRAMES,
+    prepare_window,
+    report::{pair_overlap, run_overlap},
+    speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, GridGeometry,
+    HeldSlab, Interval, KeptWindow, Label, LabelCounts, Mesher, MesherOptions, OccupancyGrid,
+    OpenUnsure, Overlap, PendingPeriod, PoolJob, PreparedWindow, Record, RollingChecker,
+    RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator, TakenLabels, TetMesh,
+    UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR, CONTEXT_SLABS,
+    REBASE_FRAMES,
 };
 
 impl RollingChecker {
@@ -1034,22 +1036,17 @@ impl RollingChecker {
             });
             frames.push((stamp, both));
         }
+        // What the contact events of this period say: the overlap through its start.
+        self.pairs[i].overlap_known = pair_overlap(&self.pairs[i]);
         if frames.is_empty() {
             return;
         }
         let closing = self.pairs[i].interfering();
         let mut ov = std::mem::take(&mut self.pairs[i].overlap);
-        let (tx, done) = std::sync::mpsc::channel();
-        rayon::spawn(move || {
-            let fed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
-                feed_overlap(&mut ov, opts, frames, closing);
-                ov
-            }));
-            let _ = tx.send(fed);
-        });
-        self.pairs[i].overlap_job = Some(OverlapJob {
-            done: std::sync::Mutex::new(done),
-        });
+        self.pairs[i].overlap_job = Some(PoolJob::spawn(move || {
+            feed_overlap(&mut ov, opts, frames, closing);
+            ov
+        }));
     }
 }
 

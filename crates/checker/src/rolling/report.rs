@@ -74,6 +74,68 @@ impl RollingChecker {
     }
 }
 
+/// What a contact event says of its pair's answer so far, beside the contact itself (see
+/// [`RollingChecker::contact_fields`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContactFields {
+    /// The report's time origin (ns).
+    pub time_origin_ns: i64,
+    /// The pair's first contact (s since the time origin), as the report gives it.
+    pub first_contact_s: Option<f64>,
+    /// The pair's overlap so far (m³·s; `None`: not measurable), as the report gives it.
+    pub overlap_hypervolume_m3s: Option<f64>,
+}
+
+impl RollingChecker {
+    /// What a contact event of pair `a` × `b` says beside the contact, without waiting for
+    /// anything being worked out on the pool: its first contact as the report gives it,
+    /// and its overlap through the start of the latest period checked (that period's own
+    /// is being measured as the event goes out; the report has it). The same whenever it
+    /// is asked until the next period is checked. `None` for a pair not checked (the
+    /// report lists none).
+    pub fn contact_fields(&self, a: &str, b: &str) -> Option<ContactFields> {
+        let p = self
+            .pairs
+            .iter()
+            .find(|p| p.checked && p.a == a && p.b == b)?;
+        Some(ContactFields {
+            time_origin_ns: self.origin_ns.unwrap_or(0),
+            first_contact_s: first_contact(p),
+            overlap_hypervolume_m3s: p.overlap_known.map(|o| o.0),
+        })
+    }
+
+    /// Whether the statistics or an overlap of a piece are still being worked out on the
+    /// pool, so that [`Self::report`] would wait for them.
+    pub fn statistics_pending(&self) -> bool {
+        self.bodies
+            .values()
+            .any(|b| b.stats_job.as_ref().is_some_and(|j| !j.job.finished()))
+            || self
+                .pairs
+                .iter()
+                .any(|p| p.overlap_job.as_ref().is_some_and(|j| !j.finished()))
+    }
+}
+
+/// A pair's first contact (s since the time origin).
+fn first_contact(p: &PairRoll) -> Option<f64> {
+    p.intervals
+        .iter()
+        .chain(p.open.iter())
+        .next()
+        .map(|o| o.s.0)
+}
+
+/// A pair's overlap so far and its bound: none for a pair that never interfered.
+pub(super) fn pair_overlap(p: &PairRoll) -> Option<(f64, f64)> {
+    if !p.interfering() {
+        Some((0.0, 0.0))
+    } else {
+        overlap_so_far(&p.overlap)
+    }
+}
+
 pub(super) fn body_report(id: &str, b: &BodyStream) -> BodyReport {
     let mut t = b.totals.clone();
     let mut tets = t.tets;
@@ -142,11 +204,7 @@ pub(super) fn pair_report(
         outside: n.saturating_sub(c.interference + c.inside),
     };
     let interfering = p.interfering();
-    let overlap = if !interfering {
-        Some((0.0, 0.0))
-    } else {
-        overlap_so_far(&p.overlap)
-    };
+    let overlap = pair_overlap(p);
     let (unsure_spans_s, unsure_spans_not_listed) = UnsureSpanReport::of_pair(
         &[(&p.a, &p.unsure.0), (&p.b, &p.unsure.1)],
         i64::MIN,
@@ -164,7 +222,7 @@ pub(super) fn pair_report(
         unsure_spans_not_listed,
         interfering,
         intervals_s: all.iter().map(|o| [o.s.0, o.s.1]).collect(),
-        first_contact_s: first.map(|o| o.s.0),
+        first_contact_s: first_contact(p),
         overlap_hypervolume_m3s: overlap.map(|o| o.0),
         labels: PairLabels {
             a: counts(&p.counts.0, tets_a),
