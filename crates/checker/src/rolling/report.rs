@@ -82,17 +82,20 @@ pub struct ContactFields {
     pub time_origin_ns: i64,
     /// The pair's first contact (s since the time origin), as the report gives it.
     pub first_contact_s: Option<f64>,
-    /// The pair's overlap so far (m³·s; `None`: not measurable), as the report gives it.
+    /// The pair's overlap (m³·s; `None`: not measurable) before the latest period whose
+    /// overlap was handed to the pool, i.e. before the event's own period; the report has
+    /// that period too.
     pub overlap_hypervolume_m3s: Option<f64>,
 }
 
 impl RollingChecker {
     /// What a contact event of pair `a` × `b` says beside the contact, without waiting for
     /// anything being worked out on the pool: its first contact as the report gives it,
-    /// and its overlap through the start of the latest period checked (that period's own
-    /// is being measured as the event goes out; the report has it). The same whenever it
-    /// is asked until the next period is checked. `None` for a pair not checked (the
-    /// report lists none).
+    /// and its overlap through the start of the latest period whose overlap was handed to
+    /// the pool (that period's own is being measured as the event goes out; the report has
+    /// it), or everything once the inputs have ended. The same whenever it is asked until
+    /// the pair's next period is checked. `None` for a pair not checked (the report lists
+    /// none).
     pub fn contact_fields(&self, a: &str, b: &str) -> Option<ContactFields> {
         let p = self
             .pairs
