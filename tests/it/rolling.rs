@@ -163,6 +163,41 @@ fn cube(x0: u32, k: u32, t0_ns: i64) -> VoxelGrid {
     common::moving_box(x0, k, t0_ns)
 }
 
+/// Frame `k` of the two cubes (`/a` moving, `/b` still) through `mesher` and `checker`, as a
+/// transport hands them (the checker reads the frames too, for the overlap): the two
+/// frames, and what the checker published.
+fn step_cubes(
+    k: u32,
+    t0: i64,
+    mesher: &mut chronotope::node::mesher::MesherNode,
+    checker: &mut chronotope::node::checker::CheckerNode,
+) -> (
+    [(&'static str, VoxelGrid); 2],
+    Vec<chronotope::node::Message>,
+) {
+    use chronotope::node::{Message, Node, Payload};
+    let (a, mut b) = (cube(0, k, t0), cube(6, 0, t0));
+    b.header.stamp = a.header.stamp;
+    let grids = [("/a/occupancy", a), ("/b/occupancy", b)];
+    let mut inputs = Vec::new();
+    let mut pieces = Vec::new();
+    for (topic, g) in &grids {
+        let t = g.header.stamp.as_nanos();
+        let m = Message::new(
+            *topic,
+            t,
+            Payload::VoxelGrid(std::sync::Arc::new(g.clone())),
+        );
+        mesher.on_message(&m, &mut pieces);
+        inputs.push(m);
+    }
+    let mut out = Vec::new();
+    for m in inputs.into_iter().chain(pieces) {
+        checker.on_message(&m, &mut out);
+    }
+    (grids, out)
+}
+
 fn two_cubes() -> LaunchConfig {
     LaunchConfig::parse(
         "launch:\n\
@@ -341,7 +376,6 @@ fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Message, Node, Payload};
-    use std::sync::Arc;
 
     let d = tempfile::tempdir().unwrap();
     let cfg = two_cubes();
@@ -352,7 +386,6 @@ fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
     let mut frames = Vec::new();
     let mut said: Vec<(u32, ContactEvent)> = Vec::new();
     let mut labels = 0usize;
-    let mut inputs = Vec::new();
     let events = |out: &[Message], k: u32, said: &mut Vec<(u32, ContactEvent)>| {
         for m in out {
             if let Payload::Contact(e) = &m.payload {
@@ -361,20 +394,9 @@ fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
         }
     };
     for k in 0..8u32 {
-        let (a, mut b) = (cube(0, k, t0), cube(6, 0, t0));
-        b.header.stamp = a.header.stamp;
-        let mut pieces = Vec::new();
-        for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
-            let t = g.header.stamp.as_nanos();
-            frames.push((topic, t as u64, g.clone()));
-            let m = Message::new(topic, t, Payload::VoxelGrid(Arc::new(g)));
-            mesher.on_message(&m, &mut pieces);
-            // The checker reads the frames too, for the overlap.
-            inputs.push(m);
-        }
-        let mut out = Vec::new();
-        for m in inputs.drain(..).chain(pieces) {
-            checker.on_message(&m, &mut out);
+        let (grids, out) = step_cubes(k, t0, &mut mesher, &mut checker);
+        for (topic, g) in grids {
+            frames.push((topic, g.header.stamp.as_nanos() as u64, g));
         }
         labels += out
             .iter()
@@ -432,8 +454,7 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
     use chronotope::msg::ContactEvent;
     use chronotope::node::checker::CheckerNode;
     use chronotope::node::mesher::MesherNode;
-    use chronotope::node::{Message, Node, Payload};
-    use std::sync::Arc;
+    use chronotope::node::{Node, Payload};
 
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
@@ -453,20 +474,7 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
         let mut reported: Vec<f64> = Vec::new();
         let (mut contacts, mut steps_with_events, mut held_back) = (0, 0, 0);
         for k in 0..8u32 {
-            let (a, mut b) = (cube(0, k, t0), cube(6, 0, t0));
-            b.header.stamp = a.header.stamp;
-            let mut inputs = Vec::new();
-            let mut pieces = Vec::new();
-            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
-                let t = g.header.stamp.as_nanos();
-                let m = Message::new(topic, t, Payload::VoxelGrid(Arc::new(g)));
-                mesher.on_message(&m, &mut pieces);
-                inputs.push(m);
-            }
-            let mut out = Vec::new();
-            for m in inputs.drain(..).chain(pieces) {
-                checker.on_message(&m, &mut out);
-            }
+            let (_, out) = step_cubes(k, t0, &mut mesher, &mut checker);
             let events: Vec<&ContactEvent> = out
                 .iter()
                 .filter_map(|m| match &m.payload {

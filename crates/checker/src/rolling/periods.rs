@@ -1412,6 +1412,11 @@ mod tests {
 
     /// A rolling checker of the pair `/a`, `/b` with the default options.
     fn checker_of_a_and_b() -> RollingChecker {
+        checker_of_a_and_b_with(RollingConfig::default())
+    }
+
+    /// A rolling checker of the pair `/a`, `/b` with `cfg`.
+    fn checker_of_a_and_b_with(cfg: RollingConfig) -> RollingChecker {
         let plan = CheckPlan {
             pairs: Some(vec![("/a".into(), "/b".into())]),
             movable: Vec::new(),
@@ -1419,7 +1424,7 @@ mod tests {
             frame_ids: Default::default(),
             rotation: Default::default(),
         };
-        RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default())
+        RollingChecker::new(plan, MesherOptions::default(), cfg)
     }
 
     fn spec(
@@ -1775,18 +1780,10 @@ mod tests {
             pieces_of("/b", [14, 10, 10], frames, outer),
         );
         let run = |kept_windows: usize| {
-            let plan = CheckPlan {
-                pairs: Some(vec![("/a".into(), "/b".into())]),
-                movable: Vec::new(),
-                time_scale: None,
-                frame_ids: Default::default(),
-                rotation: Default::default(),
-            };
-            let cfg = RollingConfig {
+            let mut c = checker_of_a_and_b_with(RollingConfig {
                 kept_windows,
                 ..RollingConfig::default()
-            };
-            let mut c = RollingChecker::new(plan, MesherOptions::default(), cfg);
+            });
             let mut out = Vec::new();
             for (x, y) in a.iter().zip(&b) {
                 c.on_piece(x.clone(), &mut out);
