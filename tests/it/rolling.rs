@@ -444,11 +444,11 @@ fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
 }
 
 /// Live, a contact event goes out with its period's check: it waits neither for the
-/// statistics of the pieces being added nor for the pair's overlap being measured (both on
-/// rayon's pool), and says the pair's overlap before its period, which the report had
-/// after the period before; the report follows once the pool is through, at the node's
-/// next tick. Run on a pool of one thread, which never idles while the node handles a
-/// message: what the checker spawns stays queued until something waits for it.
+/// statistics of the pieces being added nor for the pair's overlap being measured (both
+/// the bookkeeping's), and says the pair's overlap before its period, which the report had
+/// after the period before; the report follows once the bookkeeping is through, at the
+/// node's next tick. The bookkeeping's pool is held up for the whole test: what the checker
+/// hands it stays queued until the checker needs it, and then it runs it itself.
 #[test]
 fn live_contact_events_wait_for_nothing_on_the_pool() {
     use chronotope::msg::ContactEvent;
@@ -456,15 +456,24 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
     use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Node, Payload};
 
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    pool.install(|| {
+    // The bookkeeping's pool, its only thread held for the whole test: nothing the checker
+    // hands it runs there (the checker runs it itself when it needs the outcome).
+    let held = std::sync::Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap(),
+    );
+    let (release, hold) = std::sync::mpsc::channel::<()>();
+    held.spawn(move || {
+        let _ = hold.recv();
+    });
+    {
         let cfg = two_cubes();
         let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
         let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
         let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+        checker.set_bookkeeping_pool(Some(held));
         // A live transport polls its nodes with each tick.
         let mut out = Vec::new();
         checker.poll(&mut out);
@@ -529,5 +538,6 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
             reported.last().is_some_and(|&v| v > 0.0),
             "the boxes overlap: {reported:?}"
         );
-    });
+    }
+    drop(release);
 }

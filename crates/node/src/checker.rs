@@ -267,6 +267,14 @@ impl CheckerNode {
         &self.mesh_topic
     }
 
+    /// Runs the checker's bookkeeping (statistics, overlaps, the frames' decoding) on
+    /// `pool` (rayon's when `None`) instead of the process's low-priority bookkeeping pool
+    /// ([`chronotope_checker::rolling::shared_bookkeeping_pool`]); what it computes is the
+    /// same on any pool.
+    pub fn set_bookkeeping_pool(&mut self, pool: chronotope_checker::rolling::BookkeepingPool) {
+        self.engine.set_bookkeeping_pool(pool);
+    }
+
     /// The latest report (cumulative; final after [`Node::finish`]).
     pub fn report(&self) -> Option<&Report> {
         self.report.as_ref()

@@ -54,6 +54,9 @@ use chronotope_mesh::stats::{BodyStats, LateralRef, StatsAccumulator};
 use chronotope_mesh::unsure::{UnsureLog, UnsureSpan};
 use chronotope_mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
 
+mod bookkeeping;
+pub use bookkeeping::{shared_bookkeeping_pool, BookkeepingPool, BOOKKEEPING_NICE};
+use bookkeeping::{spawn_on, PoolJob};
 mod episodes;
 pub use episodes::{lower_own_priority, RESOLVER_NICE};
 mod periods;
@@ -322,8 +325,9 @@ struct Run {
     end: Option<RunEnd>,
     /// Tets of its caps and slabs so far (the next slab's first tet number).
     tets: u64,
-    /// Its mesh's statistics so far, slab by slab (empty while a job on the pool adds the
-    /// latest piece: [`BodyStream::stats_job`]).
+    /// Its mesh's statistics so far, slab by slab (empty while the bookkeeping adds a
+    /// piece: [`BodyStream::stats_job`]; the pieces after it wait in
+    /// [`BodyStream::stats_queue`]).
     acc: StatsAccumulator,
     /// The run's statistics, once it ended.
     stats: Option<BodyStats>,
@@ -489,59 +493,77 @@ struct BodyStream {
     /// Slabs since its latest one that was the one before moved one period later (0: the
     /// body is at rest; counted once its slabs come).
     moving_for: u32,
-    /// The statistics of its latest piece, being added on rayon's pool (see
-    /// [`RollingChecker::settle_stats`]).
+    /// The statistics of a piece being added by the bookkeeping (or an ended run's being
+    /// finished), see [`RollingChecker::settle_stats`].
     stats_job: Option<StatsJob>,
+    /// The pieces accepted after it, to be added in order (at most [`STATS_QUEUED`]).
+    stats_queue: VecDeque<QueuedAdd>,
 }
 
-/// Work on rayon's pool whose outcome the checker takes back later: where the outcome (or
-/// the work's panic) comes back, and whether it has.
-pub(super) struct PoolJob<T> {
-    /// (In a mutex only so that the checker can be shared with the pool's windows.)
-    done: std::sync::Mutex<std::sync::mpsc::Receiver<std::thread::Result<T>>>,
-    /// Set once the outcome is sent: taking it back then does not wait.
-    finished: Arc<std::sync::atomic::AtomicBool>,
-}
-
-impl<T> PoolJob<T> {
-    /// Whether the outcome is in (taking it back does not wait).
-    fn finished(&self) -> bool {
-        self.finished.load(std::sync::atomic::Ordering::Acquire)
-    }
-}
-
-impl<T> std::fmt::Debug for PoolJob<T> {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PoolJob")
-            .field("finished", &self.finished())
-            .finish()
-    }
-}
-
-impl<T: Send + 'static> PoolJob<T> {
-    /// `work` spawned on the pool.
-    pub(super) fn spawn(work: impl FnOnce() -> T + Send + 'static) -> Self {
-        let (tx, done) = std::sync::mpsc::channel();
-        let finished = Arc::new(std::sync::atomic::AtomicBool::new(false));
-        let flag = Arc::clone(&finished);
-        rayon::spawn(move || {
-            let _ = tx.send(std::panic::catch_unwind(std::panic::AssertUnwindSafe(work)));
-            flag.store(true, std::sync::atomic::Ordering::Release);
-        });
-        Self {
-            done: std::sync::Mutex::new(done),
-            finished,
+impl BodyStream {
+    /// Puts back what a statistics job of run `run` gave.
+    fn give_back_stats(&mut self, run: u64, done: StatsDone) {
+        let r = self.runs.iter_mut().find(|r| r.id == run);
+        match done {
+            StatsDone::Finished(stats) => {
+                if let Some(r) = r {
+                    r.stats = Some(stats);
+                }
+            }
+            StatsDone::Added(acc, at_rest) => {
+                self.moving_for = if at_rest {
+                    0
+                } else {
+                    self.moving_for.saturating_add(1)
+                };
+                if let Some(r) = r {
+                    r.acc = acc;
+                }
+            }
         }
     }
+}
 
-    /// The outcome, waited for (helping the pool meanwhile when on it); `None` if the work
-    /// was lost.
-    fn wait(self) -> Option<std::thread::Result<T>> {
-        let done = self
-            .done
-            .into_inner()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        wait_on_pool(&done)
+/// Run `run`'s statistics so far, taken out to add a piece (`None`: no such run).
+fn take_acc(b: &mut BodyStream, run: u64) -> Option<StatsAccumulator> {
+    b.runs
+        .iter_mut()
+        .find(|r| r.id == run)
+        .map(|r| std::mem::take(&mut r.acc))
+}
+
+/// The most pieces of a body left waiting for the statistics of the one before (each holds
+/// its slab): with more, the checker brings the body's statistics up to date itself. The
+/// bookkeeping runs at a lower priority, so a contact that keeps the cores busy for a few
+/// frame periods leaves its pieces queued rather than waited for.
+const STATS_QUEUED: usize = 4;
+
+/// A lateral piece accepted, to be added to run `run`'s statistics.
+#[derive(Debug)]
+struct QueuedAdd {
+    run: u64,
+    /// The run's first cap, if the piece is its first slab.
+    first_cap: Option<Arc<TetMesh>>,
+    index: u64,
+    stamps_ns: (i64, i64),
+    geometry: GridGeometry,
+    mesh: Arc<TetMesh>,
+    unsure: Option<chronotope_mesh::unsure::Unsure>,
+}
+
+impl QueuedAdd {
+    /// `acc` with the piece added.
+    fn add_to(self, mut acc: StatsAccumulator) -> StatsDone {
+        let lateral = LateralRef {
+            index: self.index,
+            stamps_ns: self.stamps_ns,
+            geometry: &self.geometry,
+            mesh: &self.mesh,
+            unsure: self.unsure,
+            displacement: 0,
+        };
+        let at_rest = acc.add_lateral_shared(lateral, self.first_cap.as_deref(), &self.mesh);
+        StatsDone::Added(acc, at_rest)
     }
 }
 
@@ -591,27 +613,6 @@ enum PendingStats {
     Finish(u64, Closing),
 }
 
-/// The value a job on rayon's pool sends on `rx` (`None` if it was dropped unsent). On a
-/// thread of the pool, the pool's other work is done meanwhile, the job itself included:
-/// a pool of one thread that only waited would wait for ever.
-fn wait_on_pool<T>(rx: &std::sync::mpsc::Receiver<T>) -> Option<T> {
-    use std::sync::mpsc::TryRecvError;
-    if rayon::current_thread_index().is_none() {
-        return rx.recv().ok();
-    }
-    loop {
-        match rx.try_recv() {
-            Ok(v) => return Some(v),
-            Err(TryRecvError::Disconnected) => return None,
-            Err(TryRecvError::Empty) => {
-                if rayon::yield_now() != Some(rayon::Yield::Executed) {
-                    std::thread::yield_now();
-                }
-            }
-        }
-    }
-}
-
 /// Refuses a piece no window can rely on: a lattice step that is not a power of two (two
 /// bodies' lattices must map onto their common one exactly), or a tet naming a vertex the
 /// piece does not have.
@@ -654,6 +655,43 @@ pub const DEFAULT_MAX_FRAME_BYTES: u64 = 1 << 30;
 struct KeptGrid {
     geometry: GridGeometry,
     grid: LazyGrid,
+}
+
+/// A body's frames at a stamp and around it, nearest first (see [`BodyStream::frame_at`]).
+#[derive(Debug)]
+struct FramesAround {
+    at: Option<KeptGrid>,
+    below: Vec<KeptGrid>,
+    above: Vec<KeptGrid>,
+}
+
+impl FramesAround {
+    /// The body's frame at the stamp on lattice `g`, as [`BodyStream::frame_at`] finds it.
+    fn frame(&self, g: &GridGeometry) -> Option<Arc<OccupancyGrid>> {
+        frame_among(self.at.as_ref(), self.below.iter(), self.above.iter(), g)
+    }
+}
+
+/// The frame received at a stamp (`at`) if it is on `g`; otherwise (a frame the mesher
+/// filled in, the received one refused) the union of the nearest frames on `g` below and
+/// above it, which is what the mesher filled the gap with.
+fn frame_among<'a>(
+    at: Option<&KeptGrid>,
+    mut below: impl Iterator<Item = &'a KeptGrid>,
+    mut above: impl Iterator<Item = &'a KeptGrid>,
+    g: &GridGeometry,
+) -> Option<Arc<OccupancyGrid>> {
+    if let Some(k) = at {
+        if k.geometry == *g {
+            if let Some(grid) = k.grid.get() {
+                return Some(grid);
+            }
+        }
+    }
+    let on_g = |k: &KeptGrid| (k.geometry == *g).then(|| k.grid.get()).flatten();
+    let below = below.find_map(on_g)?;
+    let above = above.find_map(on_g)?;
+    below.union(&above).map(Arc::new)
 }
 
 /// How a frame is decoded, when the checker is given it undecoded
@@ -729,21 +767,31 @@ impl BodyStream {
     /// one refused) the union of the nearest frames on `g` around it, which is what the mesher
     /// filled the gap with.
     fn frame_at(&self, stamp: i64, g: &GridGeometry) -> Option<Arc<OccupancyGrid>> {
-        if let Some(k) = self.frames.get(&stamp) {
-            if k.geometry == *g {
-                if let Some(grid) = k.grid.get() {
-                    return Some(grid);
-                }
-            }
+        frame_among(
+            self.frames.get(&stamp),
+            self.frames.range(..stamp).rev().map(|(_, k)| k),
+            self.frames.range(stamp + 1..).map(|(_, k)| k),
+            g,
+        )
+    }
+
+    /// The frames [`Self::frame_at`] looks at for `stamp`, to find it later (by the
+    /// bookkeeping, which decodes them).
+    fn frames_around(&self, stamp: i64) -> FramesAround {
+        FramesAround {
+            at: self.frames.get(&stamp).cloned(),
+            below: self
+                .frames
+                .range(..stamp)
+                .rev()
+                .map(|(_, k)| k.clone())
+                .collect(),
+            above: self
+                .frames
+                .range(stamp + 1..)
+                .map(|(_, k)| k.clone())
+                .collect(),
         }
-        let on_g = |k: &KeptGrid| (k.geometry == *g).then(|| k.grid.get()).flatten();
-        let below = self
-            .frames
-            .range(..stamp)
-            .rev()
-            .find_map(|(_, k)| on_g(k))?;
-        let above = self.frames.range(stamp + 1..).find_map(|(_, k)| on_g(k))?;
-        below.union(&above).map(Arc::new)
     }
 
     fn current(&self) -> Option<&Run> {
@@ -994,6 +1042,9 @@ pub struct RollingChecker {
     /// closing cap, the run's statistics finished): done on the pool while the windows it
     /// makes ready are checked.
     pending_stats: Option<PendingStats>,
+    /// Where the statistics, the overlaps and the frames' decoding run
+    /// ([`shared_bookkeeping_pool`] unless set).
+    bookkeeping: BookkeepingPool,
     /// The resolver's pool (made when the first resolution is handed over).
     resolver: Option<rayon::ThreadPool>,
     /// Resolutions running there, oldest first: which episode, and where its result will
@@ -1116,10 +1167,17 @@ impl RollingChecker {
             prepared: BTreeMap::new(),
             rest: BTreeMap::new(),
             pending_stats: None,
+            bookkeeping: shared_bookkeeping_pool(),
             resolver: None,
             in_flight: VecDeque::new(),
             horizons: Arc::default(),
         }
+    }
+
+    /// Runs the bookkeeping (statistics, overlaps, the frames' decoding) on `pool` (rayon's
+    /// when `None`) from now on; what it computes is the same on any pool.
+    pub fn set_bookkeeping_pool(&mut self, pool: BookkeepingPool) {
+        self.bookkeeping = pool;
     }
 
     /// Turns [`RollingOutput::Labels`] on or off while the streams go on (nobody reads them).
@@ -1190,15 +1248,17 @@ impl RollingChecker {
         decode: DecodeFrame,
         out: &mut Vec<RollingOutput>,
     ) {
+        self.advance_statistics();
         let grid = LazyGrid::later(decode, expected_bytes);
         let Some(kept) = self.keep_frame(body, stamp_ns, geometry, grid.clone()) else {
             return;
         };
         if kept {
-            // A panic in a job rayon spawned would abort the process: caught, the frame
-            // then counts as not decoded (whoever needs it next finds no decoder left).
-            rayon::spawn(move || {
-                let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| grid.get()));
+            // Decoded by the bookkeeping, or by whoever needs it first. A panic is caught:
+            // the frame then counts as not decoded (whoever needs it next finds no decoder
+            // left).
+            spawn_on(&self.bookkeeping, move || {
+                grid.get();
             });
         }
         self.pump(out);
@@ -1235,7 +1295,7 @@ impl RollingChecker {
         if !self.bodies.contains_key(&p.body) {
             return;
         }
-        self.settle_stats(&p.body);
+        self.advance_statistics();
         self.pending_stats = None;
         match self.accept(&p) {
             Accepted::Taken => {}
@@ -1248,87 +1308,133 @@ impl RollingChecker {
             return;
         };
         // The body's statistics of the piece (closedness, hypervolume) do not wait for the
-        // windows it makes ready, nor they for them: the statistics go on the pool and are
-        // taken back when something reads them (its next piece, a report, a closed stream).
+        // windows it makes ready, nor they for them: the statistics go to the bookkeeping,
+        // queued behind the body's earlier pieces, and are taken back when something reads
+        // them (a report, a closed stream) or when more than `STATS_QUEUED` wait.
         let Some(b) = self.bodies.get_mut(&p.body) else {
             self.pump(out);
             return;
         };
-        let (run, job): (u64, Box<dyn FnOnce() -> StatsDone + Send>) = match pending {
+        match pending {
             PendingStats::Finish(run, closing) => {
-                (run, Box::new(move || StatsDone::Finished(closing.finish())))
+                // Every piece of the run was added first (`accept_closing_cap`).
+                let job = move || StatsDone::Finished(closing.finish());
+                b.stats_job = Some(StatsJob {
+                    run,
+                    job: PoolJob::spawn(&self.bookkeeping, job),
+                });
             }
             PendingStats::Add(run, first_cap) => {
-                let Some(mut acc) = b
-                    .runs
-                    .iter_mut()
-                    .find(|r| r.id == run)
-                    .map(|r| std::mem::take(&mut r.acc))
-                else {
-                    self.pump(out);
-                    return;
-                };
-                let (index, stamps_ns, geometry, mesh, unsure) = (
-                    u64::from(p.index),
-                    p.stamps_ns,
-                    p.geometry,
-                    p.mesh.clone(),
-                    p.unsure,
-                );
-                let add = move || {
-                    let lateral = LateralRef {
-                        index,
-                        stamps_ns,
-                        geometry: &geometry,
-                        mesh: &mesh,
-                        unsure,
-                        displacement: 0,
-                    };
-                    let at_rest = acc.add_lateral_shared(lateral, first_cap.as_deref(), &mesh);
-                    StatsDone::Added(acc, at_rest)
-                };
-                (run, Box::new(add))
+                b.stats_queue.push_back(QueuedAdd {
+                    run,
+                    first_cap,
+                    index: u64::from(p.index),
+                    stamps_ns: p.stamps_ns,
+                    geometry: p.geometry,
+                    mesh: p.mesh.clone(),
+                    unsure: p.unsure,
+                });
+                if b.stats_queue.len() > STATS_QUEUED {
+                    self.settle_stats(&p.body);
+                } else {
+                    self.advance_stats(&p.body);
+                }
             }
-        };
-        b.stats_job = Some(StatsJob {
-            run,
-            job: PoolJob::spawn(job),
-        });
+        }
         self.prefetched = self.prefetch(1);
         self.pump_prefetched(out);
     }
 
-    /// Takes back body `body`'s statistics being added, if any (waiting for them).
+    /// Takes back body `body`'s statistics job if it has finished and starts the next piece
+    /// queued, as long as that does not wait.
+    fn advance_stats(&mut self, body: &str) {
+        loop {
+            let Some(b) = self.bodies.get(body) else {
+                return;
+            };
+            match &b.stats_job {
+                Some(j) if !j.job.finished() => return,
+                Some(_) => self.take_back_stats(body),
+                None => {}
+            }
+            let Some(b) = self.bodies.get_mut(body) else {
+                return;
+            };
+            let Some(q) = b.stats_queue.pop_front() else {
+                return;
+            };
+            let Some(acc) = take_acc(b, q.run) else {
+                continue;
+            };
+            let run = q.run;
+            let job = move || q.add_to(acc);
+            b.stats_job = Some(StatsJob {
+                run,
+                job: PoolJob::spawn(&self.bookkeeping, job),
+            });
+        }
+    }
+
+    /// Every body's statistics job taken back if it has finished, and the next pieces
+    /// started (nothing waits): live, the checker's node does this when it has caught up.
+    pub fn advance_statistics(&mut self) {
+        let ids: Vec<String> = self
+            .bodies
+            .iter()
+            .filter(|(_, b)| b.stats_job.is_some() || !b.stats_queue.is_empty())
+            .map(|(id, _)| id.clone())
+            .collect();
+        for id in ids {
+            self.advance_stats(&id);
+        }
+    }
+
+    /// Brings body `body`'s statistics up to its latest piece: its job taken back (run here
+    /// if the pool has not started it, else waited for) and the pieces queued behind it
+    /// added here.
     pub(super) fn settle_stats(&mut self, body: &str) {
+        self.take_back_stats(body);
+        let Some(b) = self.bodies.get_mut(body) else {
+            return;
+        };
+        while let Some(q) = b.stats_queue.pop_front() {
+            let Some(acc) = take_acc(b, q.run) else {
+                continue;
+            };
+            let run = q.run;
+            let done = q.add_to(acc);
+            b.give_back_stats(run, done);
+        }
+        self.forget_rest_if_moving(body);
+    }
+
+    /// Takes back body `body`'s statistics job, if any (run here if the pool has not
+    /// started it, else waited for).
+    fn take_back_stats(&mut self, body: &str) {
         let Some(b) = self.bodies.get_mut(body) else {
             return;
         };
         let Some(job) = b.stats_job.take() else {
             return;
         };
-        let run = b.runs.iter_mut().find(|r| r.id == job.run);
-        let (acc, at_rest) = match job.job.wait() {
-            Some(Ok(StatsDone::Added(acc, at_rest))) => (acc, at_rest),
-            Some(Ok(StatsDone::Finished(stats))) => {
-                if let Some(r) = run {
-                    r.stats = Some(stats);
-                }
-                return;
-            }
+        let done = match job.job.wait() {
+            Some(Ok(done)) => done,
             Some(Err(panic)) => std::panic::resume_unwind(panic),
             None => panic!("{body}: the statistics of a piece were lost"),
         };
-        b.moving_for = if at_rest {
-            0
-        } else {
-            b.moving_for.saturating_add(1)
-        };
-        if let Some(r) = run {
-            r.acc = acc;
-        }
-        // A window kept from its last rest serves it once it rests again, moved or not (a
-        // table that steps by whole voxels now and then); not once it has moved for long.
-        if b.moving_for > REST_KEPT_SLABS {
+        b.give_back_stats(job.run, done);
+        self.forget_rest_if_moving(body);
+    }
+
+    /// A window kept from body `body`'s last rest serves it once it rests again, moved or
+    /// not (a table that steps by whole voxels now and then); not once it has moved for
+    /// long.
+    fn forget_rest_if_moving(&mut self, body: &str) {
+        if self
+            .bodies
+            .get(body)
+            .is_some_and(|b| b.moving_for > REST_KEPT_SLABS)
+        {
             self.rest.remove(body);
         }
     }
@@ -1353,7 +1459,7 @@ impl RollingChecker {
         let ids: Vec<String> = self
             .bodies
             .iter()
-            .filter(|(_, b)| b.stats_job.is_some())
+            .filter(|(_, b)| b.stats_job.is_some() || !b.stats_queue.is_empty())
             .map(|(id, _)| id.clone())
             .collect();
         for id in ids {
@@ -1380,6 +1486,8 @@ impl RollingChecker {
     /// mesher restarted).
     fn accept_opening_cap(&mut self, p: &Piece) -> Accepted {
         let id = &p.body;
+        // A run left open is closed here: its statistics up to date first.
+        self.settle_stats(id);
         let b = self.bodies.get_mut(id).expect("checked above");
         let mut restarted = None;
         if let Some(r) = b.runs.last_mut() {
@@ -1502,6 +1610,9 @@ impl RollingChecker {
         let resumed = "checked again from this piece; the mesh is open where the pieces are \
                        missing";
         let mut note = Accepted::Taken;
+        // The run left open is closed here: its statistics up to date first.
+        self.settle_stats(id);
+        let b = self.bodies.get_mut(id).expect("checked above");
         if let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) {
             r.close(None);
             note = Accepted::Noted {
@@ -1545,6 +1656,8 @@ impl RollingChecker {
     /// finished by `on_piece`, on the pool); with no run open there is nothing to close.
     fn accept_closing_cap(&mut self, p: &Piece) -> Accepted {
         let id = &p.body;
+        // The run's statistics are finished from every piece it has.
+        self.settle_stats(id);
         let b = self.bodies.get_mut(id).expect("checked above");
         let Some(r) = b.runs.last_mut().filter(|r| !r.ended()) else {
             return Accepted::Taken;

@@ -10,8 +10,8 @@ use super::{
     add_normals, bounds, check_window, closing_sums, on_pair_lattice, origin_offset,
     prepare_window,
     report::{pair_overlap, run_overlap},
-    speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, GridGeometry,
-    HeldSlab, Interval, KeptWindow, Label, LabelCounts, Mesher, MesherOptions, OccupancyGrid,
+    speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, FramesAround,
+    GridGeometry, HeldSlab, Interval, KeptWindow, Label, LabelCounts, Mesher, MesherOptions,
     OpenUnsure, Overlap, PendingPeriod, PoolJob, PreparedWindow, Record, RollingChecker,
     RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator, TakenLabels, TetMesh,
     UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR, CONTEXT_SLABS,
@@ -989,8 +989,8 @@ impl RollingChecker {
     }
 
     /// Feeds the intersection of the two bodies' frames at `s` and `hi` to the pair's
-    /// overlap mesher. The frames are found here; they are intersected and meshed on
-    /// rayon's pool, while the checker goes on ([`Self::settle_overlap`] takes the overlap
+    /// overlap mesher. The frames are found, decoded, intersected and meshed by the
+    /// bookkeeping, while the checker goes on ([`Self::settle_overlap`] takes the overlap
     /// back, before anything reads it or feeds it again).
     pub(super) fn overlap_push(&mut self, i: usize, s: i64, hi: i64) {
         self.settle_overlap(i);
@@ -1029,10 +1029,11 @@ impl RollingChecker {
             if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
                 continue;
             }
-            let both = ga.zip(gb).and_then(|(ga, gb)| {
-                let fa = self.bodies[&a].frame_at(stamp, &ga)?;
-                let fb = self.bodies[&b].frame_at(stamp, &gb)?;
-                Some(OverlapFrames { fa, ga, fb, gb })
+            let both = ga.zip(gb).map(|(ga, gb)| OverlapFrames {
+                fa: self.bodies[&a].frames_around(stamp),
+                ga,
+                fb: self.bodies[&b].frames_around(stamp),
+                gb,
             });
             frames.push((stamp, both));
         }
@@ -1043,18 +1044,19 @@ impl RollingChecker {
         }
         let closing = self.pairs[i].interfering();
         let mut ov = std::mem::take(&mut self.pairs[i].overlap);
-        self.pairs[i].overlap_job = Some(PoolJob::spawn(move || {
+        self.pairs[i].overlap_job = Some(PoolJob::spawn(&self.bookkeeping, move || {
             feed_overlap(&mut ov, opts, frames, closing);
             ov
         }));
     }
 }
 
-/// Two bodies' frames at one stamp, each with its grid's geometry.
+/// Two bodies' frames at one stamp (to be found among those around it), each with its
+/// lattice.
 struct OverlapFrames {
-    fa: Arc<OccupancyGrid>,
+    fa: FramesAround,
     ga: GridGeometry,
-    fb: Arc<OccupancyGrid>,
+    fb: FramesAround,
     gb: GridGeometry,
 }
 
@@ -1071,7 +1073,12 @@ fn feed_overlap(
         if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
             continue;
         }
-        let Some(OverlapFrames { fa, ga, fb, gb }) = both else {
+        let found = both.and_then(|OverlapFrames { fa, ga, fb, gb }| {
+            let fa = fa.frame(&ga)?;
+            let fb = fb.frame(&gb)?;
+            Some((fa, ga, fb, gb))
+        });
+        let Some((fa, ga, fb, gb)) = found else {
             ov.unknown = true;
             continue;
         };
@@ -1519,6 +1526,74 @@ mod tests {
             assert!(whole.stats.closed.is_closed());
             assert_eq!((tets, closed), (whole.stats.tets, true), "{body}");
         }
+    }
+
+    /// With the bookkeeping held up (a pool whose only thread is busy), a body's pieces
+    /// queue behind the one being added: the checker takes in up to `STATS_QUEUED` of them
+    /// without adding any itself, then brings the statistics up to date; a report adds
+    /// what is queued. Every figure is the one a checker whose bookkeeping keeps up gives.
+    #[test]
+    fn statistics_queue_behind_a_busy_bookkeeping_and_add_up_the_same() {
+        let ball = |cx: i32| {
+            move |k: u32, x: i32, y: i32, z: i32| {
+                let x = x - cx - (k as i32 / 3);
+                x * x + (y - 4).pow(2) + (z - 4).pow(2) <= 6
+            }
+        };
+        let frames = 12;
+        let pieces: Vec<Vec<Piece>> = [("/a", 3), ("/b", 12)]
+            .into_iter()
+            .map(|(body, cx)| pieces_of(body, [20, 9, 9], frames, ball(cx)))
+            .collect();
+        let held = Arc::new(rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
+        let (release, wait) = std::sync::mpsc::channel::<()>();
+        held.spawn(move || {
+            let _ = wait.recv();
+        });
+        let mut busy = checker_of_a_and_b();
+        busy.set_bookkeeping_pool(Some(held));
+        let mut keeping_up = checker_of_a_and_b();
+        keeping_up.set_bookkeeping_pool(None);
+        let (mut out, mut out_keeping_up) = (Vec::new(), Vec::new());
+        let mut most_queued = 0;
+        for j in 0..pieces[0].len() {
+            for ps in &pieces {
+                busy.on_piece(ps[j].clone(), &mut out);
+                keeping_up.on_piece(ps[j].clone(), &mut out_keeping_up);
+                keeping_up.settle_all_stats();
+                let b = &busy.bodies[&ps[j].body];
+                most_queued = most_queued.max(b.stats_queue.len());
+                assert!(b.stats_queue.len() <= super::super::STATS_QUEUED, "piece {j}");
+                if (1..=super::super::STATS_QUEUED + 1).contains(&j) {
+                    // The first slab's job (never run by the held pool) and the slabs
+                    // queued behind it: nothing added yet.
+                    assert_eq!(b.stats_queue.len(), j - 1, "piece {j}");
+                    assert!(b.stats_job.as_ref().is_some_and(|j| !j.job.finished()));
+                    assert!(busy.statistics_pending());
+                }
+            }
+            if j == 8 {
+                // A report brings everything up to date, and agrees.
+                let (r, k) = (busy.report(), keeping_up.report());
+                assert!(!busy.statistics_pending());
+                assert_eq!(bodies_of(&r), bodies_of(&k));
+            }
+        }
+        assert_eq!(most_queued, super::super::STATS_QUEUED);
+        busy.finish(&mut out);
+        keeping_up.finish(&mut out_keeping_up);
+        let (r, k) = (busy.report(), keeping_up.report());
+        assert_eq!(bodies_of(&r), bodies_of(&k));
+        assert!(bodies_of(&r).iter().all(|b| b.3), "{:?}", bodies_of(&r));
+        drop(release);
+    }
+
+    /// A report's body figures: id, frames, tets, closed, hypervolume's bits.
+    fn bodies_of(r: &crate::report::Report) -> Vec<(String, u64, u64, bool, u64)> {
+        r.bodies
+            .iter()
+            .map(|b| (b.id.clone(), b.frames, b.tets, b.closed, b.hypervolume_m3s.to_bits()))
+            .collect()
     }
 
     /// A piece whose tet names a vertex past its vertex table is refused by name (the tet

@@ -108,16 +108,16 @@ impl RollingChecker {
         })
     }
 
-    /// Whether the statistics or an overlap of a piece are still being worked out on the
-    /// pool, so that [`Self::report`] would wait for them.
+    /// Whether the statistics or an overlap of a piece are still being worked out by the
+    /// bookkeeping (or queued for it), so that [`Self::report`] would wait for them (see
+    /// [`Self::advance_statistics`]).
     pub fn statistics_pending(&self) -> bool {
-        self.bodies
-            .values()
-            .any(|b| b.stats_job.as_ref().is_some_and(|j| !j.job.finished()))
-            || self
-                .pairs
-                .iter()
-                .any(|p| p.overlap_job.as_ref().is_some_and(|j| !j.finished()))
+        self.bodies.values().any(|b| {
+            !b.stats_queue.is_empty() || b.stats_job.as_ref().is_some_and(|j| !j.job.finished())
+        }) || self
+            .pairs
+            .iter()
+            .any(|p| p.overlap_job.as_ref().is_some_and(|j| !j.finished()))
     }
 }
 
