@@ -1404,8 +1404,11 @@ impl RollingChecker {
             let run = q.run;
             let done = q.add_to(acc);
             b.give_back_stats(run, done);
+            // As `forget_rest_if_moving`, piece by piece.
+            if b.moving_for > REST_KEPT_SLABS {
+                self.rest.remove(body);
+            }
         }
-        self.forget_rest_if_moving(body);
     }
 
     /// Takes back body `body`'s statistics job, if any (run here if the pool has not
