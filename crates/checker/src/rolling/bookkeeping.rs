@@ -146,24 +146,34 @@ impl<T> PoolJob<T> {
     }
 }
 
+/// A pool of one thread (for tests).
+#[cfg(test)]
+pub(super) fn one_thread_pool() -> BookkeepingPool {
+    Some(Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap(),
+    ))
+}
+
+/// A pool of one thread held by a job until the sender is dropped or sent on: nothing
+/// handed to it runs there meanwhile (for tests).
+#[cfg(test)]
+pub(super) fn held_pool() -> (BookkeepingPool, std::sync::mpsc::Sender<()>) {
+    let pool = one_thread_pool();
+    let (tx, rx) = std::sync::mpsc::channel::<()>();
+    if let Some(p) = &pool {
+        p.spawn(move || {
+            let _ = rx.recv();
+        });
+    }
+    (pool, tx)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    /// A one-thread pool held by a job until the sender is dropped or sent on.
-    fn held_pool() -> (BookkeepingPool, std::sync::mpsc::Sender<()>) {
-        let pool = Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .build()
-                .unwrap(),
-        );
-        let (tx, rx) = std::sync::mpsc::channel::<()>();
-        pool.spawn(move || {
-            let _ = rx.recv();
-        });
-        (Some(pool), tx)
-    }
 
     #[test]
     fn a_job_the_pool_has_not_started_is_run_by_whoever_waits() {
@@ -178,12 +188,7 @@ mod tests {
 
     #[test]
     fn a_job_the_pool_runs_is_waited_for_and_its_panic_comes_back() {
-        let pool: BookkeepingPool = Some(Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .build()
-                .unwrap(),
-        ));
+        let pool = one_thread_pool();
         let job = PoolJob::spawn(&pool, || 7);
         while !job.finished() {
             std::thread::yield_now();
@@ -198,12 +203,7 @@ mod tests {
 
     #[test]
     fn a_running_job_is_waited_for_not_run_twice() {
-        let pool: BookkeepingPool = Some(Arc::new(
-            rayon::ThreadPoolBuilder::new()
-                .num_threads(1)
-                .build()
-                .unwrap(),
-        ));
+        let pool = one_thread_pool();
         let runs = Arc::new(std::sync::atomic::AtomicUsize::new(0));
         let (started_tx, started) = std::sync::mpsc::channel();
         let counted = Arc::clone(&runs);

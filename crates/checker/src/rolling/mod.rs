@@ -1378,15 +1378,18 @@ impl RollingChecker {
     /// Every body's statistics job taken back if it has finished, and the next pieces
     /// started (nothing waits): live, the checker's node does this when it has caught up.
     pub fn advance_statistics(&mut self) {
-        let ids: Vec<String> = self
-            .bodies
+        for id in self.bodies_with_stats_work() {
+            self.advance_stats(&id);
+        }
+    }
+
+    /// The bodies with a statistics job out or pieces queued for one.
+    fn bodies_with_stats_work(&self) -> Vec<String> {
+        self.bodies
             .iter()
             .filter(|(_, b)| b.stats_job.is_some() || !b.stats_queue.is_empty())
             .map(|(id, _)| id.clone())
-            .collect();
-        for id in ids {
-            self.advance_stats(&id);
-        }
+            .collect()
     }
 
     /// Brings body `body`'s statistics up to its latest piece: its job taken back (run here
@@ -1459,13 +1462,7 @@ impl RollingChecker {
         for i in 0..self.pairs.len() {
             self.settle_overlap(i);
         }
-        let ids: Vec<String> = self
-            .bodies
-            .iter()
-            .filter(|(_, b)| b.stats_job.is_some() || !b.stats_queue.is_empty())
-            .map(|(id, _)| id.clone())
-            .collect();
-        for id in ids {
+        for id in self.bodies_with_stats_work() {
             self.settle_stats(&id);
         }
     }

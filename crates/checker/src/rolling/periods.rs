@@ -1460,12 +1460,7 @@ mod tests {
     /// mesh welded in one piece (`BodyGluer`).
     #[test]
     fn a_run_lets_its_opening_cap_go_with_its_first_slab() {
-        let ball = |cx: i32| {
-            move |k: u32, x: i32, y: i32, z: i32| {
-                let x = x - cx - (k as i32 / 4);
-                x * x + (y - 4).pow(2) + (z - 4).pow(2) <= 6
-            }
-        };
+        let ball = |cx: i32| moving_ball(cx, 4);
         let mut c = checker_of_a_and_b();
         let frames = 12;
         let mut glued = Vec::new();
@@ -1534,24 +1529,15 @@ mod tests {
     /// what is queued. Every figure is the one a checker whose bookkeeping keeps up gives.
     #[test]
     fn statistics_queue_behind_a_busy_bookkeeping_and_add_up_the_same() {
-        let ball = |cx: i32| {
-            move |k: u32, x: i32, y: i32, z: i32| {
-                let x = x - cx - (k as i32 / 3);
-                x * x + (y - 4).pow(2) + (z - 4).pow(2) <= 6
-            }
-        };
+        let ball = |cx: i32| moving_ball(cx, 3);
         let frames = 12;
         let pieces: Vec<Vec<Piece>> = [("/a", 3), ("/b", 12)]
             .into_iter()
             .map(|(body, cx)| pieces_of(body, [20, 9, 9], frames, ball(cx)))
             .collect();
-        let held = Arc::new(rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap());
-        let (release, wait) = std::sync::mpsc::channel::<()>();
-        held.spawn(move || {
-            let _ = wait.recv();
-        });
+        let (held, release) = super::super::bookkeeping::held_pool();
         let mut busy = checker_of_a_and_b();
-        busy.set_bookkeeping_pool(Some(held));
+        busy.set_bookkeeping_pool(held);
         let mut keeping_up = checker_of_a_and_b();
         keeping_up.set_bookkeeping_pool(None);
         let (mut out, mut out_keeping_up) = (Vec::new(), Vec::new());
@@ -1563,7 +1549,10 @@ mod tests {
                 keeping_up.settle_all_stats();
                 let b = &busy.bodies[&ps[j].body];
                 most_queued = most_queued.max(b.stats_queue.len());
-                assert!(b.stats_queue.len() <= super::super::STATS_QUEUED, "piece {j}");
+                assert!(
+                    b.stats_queue.len() <= super::super::STATS_QUEUED,
+                    "piece {j}"
+                );
                 if (1..=super::super::STATS_QUEUED + 1).contains(&j) {
                     // The first slab's job (never run by the held pool) and the slabs
                     // queued behind it: nothing added yet.
@@ -1588,11 +1577,28 @@ mod tests {
         drop(release);
     }
 
+    /// A ball of radius √6 voxels centred at (cx, 4, 4) in frame 0, one voxel on along x
+    /// every `every` frames.
+    fn moving_ball(cx: i32, every: u32) -> impl Fn(u32, i32, i32, i32) -> bool {
+        move |k, x, y, z| {
+            let x = x - cx - (k / every) as i32;
+            x * x + (y - 4).pow(2) + (z - 4).pow(2) <= 6
+        }
+    }
+
     /// A report's body figures: id, frames, tets, closed, hypervolume's bits.
     fn bodies_of(r: &crate::report::Report) -> Vec<(String, u64, u64, bool, u64)> {
         r.bodies
             .iter()
-            .map(|b| (b.id.clone(), b.frames, b.tets, b.closed, b.hypervolume_m3s.to_bits()))
+            .map(|b| {
+                (
+                    b.id.clone(),
+                    b.frames,
+                    b.tets,
+                    b.closed,
+                    b.hypervolume_m3s.to_bits(),
+                )
+            })
             .collect()
     }
 
