@@ -58,9 +58,9 @@ pub struct WindowBody<'a> {
     pub mul: i64,
     /// See `mul`.
     pub add: [i64; 4],
-    /// If set, the box (checker coordinates on the pair's lattice) the partners' windows
-    /// lie in: only the tets a partner's check can need are prepared (see [`Clip`]).
-    pub clip: Option<SpatialBox>,
+    /// If set, its partners' windows (checker coordinates on the pair's lattice): only the
+    /// tets a partner's check can need are prepared (see [`Clip`]).
+    pub clip: Option<Partner>,
 }
 
 impl WindowBody<'_> {
@@ -81,6 +81,46 @@ impl WindowBody<'_> {
             .fold(None, |b, m| union_bounds(b, m.spatial_bounds()))?;
         Some(on_pair_lattice(bounds, self.mul, &self.add))
     }
+
+    /// How its tets are clipped for its partners ([`Self::clip`]), if they are.
+    fn clipping(&self) -> Option<Clip> {
+        self.clip
+            .zip(self.spatial_box())
+            .map(|(p, full)| Clip::for_partner(&p, full))
+    }
+
+    /// How many tets [`prepare_window`] would keep: those that reach its partners' box or
+    /// the far points' side of it (every tet, if it is not clipped). A window that keeps
+    /// none is apart from its partners: a partner's tet meets none of its tets, and a
+    /// segment from a partner's point to its far point meets none, so every tet of both is
+    /// OUTSIDE the other body, as though their boxes were apart.
+    pub fn kept_tets(&self) -> usize {
+        let Some(c) = self.clipping() else {
+            return self.parts().map(|p| p.tets.len()).sum();
+        };
+        let f = i64::from(CHECKER_FACTOR) * self.mul;
+        let mut reach: Vec<u8> = Vec::new();
+        self.parts()
+            .map(|part| {
+                reach.clear();
+                reach.extend(
+                    part.vertices
+                        .iter()
+                        .map(|p| c.reaches([0, 1, 2].map(|k| i64::from(p[k]) * f + self.add[k]))),
+                );
+                // A vertex past its table (never accepted) reaches everywhere: the window
+                // is then prepared, which says what is wrong.
+                part.tets
+                    .iter()
+                    .filter(|t| {
+                        t.iter().fold(0u8, |bits, &v| {
+                            bits | reach.get(v as usize).copied().unwrap_or(0b111)
+                        }) == 0b111
+                    })
+                    .count()
+            })
+            .sum()
+    }
 }
 
 /// Spatial bounds on a body's lattice as a box on the pair's lattice, by the axis map of a
@@ -91,18 +131,80 @@ pub fn on_pair_lattice((lo, hi): SpatialBounds, mul: i64, add: &[i64; 4]) -> Spa
     (map(lo), map(hi))
 }
 
-/// Which tets of a window are prepared when its partners lie in a box, and how inclusion
-/// tests against it are made so that they need no other.
+/// A window's partners, as its [`Clip`] needs them: the box their whole windows lie in,
+/// and, where the partner's window was prepared first, the box of the tets it kept and the
+/// side of its far points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Partner {
+    /// Every vertex of the partners' windows.
+    pub whole: SpatialBox,
+    /// The partner's window prepared first: the box of its kept tets and, per axis, whether
+    /// its far points lie below it ([`Clip::far_low`]).
+    pub kept: Option<(SpatialBox, [bool; 3])>,
+}
+
+impl Partner {
+    /// Partners known by the box of their whole windows.
+    pub fn whole(whole: SpatialBox) -> Self {
+        Partner { whole, kept: None }
+    }
+
+    /// Both partners: their whole boxes together, and their kept tets' where both were
+    /// prepared first with their far points on the same sides (else known by their whole
+    /// boxes alone).
+    pub fn union(&self, o: &Partner) -> Partner {
+        let union = |x: &SpatialBox, y: &SpatialBox| {
+            (
+                [0, 1, 2].map(|k| x.0[k].min(y.0[k])),
+                [0, 1, 2].map(|k| x.1[k].max(y.1[k])),
+            )
+        };
+        let kept = match (self.kept, o.kept) {
+            (Some((x, f)), Some((y, g))) if f == g => Some((union(&x, &y), f)),
+            _ => None,
+        };
+        Partner {
+            whole: union(&self.whole, &o.whole),
+            kept,
+        }
+    }
+
+    /// The partner whose whole window lies in `whole`, prepared (clipped) as `p`; known by
+    /// its box alone if `p` is not clipped or keeps no tet.
+    pub fn prepared(whole: SpatialBox, p: &PreparedWindow) -> Self {
+        let kept = p
+            .clip
+            .filter(|_| !p.body.mesh.tets.is_empty())
+            .map(|c| (p.kept_box(), c.far_low));
+        Partner { whole, kept }
+    }
+}
+
+/// Which tets of a window are prepared for its partners, and how inclusion tests against
+/// it are made so that they need no other.
 ///
 /// On each spatial axis the far points of the inclusion tests against this window lie
 /// beyond the whole window on one side (`far_low`: below its minimum, else above its
-/// maximum), and the tets kept are those that reach the partners' box or that side of
-/// it. A segment from a partner's point to a far point then only meets kept tets; a
-/// partner's tets meet only kept tets; and a tet left out is apart from the partners'
-/// box, so it is OUTSIDE.
+/// maximum), and the tets kept are those that reach the near box or that side of it. The
+/// near box is, per axis, one of two (whichever keeps the shorter stretch of the window):
+///
+/// - **The partners' whole box**, far points on the side where less of the window lies
+///   beyond it. A segment from a partner's point to a far point then only meets kept tets;
+///   a partner's tets meet only kept tets; and a tet left out is apart from the partners'
+///   box, so it is OUTSIDE.
+/// - **The box of the tets the partner's window kept**, prepared first (clipped for this
+///   window's whole box), far points on the side opposite to the partner's. A tet of this
+///   window inside the partner's body has its points' segments to the partner's far points
+///   cross the partner's boundary, and only kept partner tets lie on them, so on this axis
+///   the tet reaches the kept tets' box from the side away from the partner's far points:
+///   the side kept here. A partner's kept tet, and the segment from its points to this
+///   window's far points, lie on that side too; a partner's tet left out is OUTSIDE and
+///   meets none of this window's tets.
+///
+/// Either way a tet left out meets no partner tet the check keeps and is OUTSIDE.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Clip {
-    /// The partners' box.
+    /// The near box, per axis the partners' whole box or their kept tets' (see above).
     pub near: SpatialBox,
     /// Per axis, whether the far points lie below the window (tets above the partners'
     /// box are left out) or above it (those below are).
@@ -112,6 +214,36 @@ pub struct Clip {
 }
 
 impl Clip {
+    /// The clip of a window whose vertices lie in `full` for partners `p` (see [`Clip`]).
+    fn for_partner(p: &Partner, (lo, hi): SpatialBox) -> Clip {
+        let mut near = p.whole;
+        let mut far_low = [false; 3];
+        for k in 0..3 {
+            // The stretch of the window kept with far points below it (`true`) or above it,
+            // for a near range `n`.
+            let kept = |below: bool, n: ([i64; 3], [i64; 3])| {
+                if below {
+                    n.1[k] - lo[k]
+                } else {
+                    hi[k] - n.0[k]
+                }
+            };
+            let w = p.whole;
+            far_low[k] = hi[k] - w.1[k] > w.0[k] - lo[k];
+            if let Some((b, far)) = p.kept {
+                if kept(!far[k], b) < kept(far_low[k], w) {
+                    far_low[k] = !far[k];
+                    (near.0[k], near.1[k]) = (b.0[k], b.1[k]);
+                }
+            }
+        }
+        Clip {
+            near,
+            far_low,
+            full: (lo, hi),
+        }
+    }
+
     /// Per spatial axis (bit k), whether a point with coordinates `c` lies on the partners'
     /// box or on the far points' side of it: a tet is kept when its vertices' bits,
     /// or-ed, are all set.
@@ -127,14 +259,21 @@ impl Clip {
             .fold(0, |bits, k| bits | 1 << k)
     }
 
-    /// Whether every tet a partner in box `b` can need is kept.
-    fn serves(&self, b: &SpatialBox) -> bool {
-        (0..3).all(|k| {
+    /// Whether every tet partner `p` can need is kept: on each axis its whole box lies on
+    /// the kept side, or it was prepared first with its far points on the other side than
+    /// this clip's and its kept tets' box lies on the kept side (see [`Clip`]).
+    fn serves(&self, p: &Partner) -> bool {
+        let within = |b: &SpatialBox, k: usize| {
             if self.far_low[k] {
                 b.1[k] <= self.near.1[k]
             } else {
                 self.near.0[k] <= b.0[k]
             }
+        };
+        (0..3).all(|k| {
+            within(&p.whole, k)
+                || p.kept
+                    .is_some_and(|(b, far)| far[k] != self.far_low[k] && within(&b, k))
         })
     }
 
@@ -202,15 +341,23 @@ impl PreparedWindow {
         self.taken.iter().map(|r| r.len()).sum()
     }
 
-    /// Whether this window can be checked against a partner window lying in the box
-    /// `partner` (see [`Clip`]).
-    pub fn serves(&self, partner: &SpatialBox) -> bool {
+    /// Whether this window can be checked against `partner` (see [`Clip`]).
+    pub fn serves(&self, partner: &Partner) -> bool {
         self.clip.is_none_or(|c| c.serves(partner))
     }
 
-    /// Whether this window moved by `d` ([`Self::moved_by`]) would serve a partner in box
-    /// `partner`.
-    pub fn serves_moved(&self, d: [i64; 4], partner: &SpatialBox) -> bool {
+    /// The box of its (kept) tets' vertices, spatial axes (a window without tets: an
+    /// empty box).
+    pub fn kept_box(&self) -> SpatialBox {
+        let b = self.body.bvh.aabb();
+        (
+            [0, 1, 2].map(|k| i64::from(b.min[k])),
+            [0, 1, 2].map(|k| i64::from(b.max[k])),
+        )
+    }
+
+    /// Whether this window moved by `d` ([`Self::moved_by`]) would serve `partner`.
+    pub fn serves_moved(&self, d: [i64; 4], partner: &Partner) -> bool {
         self.clip
             .is_none_or(|c| c.moved([d[0], d[1], d[2]]).serves(partner))
     }
@@ -268,15 +415,7 @@ pub fn prepare_window(w: &WindowBody<'_>) -> Result<PreparedWindow, WindowError>
     // box from its parts' vertices, then each part's tets kept, before any is welded.
     let f = i64::from(CHECKER_FACTOR) * w.mul;
     let parts: Vec<&TetMesh> = w.parts().collect();
-    let clip = w.clip.zip(w.spatial_box()).map(|(near, (lo, hi))| {
-        // Far points away from the side where more of the window lies beyond the partners.
-        let far_low = [0, 1, 2].map(|k| hi[k] - near.1[k] > near.0[k] - lo[k]);
-        Clip {
-            near,
-            far_low,
-            full: (lo, hi),
-        }
-    });
+    let clip = w.clipping();
     let mut mesh = TetMesh::default();
     let mut welder = Welder::default();
     let mut pieces = Vec::with_capacity(parts.len());

@@ -38,7 +38,7 @@ use super::bounds;
 use super::labels::{Label, LabelCounts};
 
 use super::period::{
-    check_window, on_pair_lattice, prepare_window, Crossing, PreparedWindow, SpatialBox,
+    check_window, on_pair_lattice, prepare_window, Crossing, Partner, PreparedWindow, SpatialBox,
     TakenLabels, WindowBody, WindowResult,
 };
 use super::{check_pair, CommonLattice, PairResult};
@@ -64,7 +64,10 @@ mod report;
 pub use report::ContactFields;
 
 use episodes::ResolveOutcome;
-use periods::{apart, cached, check_specs, pair_lattice, prepare_spec, WindowChecked, WindowSpec};
+use periods::{
+    apart, approach, cached, check_near, pair_lattice, prepare_spec, Approach, WindowChecked,
+    WindowSpec,
+};
 
 /// Slabs kept behind the oldest undecided one, for windows that reach one slab further
 /// (another body's real cap in their time plane).
@@ -1810,54 +1813,91 @@ impl RollingChecker {
         if ready.len() < least.max(1) {
             return Vec::new();
         }
-        // Each distinct body window once: a body in several pairs often has the same
-        // window in each (the same pieces and placement). It holds the tets near any of
-        // its partners' windows (the box around them all).
-        let mut distinct: Vec<(&str, &WindowSpec, SpatialBox)> = Vec::new();
-        for (i, _, wa, wb) in &ready {
-            let p = &self.pairs[*i];
-            for (id, w, partner) in [(p.a.as_str(), wa, wb), (p.b.as_str(), wb, wa)] {
-                let Some(near) = partner.spatial_box() else {
-                    continue;
-                };
-                if cached(&self.prepared, id, w, &near).is_some() {
-                    continue;
-                }
-                match distinct
-                    .iter_mut()
-                    .find(|(d, x, _)| *d == id && x.same_as(w))
-                {
-                    Some((_, _, clip)) => {
-                        *clip = (
-                            [0, 1, 2].map(|k| clip.0[k].min(near.0[k])),
-                            [0, 1, 2].map(|k| clip.1[k].max(near.1[k])),
-                        );
-                    }
-                    None => distinct.push((id, w, near)),
-                }
-            }
-        }
-        // A window that fails to prepare is prepared again by its pair, for the error.
-        let shared: Vec<Option<Arc<PreparedWindow>>> = distinct
+        // On rayon's pool, like the windows' other work: a parallel iterator of one item
+        // would run on the calling thread (live, the node's own), which only waits.
+        rayon::scope(|_| self.check_ahead(&ready))
+    }
+
+    /// The windows `ready` (pair, stamp, both windows) checked, for [`Self::prefetch`].
+    fn check_ahead(&self, ready: &[(usize, i64, WindowSpec, WindowSpec)]) -> Vec<Prefetched> {
+        // Windows with no tet near each other are answered without being prepared.
+        let approaches: Vec<Approach> = ready
             .par_iter()
-            .map(|(id, w, clip)| {
-                self.moved(id, w, clip)
-                    .or_else(|| prepare_spec(id, w, Some(*clip)).ok())
+            .map(|(_, _, wa, wb)| approach(wa, wb))
+            .collect();
+        // Each distinct body window once: a body in several pairs often has the same
+        // window in each (the same pieces and placement). It holds the tets any of its
+        // partners needs. In each pair the window with fewer tets is prepared first, near
+        // its partner's box; the other then near the tets it kept (see `check_near`).
+        let near: Vec<(&str, &WindowSpec, &str, &WindowSpec)> = ready
+            .iter()
+            .zip(&approaches)
+            .filter_map(|((i, _, wa, wb), x)| match x {
+                Approach::Near { a_first } => Some((i, wa, wb, *a_first)),
+                Approach::Separated(_) => None,
+            })
+            .map(|(i, wa, wb, a_first)| {
+                let p = &self.pairs[*i];
+                if a_first {
+                    (p.a.as_str(), wa, p.b.as_str(), wb)
+                } else {
+                    (p.b.as_str(), wb, p.a.as_str(), wa)
+                }
             })
             .collect();
-        let ready_for = |id: &str, w: &WindowSpec, partner: &SpatialBox| {
-            cached(&self.prepared, id, w, partner).or_else(|| {
-                let n = distinct
-                    .iter()
-                    .position(|(d, x, _)| *d == id && x.same_as(w))?;
-                shared.get(n)?.clone().filter(|p| p.serves(partner))
-            })
+        let prepare = |needs: &[(&str, &WindowSpec, Partner)]| -> Vec<Option<Arc<PreparedWindow>>> {
+            needs
+                .par_iter()
+                .map(|(id, w, partner)| {
+                    self.moved(id, w, partner)
+                        .or_else(|| prepare_spec(id, w, Some(*partner)).ok())
+                })
+                .collect()
+        };
+        let found = |needs: &[(&str, &WindowSpec, Partner)],
+                     shared: &[Option<Arc<PreparedWindow>>],
+                     id: &str,
+                     w: &WindowSpec,
+                     partner: &Partner| {
+            let n = needs
+                .iter()
+                .position(|(d, x, _)| *d == id && x.same_as(w))?;
+            shared.get(n)?.clone().filter(|p| p.serves(partner))
+        };
+        // A window that fails to prepare is prepared again by its pair, for the error.
+        let firsts = shared_partners(
+            near.iter()
+                .filter_map(|(f, wf, _, wo)| Some((*f, *wf, Partner::whole(wo.spatial_box()?))))
+                .filter(|(id, w, p)| cached(&self.prepared, id, w, p).is_none()),
+        );
+        let first_windows = prepare(&firsts);
+        let seconds = shared_partners(
+            near.iter()
+                .filter_map(|(f, wf, o, wo)| {
+                    let whole = Partner::whole(wo.spatial_box()?);
+                    let pf = cached(&self.prepared, f, wf, &whole)
+                        .or_else(|| found(&firsts, &first_windows, f, wf, &whole))?;
+                    Some((*o, *wo, Partner::prepared(wf.spatial_box()?, &pf)))
+                })
+                .filter(|(id, w, p)| cached(&self.prepared, id, w, p).is_none()),
+        );
+        let second_windows = prepare(&seconds);
+        let ready_for = |id: &str, w: &WindowSpec, partner: &Partner| {
+            cached(&self.prepared, id, w, partner)
+                .or_else(|| found(&firsts, &first_windows, id, w, partner))
+                .or_else(|| found(&seconds, &second_windows, id, w, partner))
         };
         ready
             .par_iter()
-            .map(|(i, s, wa, wb)| {
+            .zip(approaches)
+            .map(|((i, s, wa, wb), approach)| {
                 let p = &self.pairs[*i];
-                let result = check_specs((&p.a, wa), (&p.b, wb), &ready_for);
+                let result = match approach {
+                    Approach::Separated(r) => Ok((*r, None)),
+                    Approach::Near { a_first } => {
+                        check_near((&p.a, wa), (&p.b, wb), a_first, ready_for)
+                    }
+                };
                 Prefetched {
                     pair: *i,
                     s: *s,
@@ -2078,4 +2118,22 @@ fn add_run(t: &mut Totals, r: Run) {
     t.vertices += stats.vertices;
     t.hypervolume_m3s += stats.hypervolume_m3s;
     t.vanishing += stats.vanishing_slabs;
+}
+
+/// Each distinct body window of `needs` once (the same body, the same window), with the
+/// partners of all its needs together ([`Partner::union`]): one preparation serves them all.
+fn shared_partners<'a>(
+    needs: impl Iterator<Item = (&'a str, &'a WindowSpec, Partner)>,
+) -> Vec<(&'a str, &'a WindowSpec, Partner)> {
+    let mut distinct: Vec<(&str, &WindowSpec, Partner)> = Vec::new();
+    for (id, w, partner) in needs {
+        match distinct
+            .iter_mut()
+            .find(|(d, x, _)| *d == id && x.same_as(w))
+        {
+            Some((_, _, p)) => *p = p.union(&partner),
+            None => distinct.push((id, w, partner)),
+        }
+    }
+    distinct
 }

@@ -12,7 +12,7 @@ use super::{
     report::{pair_overlap, run_overlap},
     speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, FramesAround,
     GridGeometry, HeldSlab, Interval, KeptWindow, Label, LabelCounts, Mesher, MesherOptions,
-    OpenUnsure, Overlap, PendingPeriod, PoolJob, PreparedWindow, Record, RollingChecker,
+    OpenUnsure, Overlap, Partner, PendingPeriod, PoolJob, PreparedWindow, Record, RollingChecker,
     RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator, TakenLabels, TetMesh,
     UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR, CONTEXT_SLABS,
     REBASE_FRAMES,
@@ -578,9 +578,11 @@ impl RollingChecker {
                 cached(&self.prepared, id, w, partner).or_else(|| self.moved(id, w, partner))
             })
         });
-        let (r, [pa, pb]) = result?;
-        self.prepared.insert(a.to_owned(), (wa.clone(), pa, s));
-        self.prepared.insert(b.to_owned(), (wb.clone(), pb, s));
+        let (r, prepared) = result?;
+        if let Some([pa, pb]) = prepared {
+            self.prepared.insert(a.to_owned(), (wa.clone(), pa, s));
+            self.prepared.insert(b.to_owned(), (wb.clone(), pb, s));
+        }
         Ok(r)
     }
 
@@ -1159,18 +1161,65 @@ pub(super) fn apart(a: &WindowSpec, b: &WindowSpec) -> bool {
     (0..3).any(|k| x.1[k] < y.0[k] || y.1[k] < x.0[k])
 }
 
-/// Prepares and checks the two bodies' windows of a pair (`(id, window)` each).
+/// How two windows whose boxes meet are checked.
+pub(super) enum Approach {
+    /// One of them has no tet near the other's box (see [`WindowBody::kept_tets`]): every
+    /// tet of both OUTSIDE, as for windows apart; neither is prepared. A robot's arm
+    /// reaching over a table has a box that meets the table's long before a tet of the
+    /// arm comes near it.
+    Separated(Box<WindowResult>),
+    /// Both are prepared, first the one with fewer tets near the other's box
+    /// (`a_first`: the pair's first body's), then the other near the tets that one kept
+    /// (see [`crate::period::Clip`]).
+    Near { a_first: bool },
+}
+
+/// How windows `wa` and `wb` (boxes not apart) are checked: the tets each keeps near the
+/// other's box are counted, on two threads.
+pub(super) fn approach(wa: &WindowSpec, wb: &WindowSpec) -> Approach {
+    let near = |w: &WindowSpec, o: &WindowSpec| {
+        w.body("", o.spatial_box().map(Partner::whole)).kept_tets()
+    };
+    match rayon::join(|| near(wa, wb), || near(wb, wa)) {
+        (0, _) | (_, 0) => Approach::Separated(Box::new(WindowResult {
+            labels: [wa.all_outside(), wb.all_outside()],
+            ..WindowResult::default()
+        })),
+        (na, nb) => Approach::Near { a_first: na <= nb },
+    }
+}
+
+/// Prepares and checks the two bodies' windows of a pair (`(id, window)` each), as their
+/// [`approach`] says.
 ///
 /// A body's window already prepared (for another pair's period: `ready` gives it, when it
-/// is the same window and holds every tet near the partner's box) is not prepared again;
-/// one prepared here holds only the tets near the partner's box. The two prepared windows
-/// are returned with the result, for the cache.
+/// is the same window and holds every tet its partner needs) is not prepared again; one
+/// prepared here holds only the tets its partner needs. The two prepared windows are
+/// returned with the result, for the cache.
 pub(super) fn check_specs(
     (a, wa): (&str, &WindowSpec),
     (b, wb): (&str, &WindowSpec),
-    ready: impl Fn(&str, &WindowSpec, &SpatialBox) -> Option<Arc<PreparedWindow>> + Sync,
+    ready: impl Fn(&str, &WindowSpec, &Partner) -> Option<Arc<PreparedWindow>> + Sync,
 ) -> WindowChecked {
-    let prepared = |id: &str, w: &WindowSpec, partner: Option<SpatialBox>| {
+    match approach(wa, wb) {
+        Approach::Separated(r) => Ok((*r, None)),
+        // On rayon's pool, like the windows' other work: a node's own thread only waits.
+        Approach::Near { a_first } => {
+            rayon::scope(|_| check_near((a, wa), (b, wb), a_first, &ready))
+        }
+    }
+}
+
+/// [`check_specs`] of two windows whose [`approach`] is [`Approach::Near`]: the first
+/// (`a_first`: `wa`) is prepared near the other's box, the other then near the tets it
+/// kept (see [`crate::period::Clip`]).
+pub(super) fn check_near(
+    (a, wa): (&str, &WindowSpec),
+    (b, wb): (&str, &WindowSpec),
+    a_first: bool,
+    ready: impl Fn(&str, &WindowSpec, &Partner) -> Option<Arc<PreparedWindow>> + Sync,
+) -> WindowChecked {
+    let prepared = |id: &str, w: &WindowSpec, partner: Option<Partner>| {
         let Some(partner) = partner else {
             return prepare_spec(id, w, None);
         };
@@ -1180,9 +1229,15 @@ pub(super) fn check_specs(
         }
     };
     let (ba, bb) = (wa.spatial_box(), wb.spatial_box());
-    let (ra, rb) = rayon::join(|| prepared(a, wa, bb), || prepared(b, wb, ba));
-    let (pa, pb) = (ra?, rb?);
-    Ok((check_window(&pa, &pb), [pa, pb]))
+    let ((f, wf, bo), (o, wo, bf)) = if a_first {
+        ((a, wa, bb), (b, wb, ba))
+    } else {
+        ((b, wb, ba), (a, wa, bb))
+    };
+    let pf = prepared(f, wf, bo.map(Partner::whole))?;
+    let po = prepared(o, wo, bf.map(|whole| Partner::prepared(whole, &pf)))?;
+    let (pa, pb) = if a_first { (pf, po) } else { (po, pf) };
+    Ok((check_window(&pa, &pb), Some([pa, pb])))
 }
 
 impl RollingChecker {
@@ -1193,7 +1248,7 @@ impl RollingChecker {
         &self,
         id: &str,
         w: &WindowSpec,
-        partner: &SpatialBox,
+        partner: &Partner,
     ) -> Option<Arc<PreparedWindow>> {
         [self.prepared.get(id), self.rest.get(id)]
             .into_iter()
@@ -1207,22 +1262,22 @@ impl RollingChecker {
     }
 }
 
-/// Prepares body `id`'s window, only its tets near `clip` if given.
+/// Prepares body `id`'s window, only the tets partners `clip` need if given.
 pub(super) fn prepare_spec(
     id: &str,
     w: &WindowSpec,
-    clip: Option<SpatialBox>,
+    clip: Option<Partner>,
 ) -> Result<Arc<PreparedWindow>, crate::period::WindowError> {
     prepare_window(&w.body(id, clip)).map(Arc::new)
 }
 
 /// The window prepared for body `id` in `cache`, if it is the same window as `w` and
-/// serves a partner in box `partner`.
+/// serves `partner`.
 pub(super) fn cached(
     cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
     id: &str,
     w: &WindowSpec,
-    partner: &SpatialBox,
+    partner: &Partner,
 ) -> Option<Arc<PreparedWindow>> {
     cache
         .get(id)
@@ -1230,9 +1285,10 @@ pub(super) fn cached(
         .map(|c| c.1.clone())
 }
 
-/// A window's result, with the two bodies' prepared windows.
+/// A window's result, with the two bodies' prepared windows (`None`: not prepared, the
+/// windows are [`separated`]).
 pub(super) type WindowChecked =
-    Result<(WindowResult, [Arc<PreparedWindow>; 2]), crate::period::WindowError>;
+    Result<(WindowResult, Option<[Arc<PreparedWindow>; 2]>), crate::period::WindowError>;
 
 impl WindowSpec {
     /// The same window: the same pieces (by identity), placement and numbering.
@@ -1350,7 +1406,7 @@ impl WindowSpec {
         }
     }
 
-    fn body<'a>(&'a self, id: &'a str, clip: Option<SpatialBox>) -> WindowBody<'a> {
+    fn body<'a>(&'a self, id: &'a str, clip: Option<Partner>) -> WindowBody<'a> {
         WindowBody {
             id,
             geometry: self.geometry,
@@ -1646,10 +1702,39 @@ mod tests {
         assert_eq!(c.bodies["/a"].runs.len(), 1);
     }
 
+    /// Asserts that `part` gives every label, count, crossing, range and undecided tet
+    /// `full` gives (`at`: the case, for the message).
+    fn assert_same_answer(part: &WindowResult, full: &WindowResult, at: &str) {
+        for k in 0..2 {
+            assert_eq!(
+                part.labels[k].labels, full.labels[k].labels,
+                "{at} body {k}"
+            );
+            assert_eq!(
+                part.labels[k].counts, full.labels[k].counts,
+                "{at} body {k}"
+            );
+            assert_eq!(
+                part.labels[k].pieces, full.labels[k].pieces,
+                "{at} body {k}"
+            );
+        }
+        assert_eq!(part.crossings, full.crossings, "{at}");
+        let sorted = |r: &[(f64, f64)]| {
+            let mut r = r.to_vec();
+            r.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
+            r
+        };
+        assert_eq!(sorted(&part.ranges), sorted(&full.ranges), "{at}");
+        assert_eq!(part.undecided, full.undecided, "{at}");
+    }
+
     /// Two windows checked with each prepared only near the other (and inclusion tests
     /// towards far points on the side its clip chose) give every label, count, crossing
     /// and range the full windows give: a small body moved all around and through a
     /// bigger one (apart, touching, crossing, nested, and at the bigger one's hollow).
+    /// So do they with either prepared first and the other near the tets it kept, and
+    /// as [`check_specs`] chooses.
     #[test]
     fn windows_prepared_near_their_partner_answer_as_whole_ones() {
         let big = chronotope_mesh::mesher::test_stream([12; 3], 3, |k, x, y, z| {
@@ -1679,36 +1764,128 @@ mod tests {
                 if apart(&wa, &wb) {
                     continue;
                 }
+                let at = format!("{lo} {d:?}");
                 let whole = |id: &str, w: &WindowSpec| prepare_spec(id, w, None).unwrap();
                 let near = |id: &str, w: &WindowSpec, o: &WindowSpec| {
-                    prepare_spec(id, w, o.spatial_box()).unwrap()
+                    prepare_spec(id, w, o.spatial_box().map(Partner::whole)).unwrap()
                 };
                 let full = check_window(&whole("/a", &wa), &whole("/b", &wb));
                 let (pa, pb) = (near("/a", &wa, &wb), near("/b", &wb, &wa));
                 clipped +=
                     usize::from(pa.body.mesh.tets.len() < whole("/a", &wa).body.mesh.tets.len());
-                let part = check_window(&pa, &pb);
+                assert_same_answer(&check_window(&pa, &pb), &full, &at);
+                assert_either_first_answers_as_whole(("/a", &wa), ("/b", &wb), &full, &at);
+                let (r, _) = check_specs(("/a", &wa), ("/b", &wb), |_, _, _| None).unwrap();
+                assert_same_answer(&r, &full, &at);
                 for k in 0..2 {
-                    assert_eq!(
-                        part.labels[k].labels, full.labels[k].labels,
-                        "{lo} {d:?} body {k}"
-                    );
-                    assert_eq!(part.labels[k].counts, full.labels[k].counts);
                     inside += full.labels[k].counts.inside as usize;
                 }
-                assert_eq!(part.crossings, full.crossings, "{lo} {d:?}");
                 crossing += usize::from(!full.crossings.is_empty());
-                let sorted = |mut r: Vec<(f64, f64)>| {
-                    r.sort_by(|x, y| x.0.total_cmp(&y.0).then(x.1.total_cmp(&y.1)));
-                    r
-                };
-                assert_eq!(sorted(part.ranges), sorted(full.ranges), "{lo} {d:?}");
-                assert_eq!(part.undecided, full.undecided, "{lo} {d:?}");
             }
         }
         assert!(
             clipped > 20 && inside > 0 && crossing > 20,
             "{clipped} {inside} {crossing}"
+        );
+    }
+
+    /// Asserts that windows `wa` and `wb` checked with either prepared first (the other
+    /// near the tets it kept) answer as `full`, and that the second never keeps more tets
+    /// than near the first's whole box; how many times it kept fewer.
+    fn assert_either_first_answers_as_whole(
+        (a, wa): (&str, &WindowSpec),
+        (b, wb): (&str, &WindowSpec),
+        full: &WindowResult,
+        at: &str,
+    ) -> usize {
+        let near = |id: &str, w: &WindowSpec, o: &WindowSpec| {
+            prepare_spec(id, w, o.spatial_box().map(Partner::whole)).unwrap()
+        };
+        let mut fewer = 0;
+        for a_first in [true, false] {
+            let (r, p) = check_near((a, wa), (b, wb), a_first, |_, _, _| None).unwrap();
+            assert_same_answer(&r, full, &format!("{at}, {a} first: {a_first}"));
+            let [pa, pb] = p.unwrap();
+            let (second, whole_box) = if a_first {
+                (pb, near(b, wb, wa))
+            } else {
+                (pa, near(a, wa, wb))
+            };
+            let (n, m) = (second.body.mesh.tets.len(), whole_box.body.mesh.tets.len());
+            assert!(n <= m, "{at}: {n} > {m}");
+            fewer += usize::from(n < m);
+        }
+        fewer
+    }
+
+    /// Windows whose boxes meet but one of which has no tet near the other's box (an arm
+    /// arching over a table: a post beside it, a bar above it) are answered without being
+    /// prepared, exactly as the whole windows' check answers them; the same placements
+    /// nearer, where the bar reaches the table, are checked as before.
+    #[test]
+    fn windows_with_no_tet_near_each_other_answer_as_whole_ones() {
+        let slabs = |f: &dyn Fn(u32, i32, i32, i32) -> bool| {
+            let s = chronotope_mesh::mesher::test_stream([16; 3], 3, f).1;
+            let geometry = s[0].geometry;
+            let meshes: Vec<Arc<TetMesh>> = s.into_iter().map(|x| Arc::new(x.mesh)).collect();
+            (meshes, geometry)
+        };
+        let table = slabs(&|_, x, y, z| {
+            (6..15).contains(&x) && (1..15).contains(&y) && (1..7).contains(&z)
+        });
+        // The arm's post stands on the floor beside the table; its bar comes down `dz`
+        // voxels over it (one more in the last frame), from a voxel above the table's top
+        // to through it.
+        let arm = |dz: i32| {
+            slabs(&move |k, x, y, z| {
+                let z = z + dz + i32::from(k >= 2);
+                let post = (1..3).contains(&x) && (1 + dz..14 + dz).contains(&z);
+                let bar = (1..13).contains(&x) && (12..14).contains(&z);
+                (post || bar) && (5..8).contains(&y)
+            })
+        };
+        let geometry = table.1;
+        let f = i64::from(CHECKER_FACTOR) * i64::from(geometry.scale);
+        let (mut skipped, mut checked, mut crossing, mut inside, mut fewer) = (0, 0, 0, 0, 0);
+        for lo in 0..2u32 {
+            let t = i64::from(lo) * f;
+            let wt = spec(&table, lo, 1, [0, 0, 0, t]);
+            for d in 0..5i64 * 7 {
+                let (dx, dz) = (d % 5 - 2, d / 5);
+                let wa = spec(&arm(dz as i32), lo, 1, [dx * f, 0, 0, t]);
+                if apart(&wa, &wt) {
+                    continue;
+                }
+                let at = format!("{lo} {dx} {dz}");
+                let whole = |id: &str, w: &WindowSpec| prepare_spec(id, w, None).unwrap();
+                let full = check_window(&whole("/a", &wa), &whole("/b", &wt));
+                let (r, prepared) = check_specs(("/a", &wa), ("/b", &wt), |_, _, _| None).unwrap();
+                assert_same_answer(&r, &full, &at);
+                match approach(&wa, &wt) {
+                    Approach::Separated(r) => {
+                        assert!(prepared.is_none(), "{at}");
+                        assert!(full.crossings.is_empty() && full.ranges.is_empty(), "{at}");
+                        assert_same_answer(&r, &full, &at);
+                        skipped += 1;
+                    }
+                    Approach::Near { .. } => {
+                        assert!(prepared.is_some(), "{at}");
+                        checked += 1;
+                        crossing += usize::from(!full.crossings.is_empty());
+                        inside += full.labels.iter().map(|l| l.counts.inside).sum::<u64>();
+                        fewer += assert_either_first_answers_as_whole(
+                            ("/a", &wa),
+                            ("/b", &wt),
+                            &full,
+                            &at,
+                        );
+                    }
+                }
+            }
+        }
+        assert!(
+            skipped > 5 && checked > 5 && crossing > 2 && inside > 0 && fewer > 5,
+            "{skipped} {checked} {crossing} {inside} {fewer}"
         );
     }
 
