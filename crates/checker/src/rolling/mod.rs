@@ -1827,8 +1827,9 @@ impl RollingChecker {
             .collect();
         // Each distinct body window once: a body in several pairs often has the same
         // window in each (the same pieces and placement). It holds the tets any of its
-        // partners needs. In each pair the window with fewer tets is prepared first, near
-        // its partner's box; the other then near the tets it kept (see `check_near`).
+        // partners needs. In each pair the window keeping fewer tets near the other's box
+        // is prepared first, near that box; the other then near the tets it kept (see
+        // `check_near`).
         let near: Vec<(&str, &WindowSpec, &str, &WindowSpec)> = ready
             .iter()
             .zip(&approaches)
@@ -1845,7 +1846,7 @@ impl RollingChecker {
                 }
             })
             .collect();
-        let prepare = |needs: &[(&str, &WindowSpec, Partner)]| -> Vec<Option<Arc<PreparedWindow>>> {
+        let prepare = |needs: &[Need]| -> Vec<Option<Arc<PreparedWindow>>> {
             needs
                 .par_iter()
                 .map(|(id, w, partner)| {
@@ -1854,7 +1855,7 @@ impl RollingChecker {
                 })
                 .collect()
         };
-        let found = |needs: &[(&str, &WindowSpec, Partner)],
+        let found = |needs: &[Need],
                      shared: &[Option<Arc<PreparedWindow>>],
                      id: &str,
                      w: &WindowSpec,
@@ -2120,12 +2121,13 @@ fn add_run(t: &mut Totals, r: Run) {
     t.vanishing += stats.vanishing_slabs;
 }
 
+/// A body's window to prepare (body id, window) and the partners it serves.
+type Need<'a> = (&'a str, &'a WindowSpec, Partner);
+
 /// Each distinct body window of `needs` once (the same body, the same window), with the
 /// partners of all its needs together ([`Partner::union`]): one preparation serves them all.
-fn shared_partners<'a>(
-    needs: impl Iterator<Item = (&'a str, &'a WindowSpec, Partner)>,
-) -> Vec<(&'a str, &'a WindowSpec, Partner)> {
-    let mut distinct: Vec<(&str, &WindowSpec, Partner)> = Vec::new();
+fn shared_partners<'a>(needs: impl Iterator<Item = Need<'a>>) -> Vec<Need<'a>> {
+    let mut distinct: Vec<Need> = Vec::new();
     for (id, w, partner) in needs {
         match distinct
             .iter_mut()

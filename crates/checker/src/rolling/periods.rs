@@ -1285,8 +1285,8 @@ pub(super) fn cached(
         .map(|c| c.1.clone())
 }
 
-/// A window's result, with the two bodies' prepared windows (`None`: not prepared, the
-/// windows are [`separated`]).
+/// A window's result, with the two bodies' prepared windows (`None`: not prepared, see
+/// [`Approach::Separated`]).
 pub(super) type WindowChecked =
     Result<(WindowResult, Option<[Arc<PreparedWindow>; 2]>), crate::period::WindowError>;
 
