@@ -9,7 +9,7 @@
 
 use std::sync::{Arc, Condvar, Mutex, OnceLock};
 
-use super::episodes::lower_own_priority;
+use super::episodes::low_priority_pool;
 
 /// How much the bookkeeping pool's threads lower their priority: nice values added (Linux
 /// gives a thread of nice +10 about a tenth of a core's time against a thread of the
@@ -25,20 +25,15 @@ pub type BookkeepingPool = Option<Arc<rayon::ThreadPool>>;
 /// threads at [`BOOKKEEPING_NICE`]; `None` (rayon's pool) if it could not be made.
 pub fn shared_bookkeeping_pool() -> BookkeepingPool {
     static POOL: OnceLock<BookkeepingPool> = OnceLock::new();
-    POOL.get_or_init(|| {
-        let made = rayon::ThreadPoolBuilder::new()
-            .num_threads(rayon::current_num_threads())
-            .thread_name(|i| format!("bookkeeping-{i}"))
-            .start_handler(|_| lower_own_priority(BOOKKEEPING_NICE))
-            .build();
-        match made {
+    POOL.get_or_init(
+        || match low_priority_pool("bookkeeping", BOOKKEEPING_NICE) {
             Ok(p) => Some(Arc::new(p)),
             Err(e) => {
                 tracing::warn!("checker: no bookkeeping pool of its own ({e}); using rayon's");
                 None
             }
-        }
-    })
+        },
+    )
     .clone()
 }
 
@@ -104,10 +99,7 @@ impl<T: Send + 'static> PoolJob<T> {
                 .store(true, std::sync::atomic::Ordering::Release);
             on_pool.ran.notify_all();
         };
-        match pool {
-            Some(p) => p.spawn(run),
-            None => rayon::spawn(run),
-        }
+        spawn_on(pool, run);
         Self { shared }
     }
 

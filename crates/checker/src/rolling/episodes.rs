@@ -530,14 +530,23 @@ impl RollingChecker {
 /// ([`RESOLVER_NICE`]): contacts are the answer a cell waits for, so the windows, the
 /// meshers and the transport take the cores first and a resolution the time they leave.
 fn resolver_pool() -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
+    low_priority_pool("resolver", RESOLVER_NICE)
+}
+
+/// A pool of as many threads as rayon's, named `{name}-N`, each at `nice` more than the
+/// process ([`lower_own_priority`]). A job that panics (a bug) must not abort the process,
+/// rayon's default: the panic is logged (a resolution's result channel then closes and
+/// the checker says so; a bookkeeping job catches its own).
+pub(super) fn low_priority_pool(
+    name: &'static str,
+    nice: i32,
+) -> Result<rayon::ThreadPool, rayon::ThreadPoolBuildError> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(rayon::current_num_threads())
-        .thread_name(|i| format!("resolver-{i}"))
-        .start_handler(|_| lower_own_priority(RESOLVER_NICE))
-        // A resolution that panics (a bug) must not abort the process, rayon's default:
-        // its result channel closes and the checker says so.
-        .panic_handler(|p| {
-            tracing::error!("a resolution panicked: {}", crate::panic_text(p.as_ref()));
+        .thread_name(move |i| format!("{name}-{i}"))
+        .start_handler(move |_| lower_own_priority(nice))
+        .panic_handler(move |p| {
+            tracing::error!("a {name} job panicked: {}", crate::panic_text(p.as_ref()));
         })
         .build()
 }

@@ -1400,20 +1400,18 @@ impl RollingChecker {
     /// added here.
     pub(super) fn settle_stats(&mut self, body: &str) {
         self.take_back_stats(body);
-        let Some(b) = self.bodies.get_mut(body) else {
-            return;
-        };
-        while let Some(q) = b.stats_queue.pop_front() {
+        while let Some(b) = self.bodies.get_mut(body) {
+            let Some(q) = b.stats_queue.pop_front() else {
+                return;
+            };
             let Some(acc) = take_acc(b, q.run) else {
                 continue;
             };
             let run = q.run;
             let done = q.add_to(acc);
             b.give_back_stats(run, done);
-            // As `forget_rest_if_moving`, piece by piece.
-            if b.moving_for > REST_KEPT_SLABS {
-                self.rest.remove(body);
-            }
+            // Piece by piece, as the pool's jobs are taken back.
+            self.forget_rest_if_moving(body);
         }
     }
 
