@@ -112,7 +112,7 @@ pub use walk::{
 };
 
 use chronotope_kernel::bvh::{
-    overlapping_pairs_under, top_pairs, Bvh, BvhError, NodePair, TraverseWorkspace,
+    overlapping_boxes_under, top_pairs, Aabb4, Bvh, BvhError, NodePair, TraverseWorkspace,
 };
 use chronotope_kernel::intersect::{classify_if, TetPairRelation};
 use chronotope_kernel::LatticePoint;

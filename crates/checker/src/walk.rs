@@ -66,6 +66,9 @@ pub(super) struct Part {
     pub(super) interfering_pairs: u64,
     /// Coplanar pairs facing each other, held back (see [`visit`]).
     pub(super) facing: Vec<(u32, u32)>,
+    /// Pairs that can only touch, in the plane x_k = c, held back while touching still
+    /// mattered to one of their tets (see [`visit`]): `(i, j, k, c)`.
+    pub(super) plane: Vec<(u32, u32, u32, i32)>,
 }
 
 /// How many node-pair levels the tree-against-tree walk is split at for the workers
@@ -218,13 +221,14 @@ pub(super) fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Pa
             candidate_pairs: 0,
             interfering_pairs: 0,
             facing: Vec::new(),
+            plane: Vec::new(),
         };
         let mut ws = TraverseWorkspace::new();
         while !stop.load(Ordering::Relaxed) {
             let k = next.fetch_add(1, Ordering::Relaxed);
             let Some(&top) = tops.get(k) else { break };
-            let _ = overlapping_pairs_under(&a.bvh, &b.bvh, top, &mut ws, |i, j| {
-                visit(Side::of(a), Side::of(b), i, j, &mut part);
+            let _ = overlapping_boxes_under(&a.bvh, &b.bvh, top, &mut ws, |i, j, bi, bj| {
+                visit(Side::of(a), Side::of(b), (i, bi), (j, bj), &mut part);
                 if stop_at_interference && part.interfering_pairs > 0 {
                     stop.store(true, Ordering::Relaxed);
                     return ControlFlow::Break(());
@@ -232,6 +236,7 @@ pub(super) fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Pa
                 ControlFlow::Continue(())
             });
         }
+        settle_plane(Side::of(a), Side::of(b), &mut part);
         part
     };
     let parts: Vec<Part> = if threads == 1 {
@@ -298,10 +303,23 @@ pub(super) fn one_instant(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4]) -> Opt
 /// spatial boxes, so that the tets do not meet (exact).
 #[inline]
 pub(super) fn faces_apart(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4], instant: i32) -> bool {
+    faces_apart_on(ta, tb, 3, instant)
+}
+
+/// Whether the faces in the plane x_`axis` = `c` of two tets (their vertices there; see
+/// [`plane_of_meeting`]) have disjoint boxes, so that the tets do not meet (exact). A tet
+/// with no vertex in the plane has an empty face there.
+#[inline]
+pub(super) fn faces_apart_on(
+    ta: &[LatticePoint; 4],
+    tb: &[LatticePoint; 4],
+    axis: usize,
+    c: i32,
+) -> bool {
     let face_box = |t: &[LatticePoint; 4]| {
-        let (mut lo, mut hi) = ([i32::MAX; 3], [i32::MIN; 3]);
-        for v in t.iter().filter(|v| v[3] == instant) {
-            for k in 0..3 {
+        let (mut lo, mut hi) = ([i32::MAX; 4], [i32::MIN; 4]);
+        for v in t.iter().filter(|v| v[axis] == c) {
+            for k in 0..4 {
                 lo[k] = lo[k].min(v[k]);
                 hi[k] = hi[k].max(v[k]);
             }
@@ -309,7 +327,7 @@ pub(super) fn faces_apart(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4], instan
         (lo, hi)
     };
     let ((alo, ahi), (blo, bhi)) = (face_box(ta), face_box(tb));
-    (0..3).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k])
+    (0..4).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k])
 }
 
 /// What the walk reads of a body: its tets and their normals.
@@ -384,11 +402,13 @@ impl StreamWalk {
             if !ba.overlaps(&bb) {
                 continue;
             }
-            let _ = overlapping_pairs_under(ta, tb, NodePair::new(ra, rb), &mut ws, |i, j| {
-                visit(side_a, side_b, i, j, part);
-                ControlFlow::<()>::Continue(())
-            });
+            let _ =
+                overlapping_boxes_under(ta, tb, NodePair::new(ra, rb), &mut ws, |i, j, bi, bj| {
+                    visit(side_a, side_b, (i, bi), (j, bj), part);
+                    ControlFlow::<()>::Continue(())
+                });
         }
+        settle_plane(side_a, side_b, part);
         settle_facing(side_a, side_b, part);
         self.seen = (na, nb);
     }
@@ -399,17 +419,40 @@ impl StreamWalk {
     }
 }
 
-/// One candidate pair: the exact relation, recorded in the worker's share.
+/// One candidate pair (tets `i` of A and `j` of B, with boxes holding them): the exact
+/// relation, recorded in the worker's share.
 #[inline]
-pub(super) fn visit(a: Side<'_>, b: Side<'_>, i: u32, j: u32, part: &mut Part) {
+pub(super) fn visit(
+    a: Side<'_>,
+    b: Side<'_>,
+    (i, box_a): (u32, &Aabb4),
+    (j, box_b): (u32, &Aabb4),
+    part: &mut Part,
+) {
     part.candidate_pairs += 1;
-    let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
     let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
     // Whether the pair merely touches matters only to a tet not yet known to touch.
     let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
-    // Most candidates (about 60 % at the seed's scale) are tets of consecutive slabs whose
-    // boxes meet only at the frame time between them: such a pair can only touch, and
-    // only where their faces at that time meet (most of those are apart in space).
+    // On one lattice most candidates are tets of neighbouring cells (or of consecutive
+    // slabs) whose boxes meet in one plane only: such a pair can only touch, which matters
+    // only to a tet not yet known to touch, and is settled from the boxes and normals
+    // alone, before a vertex is read. Where it still matters it is held back until the
+    // worker's other pairs are done: by then both tets touch, as a rule, through a pair
+    // of the same cell, and nothing is left to read.
+    if let Some((k, c)) = plane_of_meeting(
+        (box_a, &a.normals[i as usize]),
+        (box_b, &b.normals[j as usize]),
+    ) {
+        if touching_matters {
+            part.plane.push((i, j, k as u32, c));
+            if part.plane.len() >= PLANE_HELD {
+                settle_plane(a, b, part);
+            }
+        }
+        return;
+    }
+    let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
+    // A tet without a known normal: by its time range (the same rule in time).
     if let Some(instant) = one_instant(&ta, &tb) {
         if !touching_matters || faces_apart(&ta, &tb, instant) {
             return;
@@ -450,6 +493,56 @@ pub(super) fn visit(a: Side<'_>, b: Side<'_>, i: u32, j: u32, part: &mut Part) {
         }
     }
     relate(&ta, &tb, i, j, touching_matters, part);
+}
+
+/// The plane x_k = c (as `(k, c)`) where two tets, held by boxes `box_a` and `box_b` that
+/// overlap, can only touch: the boxes meet in that plane only, and one of the tets does
+/// not lie in it (its normal, known, has a component other than k). Then A ∩ B lies in
+/// the plane, where that tet (on one side of it, not in it) has a proper face: the two
+/// relative interiors do not meet (no crossing) and A ∩ B has no 3-volume (no coplanar
+/// overlap); A ∩ B is the meet of their faces in the plane (see [`faces_apart_on`]). This
+/// is [`one_instant`] on every axis. A tet whose normal is not known ([`NO_NORMAL`]) or
+/// vanishes is taken as lying in the plane. Exact.
+#[inline]
+pub(super) fn plane_of_meeting(
+    (box_a, na): (&Aabb4, &[i32; 4]),
+    (box_b, nb): (&Aabb4, &[i32; 4]),
+) -> Option<(usize, i32)> {
+    let off_plane = |n: &[i32; 4], k: usize| *n != NO_NORMAL && (0..4).any(|m| m != k && n[m] != 0);
+    (0..4).find_map(|k| {
+        let c = if box_a.max[k] == box_b.min[k] {
+            box_a.max[k]
+        } else if box_b.max[k] == box_a.min[k] {
+            box_b.max[k]
+        } else {
+            return None;
+        };
+        (off_plane(na, k) || off_plane(nb, k)).then_some((k, c))
+    })
+}
+
+/// Pairs meeting in a plane a worker holds before it settles them.
+const PLANE_HELD: usize = 1 << 16;
+
+/// Settles the pairs meeting in a plane that `part` holds back (see [`visit`]): each one
+/// whose tets do not both touch already, exactly. Such a pair can only touch (see
+/// [`plane_of_meeting`]): where their faces in the plane are apart it does not, otherwise
+/// the exact relation says. The touches only grow, so the order does not change what they
+/// end as.
+pub(super) fn settle_plane(a: Side<'_>, b: Side<'_>, part: &mut Part) {
+    let plane = std::mem::take(&mut part.plane);
+    for &(i, j, k, c) in &plane {
+        let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
+        if ha >= Touch::Contact && hb >= Touch::Contact {
+            continue;
+        }
+        let (ta, tb) = (tet_of(a.mesh, i), tet_of(b.mesh, j));
+        if !faces_apart_on(&ta, &tb, k as usize, c) {
+            relate(&ta, &tb, i, j, true, part);
+        }
+    }
+    part.plane = plane;
+    part.plane.clear();
 }
 
 /// Facing pairs a worker holds before it settles them.
@@ -694,54 +787,204 @@ mod tests {
             }
             let (pa, pb) = (prepared(&a), prepared(&b));
             let all = walk(&pa, &pb, false);
-            let (mut hit_a, mut hit_b) = (
-                vec![Touch::Clear; pa.mesh.tets.len()],
-                vec![Touch::Clear; pb.mesh.tets.len()],
-            );
-            let mut interfering = Vec::new();
-            for i in 0..pa.mesh.tets.len() as u32 {
-                for j in 0..pb.mesh.tets.len() as u32 {
-                    let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
-                    let touch = match chronotope_kernel::classify(&ta, &tb) {
-                        TetPairRelation::Crossing
-                        | TetPairRelation::Coplanar {
-                            overlap_volume_positive: true,
-                            same_orientation: true,
-                        } => Touch::Interference,
-                        TetPairRelation::Coplanar {
-                            overlap_volume_positive: true,
-                            same_orientation: false,
-                        } if same_points(&ta, &tb) => Touch::Twin,
-                        TetPairRelation::Coplanar {
-                            overlap_volume_positive: true,
-                            same_orientation: false,
-                        } => Touch::FaceToFace,
-                        TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => {
-                            Touch::Contact
-                        }
-                        TetPairRelation::Disjoint => Touch::Clear,
-                    };
-                    if touch == Touch::Interference {
-                        interfering.push((i, j));
-                    }
-                    faces += usize::from(matches!(touch, Touch::FaceToFace | Touch::Twin));
-                    twins += usize::from(same_points(&ta, &tb));
-                    hit_a[i as usize] = hit_a[i as usize].max(touch);
-                    hit_b[j as usize] = hit_b[j as usize].max(touch);
-                }
-            }
-            assert_eq!(all.hit_a, hit_a, "round {round}: A's touches");
-            assert_eq!(all.hit_b, hit_b, "round {round}: B's touches");
-            let mut walked: Vec<(u32, u32)> = all.ranges.iter().map(|r| (r.2, r.3)).collect();
-            walked.sort_unstable();
-            walked.dedup();
-            interfering.sort_unstable();
-            assert_eq!(walked, interfering, "round {round}: interfering pairs");
-            assert!(all.facing.is_empty());
+            let exact = exact_touches(&pa, &pb);
+            faces += exact.faces;
+            twins += exact.twins;
+            assert_same_touches(&all, &exact, round);
         }
         assert!(
             faces > 300 && twins > 200,
             "{faces} facing overlaps, {twins} twins"
+        );
+    }
+
+    /// Every pair of two bodies classified on its own (the kernel's exact classifier),
+    /// as the walk records it: each tet's strongest touch, and the interfering pairs.
+    struct ExactTouches {
+        hit_a: Vec<Touch>,
+        hit_b: Vec<Touch>,
+        interfering: Vec<(u32, u32)>,
+        faces: usize,
+        twins: usize,
+    }
+
+    fn exact_touches(pa: &Prepared, pb: &Prepared) -> ExactTouches {
+        let mut e = ExactTouches {
+            hit_a: vec![Touch::Clear; pa.mesh.tets.len()],
+            hit_b: vec![Touch::Clear; pb.mesh.tets.len()],
+            interfering: Vec::new(),
+            faces: 0,
+            twins: 0,
+        };
+        for i in 0..pa.mesh.tets.len() as u32 {
+            for j in 0..pb.mesh.tets.len() as u32 {
+                let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
+                let touch = match chronotope_kernel::classify(&ta, &tb) {
+                    TetPairRelation::Crossing
+                    | TetPairRelation::Coplanar {
+                        overlap_volume_positive: true,
+                        same_orientation: true,
+                    } => Touch::Interference,
+                    TetPairRelation::Coplanar {
+                        overlap_volume_positive: true,
+                        same_orientation: false,
+                    } if same_points(&ta, &tb) => Touch::Twin,
+                    TetPairRelation::Coplanar {
+                        overlap_volume_positive: true,
+                        same_orientation: false,
+                    } => Touch::FaceToFace,
+                    TetPairRelation::Coplanar { .. } | TetPairRelation::Touching => Touch::Contact,
+                    TetPairRelation::Disjoint => Touch::Clear,
+                };
+                if touch == Touch::Interference {
+                    e.interfering.push((i, j));
+                }
+                e.faces += usize::from(matches!(touch, Touch::FaceToFace | Touch::Twin));
+                e.twins += usize::from(same_points(&ta, &tb));
+                e.hit_a[i as usize] = e.hit_a[i as usize].max(touch);
+                e.hit_b[j as usize] = e.hit_b[j as usize].max(touch);
+            }
+        }
+        e.interfering.sort_unstable();
+        e
+    }
+
+    fn assert_same_touches(all: &Part, exact: &ExactTouches, round: usize) {
+        assert_eq!(all.hit_a, exact.hit_a, "round {round}: A's touches");
+        assert_eq!(all.hit_b, exact.hit_b, "round {round}: B's touches");
+        let mut walked: Vec<(u32, u32)> = all.ranges.iter().map(|r| (r.2, r.3)).collect();
+        walked.sort_unstable();
+        walked.dedup();
+        assert_eq!(
+            walked, exact.interfering,
+            "round {round}: interfering pairs"
+        );
+        assert!(all.facing.is_empty() && all.plane.is_empty());
+    }
+
+    fn tet_box(t: &[LatticePoint; 4]) -> Aabb4 {
+        let mut b = Aabb4::from_point(t[0]);
+        t[1..].iter().for_each(|v| b.grow(v));
+        b
+    }
+
+    /// A tet in a random cell of a small lattice (cells 8 apart, ×8 as the checker's
+    /// coordinates are), its vertices on the cell's corners, edge midpoints and centre, as
+    /// marching cubes places them; a third of the tets lie in a plane of the cell.
+    fn cell_tet(rng: &mut Rng) -> [LatticePoint; 4] {
+        let cell = [0; 4].map(|_| rng.range(0, 2) as i32 * 8);
+        let flat = rng.range(0, 5) as usize;
+        let side = rng.range(0, 1) as i32 * 8;
+        [0; 4].map(|_| {
+            let mut p = [0; 4].map(|_| rng.range(0, 2) as i32 * 4);
+            if flat < 4 {
+                p[flat] = side;
+            }
+            [0, 1, 2, 3].map(|k| cell[k] + p[k])
+        })
+    }
+
+    /// The walk's shortcut for pairs meeting in one plane against the exact classifier:
+    /// such a pair never crosses or overlaps in a hyperplane, and faces apart in that plane
+    /// mean the closed tets are disjoint. Tets in cells of one lattice make such pairs
+    /// (neighbouring cells) common, and touching ones too.
+    #[test]
+    fn pairs_meeting_in_one_plane_only_touch_where_their_faces_meet() {
+        let mut rng = Rng(0x6A09_E667_F3BC_C909);
+        let (mut planes, mut touching, mut apart) = ([0; 4], 0, 0);
+        for _ in 0..100_000 {
+            let (ta, tb) = (cell_tet(&mut rng), cell_tet(&mut rng));
+            let (ba, bb) = (tet_box(&ta), tet_box(&tb));
+            if !ba.overlaps(&bb) {
+                continue;
+            }
+            let (na, nb) = (tet_normal(ta), tet_normal(tb));
+            let Some((k, c)) = plane_of_meeting((&ba, &na), (&bb, &nb)) else {
+                continue;
+            };
+            planes[k] += 1;
+            let relation = chronotope_kernel::classify(&ta, &tb);
+            assert!(
+                matches!(
+                    relation,
+                    TetPairRelation::Touching
+                        | TetPairRelation::Disjoint
+                        | TetPairRelation::Coplanar {
+                            overlap_volume_positive: false,
+                            ..
+                        }
+                ),
+                "{ta:?} {tb:?} in x{k} = {c}: {relation:?}"
+            );
+            let meet = tets_intersect(&ta, &tb);
+            touching += usize::from(meet);
+            if faces_apart_on(&ta, &tb, k, c) {
+                apart += 1;
+                assert!(
+                    !meet,
+                    "{ta:?} {tb:?} meet though their faces in x{k} = {c} are apart"
+                );
+            }
+        }
+        assert!(
+            planes.iter().all(|&n| n > 300) && touching > 1000 && apart > 4000,
+            "{planes:?} {touching} {apart}"
+        );
+    }
+
+    /// The walk's touches and interfering pairs against every pair classified on its own,
+    /// for two bodies of tets in the cells of one lattice: most candidates meet in one
+    /// plane (neighbouring cells), many of them are held back while a tet does not touch
+    /// yet, and some tets touch only through such a pair.
+    #[test]
+    fn pairs_meeting_in_a_plane_held_back_give_what_each_pair_gives() {
+        let mut rng = Rng(0xBB67_AE85_84CA_A73B);
+        let (mut plane_pairs, mut only_in_a_plane) = (0, 0);
+        for round in 0..6 {
+            let (mut a, mut b) = (TetMesh::default(), TetMesh::default());
+            for m in [&mut a, &mut b] {
+                while m.tets.len() < 150 {
+                    let t = cell_tet(&mut rng);
+                    if tet_normal(t) == [0; 4] {
+                        continue;
+                    }
+                    let base = m.vertices.len() as u32;
+                    m.vertices.extend(t);
+                    m.tets.push([base, base + 1, base + 2, base + 3]);
+                }
+            }
+            let (pa, pb) = (prepared(&a), prepared(&b));
+            let all = walk(&pa, &pb, false);
+            let exact = exact_touches(&pa, &pb);
+            assert_same_touches(&all, &exact, round);
+            // Tets that touch the other body, and only in pairs meeting in a plane.
+            let mut touched_off_plane = (vec![false; 150], vec![false; 150]);
+            for i in 0..150u32 {
+                for j in 0..150u32 {
+                    let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
+                    if !tets_intersect(&ta, &tb) {
+                        continue;
+                    }
+                    // The tree's boxes: each tet's, exactly.
+                    let (ba, bb) = (tet_box(&ta), tet_box(&tb));
+                    let plane = plane_of_meeting(
+                        (&ba, &pa.normals[i as usize]),
+                        (&bb, &pb.normals[j as usize]),
+                    );
+                    plane_pairs += usize::from(plane.is_some());
+                    if plane.is_none() {
+                        touched_off_plane.0[i as usize] = true;
+                        touched_off_plane.1[j as usize] = true;
+                    }
+                }
+            }
+            only_in_a_plane += (0..150)
+                .filter(|&i| exact.hit_a[i] == Touch::Contact && !touched_off_plane.0[i])
+                .count();
+        }
+        assert!(
+            plane_pairs > 1000 && only_in_a_plane > 200,
+            "{plane_pairs} touching pairs in a plane, {only_in_a_plane} tets touching only so"
         );
     }
 

@@ -18,6 +18,6 @@ pub use intersect::{classify, tets_cross, tets_intersect, TetPairRelation};
 
 pub mod bvh;
 pub use bvh::{
-    overlapping_pairs, overlapping_pairs_under, top_pairs, try_overlapping_pairs, Aabb4, Bvh,
-    BvhError, Forest, NodePair, TraverseWorkspace,
+    overlapping_boxes_under, overlapping_pairs, overlapping_pairs_under, top_pairs,
+    try_overlapping_pairs, Aabb4, Bvh, BvhError, Forest, NodePair, TraverseWorkspace,
 };

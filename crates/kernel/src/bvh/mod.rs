@@ -29,8 +29,8 @@ mod segment;
 pub use aabb::Aabb4;
 pub use forest::Forest;
 pub use pairs::{
-    any_within, overlapping_pairs, overlapping_pairs_under, top_pairs, try_overlapping_pairs,
-    NodePair,
+    any_within, overlapping_boxes_under, overlapping_pairs, overlapping_pairs_under, top_pairs,
+    try_overlapping_pairs, NodePair,
 };
 
 /// Why a tree could not be built.

@@ -117,6 +117,17 @@ pub fn overlapping_pairs_under<B>(
     ws: &mut TraverseWorkspace,
     mut f: impl FnMut(u32, u32) -> ControlFlow<B>,
 ) -> ControlFlow<B> {
+    overlapping_boxes_under(a, b, start, ws, |i, j, _, _| f(i, j))
+}
+
+/// [`overlapping_pairs_under`], with the two items' boxes: `f(i, j, box_i, box_j)`.
+pub fn overlapping_boxes_under<B>(
+    a: &Bvh,
+    b: &Bvh,
+    start: NodePair,
+    ws: &mut TraverseWorkspace,
+    mut f: impl FnMut(u32, u32, &Aabb4, &Aabb4) -> ControlFlow<B>,
+) -> ControlFlow<B> {
     let (Some(ra), Some(rb)) = (a.nodes.get(start.a as usize), b.nodes.get(start.b as usize))
     else {
         return ControlFlow::Continue(());
@@ -138,7 +149,7 @@ pub fn overlapping_pairs_under<B>(
                 }
                 for (j, box_b) in boxes_b.iter().enumerate() {
                     if box_a.overlaps(box_b) {
-                        f(a.order[fa + i], b.order[fb + j])?;
+                        f(a.order[fa + i], b.order[fb + j], box_a, box_b)?;
                     }
                 }
             }
