@@ -458,8 +458,23 @@ pub(super) fn visit(
             return;
         }
     }
+    visit_tets(a, b, (i, &ta), (j, &tb), part);
+}
+
+/// [`visit`] once the tets are read: the cheap exact tests on the tets' hyperplanes, the
+/// facing pairs held back, then the exact relation.
+#[inline]
+fn visit_tets(
+    a: Side<'_>,
+    b: Side<'_>,
+    (i, ta): (u32, &[LatticePoint; 4]),
+    (j, tb): (u32, &[LatticePoint; 4]),
+    part: &mut Part,
+) {
+    let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
+    let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
     // Most other candidates lie strictly on one side of the other's hyperplane.
-    let sides_of_b = sides(&a.normals[i as usize], &ta, &tb);
+    let sides_of_b = sides(&a.normals[i as usize], ta, tb);
     if sides_of_b.is_some_and(|s| strictly_one_side(&s)) {
         return;
     }
@@ -469,7 +484,7 @@ pub(super) fn visit(
     // same four points) settles that at once; any other facing pair waits for the end of
     // the walk, when most are moot (both tets face to face by then).
     if sides_of_b == Some([0; 4]) && facing(&a.normals[i as usize], &b.normals[j as usize]) {
-        if same_points(&ta, &tb) {
+        if same_points(ta, tb) {
             part.hit_a[i as usize] = ha.max(Touch::Twin);
             part.hit_b[j as usize] = hb.max(Touch::Twin);
         } else if ha < Touch::FaceToFace || hb < Touch::FaceToFace {
@@ -480,7 +495,7 @@ pub(super) fn visit(
         }
         return;
     }
-    let sides_of_a = sides(&b.normals[j as usize], &tb, &ta);
+    let sides_of_a = sides(&b.normals[j as usize], tb, ta);
     if sides_of_a.is_some_and(|s| strictly_one_side(&s)) {
         return;
     }
@@ -492,7 +507,7 @@ pub(super) fn visit(
             return;
         }
     }
-    relate(&ta, &tb, i, j, touching_matters, part);
+    relate(ta, tb, i, j, touching_matters, part);
 }
 
 /// The plane x_k = c (as `(k, c)`) where two tets, held by boxes `box_a` and `box_b` that
@@ -527,8 +542,8 @@ const PLANE_HELD: usize = 1 << 16;
 /// Settles the pairs meeting in a plane that `part` holds back (see [`visit`]): each one
 /// whose tets do not both touch already, exactly. Such a pair can only touch (see
 /// [`plane_of_meeting`]): where their faces in the plane are apart it does not, otherwise
-/// the exact relation says. The touches only grow, so the order does not change what they
-/// end as.
+/// the tests of [`visit`] say. The touches only grow, so the order does not change what
+/// they end as.
 pub(super) fn settle_plane(a: Side<'_>, b: Side<'_>, part: &mut Part) {
     let plane = std::mem::take(&mut part.plane);
     for &(i, j, k, c) in &plane {
@@ -538,7 +553,7 @@ pub(super) fn settle_plane(a: Side<'_>, b: Side<'_>, part: &mut Part) {
         }
         let (ta, tb) = (tet_of(a.mesh, i), tet_of(b.mesh, j));
         if !faces_apart_on(&ta, &tb, k as usize, c) {
-            relate(&ta, &tb, i, j, true, part);
+            visit_tets(a, b, (i, &ta), (j, &tb), part);
         }
     }
     part.plane = plane;
