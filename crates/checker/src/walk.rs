@@ -236,7 +236,10 @@ pub(super) fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Pa
                 ControlFlow::Continue(())
             });
         }
-        settle_plane(Side::of(a), Side::of(b), &mut part);
+        // Once a worker has found an interference for `interferes`, no touch is needed.
+        if !stop.load(Ordering::Relaxed) {
+            settle_plane(Side::of(a), Side::of(b), &mut part);
+        }
         part
     };
     let parts: Vec<Part> = if threads == 1 {
@@ -884,8 +887,9 @@ mod tests {
     }
 
     /// A tet in a random cell of a small lattice (cells 8 apart, ×8 as the checker's
-    /// coordinates are), its vertices on the cell's corners, edge midpoints and centre, as
-    /// marching cubes places them; a third of the tets lie in a plane of the cell.
+    /// coordinates are), its vertices on the cell's half lattice (corners, edge and face
+    /// midpoints, centre), as marching cubes places them; two tets in three lie in a face
+    /// of their cell.
     fn cell_tet(rng: &mut Rng) -> [LatticePoint; 4] {
         let cell = [0; 4].map(|_| rng.range(0, 2) as i32 * 8);
         let flat = rng.range(0, 5) as usize;
