@@ -455,7 +455,8 @@ pub(super) fn visit(
         return;
     }
     let (ta, tb) = (tet_of(&a.mesh, i), tet_of(&b.mesh, j));
-    // A tet without a known normal: by its time range (the same rule in time).
+    // The same rule in time from the tets' own time ranges: for a tet without a known
+    // normal, or boxes larger than their tets (a body placed by a shearing map).
     if let Some(instant) = one_instant(&ta, &tb) {
         if !touching_matters || faces_apart(&ta, &tb, instant) {
             return;
