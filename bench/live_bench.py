@@ -334,6 +334,21 @@ def loadavg() -> list:
     return [float(x) for x in Path("/proc/loadavg").read_text().split()[:3]]
 
 
+def machine_probe_ms() -> float:
+    """Milliseconds a fixed single-thread workload takes (SHA-256 of 64 MiB, best of 3),
+    before and after a run: whether the cores' own arithmetic was slower. On the dev VM it
+    stayed at 46-50 ms while the same launch's handling time (`handling_s`) went from 8 to
+    11 s, so the slow hours there are not slower arithmetic (docs/performance.md)."""
+    import hashlib
+    data = bytes(64 << 20)
+    best = math.inf
+    for _ in range(3):
+        t = time.perf_counter()
+        hashlib.sha256(data).digest()
+        best = min(best, (time.perf_counter() - t) * 1e3)
+    return best
+
+
 def steal_s() -> float:
     """CPU time the hypervisor gave to others while this VM's CPUs wanted it (all CPUs, s):
     a stall that hits every process at once shows here."""
@@ -1178,7 +1193,13 @@ def bench_sources(a, exe, domain, tmp, kind):
     problems = summary_extras(full)["problems"]
     if problems:
         print(f"counted problems: {problems}")
+    # The same work every run: how long the mesher and the checker took to handle their
+    # inputs says how fast the machine ran while it played (a slower host, a longer time).
+    handling = sum(l.get("busy_total_s", 0.0) for n in ("/mesher", "/checker")
+                   for l in full.get("nodes", {}).get(n, {}).get("lag", {}).values())
+    print(f"mesher and checker handling their inputs: {handling:.2f} s in all")
     return {"what": what, "config": cfg.name, "scene": scene, "loops": a.loops, "labels": a.labels,
+            "handling_s": handling,
             "frames_published": got["frames_published"], "played_s": got["timing_s"]["played"],
             "topics": rows, "contacts_begun": len(begun), "events": len(events),
             "latency_ms": {"p50": pct(lat, 0.5), "p99": pct(lat, 0.99), "max": max(lat, default=nan),
@@ -1276,7 +1297,8 @@ def main() -> int:
         ap.error("--seconds in 1..3600")
     domain = a.domain if a.domain is not None else 120 + os.getpid() % 50
     out = {"domain": domain, "machine": {"nproc": os.cpu_count()}, "exe": str(exe), "command": sys.argv,
-           "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "loadavg_start": loadavg()}
+           "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "loadavg_start": loadavg(),
+           "machine_probe_ms_start": machine_probe_ms()}
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         cases = ["idle", "cyclone", "mesher"] if a.case == "all" else [a.case]
@@ -1293,6 +1315,9 @@ def main() -> int:
                       "robot": lambda *x: bench_sources(*x, "robot"),
                       "cloud": lambda *x: bench_sources(*x, "cloud")}[c](a, exe, domain, sub)
     out["loadavg_end"] = loadavg()
+    out["machine_probe_ms_end"] = machine_probe_ms()
+    print(f"machine probe (SHA-256 of 64 MiB, best of 3; lower is faster): "
+          f"{out['machine_probe_ms_start']:.1f} ms before, {out['machine_probe_ms_end']:.1f} ms after")
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
         Path(a.json).write_text(json.dumps(out, indent=1) + "\n")
