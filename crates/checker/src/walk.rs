@@ -320,24 +320,10 @@ pub(super) fn faces_apart_on(
     axis: usize,
     c: i32,
 ) -> bool {
-    let face_box = |t: &[LatticePoint; 4]| {
-        let (mut lo, mut hi) = ([i32::MAX; 4], [i32::MIN; 4]);
-        for v in t.iter().filter(|v| v[axis] == c) {
-            for k in 0..4 {
-                lo[k] = lo[k].min(v[k]);
-                hi[k] = hi[k].max(v[k]);
-            }
-        }
-        (lo, hi)
-    };
-    let ((alo, ahi), (blo, bhi)) = (face_box(ta), face_box(tb));
-    if (0..4).any(|k| ahi[k] < blo[k] || bhi[k] < alo[k]) {
-        return true;
-    }
-    // The boxes meet: the faces are still apart if one of them is a triangle whose plane
-    // (within the hyperplane x_axis = c) has the other's vertices there strictly on one side.
     let (fa, fb) = (InPlane::of(ta, axis, c), InPlane::of(tb, axis, c));
-    fa.strictly_beside(&fb) || fb.strictly_beside(&fa)
+    // Where the boxes meet, the faces are still apart if one of them is a triangle whose
+    // plane (within the hyperplane x_axis = c) has the other's points strictly on one side.
+    fa.boxes_apart(&fb) || fa.strictly_beside(&fb) || fb.strictly_beside(&fa)
 }
 
 /// A tet's vertices in the hyperplane x_`axis` = c, with that coordinate dropped (see
@@ -363,6 +349,23 @@ impl InPlane {
             len += 1;
         }
         Self { points, len }
+    }
+
+    /// Whether the boxes of the two point sets are disjoint (an empty set is apart from
+    /// everything).
+    #[inline]
+    fn boxes_apart(&self, other: &InPlane) -> bool {
+        if self.len == 0 || other.len == 0 {
+            return true;
+        }
+        let bounds = |f: &InPlane, k: usize| {
+            let xs = f.points[..f.len].iter().map(|p| p[k]);
+            (xs.clone().min().unwrap_or(0), xs.max().unwrap_or(0))
+        };
+        (0..3).any(|k| {
+            let ((alo, ahi), (blo, bhi)) = (bounds(self, k), bounds(other, k));
+            ahi < blo || bhi < alo
+        })
     }
 
     /// Whether this is a triangle (three points not on one line) whose plane has every
