@@ -349,6 +349,26 @@ def machine_probe_ms() -> float:
     return best
 
 
+def memory_probe_ms() -> dict:
+    """Milliseconds two fixed memory-bound workloads take (best of 3), before and after a
+    run: 8 Mi random reads from 512 MiB (latency) and a copy of 512 MiB (bandwidth). The
+    SHA-256 probe above stays in the core's caches; these do not, so a neighbour on the
+    host taking the shared cache or memory shows here and not there."""
+    import numpy as np
+    a = np.ones(64 << 20, dtype=np.int64)
+    idx = np.random.default_rng(7).integers(0, a.size, 8 << 20)
+    b = np.empty_like(a)
+    gather = copy = math.inf
+    for _ in range(3):
+        t = time.perf_counter()
+        a[idx].sum()
+        gather = min(gather, (time.perf_counter() - t) * 1e3)
+        t = time.perf_counter()
+        np.copyto(b, a)
+        copy = min(copy, (time.perf_counter() - t) * 1e3)
+    return {"random_reads_ms": gather, "copy_ms": copy}
+
+
 def steal_s() -> float:
     """CPU time the hypervisor gave to others while this VM's CPUs wanted it (all CPUs, s):
     a stall that hits every process at once shows here."""
@@ -1298,7 +1318,8 @@ def main() -> int:
     domain = a.domain if a.domain is not None else 120 + os.getpid() % 50
     out = {"domain": domain, "machine": {"nproc": os.cpu_count()}, "exe": str(exe), "command": sys.argv,
            "date_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()), "loadavg_start": loadavg(),
-           "machine_probe_ms_start": machine_probe_ms()}
+           "machine_probe_ms_start": machine_probe_ms(), "memory_probe_start": memory_probe_ms(),
+           "steal_s_start": steal_s()}
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         cases = ["idle", "cyclone", "mesher"] if a.case == "all" else [a.case]
@@ -1315,9 +1336,15 @@ def main() -> int:
                       "robot": lambda *x: bench_sources(*x, "robot"),
                       "cloud": lambda *x: bench_sources(*x, "cloud")}[c](a, exe, domain, sub)
     out["loadavg_end"] = loadavg()
+    out["steal_s"] = steal_s() - out.pop("steal_s_start")
     out["machine_probe_ms_end"] = machine_probe_ms()
+    out["memory_probe_end"] = memory_probe_ms()
+    m0, m1 = out["memory_probe_start"], out["memory_probe_end"]
     print(f"machine probe (SHA-256 of 64 MiB, best of 3; lower is faster): "
-          f"{out['machine_probe_ms_start']:.1f} ms before, {out['machine_probe_ms_end']:.1f} ms after")
+          f"{out['machine_probe_ms_start']:.1f} ms before, {out['machine_probe_ms_end']:.1f} ms after; "
+          f"memory (8 Mi random reads of 512 MiB / a 512 MiB copy): {m0['random_reads_ms']:.0f} / "
+          f"{m0['copy_ms']:.0f} ms before, {m1['random_reads_ms']:.0f} / {m1['copy_ms']:.0f} ms after; "
+          f"CPU stolen by the host during the run: {out['steal_s']:.2f} s")
     if a.json:
         Path(a.json).parent.mkdir(parents=True, exist_ok=True)
         Path(a.json).write_text(json.dumps(out, indent=1) + "\n")

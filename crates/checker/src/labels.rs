@@ -4,8 +4,11 @@
 //!
 //! A tet that meets the other boundary without crossing it (shared vertices or edges, face
 //! to face) is a *contact* tet and is tested on its own: the boundary may pass exactly
-//! through its vertices, so such tets do not separate inside from outside. Every remaining
-//! tet is disjoint from the other boundary, and two such tets sharing a face lie on the same
+//! through its vertices, so such tets do not separate inside from outside. A tet the walk
+//! only took as touching (it can at most touch, and was not tested further) is a contact
+//! tet too: if it is disjoint from the other boundary after all, every point of it lies on
+//! one side, and its own test gives the answer its region would have. Every remaining tet
+//! is disjoint from the other boundary, and two such tets sharing a face lie on the same
 //! side; they form regions, one inclusion test per region decides it, and the label spreads
 //! across face adjacency. This is right with no INTERFERENCE tet at all: a body entirely
 //! inside the other is one INSIDE region, disjoint bodies one OUTSIDE region each.
@@ -31,7 +34,9 @@ pub enum Label {
 pub enum Touch {
     /// Disjoint from every tet of the other boundary.
     Clear,
-    /// Touches it (vertex, edge, contact inside a face) without crossing.
+    /// Touches it (vertex, edge, contact inside a face) without crossing, or can at most
+    /// touch it and was not tested further (a pair whose boxes meet in one plane only; see
+    /// the walk's `visit`): labelled on its own either way.
     Contact,
     /// Lies in one of its tets' hyperplane, overlapping with opposite orientation: the two
     /// bodies face each other there (contact, not interference).

@@ -66,9 +66,6 @@ pub(super) struct Part {
     pub(super) interfering_pairs: u64,
     /// Coplanar pairs facing each other, held back (see [`visit`]).
     pub(super) facing: Vec<(u32, u32)>,
-    /// Pairs that can only touch, in the plane x_k = c, held back while touching still
-    /// mattered to one of their tets (see [`visit`]): `(i, j, k, c)`.
-    pub(super) plane: Vec<(u32, u32, u32, i32)>,
 }
 
 /// How many node-pair levels the tree-against-tree walk is split at for the workers
@@ -221,7 +218,6 @@ pub(super) fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Pa
             candidate_pairs: 0,
             interfering_pairs: 0,
             facing: Vec::new(),
-            plane: Vec::new(),
         };
         let mut ws = TraverseWorkspace::new();
         while !stop.load(Ordering::Relaxed) {
@@ -235,10 +231,6 @@ pub(super) fn walk(a: &Prepared, b: &Prepared, stop_at_interference: bool) -> Pa
                 }
                 ControlFlow::Continue(())
             });
-        }
-        // Once a worker has found an interference for `interferes`, no touch is needed.
-        if !stop.load(Ordering::Relaxed) {
-            settle_plane(Side::of(a), Side::of(b), &mut part);
         }
         part
     };
@@ -474,7 +466,6 @@ impl StreamWalk {
                     ControlFlow::<()>::Continue(())
                 });
         }
-        settle_plane(side_a, side_b, part);
         settle_facing(side_a, side_b, part);
         self.seen = (na, nb);
     }
@@ -500,20 +491,22 @@ pub(super) fn visit(
     // Whether the pair merely touches matters only to a tet not yet known to touch.
     let touching_matters = ha < Touch::Contact || hb < Touch::Contact;
     // On one lattice most candidates are tets of neighbouring cells (or of consecutive
-    // slabs) whose boxes meet in one plane only: such a pair can only touch, which matters
-    // only to a tet not yet known to touch, and is settled from the boxes and normals
-    // alone, before a vertex is read. Where it still matters it is held back until the
-    // worker's other pairs are done: by then both tets touch, as a rule, through a pair
-    // of the same cell, and nothing is left to read.
-    if let Some((k, c)) = plane_of_meeting(
+    // slabs) whose boxes meet in one plane only: such a pair can at most touch (see
+    // [`plane_of_meeting`]), which matters only to a tet not yet known to touch. Both tets
+    // are then taken as touching, from the boxes and normals alone, without a vertex read:
+    // a contact tet is labelled on its own by the exact tests that label its region, so one
+    // that does not touch after all costs one test and changes no label (see
+    // [`crate::labels`]). Two bodies resting face to face make millions of such pairs, and
+    // nearly every tet in them touches anyway.
+    if plane_of_meeting(
         (box_a, &a.normals[i as usize]),
         (box_b, &b.normals[j as usize]),
-    ) {
+    )
+    .is_some()
+    {
         if touching_matters {
-            part.plane.push((i, j, k as u32, c));
-            if part.plane.len() >= PLANE_HELD {
-                settle_plane(a, b, part);
-            }
+            part.hit_a[i as usize] = ha.max(Touch::Contact);
+            part.hit_b[j as usize] = hb.max(Touch::Contact);
         }
         return;
     }
@@ -601,30 +594,6 @@ pub(super) fn plane_of_meeting(
         };
         (off_plane(na, k) || off_plane(nb, k)).then_some((k, c))
     })
-}
-
-/// Pairs meeting in a plane a worker holds before it settles them.
-const PLANE_HELD: usize = 1 << 16;
-
-/// Settles the pairs meeting in a plane that `part` holds back (see [`visit`]): each one
-/// whose tets do not both touch already, exactly. Such a pair can only touch (see
-/// [`plane_of_meeting`]): where their faces in the plane are apart it does not, otherwise
-/// the tests of [`visit`] say. The touches only grow, so the order does not change what
-/// they end as.
-pub(super) fn settle_plane(a: Side<'_>, b: Side<'_>, part: &mut Part) {
-    let plane = std::mem::take(&mut part.plane);
-    for &(i, j, k, c) in &plane {
-        let (ha, hb) = (part.hit_a[i as usize], part.hit_b[j as usize]);
-        if ha >= Touch::Contact && hb >= Touch::Contact {
-            continue;
-        }
-        let (ta, tb) = (tet_of(a.mesh, i), tet_of(b.mesh, j));
-        if !faces_apart_on(&ta, &tb, k as usize, c) {
-            visit_tets(a, b, (i, &ta), (j, &tb), part);
-        }
-    }
-    part.plane = plane;
-    part.plane.clear();
 }
 
 /// Facing pairs a worker holds before it settles them.
@@ -872,7 +841,7 @@ mod tests {
             let exact = exact_touches(&pa, &pb);
             faces += exact.faces;
             twins += exact.twins;
-            assert_same_touches(&all, &exact, round);
+            assert_same_touches(&pa, &pb, &all, &exact, round);
         }
         assert!(
             faces > 300 && twins > 200,
@@ -901,6 +870,10 @@ mod tests {
         for i in 0..pa.mesh.tets.len() as u32 {
             for j in 0..pb.mesh.tets.len() as u32 {
                 let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
+                // Closed tets whose boxes are apart are disjoint.
+                if !tet_box(&ta).overlaps(&tet_box(&tb)) {
+                    continue;
+                }
                 let touch = match chronotope_kernel::classify(&ta, &tb) {
                     TetPairRelation::Crossing
                     | TetPairRelation::Coplanar {
@@ -931,9 +904,51 @@ mod tests {
         e
     }
 
-    fn assert_same_touches(all: &Part, exact: &ExactTouches, round: usize) {
-        assert_eq!(all.hit_a, exact.hit_a, "round {round}: A's touches");
-        assert_eq!(all.hit_b, exact.hit_b, "round {round}: B's touches");
+    /// The walk's touches are the exact ones, but for tets it took as touching untested
+    /// through a pair whose boxes meet in one plane only (see [`visit`]): those may be
+    /// `Contact` where the exact touch is `Clear`. Returns how many tets were so taken.
+    fn assert_same_touches(
+        pa: &Prepared,
+        pb: &Prepared,
+        all: &Part,
+        exact: &ExactTouches,
+        round: usize,
+    ) -> usize {
+        // The tets of a pair whose boxes (each tet's, as the tree's) meet in one plane.
+        let (mut plane_a, mut plane_b) = (
+            vec![false; pa.mesh.tets.len()],
+            vec![false; pb.mesh.tets.len()],
+        );
+        for i in 0..pa.mesh.tets.len() {
+            for j in 0..pb.mesh.tets.len() {
+                let (ba, bb) = (
+                    tet_box(&tet_of(&pa.mesh, i as u32)),
+                    tet_box(&tet_of(&pb.mesh, j as u32)),
+                );
+                if ba.overlaps(&bb)
+                    && plane_of_meeting((&ba, &pa.normals[i]), (&bb, &pb.normals[j])).is_some()
+                {
+                    plane_a[i] = true;
+                    plane_b[j] = true;
+                }
+            }
+        }
+        let mut taken = 0;
+        for (side, walked, exact, plane) in [
+            ("A", &all.hit_a, &exact.hit_a, &plane_a),
+            ("B", &all.hit_b, &exact.hit_b, &plane_b),
+        ] {
+            assert_eq!(walked.len(), exact.len());
+            for (t, (&w, &e)) in walked.iter().zip(exact).enumerate() {
+                if w != e {
+                    assert!(
+                        e == Touch::Clear && w == Touch::Contact && plane[t],
+                        "round {round}: {side}'s tet {t}: the walk says {w:?}, exactly {e:?}"
+                    );
+                    taken += 1;
+                }
+            }
+        }
         let mut walked: Vec<(u32, u32)> = all.ranges.iter().map(|r| (r.2, r.3)).collect();
         walked.sort_unstable();
         walked.dedup();
@@ -941,7 +956,8 @@ mod tests {
             walked, exact.interfering,
             "round {round}: interfering pairs"
         );
-        assert!(all.facing.is_empty() && all.plane.is_empty());
+        assert!(all.facing.is_empty());
+        taken
     }
 
     fn tet_box(t: &[LatticePoint; 4]) -> Aabb4 {
@@ -1020,12 +1036,13 @@ mod tests {
 
     /// The walk's touches and interfering pairs against every pair classified on its own,
     /// for two bodies of tets in the cells of one lattice: most candidates meet in one
-    /// plane (neighbouring cells), many of them are held back while a tet does not touch
-    /// yet, and some tets touch only through such a pair.
+    /// plane (neighbouring cells), their tets are taken as touching untested (some do not
+    /// touch: taken, they are `Contact` where the exact touch is `Clear`), and some tets
+    /// touch only through such a pair.
     #[test]
-    fn pairs_meeting_in_a_plane_held_back_give_what_each_pair_gives() {
+    fn pairs_meeting_in_a_plane_are_taken_as_touching() {
         let mut rng = Rng(0xBB67_AE85_84CA_A73B);
-        let (mut plane_pairs, mut only_in_a_plane) = (0, 0);
+        let (mut plane_pairs, mut only_in_a_plane, mut taken) = (0, 0, 0);
         for round in 0..6 {
             let (mut a, mut b) = (TetMesh::default(), TetMesh::default());
             for m in [&mut a, &mut b] {
@@ -1042,7 +1059,7 @@ mod tests {
             let (pa, pb) = (prepared(&a), prepared(&b));
             let all = walk(&pa, &pb, false);
             let exact = exact_touches(&pa, &pb);
-            assert_same_touches(&all, &exact, round);
+            taken += assert_same_touches(&pa, &pb, &all, &exact, round);
             // Tets that touch the other body, and only in pairs meeting in a plane.
             let mut touched_off_plane = (vec![false; 150], vec![false; 150]);
             for i in 0..150u32 {
@@ -1069,8 +1086,65 @@ mod tests {
                 .count();
         }
         assert!(
-            plane_pairs > 1000 && only_in_a_plane > 200,
-            "{plane_pairs} touching pairs in a plane, {only_in_a_plane} tets touching only so"
+            plane_pairs > 1000 && only_in_a_plane > 200 && taken > 100,
+            "{plane_pairs} touching pairs in a plane, {only_in_a_plane} tets touching only so, \
+             {taken} taken as touching that do not"
+        );
+    }
+
+    /// Tets taken as touching untested (a pair whose boxes meet in one plane only) get the
+    /// labels the exact touches give: closed bodies of two boxes each on a small lattice,
+    /// moving by whole voxels (faces of one meet faces of the other in lattice planes,
+    /// touching, facing or apart; some boxes overlap, some lie inside the other body).
+    #[test]
+    fn tets_taken_as_touching_get_the_labels_the_exact_touches_give() {
+        let mut rng = Rng(0x3C6E_F372_FE94_F82B);
+        let (mut taken, mut inside, mut contact) = (0, 0, 0);
+        let stamps: Vec<i64> = (0..3).map(|k| k * 100_000_000).collect();
+        for round in 0..10 {
+            let mut body = || {
+                let boxes: Vec<([usize; 3], [usize; 3])> = (0..2)
+                    .map(|_| {
+                        let lo = [0; 3].map(|_| rng.range(1, 4) as usize);
+                        let hi = lo.map(|c| c + rng.range(1, 3) as usize);
+                        (lo, hi)
+                    })
+                    .collect();
+                let dx = rng.range(0, 1) as usize;
+                chronotope_mesh::glue::test_body([8, 8, 8], [0.0; 3], &stamps, move |k, p| {
+                    let q = [p[0].wrapping_sub(dx * k), p[1], p[2]];
+                    boxes
+                        .iter()
+                        .any(|(lo, hi)| (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c])))
+                })
+            };
+            let (a, b) = (body(), body());
+            let lat = CommonLattice::of(&[("a", &a), ("b", &b)]).expect("one lattice");
+            let (pa, pb) = (
+                lat.prepare("a", &a).expect("a"),
+                lat.prepare("b", &b).expect("b"),
+            );
+            let all = walk(&pa, &pb, false);
+            let exact = exact_touches(&pa, &pb);
+            taken += assert_same_touches(&pa, &pb, &all, &exact, round);
+            for (p, o, walked, exact) in [
+                (&pa, &pb, &all.hit_a, &exact.hit_a),
+                (&pb, &pa, &all.hit_b, &exact.hit_b),
+            ] {
+                let labels = label_against(p, o, walked);
+                assert_eq!(
+                    labels.labels,
+                    label_against(p, o, exact).labels,
+                    "round {round}"
+                );
+                assert_eq!(labels.undecided_regions, 0, "round {round}");
+                inside += labels.counts().inside;
+                contact += walked.iter().filter(|&&t| t == Touch::Contact).count();
+            }
+        }
+        assert!(
+            taken > 1000 && inside > 1000 && contact > 3000,
+            "{taken} taken as touching, {inside} inside, {contact} contact tets"
         );
     }
 
