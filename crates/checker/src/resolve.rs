@@ -1004,7 +1004,8 @@ pub(crate) enum Meet {
 }
 
 /// How tets `ta` and `tb` (normals `na` and `nb`, as [`Prepared::normals`]) meet, exactly
-/// as the checker's walk decides a candidate pair (`walk::visit`): a pair meeting in one
+/// (the checker's walk, `walk::visit`, also takes a pair whose boxes meet in one plane
+/// only as touching untested; here every pair is decided): a pair meeting in one
 /// instant only touches, and only where its faces there meet; one with a tet strictly on
 /// one side of the other's hyperplane is apart; a pair facing each other in one hyperplane
 /// never interferes; unless `touching_matters`, a pair that can at most touch is apart;

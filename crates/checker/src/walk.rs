@@ -301,10 +301,10 @@ pub(super) fn faces_apart(ta: &[LatticePoint; 4], tb: &[LatticePoint; 4], instan
     faces_apart_on(ta, tb, 3, instant)
 }
 
-/// Whether the faces in the plane x_`axis` = `c` of two tets (their vertices there; see
-/// [`plane_of_meeting`]) are apart, so that the tets do not meet (exact): their boxes are
-/// disjoint, or one face is a triangle with the other on one side of its plane. A tet with
-/// no vertex in the plane has an empty face there.
+/// Whether the faces in the plane x_`axis` = `c` of two tets (their vertices there) are
+/// apart, so that tets that can only meet in that plane (see [`one_instant`]) do not meet
+/// (exact): their boxes are disjoint, or one face is a triangle with the other on one side
+/// of its plane. A tet with no vertex in the plane has an empty face there.
 #[inline]
 pub(super) fn faces_apart_on(
     ta: &[LatticePoint; 4],
@@ -867,13 +867,14 @@ mod tests {
             faces: 0,
             twins: 0,
         };
+        let (boxes_a, boxes_b) = (tet_boxes(pa), tet_boxes(pb));
         for i in 0..pa.mesh.tets.len() as u32 {
             for j in 0..pb.mesh.tets.len() as u32 {
-                let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
                 // Closed tets whose boxes are apart are disjoint.
-                if !tet_box(&ta).overlaps(&tet_box(&tb)) {
+                if !boxes_a[i as usize].overlaps(&boxes_b[j as usize]) {
                     continue;
                 }
+                let (ta, tb) = (tet_of(&pa.mesh, i), tet_of(&pb.mesh, j));
                 let touch = match chronotope_kernel::classify(&ta, &tb) {
                     TetPairRelation::Crossing
                     | TetPairRelation::Coplanar {
@@ -919,14 +920,11 @@ mod tests {
             vec![false; pa.mesh.tets.len()],
             vec![false; pb.mesh.tets.len()],
         );
-        for i in 0..pa.mesh.tets.len() {
-            for j in 0..pb.mesh.tets.len() {
-                let (ba, bb) = (
-                    tet_box(&tet_of(&pa.mesh, i as u32)),
-                    tet_box(&tet_of(&pb.mesh, j as u32)),
-                );
-                if ba.overlaps(&bb)
-                    && plane_of_meeting((&ba, &pa.normals[i]), (&bb, &pb.normals[j])).is_some()
+        let (boxes_a, boxes_b) = (tet_boxes(pa), tet_boxes(pb));
+        for (i, ba) in boxes_a.iter().enumerate() {
+            for (j, bb) in boxes_b.iter().enumerate() {
+                if ba.overlaps(bb)
+                    && plane_of_meeting((ba, &pa.normals[i]), (bb, &pb.normals[j])).is_some()
                 {
                     plane_a[i] = true;
                     plane_b[j] = true;
@@ -966,6 +964,13 @@ mod tests {
         b
     }
 
+    /// Each tet's box, as the tree holds it.
+    fn tet_boxes(p: &Prepared) -> Vec<Aabb4> {
+        (0..p.mesh.tets.len() as u32)
+            .map(|i| tet_box(&tet_of(&p.mesh, i)))
+            .collect()
+    }
+
     /// A tet in a random cell of a small lattice (cells 8 apart, ×8 as the checker's
     /// coordinates are), its vertices on the cell's half lattice (corners, edge and face
     /// midpoints, centre), as marching cubes places them; two tets in three lie in a face
@@ -983,10 +988,11 @@ mod tests {
         })
     }
 
-    /// The walk's shortcut for pairs meeting in one plane against the exact classifier:
-    /// such a pair never crosses or overlaps in a hyperplane, and faces apart in that plane
-    /// mean the closed tets are disjoint. Tets in cells of one lattice make such pairs
-    /// (neighbouring cells) common, and touching ones too.
+    /// The plane rule against the exact classifier: a pair meeting in one plane never
+    /// crosses or overlaps in a hyperplane (what lets the walk take it as touching
+    /// untested), and faces apart in that plane mean the closed tets are disjoint (the test
+    /// the rule in time makes). Tets in cells of one lattice make such pairs (neighbouring
+    /// cells) common, and touching ones too.
     #[test]
     fn pairs_meeting_in_one_plane_only_touch_where_their_faces_meet() {
         let mut rng = Rng(0x6A09_E667_F3BC_C909);
