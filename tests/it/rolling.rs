@@ -198,6 +198,38 @@ fn step_cubes(
     (grids, out)
 }
 
+/// The two cubes' mesher and a live checker node of them (polled once, as a live transport
+/// does at each tick; what that poll published) whose bookkeeping pool has one thread, held
+/// until the sender returned is dropped: nothing the checker hands the pool runs there (the
+/// checker runs it itself when it needs the outcome).
+fn cubes_with_held_bookkeeping() -> (
+    chronotope::node::mesher::MesherNode,
+    chronotope::node::checker::CheckerNode,
+    Vec<chronotope::node::Message>,
+    std::sync::mpsc::Sender<()>,
+) {
+    use chronotope::node::Node;
+    let held = std::sync::Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap(),
+    );
+    let (release, hold) = std::sync::mpsc::channel::<()>();
+    held.spawn(move || {
+        let _ = hold.recv();
+    });
+    let cfg = two_cubes();
+    let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+    let mesher = chronotope::node::mesher::MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+    let mut checker =
+        chronotope::node::checker::CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+    checker.set_bookkeeping_pool(Some(held));
+    let mut out = Vec::new();
+    checker.poll(&mut out);
+    (mesher, checker, out, release)
+}
+
 fn two_cubes() -> LaunchConfig {
     LaunchConfig::parse(
         "launch:\n\
@@ -452,31 +484,11 @@ fn a_contact_is_said_as_soon_as_both_slabs_of_its_period_are_there() {
 #[test]
 fn live_contact_events_wait_for_nothing_on_the_pool() {
     use chronotope::msg::ContactEvent;
-    use chronotope::node::checker::CheckerNode;
-    use chronotope::node::mesher::MesherNode;
     use chronotope::node::{Node, Payload};
 
-    // The bookkeeping's pool, its only thread held for the whole test: nothing the checker
-    // hands it runs there (the checker runs it itself when it needs the outcome).
-    let held = std::sync::Arc::new(
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap(),
-    );
-    let (release, hold) = std::sync::mpsc::channel::<()>();
-    held.spawn(move || {
-        let _ = hold.recv();
-    });
+    // The bookkeeping's pool held for the whole test.
+    let (mut mesher, mut checker, out, release) = cubes_with_held_bookkeeping();
     {
-        let cfg = two_cubes();
-        let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
-        let mut mesher = MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
-        let mut checker = CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
-        checker.set_bookkeeping_pool(Some(held));
-        // A live transport polls its nodes with each tick.
-        let mut out = Vec::new();
-        checker.poll(&mut out);
         assert!(out.is_empty());
         let t0 = 1_000_000_000i64;
         // The pair's overlap in the latest report, after each step.
@@ -539,5 +551,71 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
             "the boxes overlap: {reported:?}"
         );
     }
+    drop(checker);
+    drop(release);
+}
+
+/// A live checker node behind its input (no tick comes) with its bookkeeping held up: after
+/// 16 steps its changed report goes out as it stands, nothing of the statistics still out
+/// computed on its thread: every frame and tet its bodies have counted, their hypervolume
+/// short of the complete one, which the tick that comes next publishes.
+#[test]
+fn a_live_report_behind_its_input_goes_out_as_it_stands() {
+    use chronotope::msg::InterferenceReport;
+    use chronotope::node::{Message, Node, Payload};
+
+    let (mut mesher, mut checker, _, release) = cubes_with_held_bookkeeping();
+    {
+        let t0 = 1_000_000_000i64;
+        let report = |out: &[Message]| -> Option<InterferenceReport> {
+            out.iter().rev().find_map(|m| match &m.payload {
+                Payload::Report(r) => Some((**r).clone()),
+                _ => None,
+            })
+        };
+        let figures = |r: &InterferenceReport| -> Vec<(String, u64, u64)> {
+            r.bodies
+                .iter()
+                .map(|b| (b.body_id.clone(), b.frames, b.tets))
+                .collect()
+        };
+        let hypervolume =
+            |r: &InterferenceReport| -> f64 { r.bodies.iter().map(|b| b.hypervolume_m3s).sum() };
+        // The cube of /a moves into /b's: a contact every period; no tick until a report
+        // goes out.
+        let mut forced = 0;
+        for k in 0..10u32 {
+            let (a, mut b) = (cube(0, k, t0), cube(6, 0, t0));
+            b.header.stamp = a.header.stamp;
+            let mut inputs = Vec::new();
+            let mut pieces = Vec::new();
+            for (topic, g) in [("/a/occupancy", a), ("/b/occupancy", b)] {
+                let t = g.header.stamp.as_nanos();
+                let m = Message::new(topic, t, Payload::VoxelGrid(std::sync::Arc::new(g)));
+                mesher.on_message(&m, &mut pieces);
+                inputs.push(m);
+            }
+            for m in inputs.into_iter().chain(pieces) {
+                let mut out = Vec::new();
+                checker.on_message(&m, &mut out);
+                let Some(stands) = report(&out) else {
+                    continue;
+                };
+                forced += 1;
+                let mut ticked = Vec::new();
+                checker.poll(&mut ticked);
+                let complete = report(&ticked).expect("the complete report at the tick");
+                assert_eq!(figures(&stands), figures(&complete), "step {k}");
+                assert!(
+                    hypervolume(&stands) < hypervolume(&complete),
+                    "step {k}: {} against {}",
+                    hypervolume(&stands),
+                    hypervolume(&complete)
+                );
+            }
+        }
+        assert!(forced >= 1, "no report in 40 steps without a tick");
+    }
+    drop(checker);
     drop(release);
 }

@@ -533,8 +533,11 @@ impl CheckerNode {
     /// closedness, hypervolume); the contact events never do. Live, a report that would
     /// wait is left to a later step, or to the next tick ([`Node::poll`], which comes once the
     /// node has caught up with its input), so that the step's contact events go out first;
-    /// after [`REPORT_WAIT`] steps without a tick it waits. A replay publishes it in the step
-    /// that changed it, so that what it records does not depend on how fast the pool ran.
+    /// after [`REPORT_WAIT`] steps without a tick the report goes out as it stands (the
+    /// statistics and overlaps still on the pool left out:
+    /// [`RollingChecker::report_as_it_stands`]), and the complete one follows once they are
+    /// in. A replay publishes it in the step that changed it, complete, so that what it
+    /// records does not depend on how fast the pool ran.
     fn publish_report_if_changed(&mut self, now: bool, out: &mut Vec<Message>) {
         if !self.dirty {
             return;
@@ -544,6 +547,14 @@ impl CheckerNode {
             if self.report_waited < REPORT_WAIT {
                 return;
             }
+            // Behind its input that long: the report as it stands, what the pool is still
+            // working out left for the next one. Waiting for it here would compute the
+            // queued statistics on this thread, at the contacts' priority, while the pool
+            // that should have them runs lower: a node behind would fall further behind.
+            let report = self.engine.report_as_it_stands();
+            self.publish_report(report, out);
+            self.dirty = true;
+            return;
         }
         let report = self.engine.report();
         self.publish_report(report, out);
@@ -1051,9 +1062,8 @@ fn slab_markers(
 }
 
 /// Live, the most steps a changed report is left waiting for the statistics being added
-/// before it is published anyway (waiting for them then), when no tick comes between them
-/// (a node behind its input): at 30 frames a second about half a second of a cell's
-/// messages.
+/// before it is published as it stands (without them), when no tick comes between them (a
+/// node behind its input): at 30 frames a second about half a second of a cell's messages.
 const REPORT_WAIT: u32 = 16;
 
 fn nan_if_none(v: Option<f64>) -> f64 {

@@ -332,8 +332,30 @@ struct Run {
     /// piece: [`BodyStream::stats_job`]; the pieces after it wait in
     /// [`BodyStream::stats_queue`]).
     acc: StatsAccumulator,
+    /// What [`Self::acc`] said when the bookkeeping took it out to add a piece or to finish
+    /// the run, until it is given back: what a report that waits for nothing says of the
+    /// run ([`RollingChecker::report_as_it_stands`]).
+    away: Option<SoFar>,
     /// The run's statistics, once it ended.
     stats: Option<BodyStats>,
+}
+
+/// A run's figures from its statistics so far that a report reads while the run is open:
+/// hypervolume (m³·s) and vanishing slabs.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct SoFar {
+    hypervolume_m3s: f64,
+    vanishing_slabs: u64,
+}
+
+impl SoFar {
+    fn of(acc: &StatsAccumulator) -> Self {
+        let s = acc.so_far();
+        Self {
+            hypervolume_m3s: s.hypervolume_m3s,
+            vanishing_slabs: s.vanishing_slabs,
+        }
+    }
 }
 
 impl Run {
@@ -366,6 +388,7 @@ impl Run {
             end: None,
             tets,
             acc: StatsAccumulator::new(),
+            away: None,
             stats: None,
         }
     }
@@ -385,6 +408,7 @@ impl Run {
             end: self.end.clone(),
             tets: self.tets,
             acc: StatsAccumulator::new(),
+            away: self.away,
             stats: self.stats.clone(),
         }
     }
@@ -393,6 +417,7 @@ impl Run {
     fn close(&mut self, cap: Option<(Arc<TetMesh>, u64)>) {
         if let Some(closing) = self.end_at_frontier(cap) {
             self.stats = Some(closing.finish());
+            self.away = None;
         }
     }
 
@@ -402,6 +427,7 @@ impl Run {
         if self.end.is_some() {
             return None;
         }
+        self.away = Some(SoFar::of(&self.acc));
         let closing = Closing {
             acc: std::mem::take(&mut self.acc),
             frames: self.frames(),
@@ -511,6 +537,7 @@ impl BodyStream {
             StatsDone::Finished(stats) => {
                 if let Some(r) = r {
                     r.stats = Some(stats);
+                    r.away = None;
                 }
             }
             StatsDone::Added(acc, at_rest) => {
@@ -521,6 +548,7 @@ impl BodyStream {
                 };
                 if let Some(r) = r {
                     r.acc = acc;
+                    r.away = None;
                 }
             }
         }
@@ -529,10 +557,10 @@ impl BodyStream {
 
 /// Run `run`'s statistics so far, taken out to add a piece (`None`: no such run).
 fn take_acc(b: &mut BodyStream, run: u64) -> Option<StatsAccumulator> {
-    b.runs
-        .iter_mut()
-        .find(|r| r.id == run)
-        .map(|r| std::mem::take(&mut r.acc))
+    b.runs.iter_mut().find(|r| r.id == run).map(|r| {
+        r.away = Some(SoFar::of(&r.acc));
+        std::mem::take(&mut r.acc)
+    })
 }
 
 /// The most pieces of a body left waiting for the statistics of the one before (each holds

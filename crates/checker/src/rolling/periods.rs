@@ -1633,6 +1633,68 @@ mod tests {
         drop(release);
     }
 
+    /// A report as it stands computes nothing of the bookkeeping's: with the bookkeeping
+    /// held up after a few pieces, its bodies count every frame and tet accepted, their
+    /// hypervolume is the one before the pieces still out (the statistics taken out for the
+    /// first of them, read as they were), and everything stays pending; once the pool runs,
+    /// it comes to the complete report without a report that waits.
+    #[test]
+    fn a_report_as_it_stands_waits_for_nothing_and_comes_to_the_complete_one() {
+        let frames = 12;
+        let pieces: Vec<Vec<Piece>> = [("/a", 3), ("/b", 12)]
+            .into_iter()
+            .map(|(body, cx)| pieces_of(body, [20, 9, 9], frames, moving_ball(cx, 3)))
+            .collect();
+        let mut busy = checker_of_a_and_b();
+        busy.set_bookkeeping_pool(None);
+        let mut keeping_up = checker_of_a_and_b();
+        keeping_up.set_bookkeeping_pool(None);
+        let (mut out, mut out_keeping_up) = (Vec::new(), Vec::new());
+        let (held, release) = super::super::bookkeeping::held_pool();
+        let mut before_held = Vec::new();
+        let mut held = Some(held);
+        for j in 0..=8 {
+            if j == 6 {
+                // Everything added so far; the pieces from here wait for a held pool.
+                busy.settle_all_stats();
+                before_held = bodies_of(&busy.report());
+                busy.set_bookkeeping_pool(held.take().expect("once"));
+            }
+            for ps in &pieces {
+                busy.on_piece(ps[j].clone(), &mut out);
+                keeping_up.on_piece(ps[j].clone(), &mut out_keeping_up);
+                keeping_up.settle_all_stats();
+            }
+        }
+        let complete = bodies_of(&keeping_up.report());
+        let stands = bodies_of(&busy.report_as_it_stands());
+        assert!(
+            busy.statistics_pending(),
+            "nothing of the pool's computed here"
+        );
+        for ((s, c), b) in stands.iter().zip(&complete).zip(&before_held) {
+            // Frames and tets as accepted, the hypervolume before the held pieces, open.
+            assert_eq!(
+                (&s.0, s.1, s.2, s.3),
+                (&c.0, c.1, c.2, false),
+                "{s:?} {c:?}"
+            );
+            assert_eq!(s.4, b.4, "{s:?}, before the held pieces {b:?}");
+            assert!(f64::from_bits(s.4) > 0.0 && s.4 != c.4, "{s:?} {c:?}");
+        }
+        drop(release);
+        let start = std::time::Instant::now();
+        let stands = loop {
+            let r = busy.report_as_it_stands();
+            if !busy.statistics_pending() {
+                break bodies_of(&r);
+            }
+            assert!(start.elapsed().as_secs() < 60, "the pool never finished");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        };
+        assert_eq!(stands, complete);
+    }
+
     /// A ball of radius √6 voxels centred at (cx, 4, 4) in frame 0, one voxel on along x
     /// every `every` frames.
     fn moving_ball(cx: i32, every: u32) -> impl Fn(u32, i32, i32, i32) -> bool {

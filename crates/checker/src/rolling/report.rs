@@ -2,7 +2,7 @@
 
 use super::{
     add_run, bounds, closing_sums, BodyReport, BodyStream, Interval, LabelCounts, Overlap,
-    PairLabels, PairReport, PairRoll, Report, RollingChecker, Run, Timings, Totals,
+    PairLabels, PairReport, PairRoll, Report, RollingChecker, Run, SoFar, Timings, Totals,
     UnsureSpanReport, Verdict,
 };
 
@@ -11,6 +11,34 @@ impl RollingChecker {
     /// overlaps. The statistics of pieces still being added are waited for.
     pub fn report(&mut self) -> Report {
         self.settle_all_stats();
+        self.assemble_report()
+    }
+
+    /// [`Self::report`] waiting for nothing: the statistics and overlaps that have finished
+    /// on the pool are taken in, the pieces queued for it started there, and what is still
+    /// being worked out is left out: each open run's hypervolume and vanishing slabs as of
+    /// the pieces added so far (its frames and tets are counted as they are accepted), a
+    /// run whose closing statistics are still out is reported open, and each pair's overlap
+    /// is that of the periods before the one on the pool (what its contact events say). A
+    /// later [`Self::report`] has everything. Live, for a report that has waited long while
+    /// the node is behind its input: computing the statistics there would put the
+    /// bookkeeping on the checker's thread, at the contacts' priority.
+    pub fn report_as_it_stands(&mut self) -> Report {
+        self.advance_statistics();
+        for i in 0..self.pairs.len() {
+            if self.pairs[i]
+                .overlap_job
+                .as_ref()
+                .is_some_and(|j| j.finished())
+            {
+                self.settle_overlap(i);
+            }
+        }
+        self.assemble_report()
+    }
+
+    /// The report from the bodies' and pairs' figures as they stand.
+    fn assemble_report(&self) -> Report {
         let origin = self.origin_ns.unwrap_or(0);
         let mut problems = self.problems.clone();
         for p in &self.pairs {
@@ -130,10 +158,13 @@ fn first_contact(p: &PairRoll) -> Option<f64> {
         .map(|o| o.s.0)
 }
 
-/// A pair's overlap so far and its bound: none for a pair that never interfered.
+/// A pair's overlap so far and its bound: none for a pair that never interfered. While
+/// a period's overlap is being measured on the pool, the overlap before it.
 pub(super) fn pair_overlap(p: &PairRoll) -> Option<(f64, f64)> {
     if !p.interfering() {
         Some((0.0, 0.0))
+    } else if p.overlap_job.is_some() {
+        p.overlap_known
     } else {
         overlap_so_far(&p.overlap)
     }
@@ -165,7 +196,8 @@ pub(super) fn body_report(id: &str, b: &BodyStream) -> BodyReport {
                 t.vanishing += one.vanishing;
             }
             None => {
-                let so_far = r.acc.so_far();
+                // Its statistics so far, or what they said when the bookkeeping took them.
+                let so_far = r.away.unwrap_or_else(|| SoFar::of(&r.acc));
                 tets += r.tets;
                 t.frames += r.frames();
                 t.hypervolume_m3s += so_far.hypervolume_m3s;
