@@ -971,6 +971,23 @@ mod tests {
             .collect()
     }
 
+    /// A body of boxes (inclusive voxel ranges) on an 8³ lattice over 3 frames, moving by
+    /// `step` voxels along x and y each frame.
+    fn moving_boxes(boxes: Vec<([i64; 3], [i64; 3])>, step: [i64; 2]) -> BodyMesh {
+        let stamps: Vec<i64> = (0..3).map(|k| k * 100_000_000).collect();
+        chronotope_mesh::glue::test_body([8, 8, 8], [0.0; 3], &stamps, move |k, p| {
+            let k = k as i64;
+            let q = [
+                p[0] as i64 - step[0] * k,
+                p[1] as i64 - step[1] * k,
+                p[2] as i64,
+            ];
+            boxes
+                .iter()
+                .any(|(lo, hi)| (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c])))
+        })
+    }
+
     /// A tet in a random cell of a small lattice (cells 8 apart, ×8 as the checker's
     /// coordinates are), its vertices on the cell's half lattice (corners, edge and face
     /// midpoints, centre), as marching cubes places them; two tets in three lie in a face
@@ -1106,23 +1123,17 @@ mod tests {
     fn tets_taken_as_touching_get_the_labels_the_exact_touches_give() {
         let mut rng = Rng(0x3C6E_F372_FE94_F82B);
         let (mut taken, mut inside, mut contact) = (0, 0, 0);
-        let stamps: Vec<i64> = (0..3).map(|k| k * 100_000_000).collect();
         for round in 0..10 {
             let mut body = || {
-                let boxes: Vec<([usize; 3], [usize; 3])> = (0..2)
+                let boxes: Vec<([i64; 3], [i64; 3])> = (0..2)
                     .map(|_| {
-                        let lo = [0; 3].map(|_| rng.range(1, 4) as usize);
-                        let hi = lo.map(|c| c + rng.range(1, 3) as usize);
+                        let lo = [0; 3].map(|_| rng.range(1, 4));
+                        let hi = lo.map(|c| c + rng.range(1, 3));
                         (lo, hi)
                     })
                     .collect();
-                let dx = rng.range(0, 1) as usize;
-                chronotope_mesh::glue::test_body([8, 8, 8], [0.0; 3], &stamps, move |k, p| {
-                    let q = [p[0].wrapping_sub(dx * k), p[1], p[2]];
-                    boxes
-                        .iter()
-                        .any(|(lo, hi)| (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c])))
-                })
+                let dx = rng.range(0, 1);
+                moving_boxes(boxes, [dx, 0])
             };
             let (a, b) = (body(), body());
             let lat = CommonLattice::of(&[("a", &a), ("b", &b)]).expect("one lattice");
@@ -1230,10 +1241,9 @@ mod tests {
             .flat_map(|a| (1..8).flat_map(move |b| (1..8).map(move |c| [a, b, c, 8 - a - b - c])))
             .filter(|w| w[3] >= 1)
             .collect();
-        let stamps: Vec<i64> = (0..3).map(|k| k * 100_000_000).collect();
         let (mut both_sides, mut interfering) = (0, 0);
         for round in 0..150 {
-            let mut body = |rng: &mut Rng| {
+            let body = |rng: &mut Rng| {
                 let boxes: Vec<([i64; 3], [i64; 3])> = (0..rng.range(1, 3))
                     .map(|_| {
                         let lo = [0; 3].map(|_| rng.range(1, 4));
@@ -1241,17 +1251,7 @@ mod tests {
                     })
                     .collect();
                 let step = [rng.range(-1, 1), rng.range(-1, 1)];
-                chronotope_mesh::glue::test_body([8, 8, 8], [0.0; 3], &stamps, move |k, p| {
-                    let k = k as i64;
-                    let q = [
-                        p[0] as i64 - step[0] * k,
-                        p[1] as i64 - step[1] * k,
-                        p[2] as i64,
-                    ];
-                    boxes
-                        .iter()
-                        .any(|(lo, hi)| (0..3).all(|c| (lo[c]..=hi[c]).contains(&q[c])))
-                })
+                moving_boxes(boxes, step)
             };
             let (a, b) = (body(&mut rng), body(&mut rng));
             let lat = CommonLattice::of(&[("a", &a), ("b", &b)]).expect("one lattice");
@@ -1259,10 +1259,12 @@ mod tests {
                 lat.prepare("a", &a).expect("a"),
                 lat.prepare("b", &b).expect("b"),
             );
-            let r = check_pair(&pa, &pb);
+            // One walk: its touches say which tets are contact tets, then the labels.
             let all = walk(&pa, &pb, false);
+            let touches = [all.hit_a.clone(), all.hit_b.clone()];
+            let r = finish_pair(&pa, &pb, all, std::time::Instant::now());
             interfering += usize::from(r.interfering());
-            for (p, other, hit) in [(&pa, &pb, &all.hit_a), (&pb, &pa, &all.hit_b)] {
+            for (p, other, hit) in [(&pa, &pb, &touches[0]), (&pb, &pa, &touches[1])] {
                 let mut inc = Inclusion::with_normals(&other.mesh, &other.bvh, &other.normals);
                 for (t, _) in hit
                     .iter()
