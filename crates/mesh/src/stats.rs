@@ -36,11 +36,16 @@
 //! about once: its step slabs and its rests after a step are the earlier ones moved.
 //!
 //! The hypervolume is summed per slab, each slab closed by its caps, in the slab's own
-//! physical time scale (frame periods may differ). The upper cap's contribution to the
-//! divergence sum follows from its boundary alone (a 3-chain in a hyperplane contributes
-//! Σ det[o, ∂]), so caps between slabs are never built.
+//! physical time scale (frame periods may differ): the flux of the field (0, 0, 0, t) out
+//! of the closed slab (its divergence is 1), with t measured from the slab's lower plane, so
+//! that the lower cap has none, and the upper cap's follows from its boundary alone (its
+//! 3-volume, Σ det3 over its boundary triangles), so caps between slabs are never built.
+//! A lateral tet's flux is its vertices' mean time times its normal's time component, one
+//! 3×3 determinant of its spatial edges (the cone from the origin took four).
 
 use std::sync::Arc;
+
+use chronotope_kernel::LatticePoint;
 
 use rayon::prelude::*;
 
@@ -48,8 +53,8 @@ use super::grid::GridGeometry;
 use super::march::TetMesh;
 use super::mesher::Slab;
 use super::validate::{
-    canonical_tet_faces, canonical_triangle, det4_small_tet, id_bits, pair_by_first_vertex,
-    pair_plane_faces, tet_faces, ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,
+    canonical_tet_faces, canonical_triangle, id_bits, pair_by_first_vertex, pair_plane_faces,
+    tet_faces, ClosedReport, FaceParts, FaceShape, PACKED_VERTEX_LIMIT,
 };
 
 /// A triangle in a plane of constant t: three (x, y, z) points, sorted.
@@ -365,8 +370,7 @@ impl StatsAccumulator {
             let mut c = Scan::default();
             for t in tets {
                 let p = t.map(|v| m.vertices[v as usize]);
-                let local = p.map(|q| [q[0], q[1], q[2], q[3] - t_lo]);
-                c.vol24 -= det4_small_tet(&local[0], &local[1], &local[2], &local[3]);
+                c.vol24 += time_flux24(&p, t_lo);
                 let (sorted, order) = canonical_tet_faces(*t);
                 let flags = order.map(|i| plane[t[i] as usize]);
                 for (j, (key, s)) in sorted.into_iter().enumerate() {
@@ -383,7 +387,7 @@ impl StatsAccumulator {
                             c.lo_hash.add(&key, s);
                             c.lo.push((key, s));
                         } else {
-                            c.hi_cone += i128::from(s) * det3_i128(&key);
+                            c.hi_cone += i128::from(s) * det3(&key);
                             c.hi_hash.add(&key, s);
                             c.hi.push((key, s));
                         }
@@ -431,9 +435,10 @@ impl StatsAccumulator {
             lo.extend(c.lo);
             hi.extend(c.hi);
         }
-        // Upper cap: Σ det over its tets = Σ over its boundary (the upper faces, reversed)
-        // of det[o, p, q, r] with o = (0, 0, 0, T), which is −T·det3[p, q, r].
-        vol24 -= i128::from(t_hi - t_lo) * hi_cone;
+        // Upper cap (in the plane t = T): its flux is 4T times the sum of its tets' signed
+        // 3-volumes (×6), which is the sum over its boundary (the upper faces, reversed) of
+        // det3[p, q, r].
+        vol24 -= 4 * i128::from(t_hi - t_lo) * hi_cone;
         // Every interior face twice, in opposite orientations: by their hash; exactly (each
         // face paired by its ids) only if the hash says otherwise.
         let interior = match interior.paired() {
@@ -567,6 +572,52 @@ impl StatsAccumulator {
         }
         self.stats
     }
+}
+
+/// 24 times the flux of the field (0, 0, 0, t − `t_lo`) out through a tet of a slab's
+/// lateral mesh: the mean of its vertices' times (above the slab's lower plane) times its
+/// normal's time component, −det3 of its spatial edges. Summed over a closed slab (the lower
+/// cap has no flux: its time is 0; the upper one's is added from its boundary) it is 24
+/// times the slab's hypervolume, as the divergence of that field is 1; against the cone
+/// from the origin (`det4` of the four points) it takes one 3×3 determinant, not four.
+#[inline]
+fn time_flux24(p: &[LatticePoint; 4], t_lo: i32) -> i128 {
+    let d = |q: &LatticePoint| [0, 1, 2].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
+    let (u, v, w) = (d(&p[1]), d(&p[2]), d(&p[3]));
+    let t: i64 = p.iter().map(|q| i64::from(q[3]) - i64::from(t_lo)).sum();
+    // Within one lattice hypercube the edges are at most 2^11 and the times 2^10 apart; in
+    // i64 while the minor (below 6·2^60) and its product with the times fit, else in i128.
+    let small = |x: i64| x.abs() <= 1 << 20;
+    if u.iter().chain(&v).chain(&w).all(|&x| small(x)) && small(t) {
+        let m = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+            + u[2] * (v[0] * w[1] - v[1] * w[0]);
+        match m.checked_mul(t) {
+            Some(x) => return i128::from(x),
+            None => return i128::from(m) * i128::from(t),
+        }
+    }
+    // Exact while the edges and the times are below 2^30, as the kernel's predicates assume
+    // (|m·t| < 6·2^90 · 4·2^30); a malformed piece beyond that gets a wrong figure, not a
+    // panic.
+    let (u, v, w) = (u.map(i128::from), v.map(i128::from), w.map(i128::from));
+    let m = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
+        + u[2] * (v[0] * w[1] - v[1] * w[0]);
+    m.wrapping_mul(i128::from(t))
+}
+
+/// [`det3_i128`], in i64 where every coordinate is at most 2^20 (each of its three terms
+/// below 2^61).
+#[inline]
+fn det3(t: &PlaneTri) -> i128 {
+    if t.iter().flatten().all(|x| x.abs() <= 1 << 20) {
+        let m = |p: &[i32; 3]| p.map(i64::from);
+        let (a, b, c) = (m(&t[0]), m(&t[1]), m(&t[2]));
+        return i128::from(
+            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]),
+        );
+    }
+    det3_i128(t)
 }
 
 fn det3_i128(t: &PlaneTri) -> i128 {
@@ -976,6 +1027,67 @@ mod tests {
             }
             assert!(one.0.unpaired > 0, "the last plane is open: {:?}", one.0);
         }
+    }
+
+    /// The hypervolume of slabs far from the origin, or stretched so that their edges pass
+    /// 2^20, where the flux and the upper faces' determinants are taken in i128: moved in
+    /// space it is the same, stretched by 2^20 on the three spatial axes it is 2^60 times
+    /// as large, bit for bit; a slab's hypervolume checked against the cone from the origin
+    /// over the slab closed by both its caps.
+    #[test]
+    fn far_and_stretched_slabs_add_the_exact_hypervolume() {
+        let (m, slabs) = test_stream([10, 9, 8], 4, |k, x, y, z| {
+            let r2 = (x - 3 - k as i32).pow(2) + (y - 4).pow(2) + (z - 4).pow(2);
+            r2 <= 9 || (x + 2 * y + 3 * z + k as i32) % 11 == 0
+        });
+        let figures = |f: &dyn Fn(&mut TetMesh)| {
+            let mut acc = StatsAccumulator::new();
+            for s in &slabs {
+                let mut mesh = s.mesh.clone();
+                f(&mut mesh);
+                let mut slab = s.lateral_ref();
+                slab.mesh = &mesh;
+                acc.add_lateral(slab, None);
+            }
+            let st = acc.so_far();
+            (st.hypervolume_lattice, st.closed)
+        };
+        let (near, closed) = figures(&|_| {});
+        assert!(near > 100.0, "{near}");
+        let far = figures(&|m| m.translate([3 << 20, -(5 << 20), 7 << 20, 0]));
+        assert_eq!(far, (near, closed));
+        let stretched = figures(&|m| {
+            for p in &mut m.vertices {
+                for x in &mut p[..3] {
+                    *x <<= 20;
+                }
+            }
+        });
+        assert_eq!(
+            stretched.0.to_bits(),
+            (near * (1u64 << 60) as f64).to_bits()
+        );
+        assert_eq!(stretched.1, closed);
+        // A slab closed by the caps of its two frames: its hypervolume as the cone from the
+        // origin gives it (the det4 of every tet of the three meshes).
+        let (m, slabs) = test_stream([10, 9, 8], 2, |k, x, y, z| {
+            let r2 = (x - 3 - 2 * k as i32).pow(2) + (y - 4).pow(2) + (z - 4).pow(2);
+            r2 <= 9 || (x + 2 * y + 3 * z + k as i32) % 11 == 0
+        });
+        let lo = m
+            .cap(m.first_frame().unwrap(), crate::CapSide::Low)
+            .unwrap();
+        let hi = m
+            .cap(m.last_frame().unwrap(), crate::CapSide::High)
+            .unwrap();
+        let cone: i128 = [&lo, &slabs[0].mesh, &hi]
+            .into_iter()
+            .map(crate::validate::hypervolume24)
+            .sum();
+        let mut acc = StatsAccumulator::new();
+        acc.add_lateral(slabs[0].lateral_ref(), Some(&lo));
+        assert!(cone > 0);
+        assert_eq!(acc.so_far().hypervolume_lattice, cone as f64 / 24.0);
     }
 
     /// The hash of a slab's interior faces says they pair exactly when they do, and sends a

@@ -13,35 +13,6 @@ use rayon::prelude::*;
 use super::march::TetMesh;
 use chronotope_kernel::{det4_i128, LatticePoint};
 
-/// det[a, b, c, d] exactly, fast when the tet is small: det[a, b−a, c−a, d−a] expanded
-/// along its first row, whose cofactors are 3x3 determinants of small differences.
-#[inline]
-pub fn det4_small_tet(
-    a: &LatticePoint,
-    b: &LatticePoint,
-    c: &LatticePoint,
-    d: &LatticePoint,
-) -> i128 {
-    let diff = |p: &LatticePoint| [0, 1, 2, 3].map(|k| i64::from(p[k]) - i64::from(a[k]));
-    let (u, v, w) = (diff(b), diff(c), diff(d));
-    // Differences of points in one hypercube are at most 2^11 in magnitude for any scale we
-    // accept (1024); 3x3 minors stay below 6·2^33, far inside i64.
-    if [u, v, w]
-        .iter()
-        .any(|r| r.iter().any(|x| x.abs() > 1 << 20))
-    {
-        return det4_i128(a, b, c, d);
-    }
-    let m = |i: usize, j: usize, k: usize| {
-        u[i] * (v[j] * w[k] - v[k] * w[j]) - u[j] * (v[i] * w[k] - v[k] * w[i])
-            + u[k] * (v[i] * w[j] - v[j] * w[i])
-    };
-    // Row a is expanded with alternating signs over the minors of columns (1,2,3), (0,2,3), ...
-    i128::from(a[0]) * i128::from(m(1, 2, 3)) - i128::from(a[1]) * i128::from(m(0, 2, 3))
-        + i128::from(a[2]) * i128::from(m(0, 1, 3))
-        - i128::from(a[3]) * i128::from(m(0, 1, 2))
-}
-
 /// The result of a closedness check.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ClosedReport {
