@@ -1036,7 +1036,7 @@ mod tests {
     /// over the slab closed by both its caps.
     #[test]
     fn far_and_stretched_slabs_add_the_exact_hypervolume() {
-        let (m, slabs) = test_stream([10, 9, 8], 4, |k, x, y, z| {
+        let (_, slabs) = test_stream([10, 9, 8], 4, |k, x, y, z| {
             let r2 = (x - 3 - k as i32).pow(2) + (y - 4).pow(2) + (z - 4).pow(2);
             r2 <= 9 || (x + 2 * y + 3 * z + k as i32) % 11 == 0
         });
