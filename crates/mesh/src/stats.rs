@@ -575,11 +575,13 @@ impl StatsAccumulator {
 }
 
 /// 24 times the flux of the field (0, 0, 0, t − `t_lo`) out through a tet of a slab's
-/// lateral mesh: the mean of its vertices' times (above the slab's lower plane) times its
-/// normal's time component, −det3 of its spatial edges. Summed over a closed slab (the lower
-/// cap has no flux: its time is 0; the upper one's is added from its boundary) it is 24
-/// times the slab's hypervolume, as the divergence of that field is 1; against the cone
-/// from the origin (`det4` of the four points) it takes one 3×3 determinant, not four.
+/// lateral mesh: the sum of its vertices' times above the slab's lower plane times det3 of
+/// its spatial edges (from its first vertex), the time component of its outward normal
+/// scaled by six times its 3-volume (a stored tet's `cross4` normal points into the body:
+/// its time component is −det3). Summed over a closed slab (the lower cap has no flux: its
+/// time is 0; the upper one's is added from its boundary) it is 24 times the slab's
+/// hypervolume, as the divergence of that field is 1; against the cone from the origin
+/// (`det4` of the four points) it takes one 3×3 determinant, not four.
 #[inline]
 fn time_flux24(p: &[LatticePoint; 4], t_lo: i32) -> i128 {
     let d = |q: &LatticePoint| [0, 1, 2].map(|k| i64::from(q[k]) - i64::from(p[0][k]));
