@@ -184,6 +184,24 @@ impl Values {
 }
 
 impl OccupancyGrid {
+    /// The frame with no voxel occupied on lattice `g` (what decoding an all-zero frame of
+    /// its sizes and encoding gives, at an iso level above 0), without data to decode. Its
+    /// memory is that of a decoded frame of `g`: only for a lattice whose frames were
+    /// decoded (checked against the limits) already.
+    pub fn empty(g: &GridGeometry) -> Self {
+        let [sx, sy, sz] = g.size.map(|v| v as usize);
+        let padded = [sx + 2, sy + 2, sz + 2];
+        let words = (sx + 2) / 64 + 2;
+        Self {
+            padded,
+            words,
+            bits: vec![0u64; words * padded[1] * padded[2]],
+            values: (g.encoding == 1).then(|| Values::empty(padded[0], padded[1] * padded[2])),
+            occupied: 0,
+            clamped: 0,
+        }
+    }
+
     /// Heap bytes the decoded frame takes.
     pub fn heap_bytes(&self) -> u64 {
         (self.bits.len() * 8 + self.values.as_ref().map_or(0, Values::heap_bytes)) as u64
@@ -586,6 +604,35 @@ mod tests {
                     set_from(&src, start + x, x + 1, &mut slow);
                 }
                 assert_eq!(fast, slow, "start {start}, length {len}");
+            }
+        }
+    }
+
+    /// The empty frame of a lattice is the one decoding an all-zero frame gives, in both
+    /// encodings and at sizes across a word of a row.
+    #[test]
+    fn an_empty_frame_is_an_all_zero_one_decoded() {
+        for size in [[1u32, 1, 1], [5, 4, 3], [62, 2, 3], [63, 3, 2], [130, 2, 2]] {
+            for encoding in [0u8, 1] {
+                let n = size.iter().product::<u32>() as usize;
+                let data = vec![0u8; if encoding == 0 { n.div_ceil(8) } else { n }];
+                let f = FrameRef {
+                    stamp_ns: 0,
+                    origin: [0.0; 3],
+                    resolution: 0.01,
+                    size,
+                    encoding,
+                    data: &data,
+                };
+                let decoded = OccupancyGrid::decode(&f, &DecodeOptions::default()).unwrap();
+                let g = GridGeometry {
+                    origin: [0.0; 3],
+                    resolution: 0.01,
+                    size,
+                    encoding,
+                    scale: 2,
+                };
+                assert_eq!(OccupancyGrid::empty(&g), decoded, "{size:?} {encoding}");
             }
         }
     }

@@ -39,7 +39,7 @@ pub fn shared_bookkeeping_pool() -> BookkeepingPool {
 
 /// Runs `work` on `pool` (rayon's when `None`), catching a panic: a panic in a job rayon
 /// spawned would abort the process.
-pub(super) fn spawn_on(pool: &BookkeepingPool, work: impl FnOnce() + Send + 'static) {
+fn spawn_on(pool: &BookkeepingPool, work: impl FnOnce() + Send + 'static) {
     let work = move || {
         let _ = std::panic::catch_unwind(std::panic::AssertUnwindSafe(work));
     };

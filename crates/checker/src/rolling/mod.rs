@@ -55,8 +55,8 @@ use chronotope_mesh::unsure::{UnsureLog, UnsureSpan};
 use chronotope_mesh::{CapSide, GridGeometry, Mesher, MesherOptions, OccupancyGrid, TetMesh};
 
 mod bookkeeping;
+use bookkeeping::PoolJob;
 pub use bookkeeping::{shared_bookkeeping_pool, BookkeepingPool, BOOKKEEPING_NICE};
-use bookkeeping::{spawn_on, PoolJob};
 mod episodes;
 pub use episodes::{lower_own_priority, RESOLVER_NICE};
 mod periods;
@@ -729,9 +729,8 @@ fn frame_among<'a>(
 /// ([`RollingChecker::on_frame_with`]).
 pub type DecodeFrame = Box<dyn FnOnce() -> Option<OccupancyGrid> + Send>;
 
-/// A frame decoded on rayon's pool as soon as it comes, or by whoever needs it first,
-/// whichever comes first (the other then waits for it, never for a job that has not
-/// started: no pool thread waits for the pool).
+/// A frame decoded by whoever needs it first (another who needs it meanwhile waits for that
+/// decoding, which has started), or never.
 #[derive(Clone)]
 struct LazyGrid(Arc<LazyInner>);
 
@@ -901,6 +900,13 @@ struct Overlap {
     closed_sums: Option<(f64, f64)>,
     /// Stamp of the latest frame fed (a frame at or before it is not fed again).
     last_pushed: Option<i64>,
+    /// The intersection of two empty frames on the two lattices, fed for a period known
+    /// to have none (see `empty_intersection`): one frame's memory per pair.
+    empty: Option<(
+        GridGeometry,
+        GridGeometry,
+        Option<(OccupancyGrid, GridGeometry)>,
+    )>,
     /// The run's first and latest stamps fed, and how many frames (its mean period).
     stamps: (i64, i64, u64),
     /// Not measurable any more: a frame was missing, refused, or on another lattice (the
@@ -1264,12 +1270,13 @@ impl RollingChecker {
         }
     }
 
-    /// [`Self::on_frame`] with the frame still encoded: `decode` runs on rayon's pool at
-    /// once (off the caller's thread), or where the frame is first needed if that comes
-    /// sooner. `expected_bytes` bounds the decoded frame's heap size (it counts toward the
-    /// frames' memory limit until the frame is decoded; e.g.
-    /// [`chronotope_mesh::grid::decoded_bytes`]). A frame that does not decode counts as not
-    /// received.
+    /// [`Self::on_frame`] with the frame still encoded: `decode` runs where the frame is
+    /// first needed (a pair's overlap in a period where the bodies overlap or a frame
+    /// cannot be known empty, an episode's horizon cap), on the bookkeeping's or the
+    /// resolver's pool; a frame nothing needs is never decoded. `expected_bytes` bounds the
+    /// decoded frame's heap size (it counts toward the frames' memory limit until the frame
+    /// is decoded; e.g. [`chronotope_mesh::grid::decoded_bytes`]). A frame that does not
+    /// decode counts as not received.
     pub fn on_frame_with(
         &mut self,
         body: &str,
@@ -1281,16 +1288,8 @@ impl RollingChecker {
     ) {
         self.advance_statistics();
         let grid = LazyGrid::later(decode, expected_bytes);
-        let Some(kept) = self.keep_frame(body, stamp_ns, geometry, grid.clone()) else {
+        if self.keep_frame(body, stamp_ns, geometry, grid).is_none() {
             return;
-        };
-        if kept {
-            // Decoded by the bookkeeping, or by whoever needs it first. A panic is caught:
-            // the frame then counts as not decoded (whoever needs it next finds no decoder
-            // left).
-            spawn_on(&self.bookkeeping, move || {
-                grid.get();
-            });
         }
         self.pump(out);
     }

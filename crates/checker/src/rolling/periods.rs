@@ -12,10 +12,10 @@ use super::{
     report::{pair_overlap, run_overlap},
     speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, FramesAround,
     GridGeometry, HeldSlab, Interval, KeptWindow, Label, LabelCounts, Mesher, MesherOptions,
-    OpenUnsure, Overlap, Partner, PendingPeriod, PoolJob, PreparedWindow, Record, RollingChecker,
-    RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator, TakenLabels, TetMesh,
-    UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR, CONTEXT_SLABS,
-    REBASE_FRAMES,
+    OccupancyGrid, OpenUnsure, Overlap, Partner, PendingPeriod, PoolJob, PreparedWindow, Record,
+    RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator,
+    TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR,
+    CONTEXT_SLABS, REBASE_FRAMES,
 };
 
 impl RollingChecker {
@@ -318,7 +318,7 @@ impl RollingChecker {
                 return true;
             }
         };
-        self.overlap_push(i, s, hi);
+        self.overlap_push(i, s, hi, no_overlap(&r));
         {
             let p = &mut self.pairs[i];
             p.stamps.insert(k, s);
@@ -993,8 +993,10 @@ impl RollingChecker {
     /// Feeds the intersection of the two bodies' frames at `s` and `hi` to the pair's
     /// overlap mesher. The frames are found, decoded, intersected and meshed by the
     /// bookkeeping, while the checker goes on ([`Self::settle_overlap`] takes the overlap
-    /// back, before anything reads it or feeds it again).
-    pub(super) fn overlap_push(&mut self, i: usize, s: i64, hi: i64) {
+    /// back, before anything reads it or feeds it again). A period whose check found no
+    /// overlap (`none`, see [`no_overlap`]) feeds empty intersections where they are BITS,
+    /// its frames neither decoded nor intersected.
+    pub(super) fn overlap_push(&mut self, i: usize, s: i64, hi: i64, none: bool) {
         self.settle_overlap(i);
         let (a, b) = (self.pairs[i].a.clone(), self.pairs[i].b.clone());
         let opts = self.opts;
@@ -1031,11 +1033,19 @@ impl RollingChecker {
             if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
                 continue;
             }
-            let both = ga.zip(gb).map(|(ga, gb)| OverlapFrames {
-                fa: self.bodies[&a].frames_around(stamp),
-                ga,
-                fb: self.bodies[&b].frames_around(stamp),
-                gb,
+            let both = ga.zip(gb).map(|(ga, gb)| {
+                // Only where the intersection is BITS (two lattices, or both BITS): a PERCENT
+                // one keeps the values below the iso level, which place the next slab's
+                // vertices, and only decoding finds them.
+                if none && (ga != gb || ga.encoding == 0) {
+                    return OverlapFrames::Empty { ga, gb };
+                }
+                OverlapFrames::Found {
+                    fa: self.bodies[&a].frames_around(stamp),
+                    ga,
+                    fb: self.bodies[&b].frames_around(stamp),
+                    gb,
+                }
             });
             frames.push((stamp, both));
         }
@@ -1053,13 +1063,56 @@ impl RollingChecker {
     }
 }
 
-/// Two bodies' frames at one stamp (to be found among those around it), each with its
-/// lattice.
-struct OverlapFrames {
-    fa: FramesAround,
+/// Two bodies' frames at one stamp, each with its lattice: to be found among those around
+/// it, or known to share no occupied voxel (their intersection is empty).
+enum OverlapFrames {
+    Found {
+        fa: FramesAround,
+        ga: GridGeometry,
+        fb: FramesAround,
+        gb: GridGeometry,
+    },
+    Empty {
+        ga: GridGeometry,
+        gb: GridGeometry,
+    },
+}
+
+/// Whether a period's check says the two bodies do not overlap in it: no range of overlap,
+/// no crossing, nothing undecided, and every taken tet of both OUTSIDE. Then neither of its
+/// two frames has a voxel both bodies occupy: an occupied voxel's centre lies strictly
+/// inside its body (no mesh vertex sits on a sample point), so a shared one would have the
+/// bodies overlap around it, within the period.
+fn no_overlap(r: &WindowResult) -> bool {
+    r.ranges.is_empty()
+        && r.crossings.is_empty()
+        && r.undecided == 0
+        && r.labels
+            .iter()
+            .all(|l| l.counts.inside == 0 && l.counts.interference == 0)
+}
+
+/// The intersection of two empty frames on lattices `ga` and `gb`, as
+/// [`chronotope_mesh::grid::intersect_across`] gives it, kept with the overlap for its next
+/// period apart.
+fn empty_intersection(
+    ov: &mut Overlap,
     ga: GridGeometry,
-    fb: FramesAround,
     gb: GridGeometry,
+) -> Option<(OccupancyGrid, GridGeometry)> {
+    if let Some((a, b, e)) = &ov.empty {
+        if (*a, *b) == (ga, gb) {
+            return e.clone();
+        }
+    }
+    let e = chronotope_mesh::grid::intersect_across(
+        &OccupancyGrid::empty(&ga),
+        &ga,
+        &OccupancyGrid::empty(&gb),
+        &gb,
+    );
+    ov.empty = Some((ga, gb, e.clone()));
+    e
 }
 
 /// Feeds `ov` the intersection of each stamp's frames, in order (`None`: a frame or a
@@ -1075,16 +1128,15 @@ fn feed_overlap(
         if ov.unknown || ov.last_pushed.is_some_and(|l| l >= stamp) {
             continue;
         }
-        let found = both.and_then(|OverlapFrames { fa, ga, fb, gb }| {
-            let fa = fa.frame(&ga)?;
-            let fb = fb.frame(&gb)?;
-            Some((fa, ga, fb, gb))
-        });
-        let Some((fa, ga, fb, gb)) = found else {
-            ov.unknown = true;
-            continue;
+        let intersection = match both {
+            None => None,
+            Some(OverlapFrames::Found { fa, ga, fb, gb }) => fa
+                .frame(&ga)
+                .zip(fb.frame(&gb))
+                .and_then(|(fa, fb)| chronotope_mesh::grid::intersect_across(&fa, &ga, &fb, &gb)),
+            Some(OverlapFrames::Empty { ga, gb }) => empty_intersection(ov, ga, gb),
         };
-        let Some((both, ga)) = chronotope_mesh::grid::intersect_across(&fa, &ga, &fb, &gb) else {
+        let Some((both, ga)) = intersection else {
             ov.unknown = true;
             continue;
         };
