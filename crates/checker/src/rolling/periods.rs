@@ -1130,10 +1130,10 @@ fn feed_overlap(
         }
         let intersection = match both {
             None => None,
-            Some(OverlapFrames::Found { fa, ga, fb, gb }) => fa
-                .frame(&ga)
-                .zip(fb.frame(&gb))
-                .and_then(|(fa, fb)| chronotope_mesh::grid::intersect_across(&fa, &ga, &fb, &gb)),
+            Some(OverlapFrames::Found { fa, ga, fb, gb }) => fa.frame(&ga).and_then(|fa| {
+                let fb = fb.frame(&gb)?;
+                chronotope_mesh::grid::intersect_across(&fa, &ga, &fb, &gb)
+            }),
             Some(OverlapFrames::Empty { ga, gb }) => empty_intersection(ov, ga, gb),
         };
         let Some((both, ga)) = intersection else {
