@@ -433,21 +433,19 @@ impl OccupancyGrid {
     }
 }
 
-/// The voxels occupied in both of two frames of bodies whose lattices differ by a whole
-/// number of voxels in origin and/or by encoding (same resolution), on `ga`'s grid as a BITS
-/// frame (PERCENT frames count at their iso level, as their bits say). Frames on the same
-/// lattice use [`OccupancyGrid::intersect`] instead (it keeps percent values).
-///
-/// `None` if the resolutions differ or the origins are not a whole number of voxels apart.
-pub fn intersect_across(
-    a: &OccupancyGrid,
-    ga: &GridGeometry,
-    b: &OccupancyGrid,
-    gb: &GridGeometry,
-) -> Option<(OccupancyGrid, GridGeometry)> {
+/// The lattice [`intersect_across`] gives two frames on `ga` and `gb`: `ga` itself when they
+/// are the same (PERCENT frames then keep their values), else `ga`'s grid as BITS; `None`
+/// where it gives none.
+pub fn intersection_geometry(ga: &GridGeometry, gb: &GridGeometry) -> Option<GridGeometry> {
     if ga == gb {
-        return a.intersect(b).map(|g| (g, *ga));
+        return Some(*ga);
     }
+    across(ga, gb).map(|(g, _)| g)
+}
+
+/// For two different lattices: `ga`'s grid as BITS, and `gb`'s origin in whole voxels from
+/// `ga`'s (`None` if the resolutions differ or the origins are not whole voxels apart).
+fn across(ga: &GridGeometry, gb: &GridGeometry) -> Option<(GridGeometry, [i64; 3])> {
     if (ga.resolution - gb.resolution).abs() > 1e-9 * ga.resolution {
         return None;
     }
@@ -465,6 +463,25 @@ pub fn intersect_across(
         scale: 2,
         ..*ga
     };
+    Some((g, off))
+}
+
+/// The voxels occupied in both of two frames of bodies whose lattices differ by a whole
+/// number of voxels in origin and/or by encoding (same resolution), on `ga`'s grid as a BITS
+/// frame (PERCENT frames count at their iso level, as their bits say). Frames on the same
+/// lattice use [`OccupancyGrid::intersect`] instead (it keeps percent values).
+///
+/// `None` if the resolutions differ or the origins are not a whole number of voxels apart.
+pub fn intersect_across(
+    a: &OccupancyGrid,
+    ga: &GridGeometry,
+    b: &OccupancyGrid,
+    gb: &GridGeometry,
+) -> Option<(OccupancyGrid, GridGeometry)> {
+    if ga == gb {
+        return a.intersect(b).map(|g| (g, *ga));
+    }
+    let (g, off) = across(ga, gb)?;
     // The same lattice in another encoding (a PERCENT robot against a BITS table): the bit
     // rows line up word for word (padding and spare words are zero in both).
     if off == [0; 3] && ga.size == gb.size {

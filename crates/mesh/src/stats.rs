@@ -591,40 +591,43 @@ fn time_flux24(p: &[LatticePoint; 4], t_lo: i32) -> i128 {
     // i64 while the minor (below 6·2^60) and its product with the times fit, else in i128.
     let small = |x: i64| x.abs() <= 1 << 20;
     if u.iter().chain(&v).chain(&w).all(|&x| small(x)) && small(t) {
-        let m = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-            + u[2] * (v[0] * w[1] - v[1] * w[0]);
-        match m.checked_mul(t) {
-            Some(x) => return i128::from(x),
-            None => return i128::from(m) * i128::from(t),
-        }
+        let m = det3_rows(u, v, w);
+        return match m.checked_mul(t) {
+            Some(x) => i128::from(x),
+            None => i128::from(m) * i128::from(t),
+        };
     }
     // Exact while the edges and the times are below 2^30, as the kernel's predicates assume
     // (|m·t| < 6·2^90 · 4·2^30); a malformed piece beyond that gets a wrong figure, not a
     // panic.
-    let (u, v, w) = (u.map(i128::from), v.map(i128::from), w.map(i128::from));
-    let m = u[0] * (v[1] * w[2] - v[2] * w[1]) - u[1] * (v[0] * w[2] - v[2] * w[0])
-        + u[2] * (v[0] * w[1] - v[1] * w[0]);
+    let m = det3_rows(u.map(i128::from), v.map(i128::from), w.map(i128::from));
     m.wrapping_mul(i128::from(t))
 }
 
-/// [`det3_i128`], in i64 where every coordinate is at most 2^20 (each of its three terms
-/// below 2^61).
+/// det3 of a plane triangle's three points, in i64 where every coordinate is at most 2^20
+/// (each of its three terms below 2^61), else in i128.
 #[inline]
 fn det3(t: &PlaneTri) -> i128 {
     if t.iter().flatten().all(|x| x.abs() <= 1 << 20) {
-        let m = |p: &[i32; 3]| p.map(i64::from);
-        let (a, b, c) = (m(&t[0]), m(&t[1]), m(&t[2]));
-        return i128::from(
-            a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
-                + a[2] * (b[0] * c[1] - b[1] * c[0]),
-        );
+        return i128::from(det3_rows(
+            t[0].map(i64::from),
+            t[1].map(i64::from),
+            t[2].map(i64::from),
+        ));
     }
-    det3_i128(t)
+    det3_rows(
+        t[0].map(i128::from),
+        t[1].map(i128::from),
+        t[2].map(i128::from),
+    )
 }
 
-fn det3_i128(t: &PlaneTri) -> i128 {
-    let m = |p: &[i32; 3]| p.map(i128::from);
-    let (a, b, c) = (m(&t[0]), m(&t[1]), m(&t[2]));
+/// The determinant of the 3×3 matrix with rows `a`, `b`, `c`, expanded along `a`.
+#[inline]
+fn det3_rows<T>(a: [T; 3], b: [T; 3], c: [T; 3]) -> T
+where
+    T: Copy + std::ops::Mul<Output = T> + std::ops::Sub<Output = T> + std::ops::Add<Output = T>,
+{
     a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
         + a[2] * (b[0] * c[1] - b[1] * c[0])
 }

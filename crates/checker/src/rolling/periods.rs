@@ -1034,10 +1034,12 @@ impl RollingChecker {
                 continue;
             }
             let both = ga.zip(gb).map(|(ga, gb)| {
-                // Only where the intersection is BITS (two lattices, or both BITS): a PERCENT
-                // one keeps the values below the iso level, which place the next slab's
-                // vertices, and only decoding finds them.
-                if none && (ga != gb || ga.encoding == 0) {
+                // Only where the intersection is BITS: a PERCENT one keeps the values below
+                // the iso level, which place the next slab's vertices, and only decoding
+                // finds them.
+                let bits = chronotope_mesh::grid::intersection_geometry(&ga, &gb)
+                    .is_some_and(|g| g.encoding == 0);
+                if none && bits {
                     return OverlapFrames::Empty { ga, gb };
                 }
                 OverlapFrames::Found {
