@@ -119,7 +119,9 @@ pub trait InsideTest {
 /// are then decided one by one, each from a decided neighbour along the short segment
 /// between their interior points (far rays only where that is degenerate or no neighbour
 /// is decided): the neighbour's point is off the other boundary, so the signed crossing
-/// count along the segment is the difference of the two answers.
+/// count along the segment is the difference of the two answers. A contact tet no decided
+/// tet reaches (cut off by tets lying in the other boundary, where two bodies stand face
+/// to face) takes far rays and is then the reference of its contact neighbours in turn.
 pub fn label_regions(
     adjacency: &[[u32; 4]],
     touch: &[Touch],
@@ -216,39 +218,43 @@ pub fn label_regions(
         out,
         done: vec![false; n],
     };
-    while let Some(t) = queue.pop_front() {
-        if st.done[t as usize] {
-            continue;
-        }
-        // A tet face to face with the other body mostly lies in one of its tets (its twin,
-        // as a rule): every test would be undecided, so none is made.
-        let lies_in = match touch[t as usize] {
-            Touch::Twin => true,
-            Touch::FaceToFace => test.lies_in_boundary(t),
-            _ => false,
-        };
-        if lies_in {
-            decide(t, None, &mut st);
-            push_contact_neighbours(t, &st.done, &mut queue);
-            continue;
-        }
-        let reference = adjacency[t as usize].iter().find_map(|&u| {
-            if u as usize >= n || !st.decided[u as usize] {
-                return None;
+    // Contact tets no decided tet reaches (their neighbours lie in the other boundary, as
+    // face to face ones do) seed the search again one at a time, tested on their own: each
+    // is then the reference for its contact neighbours, which take the short segment.
+    let mut seeds = contact.iter();
+    loop {
+        while let Some(t) = queue.pop_front() {
+            if st.done[t as usize] {
+                continue;
             }
-            let q = st.points.get(&u).copied().unwrap_or_else(|| test.point(u));
-            Some((q, st.labels[u as usize] == Label::Inside))
-        });
-        let verdict = reference
-            .and_then(|(q, q_inside)| test.from_known(t, &q, q_inside))
-            .or_else(|| test.far(t, usize::MAX));
-        decide(t, verdict, &mut st);
-        push_contact_neighbours(t, &st.done, &mut queue);
-    }
-    for &t in &contact {
-        if !st.done[t as usize] {
-            let verdict = test.far(t, usize::MAX);
+            // A tet face to face with the other body mostly lies in one of its tets (its twin,
+            // as a rule): every test would be undecided, so none is made.
+            let lies_in = match touch[t as usize] {
+                Touch::Twin => true,
+                Touch::FaceToFace => test.lies_in_boundary(t),
+                _ => false,
+            };
+            if lies_in {
+                decide(t, None, &mut st);
+                push_contact_neighbours(t, &st.done, &mut queue);
+                continue;
+            }
+            let reference = adjacency[t as usize].iter().find_map(|&u| {
+                if u as usize >= n || !st.decided[u as usize] {
+                    return None;
+                }
+                let q = st.points.get(&u).copied().unwrap_or_else(|| test.point(u));
+                Some((q, st.labels[u as usize] == Label::Inside))
+            });
+            let verdict = reference
+                .and_then(|(q, q_inside)| test.from_known(t, &q, q_inside))
+                .or_else(|| test.far(t, usize::MAX));
             decide(t, verdict, &mut st);
+            push_contact_neighbours(t, &st.done, &mut queue);
+        }
+        match seeds.find(|&&t| !st.done[t as usize]) {
+            Some(&t) => queue.push_back(t),
+            None => break,
         }
     }
     let State {
@@ -448,4 +454,81 @@ struct State {
     points: HashMap<u32, LatticePoint>,
     out: Labeling,
     done: Vec<bool>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Answers by a truth table, counting the tests made: what an exact test of a body
+    /// gives, off its boundary.
+    struct Truth {
+        inside: Vec<bool>,
+        far: usize,
+        from_known: usize,
+    }
+
+    impl InsideTest for Truth {
+        fn far(&mut self, t: u32, _tries: usize) -> Option<(bool, LatticePoint)> {
+            self.far += 1;
+            Some((self.inside[t as usize], self.point(t)))
+        }
+        fn from_known(
+            &mut self,
+            t: u32,
+            _q: &LatticePoint,
+            _q_inside: bool,
+        ) -> Option<(bool, LatticePoint)> {
+            self.from_known += 1;
+            Some((self.inside[t as usize], self.point(t)))
+        }
+        fn point(&self, t: u32) -> LatticePoint {
+            [t as i32, 0, 0, 0]
+        }
+    }
+
+    /// Tets in a row, each a face neighbour of the next.
+    fn row(n: usize) -> Vec<[u32; 4]> {
+        (0..n)
+            .map(|t| {
+                let before = if t > 0 { t as u32 - 1 } else { u32::MAX };
+                let after = if t + 1 < n { t as u32 + 1 } else { u32::MAX };
+                [before, after, u32::MAX, u32::MAX]
+            })
+            .collect()
+    }
+
+    /// Contact tets whose only neighbours lie in the other boundary (twins), as where two
+    /// bodies stand face to face, with no clear tet to start from: one far test per run of
+    /// them, the rest each from its neighbour's known answer; labels as the truth says.
+    #[test]
+    fn contact_runs_cut_off_by_twins_are_tested_once_each() {
+        // Runs of 5, 7 and 3 contact tets between twins; the middle run inside.
+        let mut touch = Vec::new();
+        let mut inside = Vec::new();
+        for (len, is_in) in [(5, false), (7, true), (3, false)] {
+            touch.push(Touch::Twin);
+            inside.push(false);
+            touch.extend(std::iter::repeat_n(Touch::Contact, len));
+            inside.extend(std::iter::repeat_n(is_in, len));
+        }
+        let adjacency = row(touch.len());
+        let mut test = Truth {
+            inside: inside.clone(),
+            far: 0,
+            from_known: 0,
+        };
+        let got = label_regions(&adjacency, &touch, &mut test);
+        assert_eq!(test.far, 3, "one far test per run");
+        assert_eq!(test.from_known, 5 + 7 + 3 - 3);
+        for (t, l) in got.labels.iter().enumerate() {
+            let want = if touch[t] == Touch::Twin || !inside[t] {
+                Label::Outside
+            } else {
+                Label::Inside
+            };
+            assert_eq!(*l, want, "tet {t}");
+        }
+        assert_eq!(got.undecided_regions, 0);
+    }
 }
