@@ -5,7 +5,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use super::{
-    add_run, check_pair, BodyMesh, BodyStream, CapSide, CommonLattice, HeldSlab, PairResult,
+    add_run, check_pair, hold, BodyMesh, BodyStream, CapSide, CommonLattice, HeldSlab, PairResult,
     Resolution, RollingChecker, RollingOutput, SlabDone, TetMesh, Welder, CONTEXT_SLABS,
 };
 use crate::pipeline::{resolutions, suggest, Suggestions};
@@ -412,11 +412,19 @@ impl RollingChecker {
                     }
                 }
             }
-            // Its prepared window: every pair that could take it again has gone past it.
-            // A body at rest keeps it, to move it for its next windows.
-            if self.prepared.get(id).is_some_and(|c| c.2 < oldest) {
-                if let Some(w) = self.prepared.remove(id).filter(|_| b.moving_for == 0) {
-                    self.rest.insert(id.clone(), w);
+            // Its prepared windows: every pair that could take one again has gone past it.
+            // A body at rest keeps them, to move them for its next windows.
+            if let Some(held) = self.prepared.get_mut(id) {
+                let (gone, kept): (Vec<_>, Vec<_>) =
+                    std::mem::take(held).into_iter().partition(|h| h.s < oldest);
+                *held = kept;
+                if held.is_empty() {
+                    self.prepared.remove(id);
+                }
+                if b.moving_for == 0 {
+                    for h in gone {
+                        hold(&mut self.rest, id, h);
+                    }
                 }
             }
             oldest_of.insert(id.clone(), oldest);

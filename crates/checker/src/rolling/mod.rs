@@ -1035,6 +1035,33 @@ struct OpenUnsure {
     period_ns: i64,
 }
 
+/// A body's window prepared for one partner, kept for the periods after
+/// ([`RollingChecker`]'s `prepared` and `rest`).
+#[derive(Debug, Clone)]
+struct HeldWindow {
+    /// The other body of the pair it was prepared for (its tets are those that pair needs;
+    /// it serves any partner [`PreparedWindow::serves`] says it does).
+    partner: String,
+    /// The window.
+    spec: WindowSpec,
+    /// Its preparation.
+    window: Arc<PreparedWindow>,
+    /// The stamp of the period it was checked for.
+    s: i64,
+}
+
+/// Per body, its [`HeldWindow`]s: one per partner at most.
+type HeldWindows = BTreeMap<String, Vec<HeldWindow>>;
+
+/// Keeps `held` for body `id`, in place of the one held for the same partner.
+fn hold(windows: &mut HeldWindows, id: &str, held: HeldWindow) {
+    let v = windows.entry(id.to_owned()).or_default();
+    match v.iter_mut().find(|h| h.partner == held.partner) {
+        Some(h) => *h = held,
+        None => v.push(held),
+    }
+}
+
 /// The rolling checker of a set of pairs.
 #[derive(Debug)]
 pub struct RollingChecker {
@@ -1065,16 +1092,17 @@ pub struct RollingChecker {
     dropped_resolutions: u64,
     /// Windows checked ahead, in parallel, at the start of a pump (see [`Prefetched`]).
     prefetched: Vec<Prefetched>,
-    /// Per body, its latest prepared window (one per body at most) and the stamp of the
-    /// period it was checked for: a body in several pairs has the same window in each,
-    /// prepared once. Dropped once every pair of the body has decided that period.
-    prepared: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
-    /// The last prepared window of each body at rest, kept after its pairs have gone past
-    /// it: a later window of the body that is a moved copy of it (at rest, or at rest again
-    /// after a step by whole voxels: [`WindowSpec::moved_copy_of`]) is this one moved, not
-    /// prepared again. One window per body; dropped once the body has moved for
-    /// [`REST_KEPT_SLABS`] slabs.
-    rest: BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
+    /// Per body, its latest prepared window for each partner (one per pair of the body at
+    /// most) and the stamp of the period it was checked for: a body in several pairs has
+    /// the same window in each, prepared once where one preparation serves them all.
+    /// Dropped once every pair of the body has decided that period.
+    prepared: HeldWindows,
+    /// The last prepared windows of each body at rest, kept after its pairs have gone past
+    /// them: a later window of the body that is a moved copy of one (at rest, or at rest
+    /// again after a step by whole voxels: [`WindowSpec::moved_copy_of`]) is that one moved,
+    /// not prepared again. One window per pair of the body; dropped once the body has moved
+    /// for [`REST_KEPT_SLABS`] slabs.
+    rest: HeldWindows,
     /// The piece just accepted still has to be added to its run's statistics (or, a
     /// closing cap, the run's statistics finished): done on the pool while the windows it
     /// makes ready are checked.

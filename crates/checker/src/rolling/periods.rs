@@ -2,20 +2,19 @@
 //! it gives into the pair's running answer (labels, intervals, contact events, closing
 //! speeds), and the overlap measure.
 
-use std::collections::BTreeMap;
 use std::collections::VecDeque;
 use std::sync::Arc;
 
 use super::{
-    add_normals, bounds, check_window, closing_sums, on_pair_lattice, origin_offset,
+    add_normals, bounds, check_window, closing_sums, hold, on_pair_lattice, origin_offset,
     prepare_window,
     report::{pair_overlap, run_overlap},
     speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, FramesAround,
-    GridGeometry, HeldSlab, Interval, KeptWindow, Label, LabelCounts, Mesher, MesherOptions,
-    OccupancyGrid, OpenUnsure, Overlap, Partner, PendingPeriod, PoolJob, PreparedWindow, Record,
-    RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox, StatsAccumulator,
-    TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult, CHECKER_FACTOR,
-    CONTEXT_SLABS, REBASE_FRAMES,
+    GridGeometry, HeldSlab, HeldWindow, HeldWindows, Interval, KeptWindow, Label, LabelCounts,
+    Mesher, MesherOptions, OccupancyGrid, OpenUnsure, Overlap, Partner, PendingPeriod, PoolJob,
+    PreparedWindow, Record, RollingChecker, RollingOutput, SlabLabels, SpatialBounds, SpatialBox,
+    StatsAccumulator, TakenLabels, TetMesh, UnsureSpan, UnsureUpdate, WindowBody, WindowResult,
+    CHECKER_FACTOR, CONTEXT_SLABS, REBASE_FRAMES,
 };
 
 impl RollingChecker {
@@ -580,8 +579,14 @@ impl RollingChecker {
         });
         let (r, prepared) = result?;
         if let Some([pa, pb]) = prepared {
-            self.prepared.insert(a.to_owned(), (wa.clone(), pa, s));
-            self.prepared.insert(b.to_owned(), (wb.clone(), pb, s));
+            let held = |partner: &str, spec: &WindowSpec, window| HeldWindow {
+                partner: partner.to_owned(),
+                spec: spec.clone(),
+                window,
+                s,
+            };
+            hold(&mut self.prepared, a, held(b, wa, pa));
+            hold(&mut self.prepared, b, held(a, wb, pb));
         }
         Ok(r)
     }
@@ -1307,10 +1312,12 @@ impl RollingChecker {
         [self.prepared.get(id), self.rest.get(id)]
             .into_iter()
             .flatten()
-            .find_map(|(spec, p, _)| {
-                let d = w.moved_copy_of(spec)?;
-                p.serves_moved(d, partner)
-                    .then(|| p.moved_by(d).map(Arc::new))
+            .flatten()
+            .find_map(|h| {
+                let d = w.moved_copy_of(&h.spec)?;
+                h.window
+                    .serves_moved(d, partner)
+                    .then(|| h.window.moved_by(d).map(Arc::new))
                     .flatten()
             })
     }
@@ -1328,15 +1335,16 @@ pub(super) fn prepare_spec(
 /// The window prepared for body `id` in `cache`, if it is the same window as `w` and
 /// serves `partner`.
 pub(super) fn cached(
-    cache: &BTreeMap<String, (WindowSpec, Arc<PreparedWindow>, i64)>,
+    cache: &HeldWindows,
     id: &str,
     w: &WindowSpec,
     partner: &Partner,
 ) -> Option<Arc<PreparedWindow>> {
     cache
-        .get(id)
-        .filter(|c| c.0.same_as(w) && c.1.serves(partner))
-        .map(|c| c.1.clone())
+        .get(id)?
+        .iter()
+        .find(|h| h.spec.same_as(w) && h.window.serves(partner))
+        .map(|h| h.window.clone())
 }
 
 /// A window's result, with the two bodies' prepared windows (`None`: not prepared, see
@@ -2181,6 +2189,64 @@ mod tests {
         // (back after the jump: from period 6); period 12's window holds the closing cap.
         assert_eq!(moved, 6);
         assert_eq!(taken, checked);
+    }
+
+    /// A table at rest between two partners whose slabs change every period (a notch runs
+    /// along each) within the same box: the table's window is kept for each partner, so
+    /// that neither pair's preparation takes the other's place, and is taken moved for
+    /// both after its first periods; the labels are those of every window checked.
+    #[test]
+    fn a_body_at_rest_keeps_a_window_for_each_partner() {
+        let table = |_k: u32, x: i32, y: i32, z: i32| {
+            (1..13).contains(&x) && (2..8).contains(&y) && (4..6).contains(&z)
+        };
+        // On the table (z 6..8) and under it (z 2..4), each with a notch moving along x.
+        let partner = |z0: i32| {
+            move |k: u32, x: i32, y: i32, z: i32| {
+                let notch = x == 3 + k as i32 && y == 4 && z == z0 + 1;
+                (2..12).contains(&x) && (3..7).contains(&y) && (z0..z0 + 2).contains(&z) && !notch
+            }
+        };
+        let frames = 8;
+        let pieces = [
+            pieces_of("/t", [14, 10, 10], frames, table),
+            pieces_of("/a", [14, 10, 10], frames, partner(6)),
+            pieces_of("/b", [14, 10, 10], frames, partner(2)),
+        ];
+        let plan = CheckPlan {
+            pairs: Some(vec![("/a".into(), "/t".into()), ("/b".into(), "/t".into())]),
+            movable: Vec::new(),
+            time_scale: None,
+            frame_ids: Default::default(),
+            rotation: Default::default(),
+        };
+        let mut c = RollingChecker::new(plan, MesherOptions::default(), RollingConfig::default());
+        let mut out = Vec::new();
+        for k in 0..pieces[0].len() {
+            for p in &pieces {
+                c.on_piece(p[k].clone(), &mut out);
+            }
+            if k == pieces[0].len() - 2 {
+                // Before the closing caps: the table's windows of its rest, one per partner.
+                let mut partners: Vec<&str> = c
+                    .rest
+                    .get("/t")
+                    .into_iter()
+                    .flatten()
+                    .map(|h| h.partner.as_str())
+                    .collect();
+                partners.sort();
+                assert_eq!(partners, ["/a", "/b"]);
+            }
+        }
+        c.finish(&mut out);
+        let r = c.report();
+        for p in &r.pairs {
+            // Face to face, never crossing: all OUTSIDE.
+            assert_eq!(p.labels.a.inside + p.labels.a.interference, 0, "{p:?}");
+            assert_eq!(p.labels.b.inside + p.labels.b.interference, 0, "{p:?}");
+            assert!(p.labels.b.outside > 0);
+        }
     }
 }
 
