@@ -2192,9 +2192,9 @@ mod tests {
     }
 
     /// A table at rest between two partners whose slabs change every period (a notch runs
-    /// along each) within the same box: the table's window is kept for each partner, so
-    /// that neither pair's preparation takes the other's place, and is taken moved for
-    /// both after its first periods; the labels are those of every window checked.
+    /// along each) within the same box: the table's windows of its rest are kept one for
+    /// each partner, so that neither pair's preparation takes the other's place (with one
+    /// window a body, only the last pair's is kept); face to face, every tet is OUTSIDE.
     #[test]
     fn a_body_at_rest_keeps_a_window_for_each_partner() {
         let table = |_k: u32, x: i32, y: i32, z: i32| {
