@@ -196,7 +196,8 @@ impl OccupancyGrid {
             padded,
             words,
             bits: vec![0u64; words * padded[1] * padded[2]],
-            values: (g.encoding == 1).then(|| Values::empty(padded[0], padded[1] * padded[2])),
+            values: (g.encoding == Encoding::Percent.code())
+                .then(|| Values::empty(padded[0], padded[1] * padded[2])),
             occupied: 0,
             clamped: 0,
         }
@@ -459,7 +460,7 @@ fn across(ga: &GridGeometry, gb: &GridGeometry) -> Option<(GridGeometry, [i64; 3
         *o = r as i64;
     }
     let g = GridGeometry {
-        encoding: 0,
+        encoding: Encoding::Bits.code(),
         scale: 2,
         ..*ga
     };

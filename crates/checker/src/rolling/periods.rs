@@ -1043,7 +1043,7 @@ impl RollingChecker {
                 // the iso level, which place the next slab's vertices, and only decoding
                 // finds them.
                 let bits = chronotope_mesh::grid::intersection_geometry(&ga, &gb)
-                    .is_some_and(|g| g.encoding == 0);
+                    .is_some_and(|g| g.encoding == chronotope_mesh::Encoding::Bits.code());
                 if none && bits {
                     return OverlapFrames::Empty { ga, gb };
                 }
