@@ -555,6 +555,103 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
     drop(release);
 }
 
+/// A checker node whose report and suggestions nobody reads (a replay recording neither)
+/// builds no report until its last, at the end, which is the report a node read all along
+/// ends with; its contact events go out as before. A reader that comes is sent the report
+/// as it stands at the next step.
+#[test]
+fn an_unread_report_is_built_only_at_the_end() {
+    use chronotope::msg::{InterferenceReport, ResolveSuggestions, RosMessage};
+    use chronotope::node::{Message, Node, Payload};
+
+    let t0 = 1_000_000_000i64;
+    // The steps at which a report went out, the contact events, and the last report; the
+    // report and suggestions unread from step `unread`, read again at step `reread`.
+    let run = |unread: Option<u32>, reread: Option<u32>| {
+        // The two cubes, /a movable (so that suggestions go out with the reports).
+        let cfg = LaunchConfig::parse(
+            "launch:\n\
+             - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
+             - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}, {name: movable, value: [/a/occupancy]}]}\n",
+            "test",
+        )
+        .unwrap();
+        let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
+        let mut mesher =
+            chronotope::node::mesher::MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
+        let mut checker =
+            chronotope::node::checker::CheckerNode::from_spec(&cfg.nodes[1], &bodies).unwrap();
+        let told: Vec<String> = checker
+            .publications()
+            .into_iter()
+            .filter(|p| {
+                [InterferenceReport::TYPE_NAME, ResolveSuggestions::TYPE_NAME]
+                    .contains(&p.type_name)
+            })
+            .map(|p| p.topic)
+            .collect();
+        assert_eq!(told.len(), 2, "{told:?}");
+        let (mut reported_at, mut events, mut last) = (Vec::new(), Vec::new(), None);
+        let mut take = |k: u32, out: &[Message]| {
+            for m in out {
+                match &m.payload {
+                    Payload::Report(r) => {
+                        reported_at.push(k);
+                        last = Some((**r).clone());
+                    }
+                    Payload::Contact(e) => {
+                        events.push((e.event, e.contact_index, e.header.stamp.as_nanos()))
+                    }
+                    _ => {}
+                }
+            }
+        };
+        for k in 0..8u32 {
+            for t in &told {
+                if Some(k) == unread {
+                    checker.set_demand(t, false);
+                }
+                if Some(k) == reread {
+                    checker.set_demand(t, true);
+                }
+            }
+            let (_, out) = step_cubes(k, t0, &mut mesher, &mut checker);
+            take(k, &out);
+        }
+        let (mut pieces, mut out) = (Vec::new(), Vec::new());
+        mesher.finish(&mut pieces);
+        for m in &pieces {
+            checker.on_message(m, &mut out);
+        }
+        checker.finish(&mut out);
+        take(8, &out);
+        // Compared as printed: a bound not known is NaN, equal to itself there.
+        let last = last.expect("a last report");
+        (reported_at, events, format!("{last:?}"))
+    };
+    let (read, events, answer) = run(None, None);
+    assert!(
+        read.len() >= 4,
+        "a report at each contact's change: {read:?}"
+    );
+    assert!(events.len() >= 3, "{events:?}");
+    let (unread, unread_events, unread_answer) = run(Some(0), None);
+    assert_eq!(unread, [8], "only the last report");
+    assert_eq!(unread_events, events);
+    assert_eq!(unread_answer, answer);
+    // Read again from step 5: the report as it stands then, and on as before.
+    // (The first message of that step brings the report owed, a later one of the step the
+    // report it changes, as in a node read all along.)
+    let (mut again, again_events, again_answer) = run(Some(0), Some(5));
+    assert_eq!(again.first(), Some(&5), "{again:?}");
+    let mut from_5: Vec<u32> = read.iter().copied().filter(|&k| k >= 5).collect();
+    again.dedup();
+    from_5.dedup();
+    assert_eq!(again, from_5, "{read:?}");
+    assert_eq!(again_events, events);
+    assert_eq!(again_answer, answer);
+}
+
 /// A live checker node behind its input (no tick comes) with its bookkeeping held up: after
 /// 16 steps its changed report goes out as it stands, nothing of the statistics still out
 /// computed on its thread: every frame and tet its bodies have counted, their hypervolume

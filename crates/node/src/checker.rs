@@ -83,6 +83,10 @@ pub struct CheckerNode {
     /// Live: steps since the report was left for the statistics it waits for (see
     /// [`CheckerNode::publish_report_if_changed`]).
     report_waited: u32,
+    /// Whether anything reads `~/report` and `~/suggestions` (the transport says so:
+    /// [`Node::set_demand`]; both are read until it says otherwise). With neither read,
+    /// only the last report is built (see [`CheckerNode::publish_report_if_changed`]).
+    report_read: (bool, bool),
     /// Episodes resolved so far, and when the suggestions were last published (the report
     /// keeps a bounded number of resolutions, so their count stops telling).
     resolved: (u64, u64),
@@ -242,6 +246,7 @@ impl CheckerNode {
             latest_ns: 0,
             dirty: false,
             report_waited: 0,
+            report_read: (true, true),
             resolved: (0, 0),
             markers_queue: markers.then(|| {
                 Arc::new(Mutex::new(MarkerQueue {
@@ -539,7 +544,7 @@ impl CheckerNode {
     /// in. A replay publishes it in the step that changed it, complete, so that what it
     /// records does not depend on how fast the pool ran.
     fn publish_report_if_changed(&mut self, now: bool, out: &mut Vec<Message>) {
-        if !self.dirty {
+        if !self.dirty || !self.report_wanted() {
             return;
         }
         if self.live && !now && self.engine.statistics_pending() {
@@ -558,6 +563,15 @@ impl CheckerNode {
         }
         let report = self.engine.report();
         self.publish_report(report, out);
+    }
+
+    /// Whether a report is to be built now: something reads it or the suggestions sent with
+    /// it. Nobody does in a replay recording neither: its reports went nowhere, and each
+    /// waited for the statistics and overlaps of the pieces so far (on the replay's path);
+    /// the last one, which the replay's answer is, is built at [`Node::finish`]. A reader
+    /// that comes gets the report as it stands at the next step or tick.
+    fn report_wanted(&self) -> bool {
+        self.report_read.0 || self.report_read.1
     }
 
     /// The report (the engine's answer now), and the suggestions if there are new ones.
@@ -1308,6 +1322,21 @@ impl Node for CheckerNode {
         if self.labels_topic.as_deref() == Some(topic) {
             self.engine.set_labels(read);
         }
+        let report = if topic == self.report_topic {
+            Some(&mut self.report_read.0)
+        } else if self.suggestions_topic.as_deref() == Some(topic) {
+            Some(&mut self.report_read.1)
+        } else {
+            None
+        };
+        if let Some(r) = report {
+            // Its new reader is owed the answer so far (a late joiner of the transient
+            // local report gets it at once from the writer, but only once it is written).
+            if read && !*r {
+                self.dirty = true;
+            }
+            *r = read;
+        }
     }
 
     fn finish(&mut self, out: &mut Vec<Message>) {
@@ -1315,6 +1344,8 @@ impl Node for CheckerNode {
         let mut rolled = Vec::new();
         self.engine.finish(&mut rolled);
         self.dirty = true;
+        // The last report is the answer (the replay's, a stream's end): built read or not.
+        self.report_read = (true, true);
         self.emit_then_report(rolled, true, out);
     }
 
