@@ -557,8 +557,9 @@ fn live_contact_events_wait_for_nothing_on_the_pool() {
 
 /// A checker node whose report and suggestions nobody reads (a replay recording neither)
 /// builds no report until its last, at the end, which is the report a node read all along
-/// ends with; its contact events go out as before. A reader that comes is sent the report
-/// as it stands at the next step.
+/// ends with (the overlap's bound, not worked out frame by frame then, the same); its
+/// contact events go out as before, with the same overlaps. A reader that comes is sent the
+/// report as it stands at the next step.
 #[test]
 fn an_unread_report_is_built_only_at_the_end() {
     use chronotope::msg::{InterferenceReport, ResolveSuggestions, RosMessage};
@@ -599,9 +600,12 @@ fn an_unread_report_is_built_only_at_the_end() {
                         reported_at.push(k);
                         last = Some((**r).clone());
                     }
-                    Payload::Contact(e) => {
-                        events.push((e.event, e.contact_index, e.header.stamp.as_nanos()))
-                    }
+                    Payload::Contact(e) => events.push((
+                        e.event,
+                        e.contact_index,
+                        e.header.stamp.as_nanos(),
+                        e.overlap_hypervolume_m3s.to_bits(),
+                    )),
                     _ => {}
                 }
             }

@@ -1336,6 +1336,8 @@ impl Node for CheckerNode {
                 self.dirty = true;
             }
             *r = read;
+            let wanted = self.report_wanted();
+            self.engine.set_reports(wanted);
         }
     }
 
@@ -1346,6 +1348,7 @@ impl Node for CheckerNode {
         self.dirty = true;
         // The last report is the answer (the replay's, a stream's end): built read or not.
         self.report_read = (true, true);
+        self.engine.set_reports(true);
         self.emit_then_report(rolled, true, out);
     }
 

@@ -114,6 +114,12 @@ pub struct RollingConfig {
     /// every window. The windows hold their slabs: at most this many per body and pair, most
     /// often still held for the statistics or as context.
     pub kept_windows: usize,
+    /// Reports are read on the way ([`RollingChecker::report`] asked for while the streams
+    /// go on): an interfering pair's overlap bound, which needs the overlap closed by a cap
+    /// at its latest frame, is then worked out frame by frame on the bookkeeping, beside
+    /// the overlap. Off, it is worked out when a report is asked for (the last one), and a
+    /// contact event's overlap comes without it.
+    pub reports: bool,
 }
 
 impl Default for RollingConfig {
@@ -130,6 +136,7 @@ impl Default for RollingConfig {
             max_frame_bytes: DEFAULT_MAX_FRAME_BYTES,
             resolve_in_flight: 1,
             kept_windows: 4,
+            reports: true,
         }
     }
 }
@@ -1248,6 +1255,11 @@ impl RollingChecker {
     /// Turns [`RollingOutput::Labels`] on or off while the streams go on (nobody reads them).
     pub fn set_labels(&mut self, on: bool) {
         self.cfg.labels = on;
+    }
+
+    /// Turns [`RollingConfig::reports`] on or off while the streams go on.
+    pub fn set_reports(&mut self, on: bool) {
+        self.cfg.reports = on;
     }
 
     /// Turns [`RollingOutput::SlabDone`] on or off while the streams go on. Turned on, it reports

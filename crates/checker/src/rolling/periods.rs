@@ -8,7 +8,7 @@ use std::sync::Arc;
 use super::{
     add_normals, bounds, check_window, closing_sums, hold, on_pair_lattice, origin_offset,
     prepare_window,
-    report::{pair_overlap, run_overlap},
+    report::{pair_overlap_as, run_overlap},
     speed, time_at, union_bounds, CapSide, ContactPhase, ContactUpdate, Crossing, FramesAround,
     GridGeometry, HeldSlab, HeldWindow, HeldWindows, Interval, KeptWindow, Label, LabelCounts,
     Mesher, MesherOptions, OccupancyGrid, OpenUnsure, Overlap, Partner, PendingPeriod, PoolJob,
@@ -1056,12 +1056,14 @@ impl RollingChecker {
             });
             frames.push((stamp, both));
         }
-        // What the contact events of this period say: the overlap through its start.
-        self.pairs[i].overlap_known = pair_overlap(&self.pairs[i]);
+        // What the contact events of this period say: the overlap through its start (its
+        // bound too while reports are read; else not known here, where working it out would
+        // hold up the check).
+        self.pairs[i].overlap_known = pair_overlap_as(&self.pairs[i], self.cfg.reports);
         if frames.is_empty() {
             return;
         }
-        let closing = self.pairs[i].interfering();
+        let closing = self.pairs[i].interfering() && self.cfg.reports;
         let mut ov = std::mem::take(&mut self.pairs[i].overlap);
         self.pairs[i].overlap_job = Some(PoolJob::spawn(&self.bookkeeping, move || {
             feed_overlap(&mut ov, opts, frames, closing);

@@ -161,12 +161,18 @@ fn first_contact(p: &PairRoll) -> Option<f64> {
 /// A pair's overlap so far and its bound: none for a pair that never interfered. While
 /// a period's overlap is being measured on the pool, the overlap before it.
 pub(super) fn pair_overlap(p: &PairRoll) -> Option<(f64, f64)> {
+    pair_overlap_as(p, true)
+}
+
+/// [`pair_overlap`]; without `bound_here`, a bound that would need the closing cap's
+/// normals worked out here is NaN (not known), the overlap itself as ever.
+pub(super) fn pair_overlap_as(p: &PairRoll, bound_here: bool) -> Option<(f64, f64)> {
     if !p.interfering() {
         Some((0.0, 0.0))
     } else if p.overlap_job.is_some() {
         p.overlap_known
     } else {
-        overlap_so_far(&p.overlap)
+        overlap_so_far_as(&p.overlap, bound_here)
     }
 }
 
@@ -283,13 +289,20 @@ pub(super) fn pair_report(
     }
 }
 
-/// The overlap hypervolume so far and its error bound (`None`: not measurable).
-pub(super) fn overlap_so_far(o: &Overlap) -> Option<(f64, f64)> {
-    run_overlap(o).map(|(hv, b)| (hv + o.closed.0, b + o.closed.1))
+/// The overlap hypervolume so far and its error bound (`None`: not measurable); without
+/// `bound_here` as [`run_overlap_as`] gives it.
+fn overlap_so_far_as(o: &Overlap, bound_here: bool) -> Option<(f64, f64)> {
+    run_overlap_as(o, bound_here).map(|(hv, b)| (hv + o.closed.0, b + o.closed.1))
 }
 
 /// The overlap of the current run of consecutive periods, and its bound.
 pub(super) fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
+    run_overlap_as(o, true)
+}
+
+/// [`run_overlap`]; without `bound_here`, the bound is NaN where it would need the closing
+/// cap's normals and they were not worked out with the overlap.
+fn run_overlap_as(o: &Overlap, bound_here: bool) -> Option<(f64, f64)> {
     if o.unknown {
         return None;
     }
@@ -304,7 +317,13 @@ pub(super) fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
     };
     // Worked out as the last frame was fed for a pair interfering by then, else here.
     let sums = if n >= 2 {
-        o.closed_sums.or_else(|| closing_sums(o)).unwrap_or(o.sums)
+        match o.closed_sums {
+            Some(s) => s,
+            None if !bound_here && o.mesher.as_ref().is_some_and(|m| m.last_frame().is_some()) => {
+                (f64::NAN, f64::NAN)
+            }
+            None => closing_sums(o).unwrap_or(o.sums),
+        }
     } else {
         o.sums
     };
