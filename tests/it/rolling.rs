@@ -568,15 +568,19 @@ fn an_unread_report_is_built_only_at_the_end() {
     let t0 = 1_000_000_000i64;
     // The steps at which a report went out, the contact events, and the last report; the
     // report and suggestions unread from step `unread`, read again at step `reread`.
-    let run = |unread: Option<u32>, reread: Option<u32>| {
-        // The two cubes, /a movable (so that suggestions go out with the reports).
-        let cfg = LaunchConfig::parse(
+    let run = |unread: Option<u32>, reread: Option<u32>, movable: bool| {
+        // The two cubes, /a movable (so that suggestions go out with the reports) or not.
+        let cfg = if !movable {
+            two_cubes()
+        } else {
+            LaunchConfig::parse(
             "launch:\n\
              - node: {pkg: chronotope, exec: mesher, param: [{name: bodies, value: [/a/occupancy, /b/occupancy]}]}\n\
              - node: {pkg: chronotope, exec: checker, param: [{name: pairs, value: ['/a/occupancy /b/occupancy']}, {name: movable, value: [/a/occupancy]}]}\n",
             "test",
         )
-        .unwrap();
+        .unwrap()
+        };
         let bodies = vec!["/a/occupancy".to_owned(), "/b/occupancy".to_owned()];
         let mut mesher =
             chronotope::node::mesher::MesherNode::from_spec(&cfg.nodes[0], &bodies).unwrap();
@@ -591,7 +595,7 @@ fn an_unread_report_is_built_only_at_the_end() {
             })
             .map(|p| p.topic)
             .collect();
-        assert_eq!(told.len(), 2, "{told:?}");
+        assert_eq!(told.len(), 1 + usize::from(movable), "{told:?}");
         let (mut reported_at, mut events, mut last) = (Vec::new(), Vec::new(), None);
         let mut take = |k: u32, out: &[Message]| {
             for m in out {
@@ -633,20 +637,20 @@ fn an_unread_report_is_built_only_at_the_end() {
         let last = last.expect("a last report");
         (reported_at, events, format!("{last:?}"))
     };
-    let (read, events, answer) = run(None, None);
+    let (read, events, answer) = run(None, None, true);
     assert!(
         read.len() >= 4,
         "a report at each contact's change: {read:?}"
     );
     assert!(events.len() >= 3, "{events:?}");
-    let (unread, unread_events, unread_answer) = run(Some(0), None);
+    let (unread, unread_events, unread_answer) = run(Some(0), None, true);
     assert_eq!(unread, [8], "only the last report");
     assert_eq!(unread_events, events);
     assert_eq!(unread_answer, answer);
     // Read again from step 5: the report as it stands then, and on as before.
     // (The first message of that step brings the report owed, a later one of the step the
     // report it changes, as in a node read all along.)
-    let (mut again, again_events, again_answer) = run(Some(0), Some(5));
+    let (mut again, again_events, again_answer) = run(Some(0), Some(5), true);
     assert_eq!(again.first(), Some(&5), "{again:?}");
     let mut from_5: Vec<u32> = read.iter().copied().filter(|&k| k >= 5).collect();
     again.dedup();
@@ -654,6 +658,12 @@ fn an_unread_report_is_built_only_at_the_end() {
     assert_eq!(again, from_5, "{read:?}");
     assert_eq!(again_events, events);
     assert_eq!(again_answer, answer);
+    // No movable body, so no suggestions: the report unread is all it takes.
+    let (read, events, answer) = run(None, None, false);
+    assert!(read.len() >= 4, "{read:?}");
+    let (unread, unread_events, unread_answer) = run(Some(0), None, false);
+    assert_eq!(unread, [8], "only the last report");
+    assert_eq!((unread_events, unread_answer), (events, answer));
 }
 
 /// A live checker node behind its input (no tick comes) with its bookkeeping held up: after

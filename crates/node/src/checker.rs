@@ -84,8 +84,9 @@ pub struct CheckerNode {
     /// [`CheckerNode::publish_report_if_changed`]).
     report_waited: u32,
     /// Whether anything reads `~/report` and `~/suggestions` (the transport says so:
-    /// [`Node::set_demand`]; both are read until it says otherwise). With neither read,
-    /// only the last report is built (see [`CheckerNode::publish_report_if_changed`]).
+    /// [`Node::set_demand`]; each is read until it says otherwise, the suggestions only if
+    /// there are any, a movable body). With neither read, only the last report is built
+    /// (see [`CheckerNode::publish_report_if_changed`]).
     report_read: (bool, bool),
     /// Episodes resolved so far, and when the suggestions were last published (the report
     /// keeps a bounded number of resolutions, so their count stops telling).
@@ -224,6 +225,8 @@ impl CheckerNode {
             resolve_in_flight: in_flight as usize,
             ..RollingConfig::default()
         };
+        // No suggestions topic (no movable body): nothing reads one.
+        let suggested = suggestions_topic.is_some();
         Ok(Self {
             fqn: node,
             opts,
@@ -246,7 +249,7 @@ impl CheckerNode {
             latest_ns: 0,
             dirty: false,
             report_waited: 0,
-            report_read: (true, true),
+            report_read: (true, suggested),
             resolved: (0, 0),
             markers_queue: markers.then(|| {
                 Arc::new(Mutex::new(MarkerQueue {
