@@ -414,7 +414,11 @@ impl RollingChecker {
             }
             // Its prepared windows: every pair that could take one again has gone past it.
             // A body at rest keeps them, to move them for its next windows.
-            if let Some(held) = self.prepared.get_mut(id) {
+            if let Some(held) = self
+                .prepared
+                .get_mut(id)
+                .filter(|held| held.iter().any(|h| h.s < oldest))
+            {
                 let (gone, kept): (Vec<_>, Vec<_>) =
                     std::mem::take(held).into_iter().partition(|h| h.s < oldest);
                 *held = kept;

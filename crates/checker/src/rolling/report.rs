@@ -300,8 +300,8 @@ pub(super) fn run_overlap(o: &Overlap) -> Option<(f64, f64)> {
     run_overlap_as(o, true)
 }
 
-/// [`run_overlap`]; without `bound_here`, the bound is NaN where it would need the closing
-/// cap's normals and they were not worked out with the overlap.
+/// [`run_overlap`]; without `bound_here`, the bound is NaN where the closing cap's normals
+/// were not worked out with the overlap.
 fn run_overlap_as(o: &Overlap, bound_here: bool) -> Option<(f64, f64)> {
     if o.unknown {
         return None;
@@ -319,9 +319,7 @@ fn run_overlap_as(o: &Overlap, bound_here: bool) -> Option<(f64, f64)> {
     let sums = if n >= 2 {
         match o.closed_sums {
             Some(s) => s,
-            None if !bound_here && o.mesher.as_ref().is_some_and(|m| m.last_frame().is_some()) => {
-                (f64::NAN, f64::NAN)
-            }
+            None if !bound_here => (f64::NAN, f64::NAN),
             None => closing_sums(o).unwrap_or(o.sums),
         }
     } else {
